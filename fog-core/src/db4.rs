@@ -1,0 +1,259 @@
+//! db4 discrete wavelet transform in lifting form (Daubechies-Sweldens factorization).
+//!
+//! The forward transform [`forward`] and its inverse [`inverse`] work on a slice whose
+//! length is a power of two, with periodic boundary handling. After a forward transform of
+//! `levels` levels the slice holds the coefficients in the order and with the values of
+//! PyWavelets
+//!
+//! ```text
+//! pywt.wavedec(x, 'db4', mode='periodization', level=levels)
+//! = [cA_levels, cD_levels, cD_levels-1, ..., cD_1]   (concatenated)
+//! ```
+//!
+//! so the finest details `cD_1` occupy the upper half of the slice.
+//!
+//! # Lifting steps
+//! One level splits `x` into `s[n] = x[2n]` and `d[n] = x[2n+1]` (`H = len/2`, indices
+//! modulo `H`), then applies five lifting steps and a scaling:
+//!
+//! | step | kind    | operation |
+//! |------|---------|-----------|
+//! | 1 | predict | `d[n] += P0 * s[n+1]` |
+//! | 2 | update  | `s[n] += U1[0] * d[n] + U1[1] * d[n-1]` |
+//! | 3 | predict | `d[n] += P2[0] * s[n+2] + P2[1] * s[n+1]` |
+//! | 4 | update  | `s[n] += U3[0] * d[n] + U3[1] * d[n-1]` |
+//! | 5 | predict | `d[n] += P4[0] * s[n] + P4[1] * s[n-1] + P4[2] * s[n-2]` |
+//! | 6 | scale   | `s *= K_S`, `d *= K_D` |
+//!
+//! The constants are MATLAB's `liftwave('db4')` values refined to double precision by
+//! `scripts/derive_db4_lifting.py`, which checks the result against PyWavelets to 2e-16.
+//! PyWavelets' coefficients are then `cA[n] = s[n-1]` and `cD[n] = d[n+1]`: the rotation by
+//! one coefficient per level is folded into the write-back, so it costs nothing.
+//!
+//! # Cost and accuracy
+//! Per level and per input sample: 5 multiply-adds and one scaling multiply (10 taps per
+//! pair of samples), against 8 for the two-filter form; plus one de-interleave copy through
+//! the scratch buffer. In f32 the coefficients agree with PyWavelets (f64) to about 1e-6 of
+//! the signal's RMS (tested to 2e-6 for lengths 64..=4096 and levels 1..=5).
+
+/// Predict step 1 (`d += P0 * s[n+1]`).
+const P0: [f32; 1] = [-3.222_758_880_002_811_2e-1];
+/// Update step 2 (taps `d[n]`, `d[n-1]`).
+const U1: [f32; 2] = [-1.117_123_605_116_217_2, -3.001_422_585_491_521_6e-1];
+/// Predict step 3 (taps `s[n+2]`, `s[n+1]`).
+const P2: [f32; 2] = [-1.880_835_272_775_004_1e-2, 1.176_480_868_035_395_1e-1];
+/// Update step 4 (taps `d[n]`, `d[n-1]`).
+const U3: [f32; 2] = [2.131_816_712_612_866_7, 6.364_282_709_619_261_1e-1];
+/// Predict step 5 (taps `s[n]`, `s[n-1]`, `s[n-2]`).
+const P4: [f32; 3] = [
+    -4.690_834_789_330_211e-1,
+    1.400_392_377_392_728_2e-1,
+    -2.479_123_815_827_083_4e-2,
+];
+/// Scaling of the approximation channel.
+const K_S: f32 = 7.341_245_277_004_642_1e-1;
+/// Scaling of the detail channel.
+const K_D: f32 = 1.362_166_720_041_831_5;
+
+/// Shortest coarsest approximation a transform may leave: the db4 filter length.
+///
+/// This is the same limit as `pywt.dwt_max_level(len, 8)` for power-of-two lengths.
+pub const MIN_COARSEST_LEN: usize = 8;
+
+/// Why a transform was refused. Nothing is modified when an error is returned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TransformError {
+    /// The signal length is not a power of two.
+    LengthNotPowerOfTwo,
+    /// `levels` is 0 or leaves fewer than [`MIN_COARSEST_LEN`] approximation coefficients.
+    BadLevels,
+    /// The scratch buffer is shorter than the signal.
+    ScratchTooShort,
+}
+
+impl core::fmt::Display for TransformError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::LengthNotPowerOfTwo => "signal length is not a power of two",
+            Self::BadLevels => {
+                "levels must be >= 1 and leave at least 8 approximation coefficients"
+            }
+            Self::ScratchTooShort => "scratch buffer is shorter than the signal",
+        })
+    }
+}
+
+impl core::error::Error for TransformError {}
+
+/// Largest number of levels a signal of `len` samples supports (0 if none).
+pub const fn max_levels(len: usize) -> u32 {
+    if len < MIN_COARSEST_LEN || !len.is_power_of_two() {
+        return 0;
+    }
+    (len / MIN_COARSEST_LEN).trailing_zeros()
+}
+
+/// Checks the arguments shared by [`forward`] and [`inverse`].
+pub fn check(len: usize, scratch_len: usize, levels: u32) -> Result<(), TransformError> {
+    if !len.is_power_of_two() {
+        return Err(TransformError::LengthNotPowerOfTwo);
+    }
+    if levels == 0 || levels > max_levels(len) {
+        return Err(TransformError::BadLevels);
+    }
+    if scratch_len < len {
+        return Err(TransformError::ScratchTooShort);
+    }
+    Ok(())
+}
+
+/// `dst[n] += sum_i coeffs[i] * src[(n + offset - i) mod H]` for every `n`, `H = dst.len()`.
+///
+/// The interior, where no index wraps, runs as one multiply-add pass per tap (which the
+/// compiler vectorises); the few wrapped indices at either end are done separately.
+#[inline(always)]
+fn lift_step<const TAPS: usize>(dst: &mut [f32], src: &[f32], coeffs: &[f32; TAPS], offset: usize) {
+    let h = dst.len();
+    // Indices n + offset - i stay within 0..h for n in lo..hi.
+    let lo = (TAPS - 1).saturating_sub(offset).min(h);
+    let hi = h.saturating_sub(offset).max(lo);
+    let wrapped = |n: usize, dst: &mut [f32]| {
+        let mut acc = 0.0f32;
+        for (i, c) in coeffs.iter().enumerate() {
+            // (n + offset - i) mod h without going negative: add h * TAPS first.
+            let j = (n + offset + h * TAPS - i) % h;
+            acc += c * src[j];
+        }
+        dst[n] += acc;
+    };
+    for n in 0..lo {
+        wrapped(n, dst);
+    }
+    if lo < hi {
+        // Accumulate the taps in the same order as `wrapped`, so every sample is computed by
+        // the same sequence of f32 operations wherever it lies.
+        let base = lo + offset;
+        let out = &mut dst[lo..hi];
+        match TAPS {
+            1 => {
+                for (o, s) in out.iter_mut().zip(&src[base..]) {
+                    *o += coeffs[0] * s;
+                }
+            }
+            2 => {
+                for ((o, s0), s1) in out.iter_mut().zip(&src[base..]).zip(&src[base - 1..]) {
+                    *o += coeffs[0] * s0 + coeffs[1] * s1;
+                }
+            }
+            _ => {
+                for (k, o) in out.iter_mut().enumerate() {
+                    let mut acc = 0.0f32;
+                    for (i, c) in coeffs.iter().enumerate() {
+                        acc += c * src[base + k - i];
+                    }
+                    *o += acc;
+                }
+            }
+        }
+    }
+    for n in hi..h {
+        wrapped(n, dst);
+    }
+}
+
+/// `dst[n] -= ...`: the exact undo of [`lift_step`] with the same coefficients.
+#[inline(always)]
+fn unlift_step<const TAPS: usize>(
+    dst: &mut [f32],
+    src: &[f32],
+    coeffs: &[f32; TAPS],
+    offset: usize,
+) {
+    let neg = coeffs.map(|c| -c);
+    lift_step(dst, src, &neg, offset);
+}
+
+/// One forward level on `x` (len `2H`), using `scratch[..2H]`; writes `[cA | cD]` to `x`.
+fn forward_level(x: &mut [f32], scratch: &mut [f32]) {
+    let h = x.len() / 2;
+    let (s, d) = scratch[..2 * h].split_at_mut(h);
+    for (n, pair) in x.chunks_exact(2).enumerate() {
+        s[n] = pair[0];
+        d[n] = pair[1];
+    }
+    lift_step(d, s, &P0, 1);
+    lift_step(s, d, &U1, 0);
+    lift_step(d, s, &P2, 2);
+    lift_step(s, d, &U3, 0);
+    lift_step(d, s, &P4, 0);
+    // Scale and rotate into PyWavelets order: cA[n] = s[n-1], cD[n] = d[n+1].
+    let (ca, cd) = x.split_at_mut(h);
+    ca[0] = K_S * s[h - 1];
+    for (a, v) in ca[1..].iter_mut().zip(&s[..h - 1]) {
+        *a = K_S * v;
+    }
+    for (c, v) in cd[..h - 1].iter_mut().zip(&d[1..]) {
+        *c = K_D * v;
+    }
+    cd[h - 1] = K_D * d[0];
+}
+
+/// One inverse level: reads `[cA | cD]` from `x` (len `2H`) and writes the signal back.
+fn inverse_level(x: &mut [f32], scratch: &mut [f32]) {
+    let h = x.len() / 2;
+    let (s, d) = scratch[..2 * h].split_at_mut(h);
+    let (ca, cd) = x.split_at(h);
+    // K_S * K_D = 1 (to 2e-16 in f64), so dividing by one is multiplying by the other.
+    s[h - 1] = K_D * ca[0];
+    for (v, a) in s[..h - 1].iter_mut().zip(&ca[1..]) {
+        *v = K_D * a;
+    }
+    for (v, c) in d[1..].iter_mut().zip(&cd[..h - 1]) {
+        *v = K_S * c;
+    }
+    d[0] = K_S * cd[h - 1];
+    unlift_step(d, s, &P4, 0);
+    unlift_step(s, d, &U3, 0);
+    unlift_step(d, s, &P2, 2);
+    unlift_step(s, d, &U1, 0);
+    unlift_step(d, s, &P0, 1);
+    for (n, pair) in x.chunks_exact_mut(2).enumerate() {
+        pair[0] = s[n];
+        pair[1] = d[n];
+    }
+}
+
+/// Multi-level forward transform in place; see the module docs for the output layout.
+///
+/// `scratch` must be at least as long as `x`; its contents on return are unspecified.
+pub fn forward(x: &mut [f32], scratch: &mut [f32], levels: u32) -> Result<(), TransformError> {
+    check(x.len(), scratch.len(), levels)?;
+    let mut n = x.len();
+    for _ in 0..levels {
+        forward_level(&mut x[..n], scratch);
+        n /= 2;
+    }
+    Ok(())
+}
+
+/// Multi-level inverse of [`forward`] in place (same `levels`).
+pub fn inverse(x: &mut [f32], scratch: &mut [f32], levels: u32) -> Result<(), TransformError> {
+    check(x.len(), scratch.len(), levels)?;
+    let mut n = x.len() >> (levels - 1);
+    for _ in 0..levels {
+        inverse_level(&mut x[..n], scratch);
+        n *= 2;
+    }
+    Ok(())
+}
+
+/// Index range of the detail coefficients `cD_level` (1 = finest) inside a transformed
+/// slice of length `len`. Returns an empty range for a level that does not exist.
+pub fn detail_range(len: usize, level: u32) -> core::ops::Range<usize> {
+    if level == 0 || level > usize::BITS - 1 || len >> level == 0 {
+        return 0..0;
+    }
+    let start = len >> level;
+    start..2 * start
+}

@@ -1,0 +1,17 @@
+//! `fog-core`: fiber-optic-gyro drift identification that runs unchanged on a Cortex-M4F and
+//! on the host.
+//!
+//! `no_std`, no heap, fixed sizes, no panics on any input. Modules:
+//! - [`db4`]: db4 wavelet transform in lifting form, PyWavelets-compatible coefficients;
+//! - [`threshold`]: noise estimate, universal threshold, soft and hard shrinkage;
+//! - [`denoise`]: block denoising (paper section 3) and a sample-by-sample block buffer.
+#![no_std]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod db4;
+pub mod denoise;
+pub mod threshold;
+
+pub use denoise::{BlockDenoiser, DenoiseConfig, DenoiseError, Push, Thresholds};
+pub use threshold::{Sigma, ThresholdRule};
