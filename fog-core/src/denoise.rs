@@ -86,6 +86,12 @@ pub struct Thresholds {
 ///
 /// `scratch` must be at least `x.len()` long. The approximation coefficients are kept as
 /// they are (paper section 3, step 2). On error `x` is unchanged.
+///
+/// The block mean is subtracted before the transform and added back after it. A constant
+/// lives only in the approximation coefficients, which are never thresholded, so this
+/// changes nothing mathematically; numerically it makes the f32 rounding of the lifting
+/// steps relative to the signal's range instead of to its offset (a gyro's bias can be
+/// hundreds of times its noise).
 pub fn denoise_in_place(
     x: &mut [f32],
     scratch: &mut [f32],
@@ -107,9 +113,13 @@ pub fn denoise_in_place(
         }
         peak = peak.max(libm::fabsf(v));
     }
+    let n = x.len();
+    let mean = x.iter().sum::<f32>() / n as f32;
+    for v in x.iter_mut() {
+        *v -= mean;
+    }
     db4::forward(x, scratch, cfg.levels)?;
 
-    let n = x.len();
     let mut out = Thresholds {
         levels: cfg.levels,
         sigma: [0.0; MAX_LEVELS as usize],
@@ -140,6 +150,9 @@ pub fn denoise_in_place(
         threshold::shrink_all(&mut x[range], mu, cfg.rule);
     }
     db4::inverse(x, scratch, cfg.levels)?;
+    for v in x.iter_mut() {
+        *v += mean;
+    }
     Ok(out)
 }
 
