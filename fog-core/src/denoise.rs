@@ -3,6 +3,11 @@
 use crate::db4::{self, TransformError};
 use crate::threshold::{self, Sigma, ThresholdRule, ZERO_REL};
 
+/// Largest sample magnitude accepted: far above any rate a gyro reports, far enough below
+/// `f32::MAX` that no intermediate value of the transform (at most a few hundred times the
+/// peak) can overflow.
+pub const MAX_ABS_INPUT: f32 = 1.0e30;
+
 /// Most levels any configuration may ask for (a 2^16-sample block at 13 levels).
 pub const MAX_LEVELS: u32 = 16;
 
@@ -48,6 +53,8 @@ pub enum DenoiseError {
     Transform(TransformError),
     /// A sample is NaN or infinite.
     NonFinite,
+    /// A sample's magnitude exceeds [`MAX_ABS_INPUT`].
+    OutOfRange,
     /// `Sigma::Fixed` holds a negative or non-finite value.
     BadSigma,
 }
@@ -63,6 +70,7 @@ impl core::fmt::Display for DenoiseError {
         match self {
             Self::Transform(e) => write!(f, "{e}"),
             Self::NonFinite => f.write_str("sample is NaN or infinite"),
+            Self::OutOfRange => f.write_str("sample magnitude exceeds 1e30"),
             Self::BadSigma => f.write_str("fixed sigma must be finite and >= 0"),
         }
     }
@@ -113,8 +121,13 @@ pub fn denoise_in_place(
         }
         peak = peak.max(libm::fabsf(v));
     }
+    if peak > MAX_ABS_INPUT {
+        return Err(DenoiseError::OutOfRange);
+    }
     let n = x.len();
-    let mean = x.iter().sum::<f32>() / n as f32;
+    // Sum of x/n rather than sum/n: cannot overflow whatever the block length.
+    let inv_n = 1.0 / n as f32;
+    let mean = x.iter().map(|v| v * inv_n).sum::<f32>();
     for v in x.iter_mut() {
         *v -= mean;
     }
@@ -225,10 +238,14 @@ impl<const N: usize> BlockDenoiser<N> {
 
     /// Stores one sample; denoises and returns the block when it is full.
     ///
-    /// A non-finite sample is refused with [`DenoiseError::NonFinite`] and not stored.
+    /// A non-finite sample is refused with [`DenoiseError::NonFinite`], one larger than
+    /// [`MAX_ABS_INPUT`] with [`DenoiseError::OutOfRange`]; neither is stored.
     pub fn push(&mut self, x: f32) -> Result<Push<'_, N>, DenoiseError> {
         if !x.is_finite() {
             return Err(DenoiseError::NonFinite);
+        }
+        if libm::fabsf(x) > MAX_ABS_INPUT {
+            return Err(DenoiseError::OutOfRange);
         }
         // `filled < N` always holds between calls.
         if let Some(slot) = self.block.get_mut(self.filled) {
@@ -243,5 +260,101 @@ impl<const N: usize> BlockDenoiser<N> {
         self.filled = 0;
         let t = denoise_in_place(&mut self.block, &mut self.scratch, &self.cfg)?;
         Ok(Push::Block(&self.block, t))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn errors_leave_block_unchanged() {
+        let mut x = [1.0f32; 64];
+        let mut s = [0.0f32; 64];
+        x[5] = f32::NAN;
+        let before = x;
+        assert_eq!(
+            denoise_in_place(&mut x, &mut s, &DenoiseConfig::PAPER),
+            Err(DenoiseError::NonFinite)
+        );
+        assert!(x
+            .iter()
+            .zip(&before)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        let mut y = [1.0f32; 64];
+        let bad = DenoiseConfig {
+            levels: 4,
+            ..DenoiseConfig::PAPER
+        };
+        assert_eq!(
+            denoise_in_place(&mut y, &mut s, &bad),
+            Err(DenoiseError::Transform(TransformError::BadLevels))
+        );
+        let neg = DenoiseConfig {
+            sigma: Sigma::Fixed(-1.0),
+            ..DenoiseConfig::PAPER
+        };
+        assert_eq!(
+            denoise_in_place(&mut y, &mut s, &neg),
+            Err(DenoiseError::BadSigma)
+        );
+        assert_eq!(
+            denoise_in_place(&mut y[..48], &mut s, &DenoiseConfig::PAPER),
+            Err(DenoiseError::Transform(TransformError::LengthNotPowerOfTwo))
+        );
+        assert_eq!(
+            denoise_in_place(&mut y, &mut s[..32], &DenoiseConfig::PAPER),
+            Err(DenoiseError::Transform(TransformError::ScratchTooShort))
+        );
+        assert!(y.iter().all(|&v| v == 1.0));
+    }
+
+    #[test]
+    fn block_denoiser_latency_and_rejections() {
+        let mut bd = BlockDenoiser::<64>::new(DenoiseConfig::PAPER).expect("valid");
+        assert_eq!(bd.push(f32::INFINITY), Err(DenoiseError::NonFinite));
+        assert_eq!(bd.push(2e30), Err(DenoiseError::OutOfRange));
+        for i in 0..63 {
+            assert_eq!(bd.push(0.5), Ok(Push::Pending { filled: i + 1 }));
+        }
+        match bd.push(0.5) {
+            Ok(Push::Block(b, t)) => {
+                // A constant block comes back as itself: all details are zero.
+                assert!(b.iter().all(|&v| (v - 0.5).abs() < 1e-6));
+                assert_eq!(t.sigma[0], 0.0);
+            }
+            other => panic!("expected a block, got {other:?}"),
+        }
+        assert_eq!(bd.filled(), 0);
+        assert!(BlockDenoiser::<64>::new(DenoiseConfig {
+            levels: 4,
+            ..DenoiseConfig::PAPER
+        })
+        .is_err());
+    }
+
+    #[test]
+    fn denoising_reduces_white_noise() {
+        // Deterministic pseudo-random noise (LCG) on a slow sine: the denoised block is closer
+        // to the sine than the noisy one.
+        let mut state = 12345u32;
+        let mut noisy = [0.0f32; 1024];
+        let mut clean = [0.0f32; 1024];
+        for i in 0..1024 {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let u = (state >> 8) as f32 / (1u32 << 24) as f32 - 0.5;
+            clean[i] = libm::sinf(i as f32 * 0.01);
+            noisy[i] = clean[i] + 0.3 * u;
+        }
+        let err = |x: &[f32]| {
+            x.iter()
+                .zip(&clean)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f32>()
+        };
+        let before = err(&noisy);
+        let mut s = [0.0f32; 1024];
+        denoise_in_place(&mut noisy, &mut s, &DenoiseConfig::PAPER).expect("valid");
+        assert!(err(&noisy) < 0.3 * before, "{} vs {}", err(&noisy), before);
     }
 }

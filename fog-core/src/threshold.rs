@@ -112,3 +112,42 @@ pub fn median(v: &mut [f32]) -> f32 {
     let lower_mid = lower.iter().copied().fold(f32::NEG_INFINITY, f32::max);
     0.5 * (lower_mid + upper)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_odd_even_empty() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
+        assert_eq!(median(&mut []), 0.0);
+    }
+
+    #[test]
+    fn mad_sigma_ignores_numerical_zeros() {
+        let x = [0.0, 1e-9, -2.0, 0.0, 4.0, -6.0, 0.0];
+        let mut w = [0.0; 7];
+        // Nonzero magnitudes: 2, 4, 6 -> median 4.
+        assert!((mad_sigma(&x, &mut w, 1e-6) - 4.0 / MAD_TO_SIGMA).abs() < 1e-6);
+        assert_eq!(mad_sigma(&[0.0; 5], &mut w, 1e-6), 0.0);
+    }
+
+    #[test]
+    fn shrink_rules_match_paper_eq1() {
+        let mu = 1.0;
+        assert_eq!(shrink(2.5, mu, ThresholdRule::Soft), 1.5);
+        assert_eq!(shrink(-2.5, mu, ThresholdRule::Soft), -1.5);
+        assert_eq!(shrink(0.5, mu, ThresholdRule::Soft), 0.0);
+        assert_eq!(shrink(1.0, mu, ThresholdRule::Soft), 0.0);
+        assert_eq!(shrink(1.0, mu, ThresholdRule::Hard), 1.0);
+        assert_eq!(shrink(-0.99, mu, ThresholdRule::Hard), 0.0);
+    }
+
+    #[test]
+    fn universal_threshold_value() {
+        // sqrt(2 ln 512) = 3.5322...
+        assert!((universal_threshold(1.0, 512) - 3.532_21).abs() < 1e-4);
+        assert_eq!(universal_threshold(1.0, 1), 0.0);
+    }
+}

@@ -77,7 +77,12 @@ fn coefficients_match_pywt_wavedec_periodization() {
             let mut scratch = vec![0.0f32; x.len()];
             db4::forward(&mut x, &mut scratch, lc.level).expect("valid transform");
             let err = max_rel_err(&x, &lc.coeffs, scale);
-            assert!(err < TOL_RMS, "{} level {}: coefficient error {err:e} of RMS", case.name, lc.level);
+            assert!(
+                err < TOL_RMS,
+                "{} level {}: coefficient error {err:e} of RMS",
+                case.name,
+                lc.level
+            );
             checked += 1;
         }
     }
@@ -100,24 +105,44 @@ fn perfect_reconstruction_without_thresholding() {
             let mut scratch = vec![0.0f32; x0.len()];
             // Denoiser with a zero threshold: mean removed, transform, inverse, mean back.
             let mut x = x0.clone();
-            let cfg = DenoiseConfig { levels: lc.level, rule: ThresholdRule::Soft, sigma: Sigma::Fixed(0.0) };
+            let cfg = DenoiseConfig {
+                levels: lc.level,
+                rule: ThresholdRule::Soft,
+                sigma: Sigma::Fixed(0.0),
+            };
             denoise_in_place(&mut x, &mut scratch, &cfg).expect("denoise");
             let err = max_rel_err(&x, &want, range);
-            assert!(err < 1e-6, "{} level {}: round trip error {err:e} of range", case.name, lc.level);
+            assert!(
+                err < 1e-6,
+                "{} level {}: round trip error {err:e} of range",
+                case.name,
+                lc.level
+            );
             worst_range = worst_range.max(err);
             // Bare transform pair.
             let mut x = x0.clone();
             db4::forward(&mut x, &mut scratch, lc.level).expect("forward");
             db4::inverse(&mut x, &mut scratch, lc.level).expect("inverse");
             let err = max_rel_err(&x, &want, peak);
-            assert!(err < 1e-6, "{} level {}: reconstruction error {err:e} of peak", case.name, lc.level);
+            assert!(
+                err < 1e-6,
+                "{} level {}: reconstruction error {err:e} of peak",
+                case.name,
+                lc.level
+            );
             worst_peak = worst_peak.max(err);
         }
     }
-    println!("worst round trip: {worst_range:e} of range (denoiser), {worst_peak:e} of peak (bare)");
+    println!(
+        "worst round trip: {worst_range:e} of range (denoiser), {worst_peak:e} of peak (bare)"
+    );
 }
 
-fn check_denoise(rule: ThresholdRule, sigma: Sigma, pick: impl Fn(&LevelCase) -> Option<&Vec<f64>>) -> usize {
+fn check_denoise(
+    rule: ThresholdRule,
+    sigma: Sigma,
+    pick: impl Fn(&LevelCase) -> Option<&Vec<f64>>,
+) -> usize {
     let doc = load();
     let mut checked = 0;
     for case in &doc.cases {
@@ -126,19 +151,40 @@ fn check_denoise(rule: ThresholdRule, sigma: Sigma, pick: impl Fn(&LevelCase) ->
             let Some(want) = pick(lc) else { continue };
             let mut x = signal_f32(case);
             let mut scratch = vec![0.0f32; x.len()];
-            let cfg = DenoiseConfig { levels: lc.level, rule, sigma };
+            let cfg = DenoiseConfig {
+                levels: lc.level,
+                rule,
+                sigma,
+            };
             let t = denoise_in_place(&mut x, &mut scratch, &cfg).expect("denoise");
             let sig_want = lc.sigma_finest.expect("sigma present with outputs");
             let sig_err = (f64::from(t.sigma[0]) - sig_want).abs() / scale;
-            assert!(sig_err < TOL_RMS, "{} level {}: sigma {} vs {sig_want}", case.name, lc.level, t.sigma[0]);
+            assert!(
+                sig_err < TOL_RMS,
+                "{} level {}: sigma {} vs {sig_want}",
+                case.name,
+                lc.level,
+                t.sigma[0]
+            );
             if let (Sigma::PerLevelMad, Some(ps)) = (sigma, &lc.per_level_sigma) {
                 for (j, s) in ps.iter().enumerate() {
                     let e = (f64::from(t.sigma[j]) - s).abs() / scale;
-                    assert!(e < TOL_RMS, "{} level {}: sigma[{j}] {} vs {s}", case.name, lc.level, t.sigma[j]);
+                    assert!(
+                        e < TOL_RMS,
+                        "{} level {}: sigma[{j}] {} vs {s}",
+                        case.name,
+                        lc.level,
+                        t.sigma[j]
+                    );
                 }
             }
             let err = max_rel_err(&x, want, scale);
-            assert!(err < TOL_RMS, "{} level {} {rule:?}/{sigma:?}: error {err:e} of RMS", case.name, lc.level);
+            assert!(
+                err < TOL_RMS,
+                "{} level {} {rule:?}/{sigma:?}: error {err:e} of RMS",
+                case.name,
+                lc.level
+            );
             checked += 1;
         }
     }
@@ -157,5 +203,10 @@ fn hard_denoise_matches_pywt() {
 
 #[test]
 fn per_level_soft_denoise_matches_pywt() {
-    assert!(check_denoise(ThresholdRule::Soft, Sigma::PerLevelMad, |l| l.per_level_soft.as_ref()) >= 30);
+    assert!(
+        check_denoise(ThresholdRule::Soft, Sigma::PerLevelMad, |l| l
+            .per_level_soft
+            .as_ref())
+            >= 30
+    );
 }
