@@ -1,1 +1,39 @@
-fn main() {}
+//! `host-sim`: the bench tool that drives the same fog-core code as the firmware on recorded
+//! or simulated gyro data.
+#![forbid(unsafe_code)]
+
+mod denoise_cmd;
+mod record;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// FOG drift identification on the bench: the firmware's pipeline on recorded or simulated data.
+#[derive(Parser, Debug)]
+#[command(version, about)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand, Debug)]
+enum Cmd {
+    /// Wavelet-denoise a recording: adds a `denoised_dps` column (db4 lifting, soft universal
+    /// threshold, as in the paper).
+    Denoise(denoise_cmd::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.cmd {
+        Cmd::Denoise(a) => denoise_cmd::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // One line: the context chain joined, most specific last.
+            eprintln!("error: {}", format!("{e:#}").replace('\n', " "));
+            ExitCode::FAILURE
+        }
+    }
+}
