@@ -1,4 +1,7 @@
 //! db4 discrete wavelet transform in lifting form (Daubechies-Sweldens factorization).
+// The constants keep all the digits the derivation script printed (f64), so that they can
+// be checked against it; the compiler rounds them to the nearest f32.
+#![allow(clippy::excessive_precision)]
 //!
 //! The forward transform [`forward`] and its inverse [`inverse`] work on a slice whose
 //! length is a power of two, with periodic boundary handling. After a forward transform of

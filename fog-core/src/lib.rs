@@ -11,6 +11,8 @@
 
 pub mod db4;
 pub mod denoise;
+pub mod driver;
+pub mod frame;
 pub mod threshold;
 
 pub use denoise::{BlockDenoiser, DenoiseConfig, DenoiseError, Push, Thresholds};

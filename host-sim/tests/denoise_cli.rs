@@ -66,7 +66,7 @@ fn keeps_every_row_and_adds_a_column() {
             .headers()
             .expect("h")
             .clone();
-        assert_eq!(header.iter().last(), Some("denoised_dps"));
+        assert_eq!(header.iter().next_back(), Some("denoised_dps"));
         // Denoising brings the rate closer to the true drift.
         let err = |col: usize| {
             out.iter()
