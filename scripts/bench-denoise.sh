@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# fog-core denoise throughput against PyWavelets, side by side in one run, same data
+# (2^20 samples, db4, 3 levels, soft universal threshold). Needs python3 with PyWavelets
+# (installed with pip if missing). Prints both throughputs and the ratio.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+python3 -c "import pywt" 2>/dev/null || python3 -m pip install -q numpy PyWavelets
+out=$(mktemp -d)
+cargo bench -q -p fog-core --bench denoise -- --noplot 'denoise_db4_soft_3lvl/1048576' 2>&1 | tee "$out/fog.txt" >&2
+python3 scripts/bench_pywt.py | tee "$out/pywt.txt" >&2
+fog_ms=$(sed -n 's/.*time: *\[[0-9.]* [mµ]s \([0-9.]*\) \([mµ]\)s.*/\1 \2/p' "$out/fog.txt" | head -1)
+python3 - "$fog_ms" "$out/pywt.txt" <<'PY'
+import sys
+v, unit = sys.argv[1].split()
+fog_s = float(v) * (1e-3 if unit == "m" else 1e-6)
+pywt = float([l.split()[1] for l in open(sys.argv[2]) if l.startswith("pywt_samples_per_s ")][0])
+fog = (1 << 20) / fog_s
+print(f"fog-core {fog/1e6:.1f} Msamples/s (criterion median), PyWavelets {pywt/1e6:.1f} Msamples/s (best of 20): ratio {fog/pywt:.2f}x")
+PY
