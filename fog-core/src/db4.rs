@@ -111,119 +111,196 @@ pub fn check(len: usize, scratch_len: usize, levels: u32) -> Result<(), Transfor
     Ok(())
 }
 
-/// `dst[n] += sum_i coeffs[i] * src[(n + offset - i) mod H]` for every `n`, `H = dst.len()`.
+/// Ghost cells kept on each side of the even and odd channels during one level: the lifting
+/// steps reach at most 4 samples across the periodic boundary, so with the channels extended
+/// periodically by 4 on each side every value the write-back needs is computed without
+/// modular indexing.
+const GHOST: usize = 4;
+
+/// `a * x + b * y`, in this order (the same f32 operations everywhere).
+#[inline(always)]
+fn two(c: &[f32; 2], a: f32, b: f32) -> f32 {
+    c[0] * a + c[1] * b
+}
+
+/// `((0 + c0 * a) + c1 * b) + c2 * e`, in this order.
+#[inline(always)]
+fn three(c: &[f32; 3], a: f32, b: f32, e: f32) -> f32 {
+    let mut acc = 0.0f32;
+    acc += c[0] * a;
+    acc += c[1] * b;
+    acc += c[2] * e;
+    acc
+}
+
+/// One forward level on `x` (len `2H`, `H >= 8`); writes `[cA | cD]` to `x`. `offset` is
+/// subtracted from every sample as it is read (0 leaves the samples exactly as they are).
 ///
-/// The interior, where no index wraps, runs as one multiply-add pass per tap (which the
-/// compiler vectorises); the few wrapped indices at either end are done separately.
-#[inline(always)]
-fn lift_step<const TAPS: usize>(dst: &mut [f32], src: &[f32], coeffs: &[f32; TAPS], offset: usize) {
-    let h = dst.len();
-    // Indices n + offset - i stay within 0..h for n in lo..hi.
-    let lo = (TAPS - 1).saturating_sub(offset).min(h);
-    let hi = h.saturating_sub(offset).max(lo);
-    let wrapped = |n: usize, dst: &mut [f32]| {
-        let mut acc = 0.0f32;
-        for (i, c) in coeffs.iter().enumerate() {
-            // (n + offset - i) mod h without going negative: add h * TAPS first.
-            let j = (n + offset + h * TAPS - i) % h;
-            acc += c * src[j];
+/// The even channel `s` is extended to `H + 8` samples in `x[..H + 8]` itself, the odd
+/// channel `d` in `scratch[..H + 8]` (extended index `e` = sample `n = e - 4`). All five
+/// lifting steps then run in **one sweep**, each lagging the previous one by the reach of
+/// its taps, so the data crosses memory once per level instead of once per step.
+fn forward_level(x: &mut [f32], scratch: &mut [f32], offset: f32) {
+    let n2 = x.len();
+    let h = n2 / 2;
+    let e_len = h + 2 * GHOST;
+    let d = &mut scratch[..e_len];
+    // Odd samples first (x is still intact): d[e] = x[2(e - 4) + 1 mod 2H].
+    for e in 0..GHOST {
+        d[e] = x[n2 - 2 * GHOST + 2 * e + 1] - offset;
+        d[h + GHOST + e] = x[2 * e + 1] - offset;
+    }
+    for (v, pair) in d[GHOST..h + GHOST].iter_mut().zip(x.chunks_exact(2)) {
+        *v = pair[1] - offset;
+    }
+    // Even samples compacted into x itself: s[e] = x[2(e - 4) mod 2H], ascending e. Read
+    // positions below 16 may already be overwritten, so those come from a copy.
+    let mut head = [0.0f32; 16];
+    head.copy_from_slice(&x[..16]);
+    let mut tail = [0.0f32; GHOST];
+    for (e, t) in tail.iter_mut().enumerate() {
+        *t = x[n2 - 2 * GHOST + 2 * e] - offset;
+    }
+    x[..GHOST].copy_from_slice(&tail);
+    for e in GHOST..GHOST + 8 {
+        x[e] = head[2 * (e - GHOST)] - offset;
+    }
+    for e in GHOST + 8..h + GHOST {
+        x[e] = x[2 * (e - GHOST)] - offset;
+    }
+    for e in 0..GHOST {
+        x[h + GHOST + e] = head[2 * e] - offset;
+    }
+    let s = &mut x[..e_len];
+    // Sweep: steps 1 and 2 at e = i, steps 3 and 4 at i - 2, step 5 at i - 3. Each step
+    // overwrites only values that no later step still needs in their previous form. The
+    // first and last iterations check which steps are in range; the interior does not.
+    let edge = |s: &mut [f32], d: &mut [f32], i: usize| {
+        if i + 1 < e_len {
+            d[i] += P0[0] * s[i + 1];
+            if i >= 1 {
+                s[i] += two(&U1, d[i], d[i - 1]);
+            }
         }
-        dst[n] += acc;
+        if i >= 2 && (1..e_len - 3).contains(&(i - 2)) {
+            let e = i - 2;
+            d[e] += two(&P2, s[e + 2], s[e + 1]);
+            if e >= 2 {
+                s[e] += two(&U3, d[e], d[e - 1]);
+            }
+        }
+        if i >= 3 && (4..e_len - 3).contains(&(i - 3)) {
+            let e = i - 3;
+            d[e] += three(&P4, s[e], s[e - 1], s[e - 2]);
+        }
     };
-    for n in 0..lo {
-        wrapped(n, dst);
+    for i in 0..7 {
+        edge(s, d, i);
     }
-    if lo < hi {
-        // Accumulate the taps in the same order as `wrapped`, so every sample is computed by
-        // the same sequence of f32 operations wherever it lies.
-        let base = lo + offset;
-        let out = &mut dst[lo..hi];
-        match TAPS {
-            1 => {
-                for (o, s) in out.iter_mut().zip(&src[base..]) {
-                    *o += coeffs[0] * s;
-                }
-            }
-            2 => {
-                for ((o, s0), s1) in out.iter_mut().zip(&src[base..]).zip(&src[base - 1..]) {
-                    *o += coeffs[0] * s0 + coeffs[1] * s1;
-                }
-            }
-            _ => {
-                for (k, o) in out.iter_mut().enumerate() {
-                    let mut acc = 0.0f32;
-                    for (i, c) in coeffs.iter().enumerate() {
-                        acc += c * src[base + k - i];
-                    }
-                    *o += acc;
-                }
-            }
-        }
+    for i in 7..e_len - 1 {
+        d[i] += P0[0] * s[i + 1];
+        s[i] += two(&U1, d[i], d[i - 1]);
+        let e = i - 2;
+        d[e] += two(&P2, s[e + 2], s[e + 1]);
+        s[e] += two(&U3, d[e], d[e - 1]);
+        let e = i - 3;
+        d[e] += three(&P4, s[e], s[e - 1], s[e - 2]);
     }
-    for n in hi..h {
-        wrapped(n, dst);
+    for i in e_len - 1..e_len + 1 {
+        edge(s, d, i);
     }
-}
-
-/// `dst[n] -= ...`: the exact undo of [`lift_step`] with the same coefficients.
-#[inline(always)]
-fn unlift_step<const TAPS: usize>(
-    dst: &mut [f32],
-    src: &[f32],
-    coeffs: &[f32; TAPS],
-    offset: usize,
-) {
-    let neg = coeffs.map(|c| -c);
-    lift_step(dst, src, &neg, offset);
-}
-
-/// One forward level on `x` (len `2H`), using `scratch[..2H]`; writes `[cA | cD]` to `x`.
-fn forward_level(x: &mut [f32], scratch: &mut [f32]) {
-    let h = x.len() / 2;
-    let (s, d) = scratch[..2 * h].split_at_mut(h);
-    for (n, pair) in x.chunks_exact(2).enumerate() {
-        s[n] = pair[0];
-        d[n] = pair[1];
+    // Scale and rotate into PyWavelets order: cA[n] = s[n - 1] (e = n + 3), cD[n] = d[n + 1]
+    // (e = n + 5). Reading x[n + 3] while writing x[n] in ascending order is safe.
+    for n in 0..h {
+        x[n] = K_S * x[n + GHOST - 1];
     }
-    lift_step(d, s, &P0, 1);
-    lift_step(s, d, &U1, 0);
-    lift_step(d, s, &P2, 2);
-    lift_step(s, d, &U3, 0);
-    lift_step(d, s, &P4, 0);
-    // Scale and rotate into PyWavelets order: cA[n] = s[n-1], cD[n] = d[n+1].
-    let (ca, cd) = x.split_at_mut(h);
-    ca[0] = K_S * s[h - 1];
-    for (a, v) in ca[1..].iter_mut().zip(&s[..h - 1]) {
-        *a = K_S * v;
-    }
-    for (c, v) in cd[..h - 1].iter_mut().zip(&d[1..]) {
+    for (c, v) in x[h..].iter_mut().zip(&scratch[GHOST + 1..]) {
         *c = K_D * v;
     }
-    cd[h - 1] = K_D * d[0];
 }
 
-/// One inverse level: reads `[cA | cD]` from `x` (len `2H`) and writes the signal back.
-fn inverse_level(x: &mut [f32], scratch: &mut [f32]) {
-    let h = x.len() / 2;
-    let (s, d) = scratch[..2 * h].split_at_mut(h);
-    let (ca, cd) = x.split_at(h);
-    // K_S * K_D = 1 (to 2e-16 in f64), so dividing by one is multiplying by the other.
-    s[h - 1] = K_D * ca[0];
-    for (v, a) in s[..h - 1].iter_mut().zip(&ca[1..]) {
-        *v = K_D * a;
+/// One inverse level: reads `[cA | cD]` from `x` (len `2H`) and writes the signal back,
+/// undoing the steps of [`forward_level`] in one sweep, with the same ghost-cell layout.
+/// `offset` is added to every sample as it is written.
+fn inverse_level(x: &mut [f32], scratch: &mut [f32], offset: f32) {
+    let n2 = x.len();
+    let h = n2 / 2;
+    let e_len = h + 2 * GHOST;
+    // d[e] = cD[n - 1] / K_D = K_S * cD[(e - 5) mod H].
+    {
+        let (cd, d) = (&x[h..], &mut scratch[..e_len]);
+        for e in 0..GHOST + 1 {
+            d[e] = K_S * cd[h - GHOST - 1 + e];
+        }
+        for (v, c) in d[GHOST + 1..h + GHOST + 1].iter_mut().zip(cd) {
+            *v = K_S * c;
+        }
+        for e in h + GHOST + 1..e_len {
+            d[e] = K_S * cd[e - GHOST - 1 - h];
+        }
     }
-    for (v, c) in d[1..].iter_mut().zip(&cd[..h - 1]) {
-        *v = K_S * c;
+    // s[e] = cA[n + 1] / K_S = K_D * cA[(e - 3) mod H], written into x[e] in descending
+    // order (reads x[e - 3], below the write position); wrapped reads come from copies.
+    let mut ca_head = [0.0f32; 8];
+    ca_head.copy_from_slice(&x[..8]);
+    let mut ca_tail = [0.0f32; 8];
+    ca_tail.copy_from_slice(&x[h - 8..h]);
+    for e in (h + GHOST - 1..e_len).rev() {
+        x[e] = K_D * ca_head[e - (h + GHOST - 1)];
     }
-    d[0] = K_S * cd[h - 1];
-    unlift_step(d, s, &P4, 0);
-    unlift_step(s, d, &U3, 0);
-    unlift_step(d, s, &P2, 2);
-    unlift_step(s, d, &U1, 0);
-    unlift_step(d, s, &P0, 1);
-    for (n, pair) in x.chunks_exact_mut(2).enumerate() {
-        pair[0] = s[n];
-        pair[1] = d[n];
+    for e in (GHOST - 1..h + GHOST - 1).rev() {
+        x[e] = K_D * x[e - (GHOST - 1)];
+    }
+    for e in 0..GHOST - 1 {
+        x[e] = K_D * ca_tail[8 - (GHOST - 1) + e];
+    }
+    let (s, d) = (&mut x[..e_len], &mut scratch[..e_len]);
+    // Undo 5 at e = i, 4 at i - 2, 3 and 2 at i - 4, 1 at i - 5; range checks only at the
+    // first and last iterations.
+    let edge = |s: &mut [f32], d: &mut [f32], i: usize| {
+        if (2..e_len).contains(&i) {
+            d[i] -= three(&P4, s[i], s[i - 1], s[i - 2]);
+        }
+        if i >= 2 && (3..e_len).contains(&(i - 2)) {
+            let e = i - 2;
+            s[e] -= two(&U3, d[e], d[e - 1]);
+        }
+        if i >= 4 && (3..e_len - 2).contains(&(i - 4)) {
+            let e = i - 4;
+            d[e] -= two(&P2, s[e + 2], s[e + 1]);
+            if e >= 4 {
+                s[e] -= two(&U1, d[e], d[e - 1]);
+            }
+        }
+        if i >= 5 && (4..e_len - 3).contains(&(i - 5)) {
+            let e = i - 5;
+            d[e] -= P0[0] * s[e + 1];
+        }
+    };
+    for i in 0..9 {
+        edge(s, d, i);
+    }
+    for i in 9..e_len {
+        d[i] -= three(&P4, s[i], s[i - 1], s[i - 2]);
+        let e = i - 2;
+        s[e] -= two(&U3, d[e], d[e - 1]);
+        let e = i - 4;
+        d[e] -= two(&P2, s[e + 2], s[e + 1]);
+        s[e] -= two(&U1, d[e], d[e - 1]);
+        let e = i - 5;
+        d[e] -= P0[0] * s[e + 1];
+    }
+    for i in e_len..e_len + 5 {
+        edge(s, d, i);
+    }
+    // Interleave back: x[2n] = s[n + 4], x[2n + 1] = d[n + 4], descending n. s lives in x;
+    // its first values would be overwritten before they are read, so they come from a copy.
+    let mut s_head = [0.0f32; 8];
+    s_head.copy_from_slice(&x[GHOST..GHOST + 8]);
+    for n in (0..h).rev() {
+        let sv = if n < 8 { s_head[n] } else { x[n + GHOST] };
+        x[2 * n + 1] = scratch[n + GHOST] + offset;
+        x[2 * n] = sv + offset;
     }
 }
 
@@ -231,10 +308,21 @@ fn inverse_level(x: &mut [f32], scratch: &mut [f32]) {
 ///
 /// `scratch` must be at least as long as `x`; its contents on return are unspecified.
 pub fn forward(x: &mut [f32], scratch: &mut [f32], levels: u32) -> Result<(), TransformError> {
+    forward_offset(x, scratch, levels, 0.0)
+}
+
+/// [`forward`] of `x - offset`: the offset is subtracted as the first level reads the
+/// samples, which saves a pass over the data (the denoiser removes the block mean this way).
+pub fn forward_offset(
+    x: &mut [f32],
+    scratch: &mut [f32],
+    levels: u32,
+    offset: f32,
+) -> Result<(), TransformError> {
     check(x.len(), scratch.len(), levels)?;
     let mut n = x.len();
-    for _ in 0..levels {
-        forward_level(&mut x[..n], scratch);
+    for level in 0..levels {
+        forward_level(&mut x[..n], scratch, if level == 0 { offset } else { 0.0 });
         n /= 2;
     }
     Ok(())
@@ -242,10 +330,20 @@ pub fn forward(x: &mut [f32], scratch: &mut [f32], levels: u32) -> Result<(), Tr
 
 /// Multi-level inverse of [`forward`] in place (same `levels`).
 pub fn inverse(x: &mut [f32], scratch: &mut [f32], levels: u32) -> Result<(), TransformError> {
+    inverse_offset(x, scratch, levels, 0.0)
+}
+
+/// [`inverse`], then `+ offset` on every sample, in the same pass as the last level.
+pub fn inverse_offset(
+    x: &mut [f32],
+    scratch: &mut [f32],
+    levels: u32,
+    offset: f32,
+) -> Result<(), TransformError> {
     check(x.len(), scratch.len(), levels)?;
     let mut n = x.len() >> (levels - 1);
-    for _ in 0..levels {
-        inverse_level(&mut x[..n], scratch);
+    for level in (0..levels).rev() {
+        inverse_level(&mut x[..n], scratch, if level == 0 { offset } else { 0.0 });
         n *= 2;
     }
     Ok(())
@@ -259,4 +357,169 @@ pub fn detail_range(len: usize, level: u32) -> core::ops::Range<usize> {
     }
     let start = len >> level;
     start..2 * start
+}
+
+/// The straightforward multi-pass lifting (one pass per step, modular indexing at the ends),
+/// kept as the reference the fused sweep must reproduce bit for bit.
+#[cfg(test)]
+mod multipass {
+    use super::{K_D, K_S, P0, P2, P4, U1, U3};
+
+    /// `dst[n] += sum_i coeffs[i] * src[(n + offset - i) mod H]` for every `n`, `H = dst.len()`.
+    ///
+    /// The interior, where no index wraps, runs as one multiply-add pass per tap (which the
+    /// compiler vectorises); the few wrapped indices at either end are done separately.
+    #[inline(always)]
+    fn lift_step<const TAPS: usize>(
+        dst: &mut [f32],
+        src: &[f32],
+        coeffs: &[f32; TAPS],
+        offset: usize,
+    ) {
+        let h = dst.len();
+        // Indices n + offset - i stay within 0..h for n in lo..hi.
+        let lo = (TAPS - 1).saturating_sub(offset).min(h);
+        let hi = h.saturating_sub(offset).max(lo);
+        let wrapped = |n: usize, dst: &mut [f32]| {
+            let mut acc = 0.0f32;
+            for (i, c) in coeffs.iter().enumerate() {
+                // (n + offset - i) mod h without going negative: add h * TAPS first.
+                let j = (n + offset + h * TAPS - i) % h;
+                acc += c * src[j];
+            }
+            dst[n] += acc;
+        };
+        for n in 0..lo {
+            wrapped(n, dst);
+        }
+        if lo < hi {
+            // Accumulate the taps in the same order as `wrapped`, so every sample is computed by
+            // the same sequence of f32 operations wherever it lies.
+            let base = lo + offset;
+            let out = &mut dst[lo..hi];
+            match TAPS {
+                1 => {
+                    for (o, s) in out.iter_mut().zip(&src[base..]) {
+                        *o += coeffs[0] * s;
+                    }
+                }
+                2 => {
+                    for ((o, s0), s1) in out.iter_mut().zip(&src[base..]).zip(&src[base - 1..]) {
+                        *o += coeffs[0] * s0 + coeffs[1] * s1;
+                    }
+                }
+                _ => {
+                    for (k, o) in out.iter_mut().enumerate() {
+                        let mut acc = 0.0f32;
+                        for (i, c) in coeffs.iter().enumerate() {
+                            acc += c * src[base + k - i];
+                        }
+                        *o += acc;
+                    }
+                }
+            }
+        }
+        for n in hi..h {
+            wrapped(n, dst);
+        }
+    }
+
+    /// `dst[n] -= ...`: the exact undo of [`lift_step`] with the same coefficients.
+    #[inline(always)]
+    fn unlift_step<const TAPS: usize>(
+        dst: &mut [f32],
+        src: &[f32],
+        coeffs: &[f32; TAPS],
+        offset: usize,
+    ) {
+        let neg = coeffs.map(|c| -c);
+        lift_step(dst, src, &neg, offset);
+    }
+
+    /// One forward level on `x` (len `2H`), using `scratch[..2H]`; writes `[cA | cD]` to `x`.
+    pub(crate) fn forward_level_multipass(x: &mut [f32], scratch: &mut [f32]) {
+        let h = x.len() / 2;
+        let (s, d) = scratch[..2 * h].split_at_mut(h);
+        for (n, pair) in x.chunks_exact(2).enumerate() {
+            s[n] = pair[0];
+            d[n] = pair[1];
+        }
+        lift_step(d, s, &P0, 1);
+        lift_step(s, d, &U1, 0);
+        lift_step(d, s, &P2, 2);
+        lift_step(s, d, &U3, 0);
+        lift_step(d, s, &P4, 0);
+        // Scale and rotate into PyWavelets order: cA[n] = s[n-1], cD[n] = d[n+1].
+        let (ca, cd) = x.split_at_mut(h);
+        ca[0] = K_S * s[h - 1];
+        for (a, v) in ca[1..].iter_mut().zip(&s[..h - 1]) {
+            *a = K_S * v;
+        }
+        for (c, v) in cd[..h - 1].iter_mut().zip(&d[1..]) {
+            *c = K_D * v;
+        }
+        cd[h - 1] = K_D * d[0];
+    }
+
+    /// One inverse level: reads `[cA | cD]` from `x` (len `2H`) and writes the signal back.
+    pub(crate) fn inverse_level_multipass(x: &mut [f32], scratch: &mut [f32]) {
+        let h = x.len() / 2;
+        let (s, d) = scratch[..2 * h].split_at_mut(h);
+        let (ca, cd) = x.split_at(h);
+        // K_S * K_D = 1 (to 2e-16 in f64), so dividing by one is multiplying by the other.
+        s[h - 1] = K_D * ca[0];
+        for (v, a) in s[..h - 1].iter_mut().zip(&ca[1..]) {
+            *v = K_D * a;
+        }
+        for (v, c) in d[1..].iter_mut().zip(&cd[..h - 1]) {
+            *v = K_S * c;
+        }
+        d[0] = K_S * cd[h - 1];
+        unlift_step(d, s, &P4, 0);
+        unlift_step(s, d, &U3, 0);
+        unlift_step(d, s, &P2, 2);
+        unlift_step(s, d, &U1, 0);
+        unlift_step(d, s, &P0, 1);
+        for (n, pair) in x.chunks_exact_mut(2).enumerate() {
+            pair[0] = s[n];
+            pair[1] = d[n];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fused_sweep_equals_multipass_bit_for_bit() {
+        let mut state = 99u32;
+        for m in 4..=10 {
+            let n = 1usize << m;
+            let x0: [f32; 1024] = core::array::from_fn(|_| {
+                state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                (state >> 8) as f32 / 65_536.0 - 128.0
+            });
+            let (mut a, mut b) = (x0, x0);
+            let mut s = [0.0f32; 1024];
+            forward_level(&mut a[..n], &mut s, 0.0);
+            multipass::forward_level_multipass(&mut b[..n], &mut s);
+            assert!(
+                a[..n]
+                    .iter()
+                    .zip(&b[..n])
+                    .all(|(u, v)| u.to_bits() == v.to_bits()),
+                "forward, n = {n}"
+            );
+            inverse_level(&mut a[..n], &mut s, 0.0);
+            multipass::inverse_level_multipass(&mut b[..n], &mut s);
+            assert!(
+                a[..n]
+                    .iter()
+                    .zip(&b[..n])
+                    .all(|(u, v)| u.to_bits() == v.to_bits()),
+                "inverse, n = {n}"
+            );
+        }
+    }
 }

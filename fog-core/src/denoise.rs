@@ -114,24 +114,23 @@ pub fn denoise_in_place(
             return Err(DenoiseError::BadSigma);
         }
     }
+    // One read-only pass: finiteness, peak magnitude, mean (as a sum of x/n, which cannot
+    // overflow whatever the block length).
+    let n = x.len();
+    let inv_n = 1.0 / n as f32;
     let mut peak = 0.0f32;
+    let mut mean = 0.0f32;
     for &v in x.iter() {
         if !v.is_finite() {
             return Err(DenoiseError::NonFinite);
         }
         peak = peak.max(libm::fabsf(v));
+        mean += v * inv_n;
     }
     if peak > MAX_ABS_INPUT {
         return Err(DenoiseError::OutOfRange);
     }
-    let n = x.len();
-    // Sum of x/n rather than sum/n: cannot overflow whatever the block length.
-    let inv_n = 1.0 / n as f32;
-    let mean = x.iter().map(|v| v * inv_n).sum::<f32>();
-    for v in x.iter_mut() {
-        *v -= mean;
-    }
-    db4::forward(x, scratch, cfg.levels)?;
+    db4::forward_offset(x, scratch, cfg.levels, mean)?;
 
     let mut out = Thresholds {
         levels: cfg.levels,
@@ -162,10 +161,7 @@ pub fn denoise_in_place(
         out.mu[i] = mu;
         threshold::shrink_all(&mut x[range], mu, cfg.rule);
     }
-    db4::inverse(x, scratch, cfg.levels)?;
-    for v in x.iter_mut() {
-        *v += mean;
-    }
+    db4::inverse_offset(x, scratch, cfg.levels, mean)?;
     Ok(out)
 }
 

@@ -103,7 +103,14 @@ pub fn median(v: &mut [f32]) -> f32 {
     if n == 0 {
         return 0.0;
     }
-    let (lower, upper_mid, _) = v.select_nth_unstable_by(n / 2, f32::total_cmp);
+    // For non-negative floats the IEEE bit patterns sort like the values, and comparing
+    // integers is cheaper than `total_cmp`; negative values keep the general order.
+    let all_non_negative = v.iter().all(|x| x.is_sign_positive());
+    let (lower, upper_mid, _) = if all_non_negative {
+        v.select_nth_unstable_by_key(n / 2, |x| x.to_bits())
+    } else {
+        v.select_nth_unstable_by(n / 2, f32::total_cmp)
+    };
     let upper = *upper_mid;
     if n % 2 == 1 {
         return upper;
