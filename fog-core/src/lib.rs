@@ -4,7 +4,10 @@
 //! `no_std`, no heap, fixed sizes, no panics on any input. Modules:
 //! - [`db4`]: db4 wavelet transform in lifting form, PyWavelets-compatible coefficients;
 //! - [`threshold`]: noise estimate, universal threshold, soft and hard shrinkage;
-//! - [`denoise`]: block denoising (paper section 3) and a sample-by-sample block buffer.
+//! - [`denoise`]: block denoising (paper section 3) and a sample-by-sample block buffer;
+//! - [`wnn`]: the wavelet neural network (paper section 4.1);
+//! - [`train`]: DRLS (paper section 4.2) and the RLS / NLMS baselines;
+//! - [`frame`], [`driver`]: gyro serial frames and the serial reader.
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -14,6 +17,8 @@ pub mod denoise;
 pub mod driver;
 pub mod frame;
 pub mod threshold;
+pub mod train;
+pub mod wnn;
 
 pub use denoise::{BlockDenoiser, DenoiseConfig, DenoiseError, Push, Thresholds};
 pub use threshold::{Sigma, ThresholdRule};

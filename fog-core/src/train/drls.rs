@@ -1,0 +1,149 @@
+//! DRLS: per-weight recursive least squares with forgetting, no matrix (paper eqs. 6-15).
+//!
+//! ```text
+//! e(k)    = d(k) - sum_l w_l(k-1) h_l(k)
+//! U_a(k)  = (U_a(k-1)/lambda) / (1 + (U_a(k-1)/lambda) h_a(k)^2)
+//! w_a(k)  = w_a(k-1) + U_a(k) h_a(k) e
+//! ```
+//!
+//! What the paper leaves open, decided here (see [`DrlsConfig`]):
+//! - **Mode.** [`DrlsMode::Parallel`] updates every weight with the same a-priori error, as
+//!   eq. (15) is written. Each weight then corrects the whole error on its own, so with
+//!   overlapping neurons the corrections add up (`sum_a U_a h_a^2` can exceed 2) and the
+//!   recursion diverges. [`DrlsMode::Sequential`] refreshes the error after each weight
+//!   (`e -= dw_a h_a`), which is what eqs. (6)-(7) say when `rho` is taken with the
+//!   weights already updated: a Gauss-Seidel sweep, stable for any overlap.
+//! - **`U_a(0)`** = [`DrlsConfig::u0`] (the inverse of an initial "energy" `S_a(0)`).
+//! - **Guard.** With `h_a = 0` the recursion gives `U_a(k) = U_a(k-1)/lambda`: with
+//!   lambda = 0.63 a silent neuron's `U_a` overflows f32 after about 190 samples (from 1),
+//!   then `inf/inf` gives NaN. The guard caps `U_a <= u_max` (equivalently `S_a >= 1/u_max`:
+//!   the forgotten energy never drops below a floor), and caps `|w_a| <= w_max`. With
+//!   `u_max = INFINITY` and `w_max = INFINITY` the trainer is eq. (15) exactly.
+
+use super::{bound_weights, finite_inputs, Trainer};
+use crate::wnn::dot;
+
+/// How the error is shared among the weights within one sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DrlsMode {
+    /// Eq. (15) as written: all weights updated with the same a-priori error.
+    Parallel,
+    /// The error refreshed after each weight's update (Gauss-Seidel).
+    Sequential,
+}
+
+/// Fixed DRLS configuration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DrlsConfig {
+    /// Forgetting factor, `0 < lambda <= 1` (paper: 0.63). Memory ~ `1/(1 - lambda)` samples.
+    pub lambda: f32,
+    /// `U_a(0)` for every weight, > 0.
+    pub u0: f32,
+    /// Upper bound of every `U_a` (the guard); `f32::INFINITY` = unguarded.
+    pub u_max: f32,
+    /// Bound of every `|w_a|`, output unit; `f32::INFINITY` = unbounded.
+    pub w_max: f32,
+    /// Error sharing.
+    pub mode: DrlsMode,
+}
+
+impl DrlsConfig {
+    /// Eq. (15) exactly as the paper writes it: lambda = 0.63, parallel, no guard, `U(0)=1`.
+    pub const PAPER: Self = Self {
+        lambda: 0.63,
+        u0: 1.0,
+        u_max: f32::INFINITY,
+        w_max: f32::INFINITY,
+        mode: DrlsMode::Parallel,
+    };
+
+    /// The paper's lambda with the sequential update and the guard (`U_a <= U_a(0)`,
+    /// `|w| <= 1e4`).
+    pub const PAPER_GUARDED: Self = Self {
+        lambda: 0.63,
+        u0: 1.0,
+        u_max: 1.0,
+        w_max: 1.0e4,
+        mode: DrlsMode::Sequential,
+    };
+
+    /// True when the configuration is usable (`0 < lambda <= 1`, `u0 > 0`, bounds > 0).
+    pub fn is_valid(&self) -> bool {
+        self.lambda > 0.0
+            && self.lambda <= 1.0
+            && self.u0 > 0.0
+            && self.u0.is_finite()
+            && self.u_max > 0.0
+            && self.w_max > 0.0
+    }
+}
+
+/// DRLS trainer state for `L` weights of one output.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Drls<const L: usize> {
+    cfg: DrlsConfig,
+    inv_lambda: f32,
+    u: [f32; L],
+    /// Steps at which a weight hit `w_max` (diagnostic).
+    pub weight_saturations: u32,
+}
+
+impl<const L: usize> Drls<L> {
+    /// A trainer; `None` for an invalid configuration.
+    pub fn new(cfg: DrlsConfig) -> Option<Self> {
+        if !cfg.is_valid() {
+            return None;
+        }
+        Some(Self {
+            cfg,
+            inv_lambda: 1.0 / cfg.lambda,
+            u: [cfg.u0.min(cfg.u_max); L],
+            weight_saturations: 0,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &DrlsConfig {
+        &self.cfg
+    }
+
+    /// Current `U_a` of every weight.
+    pub fn u(&self) -> &[f32; L] {
+        &self.u
+    }
+}
+
+impl<const L: usize> Trainer<L> for Drls<L> {
+    fn step(&mut self, w: &mut [f32; L], h: &[f32; L], d: f32) -> f32 {
+        if !finite_inputs(h, d) {
+            return f32::NAN;
+        }
+        let e0 = d - dot(w, h);
+        let mut e = e0;
+        for a in 0..L {
+            let up = self.u[a] * self.inv_lambda;
+            let ua = up / (1.0 + up * h[a] * h[a]);
+            self.u[a] = if ua > self.cfg.u_max {
+                self.cfg.u_max
+            } else {
+                ua
+            };
+            let dw = self.u[a] * h[a] * e;
+            w[a] += dw;
+            if self.cfg.mode == DrlsMode::Sequential {
+                e -= dw * h[a];
+            }
+        }
+        if self.cfg.w_max.is_finite() && bound_weights(w, self.cfg.w_max) > 0 {
+            self.weight_saturations = self.weight_saturations.saturating_add(1);
+        }
+        e0
+    }
+
+    fn reset(&mut self) {
+        self.u = [self.cfg.u0.min(self.cfg.u_max); L];
+        self.weight_saturations = 0;
+    }
+}
