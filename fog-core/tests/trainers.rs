@@ -68,8 +68,9 @@ fn least_squares(hs: &[[f32; L]], ds: &[f32]) -> [f64; L] {
         for r in 0..L {
             if r != c {
                 let f = a[r][c] / a[c][c];
-                for k in c..=L {
-                    a[r][k] -= f * a[c][k];
+                let pivot = a[c];
+                for (x, p) in a[r][c..].iter_mut().zip(&pivot[c..]) {
+                    *x -= f * p;
                 }
             }
         }
