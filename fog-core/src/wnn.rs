@@ -82,27 +82,130 @@ impl<const N: usize> InputScaling<N> {
     }
 }
 
-/// The fixed part of the network: dilations, translations, activation.
+/// What a hidden neuron computes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Neuron {
+    /// `phi(a . x - b)`: the paper's wavelet neuron (eq. 5).
+    Wavelet,
+    /// Constant 1: an output bias (not in the paper; in its reference [8], Zhang 1995).
+    Bias,
+    /// The scaled input `x[j]` itself: a linear direct link (also from reference [8]).
+    Linear(u8),
+}
+
+/// The fixed part of the network: neuron kinds, dilations, translations, activation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WnnShape<const N: usize, const L: usize> {
     /// `a[l][j]`: dilation of neuron `l` along input `j` (scaled units^-1).
     pub a: [[f32; N]; L],
     /// `b[l]`: translation of neuron `l`.
     pub b: [f32; L],
-    /// Hidden unit.
+    /// Hidden unit of the wavelet neurons.
     pub activation: Activation,
+    /// Kind of each neuron; all [`Neuron::Wavelet`] in the paper.
+    pub kind: [Neuron; L],
+}
+
+/// Why a network shape could not be built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ShapeError {
+    /// The groups ask for more or fewer neurons than `L`.
+    NeuronCount,
+    /// A group names an input index `>= N`.
+    NoSuchInput,
+}
+
+impl core::fmt::Display for ShapeError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::NeuronCount => "neuron groups do not add up to the network's L",
+            Self::NoSuchInput => "a neuron group names an input the network does not have",
+        })
+    }
+}
+
+impl core::error::Error for ShapeError {}
+
+/// A group of neurons in a [`WnnShape::from_groups`] layout.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Group {
+    /// One bias neuron.
+    Bias,
+    /// One linear link to input `j`.
+    Linear(usize),
+    /// `count` wavelet neurons along input `j` alone, translations evenly spaced over the
+    /// scaled range [-1, 1] and dilation `a = (count - 1) / 2 * overlap`: with `overlap = 1`
+    /// neighbours sit one standard deviation apart (for the Gaussian), so the group covers
+    /// the range without gaps and without redundant overlap.
+    Along {
+        /// Input index.
+        input: usize,
+        /// Neurons in the group.
+        count: usize,
+        /// Dilation factor (1 = neighbours one sigma apart).
+        overlap: f32,
+    },
 }
 
 impl<const N: usize, const L: usize> WnnShape<N, L> {
+    /// A layout made of groups (in order). Translations: a group of `K` neurons on input `j`
+    /// puts neuron `i` at `c_i = -1 + 2 i / (K - 1)` (0 for `K = 1`) and uses
+    /// `h = phi(a x_j - a c_i)`.
+    pub fn from_groups(groups: &[Group], activation: Activation) -> Result<Self, ShapeError> {
+        let mut s = Self { a: [[0.0; N]; L], b: [0.0; L], activation, kind: [Neuron::Wavelet; L] };
+        let mut l = 0usize;
+        for g in groups {
+            match *g {
+                Group::Bias => {
+                    *s.kind.get_mut(l).ok_or(ShapeError::NeuronCount)? = Neuron::Bias;
+                    l += 1;
+                }
+                Group::Linear(j) => {
+                    let j8 = u8::try_from(j).map_err(|_| ShapeError::NoSuchInput)?;
+                    if j >= N {
+                        return Err(ShapeError::NoSuchInput);
+                    }
+                    *s.kind.get_mut(l).ok_or(ShapeError::NeuronCount)? = Neuron::Linear(j8);
+                    l += 1;
+                }
+                Group::Along { input, count, overlap } => {
+                    if input >= N {
+                        return Err(ShapeError::NoSuchInput);
+                    }
+                    let a = if count > 1 { 0.5 * (count - 1) as f32 * overlap } else { overlap };
+                    for i in 0..count {
+                        let c = if count > 1 { -1.0 + 2.0 * i as f32 / (count - 1) as f32 } else { 0.0 };
+                        let row = s.a.get_mut(l).ok_or(ShapeError::NeuronCount)?;
+                        row[input] = a;
+                        s.b[l] = a * c;
+                        l += 1;
+                    }
+                }
+            }
+        }
+        if l != L {
+            return Err(ShapeError::NeuronCount);
+        }
+        Ok(s)
+    }
+
     /// Hidden layer outputs `h` for scaled inputs `x` (eq. 5).
     #[inline]
     pub fn hidden(&self, x: &[f32; N], h: &mut [f32; L]) {
-        for ((hl, al), bl) in h.iter_mut().zip(&self.a).zip(&self.b) {
-            let mut t = -*bl;
-            for (aj, xj) in al.iter().zip(x) {
-                t += aj * xj;
-            }
-            *hl = self.activation.eval(t);
+        for l in 0..L {
+            h[l] = match self.kind[l] {
+                Neuron::Wavelet => {
+                    let mut t = -self.b[l];
+                    for (aj, xj) in self.a[l].iter().zip(x) {
+                        t += aj * xj;
+                    }
+                    self.activation.eval(t)
+                }
+                Neuron::Bias => 1.0,
+                Neuron::Linear(j) => x.get(usize::from(j)).copied().unwrap_or(0.0),
+            };
         }
     }
 }
@@ -157,6 +260,7 @@ mod tests {
             a: [[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]],
             b: [0.0, 1.0, 0.5],
             activation: Activation::Gaussian,
+            kind: [Neuron::Wavelet; 3],
         };
         let mut h = [0.0; 3];
         shape.hidden(&[0.0, 1.0], &mut h);
@@ -167,6 +271,25 @@ mod tests {
             w: [[1.0, 2.0, 0.0]],
         };
         assert_eq!(w.output(&h), [3.0]);
+        let g = WnnShape::<2, 5>::from_groups(
+            &[Group::Bias, Group::Linear(1), Group::Along { input: 0, count: 3, overlap: 1.0 }],
+            Activation::Gaussian,
+        )
+        .expect("valid");
+        let mut h5 = [0.0; 5];
+        g.hidden(&[1.0, -0.5], &mut h5);
+        assert_eq!(&h5[..2], &[1.0, -0.5]);
+        // Centres at -1, 0, 1 with a = 1: x = 1 sits on the last one.
+        assert_eq!(h5[4], 1.0);
+        assert!((h5[3] - libm::expf(-0.5)).abs() < 1e-7);
+        assert_eq!(
+            WnnShape::<2, 4>::from_groups(&[Group::Bias], Activation::Gaussian),
+            Err(ShapeError::NeuronCount)
+        );
+        assert_eq!(
+            WnnShape::<2, 1>::from_groups(&[Group::Linear(2)], Activation::Gaussian),
+            Err(ShapeError::NoSuchInput)
+        );
         let s = InputScaling::from_ranges([0.0, 10.0], [2.0, 10.0]);
         assert_eq!(s.apply(&[2.0, 11.0]), [1.0, 1.0]);
     }

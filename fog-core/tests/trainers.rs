@@ -2,7 +2,7 @@
 //! "no NaN or infinity for any finite input" (proptest).
 
 use fog_core::train::{Drls, DrlsConfig, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer};
-use fog_core::wnn::{Activation, WnnShape};
+use fog_core::wnn::{Activation, Neuron, WnnShape};
 use proptest::prelude::*;
 
 const L: usize = 4;
@@ -28,6 +28,7 @@ fn problem(n: usize, seed: u64, noise: f64) -> (Vec<[f32; L]>, Vec<f32>) {
         a: [[2.0]; L],
         b: [-1.5, -0.5, 0.5, 1.5],
         activation: Activation::Gaussian,
+        kind: [Neuron::Wavelet; L],
     };
     let w_true = [0.8, -0.3, 0.5, 1.2];
     let mut rng = Lcg(seed);

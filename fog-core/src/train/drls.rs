@@ -84,7 +84,8 @@ impl DrlsConfig {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Drls<const L: usize> {
     cfg: DrlsConfig,
-    inv_lambda: f32,
+    inv_lambda: [f32; L],
+    u0: [f32; L],
     u: [f32; L],
     /// Steps at which a weight hit `w_max` (diagnostic).
     pub weight_saturations: u32,
@@ -96,12 +97,19 @@ impl<const L: usize> Drls<L> {
         if !cfg.is_valid() {
             return None;
         }
-        Some(Self {
-            cfg,
-            inv_lambda: 1.0 / cfg.lambda,
-            u: [cfg.u0.min(cfg.u_max); L],
-            weight_saturations: 0,
-        })
+        let u0 = cfg.u0.min(cfg.u_max);
+        Some(Self { cfg, inv_lambda: [1.0 / cfg.lambda; L], u0: [u0; L], u: [u0; L], weight_saturations: 0 })
+    }
+
+    /// Gives neuron `a` its own forgetting factor and `U_a(0)` (e.g. a bias neuron that must
+    /// follow the turn-on bias faster than the others). Ignored for an invalid `a`, lambda
+    /// outside `(0, 1]` or `u0 <= 0`; `u0` is capped at `u_max`.
+    pub fn set_neuron(&mut self, a: usize, lambda: f32, u0: f32) {
+        if a < L && lambda > 0.0 && lambda <= 1.0 && u0 > 0.0 {
+            self.inv_lambda[a] = 1.0 / lambda;
+            self.u0[a] = u0.min(self.cfg.u_max);
+            self.u[a] = self.u0[a];
+        }
     }
 
     /// The configuration.
@@ -123,7 +131,7 @@ impl<const L: usize> Trainer<L> for Drls<L> {
         let e0 = d - dot(w, h);
         let mut e = e0;
         for a in 0..L {
-            let up = self.u[a] * self.inv_lambda;
+            let up = self.u[a] * self.inv_lambda[a];
             let ua = up / (1.0 + up * h[a] * h[a]);
             self.u[a] = if ua > self.cfg.u_max {
                 self.cfg.u_max
@@ -143,7 +151,7 @@ impl<const L: usize> Trainer<L> for Drls<L> {
     }
 
     fn reset(&mut self) {
-        self.u = [self.cfg.u0.min(self.cfg.u_max); L];
+        self.u = self.u0;
         self.weight_saturations = 0;
     }
 }
