@@ -7,15 +7,20 @@
 //! - [`denoise`]: block denoising (paper section 3) and a sample-by-sample block buffer;
 //! - [`wnn`]: the wavelet neural network (paper section 4.1);
 //! - [`train`]: DRLS (paper section 4.2) and the RLS / NLMS baselines;
+//! - [`features`]: causal network inputs; [`identify`]: the on-line identifier;
+//! - [`baseline`]: causal estimators to compare with;
 //! - [`frame`], [`driver`]: gyro serial frames and the serial reader.
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod baseline;
 pub mod db4;
 pub mod denoise;
 pub mod driver;
+pub mod features;
 pub mod frame;
+pub mod identify;
 pub mod threshold;
 pub mod train;
 pub mod wnn;

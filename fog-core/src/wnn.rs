@@ -154,7 +154,12 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
     /// puts neuron `i` at `c_i = -1 + 2 i / (K - 1)` (0 for `K = 1`) and uses
     /// `h = phi(a x_j - a c_i)`.
     pub fn from_groups(groups: &[Group], activation: Activation) -> Result<Self, ShapeError> {
-        let mut s = Self { a: [[0.0; N]; L], b: [0.0; L], activation, kind: [Neuron::Wavelet; L] };
+        let mut s = Self {
+            a: [[0.0; N]; L],
+            b: [0.0; L],
+            activation,
+            kind: [Neuron::Wavelet; L],
+        };
         let mut l = 0usize;
         for g in groups {
             match *g {
@@ -170,13 +175,25 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
                     *s.kind.get_mut(l).ok_or(ShapeError::NeuronCount)? = Neuron::Linear(j8);
                     l += 1;
                 }
-                Group::Along { input, count, overlap } => {
+                Group::Along {
+                    input,
+                    count,
+                    overlap,
+                } => {
                     if input >= N {
                         return Err(ShapeError::NoSuchInput);
                     }
-                    let a = if count > 1 { 0.5 * (count - 1) as f32 * overlap } else { overlap };
+                    let a = if count > 1 {
+                        0.5 * (count - 1) as f32 * overlap
+                    } else {
+                        overlap
+                    };
                     for i in 0..count {
-                        let c = if count > 1 { -1.0 + 2.0 * i as f32 / (count - 1) as f32 } else { 0.0 };
+                        let c = if count > 1 {
+                            -1.0 + 2.0 * i as f32 / (count - 1) as f32
+                        } else {
+                            0.0
+                        };
                         let row = s.a.get_mut(l).ok_or(ShapeError::NeuronCount)?;
                         row[input] = a;
                         s.b[l] = a * c;
@@ -272,7 +289,15 @@ mod tests {
         };
         assert_eq!(w.output(&h), [3.0]);
         let g = WnnShape::<2, 5>::from_groups(
-            &[Group::Bias, Group::Linear(1), Group::Along { input: 0, count: 3, overlap: 1.0 }],
+            &[
+                Group::Bias,
+                Group::Linear(1),
+                Group::Along {
+                    input: 0,
+                    count: 3,
+                    overlap: 1.0,
+                },
+            ],
             Activation::Gaussian,
         )
         .expect("valid");

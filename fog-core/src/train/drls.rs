@@ -98,7 +98,13 @@ impl<const L: usize> Drls<L> {
             return None;
         }
         let u0 = cfg.u0.min(cfg.u_max);
-        Some(Self { cfg, inv_lambda: [1.0 / cfg.lambda; L], u0: [u0; L], u: [u0; L], weight_saturations: 0 })
+        Some(Self {
+            cfg,
+            inv_lambda: [1.0 / cfg.lambda; L],
+            u0: [u0; L],
+            u: [u0; L],
+            weight_saturations: 0,
+        })
     }
 
     /// Gives neuron `a` its own forgetting factor and `U_a(0)` (e.g. a bias neuron that must

@@ -1,0 +1,360 @@
+//! The on-line drift identifier: what the firmware runs per sample.
+//!
+//! Per sample `k` (rate `X(k)` in deg/s):
+//! 1. inputs `x(k)` = the feature map of the stream (scaled by an [`InputScaling`]);
+//! 2. **output** `y(k) = w . h(x(k))` with the current weights: the identified drift for
+//!    this sample, available at once, computed *before* any training on sample `k`;
+//! 3. **training** on sample `k - B`: its inputs were kept in a ring of `B` entries and its
+//!    target `d(k - B)` (the denoised rate) came out of the block denoiser when its block
+//!    completed; the trainer makes one step with `h(x(k - B))` and `d(k - B)`. So targets
+//!    are used exactly `B` samples after their measurement, one per incoming sample (no
+//!    burst of `B` updates when a block completes);
+//! 4. `X(k)` goes into the [`BlockDenoiser`]; when it completes a block, the block's
+//!    denoised values become the targets of the next `B` training steps.
+//!
+//! Memory, fixed at compile time: denoiser `8 B` bytes, target copy `4 B`, input ring
+//! `4 N B`, network `4 L (N + 3)`, plus the trainer and the feature map.
+
+use crate::denoise::{BlockDenoiser, DenoiseConfig, DenoiseError, Push};
+use crate::features::FeatureMap;
+use crate::train::Trainer;
+use crate::wnn::{dot, InputScaling, WnnShape};
+
+/// Why an identifier could not be built or a sample was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum IdentifyError {
+    /// The denoiser refused the configuration or the sample.
+    Denoise(DenoiseError),
+    /// The sample period is not a positive finite number.
+    BadSamplePeriod,
+}
+
+impl From<DenoiseError> for IdentifyError {
+    fn from(e: DenoiseError) -> Self {
+        Self::Denoise(e)
+    }
+}
+
+impl core::fmt::Display for IdentifyError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Denoise(e) => write!(f, "{e}"),
+            Self::BadSamplePeriod => {
+                f.write_str("sample period must be a positive finite number of seconds")
+            }
+        }
+    }
+}
+
+impl core::error::Error for IdentifyError {}
+
+/// What the identifier says about one sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Estimate {
+    /// Identified drift `y(k)`, deg/s, from the weights before any training on this sample.
+    pub drift_dps: f32,
+    /// `X(k) - y(k)`, deg/s.
+    pub compensated_dps: f32,
+    /// A-priori error of the training step made at this sample (`d(k-B) - y(k-B)` with the
+    /// weights before the step), deg/s; NaN when no step was made (the first `2B` samples).
+    pub train_error_dps: f32,
+    /// This sample completed a denoising block.
+    pub block_done: bool,
+}
+
+/// Counters of everything the identifier saw.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct IdentifierStats {
+    /// Samples accepted.
+    pub samples: u32,
+    /// Samples refused (non-finite or out of range); they change nothing.
+    pub rejected: u32,
+    /// Training steps made.
+    pub trained: u32,
+    /// Denoising blocks completed.
+    pub blocks: u32,
+}
+
+/// The on-line identifier: feature map `F` (`N` inputs), network of `L` neurons, trainer
+/// `T`, denoising blocks of `B` samples.
+pub struct Identifier<F, T, const N: usize, const L: usize, const B: usize> {
+    features: F,
+    scaling: InputScaling<N>,
+    shape: WnnShape<N, L>,
+    w: [f32; L],
+    trainer: T,
+    denoiser: BlockDenoiser<B>,
+    ring: [[f32; N]; B],
+    targets: [f32; B],
+    have_targets: bool,
+    sample_period_s: f32,
+    stats: IdentifierStats,
+}
+
+impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: usize>
+    Identifier<F, T, N, L, B>
+{
+    /// An identifier with initial weights `w0`.
+    pub fn new(
+        features: F,
+        scaling: InputScaling<N>,
+        shape: WnnShape<N, L>,
+        w0: [f32; L],
+        trainer: T,
+        denoise: DenoiseConfig,
+        sample_period_s: f32,
+    ) -> Result<Self, IdentifyError> {
+        if !(sample_period_s > 0.0 && sample_period_s.is_finite()) {
+            return Err(IdentifyError::BadSamplePeriod);
+        }
+        Ok(Self {
+            features,
+            scaling,
+            shape,
+            w: w0,
+            trainer,
+            denoiser: BlockDenoiser::new(denoise)?,
+            ring: [[0.0; N]; B],
+            targets: [0.0; B],
+            have_targets: false,
+            sample_period_s,
+            stats: IdentifierStats::default(),
+        })
+    }
+
+    /// Processes one sample (see the module docs). A refused sample (non-finite, or above
+    /// the denoiser's range) returns an error, is counted, and changes nothing.
+    pub fn push(&mut self, rate_dps: f32) -> Result<Estimate, IdentifyError> {
+        if !rate_dps.is_finite() || libm::fabsf(rate_dps) > crate::denoise::MAX_ABS_INPUT {
+            self.stats.rejected = self.stats.rejected.wrapping_add(1);
+            return Err(if rate_dps.is_finite() {
+                DenoiseError::OutOfRange
+            } else {
+                DenoiseError::NonFinite
+            }
+            .into());
+        }
+        let k = self.stats.samples;
+        let t_s = k as f32 * self.sample_period_s;
+        let x = self.scaling.apply(&self.features.next(rate_dps, t_s));
+        let mut h = [0.0f32; L];
+        self.shape.hidden(&x, &mut h);
+        let y = dot(&self.w, &h);
+
+        let slot = k as usize % B;
+        let mut train_error_dps = f32::NAN;
+        if self.have_targets {
+            self.shape.hidden(&self.ring[slot], &mut h);
+            train_error_dps = self.trainer.step(&mut self.w, &h, self.targets[slot]);
+            self.stats.trained = self.stats.trained.wrapping_add(1);
+        }
+        self.ring[slot] = x;
+
+        let mut block_done = false;
+        if let Push::Block(d, _) = self.denoiser.push(rate_dps)? {
+            self.targets.copy_from_slice(d);
+            self.have_targets = true;
+            block_done = true;
+            self.stats.blocks = self.stats.blocks.wrapping_add(1);
+        }
+        self.stats.samples = k.wrapping_add(1);
+        Ok(Estimate {
+            drift_dps: y,
+            compensated_dps: rate_dps - y,
+            train_error_dps,
+            block_done,
+        })
+    }
+
+    /// Starts a new record (a new power-on): forgets the features' history, the denoiser's
+    /// partial block, the stored inputs and targets, and restarts time at 0; keeps the
+    /// weights and the trainer's state (what was learned). `features` is the feature map for
+    /// the new record (e.g. made for its sample rate).
+    pub fn restart(&mut self, features: F, sample_period_s: f32) -> Result<(), IdentifyError> {
+        if !(sample_period_s > 0.0 && sample_period_s.is_finite()) {
+            return Err(IdentifyError::BadSamplePeriod);
+        }
+        self.features = features;
+        self.sample_period_s = sample_period_s;
+        self.denoiser.reset();
+        self.have_targets = false;
+        self.stats.samples = 0;
+        Ok(())
+    }
+
+    /// Current output weights.
+    pub fn weights(&self) -> &[f32; L] {
+        &self.w
+    }
+
+    /// Replaces the output weights (e.g. with weights pretrained on the host).
+    pub fn set_weights(&mut self, w: [f32; L]) {
+        self.w = w;
+    }
+
+    /// The trainer (for diagnostics such as DRLS's `U`).
+    pub fn trainer(&self) -> &T {
+        &self.trainer
+    }
+
+    /// Mutable access to the trainer (e.g. per-neuron DRLS settings).
+    pub fn trainer_mut(&mut self) -> &mut T {
+        &mut self.trainer
+    }
+
+    /// The network's shape.
+    pub fn shape(&self) -> &WnnShape<N, L> {
+        &self.shape
+    }
+
+    /// The input scaling.
+    pub fn scaling(&self) -> &InputScaling<N> {
+        &self.scaling
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> &IdentifierStats {
+        &self.stats
+    }
+}
+
+/// The two standard configurations.
+pub mod presets {
+    use super::IdentifyError;
+    use crate::denoise::DenoiseConfig;
+    use crate::features::{LevelTrendTime, RateTime};
+    use crate::train::{Drls, DrlsConfig, DrlsMode};
+    use crate::wnn::{Activation, Group, InputScaling, WnnShape};
+
+    /// Hidden neurons of both presets: the paper's 30.
+    pub const L: usize = 30;
+
+    /// The paper's identifier: inputs `[X, T]`, 30 wavelet neurons, DRLS eq. (15).
+    pub type Paper<const B: usize> = super::Identifier<RateTime, Drls<L>, 2, L, B>;
+
+    /// The improved identifier: inputs `[level, trend, T]`, bias + linear link + 28 Gaussians,
+    /// sequential guarded DRLS.
+    pub type LevelTrend<const B: usize> = super::Identifier<LevelTrendTime, Drls<L>, 3, L, B>;
+
+    /// Default scaling of `[X, T]` for an E-Core-like static gyro over an 1800-s record
+    /// (assumed, not measured: X in +-0.05 deg/s, T in 0..1800 s); `host-sim identify`
+    /// replaces it with percentiles of the training records.
+    pub const PAPER_SCALING: InputScaling<2> = InputScaling {
+        offset: [0.0, 900.0],
+        gain: [1.0 / 0.05, 1.0 / 900.0],
+    };
+
+    /// Default scaling of `[level, trend, T]` (assumed: level +-0.02 deg/s, trend
+    /// +-0.003 deg/s, T 0..1800 s).
+    pub const LEVEL_TREND_SCALING: InputScaling<3> = InputScaling {
+        offset: [0.0, 0.0, 900.0],
+        gain: [1.0 / 0.02, 1.0 / 0.003, 1.0 / 900.0],
+    };
+
+    /// The paper's network: 15 wavelet neurons along `X` and 15 along `T` (eq. 5 is a ridge
+    /// function, so each neuron looks along one direction; the paper does not say which),
+    /// centres evenly over the scaled range, neighbours one sigma apart.
+    pub fn paper_shape(activation: Activation) -> Result<WnnShape<2, L>, crate::wnn::ShapeError> {
+        WnnShape::from_groups(
+            &[
+                Group::Along {
+                    input: 0,
+                    count: 15,
+                    overlap: 1.0,
+                },
+                Group::Along {
+                    input: 1,
+                    count: 15,
+                    overlap: 1.0,
+                },
+            ],
+            activation,
+        )
+    }
+
+    /// The improved network: bias, linear link to `level`, 14 Gaussians along `trend`, 14
+    /// along `T`.
+    pub fn level_trend_shape() -> Result<WnnShape<3, L>, crate::wnn::ShapeError> {
+        WnnShape::from_groups(
+            &[
+                Group::Bias,
+                Group::Linear(0),
+                Group::Along {
+                    input: 1,
+                    count: 14,
+                    overlap: 1.0,
+                },
+                Group::Along {
+                    input: 2,
+                    count: 14,
+                    overlap: 1.0,
+                },
+            ],
+            Activation::Gaussian,
+        )
+    }
+
+    /// The paper's identifier with `trainer` (e.g. [`DrlsConfig::PAPER`]), zero initial
+    /// weights, the paper's denoiser.
+    pub fn paper<const B: usize>(
+        activation: Activation,
+        scaling: InputScaling<2>,
+        trainer: DrlsConfig,
+        sample_period_s: f32,
+    ) -> Result<Paper<B>, IdentifyError> {
+        let shape = paper_shape(activation).map_err(|_| IdentifyError::BadSamplePeriod)?;
+        let t = Drls::new(trainer).ok_or(IdentifyError::BadSamplePeriod)?;
+        super::Identifier::new(
+            RateTime,
+            scaling,
+            shape,
+            [0.0; L],
+            t,
+            DenoiseConfig::PAPER,
+            sample_period_s,
+        )
+    }
+
+    /// Trainer of the improved identifier: sequential DRLS, `U` in `(0, 1]`, lambda 0.99999
+    /// (memory 10^5 samples, 1000 s at 100 Hz), the bias neuron lambda 0.9999 (10^4 samples)
+    /// and `U(0) = 1` so it follows the turn-on bias within a few blocks.
+    pub const LEVEL_TREND_DRLS: DrlsConfig = DrlsConfig {
+        lambda: 0.99999,
+        u0: 1.0e-4,
+        u_max: 1.0,
+        w_max: 1.0e4,
+        mode: DrlsMode::Sequential,
+    };
+
+    /// The improved identifier. Initial weights "from measured data" without a host: the
+    /// output starts as the 10-s level itself (`w_link = 1/gain`, `w_bias = offset`), i.e.
+    /// a 10-s moving average, and training moves it from there.
+    pub fn level_trend<const B: usize>(
+        scaling: InputScaling<3>,
+        sample_period_s: f32,
+    ) -> Result<LevelTrend<B>, IdentifyError> {
+        let shape = level_trend_shape().map_err(|_| IdentifyError::BadSamplePeriod)?;
+        let mut t = Drls::new(LEVEL_TREND_DRLS).ok_or(IdentifyError::BadSamplePeriod)?;
+        t.set_neuron(0, 0.9999, 1.0);
+        let mut w0 = [0.0; L];
+        w0[0] = scaling.offset[0];
+        w0[1] = if scaling.gain[0] != 0.0 {
+            1.0 / scaling.gain[0]
+        } else {
+            1.0
+        };
+        let f = LevelTrendTime::new(1.0 / sample_period_s);
+        super::Identifier::new(
+            f,
+            scaling,
+            shape,
+            w0,
+            t,
+            DenoiseConfig::PAPER,
+            sample_period_s,
+        )
+    }
+}
