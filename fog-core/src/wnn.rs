@@ -211,11 +211,11 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
     /// Hidden layer outputs `h` for scaled inputs `x` (eq. 5).
     #[inline]
     pub fn hidden(&self, x: &[f32; N], h: &mut [f32; L]) {
-        for l in 0..L {
-            h[l] = match self.kind[l] {
+        for (((hl, kind), al), bl) in h.iter_mut().zip(&self.kind).zip(&self.a).zip(&self.b) {
+            *hl = match *kind {
                 Neuron::Wavelet => {
-                    let mut t = -self.b[l];
-                    for (aj, xj) in self.a[l].iter().zip(x) {
+                    let mut t = -*bl;
+                    for (aj, xj) in al.iter().zip(x) {
                         t += aj * xj;
                     }
                     self.activation.eval(t)
