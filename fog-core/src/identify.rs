@@ -28,6 +28,10 @@ pub enum IdentifyError {
     Denoise(DenoiseError),
     /// The sample period is not a positive finite number.
     BadSamplePeriod,
+    /// The trainer's configuration is invalid.
+    BadTrainer,
+    /// The network layout does not fit its sizes.
+    Shape(crate::wnn::ShapeError),
 }
 
 impl From<DenoiseError> for IdentifyError {
@@ -43,6 +47,8 @@ impl core::fmt::Display for IdentifyError {
             Self::BadSamplePeriod => {
                 f.write_str("sample period must be a positive finite number of seconds")
             }
+            Self::BadTrainer => f.write_str("invalid trainer configuration"),
+            Self::Shape(e) => write!(f, "{e}"),
         }
     }
 }
@@ -221,23 +227,25 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
     }
 }
 
-/// The two standard configurations.
+/// The two standard configurations, for any number of neurons `L` (the paper's is 30).
 pub mod presets {
     use super::IdentifyError;
     use crate::denoise::DenoiseConfig;
     use crate::features::{LevelTrendTime, RateTime};
-    use crate::train::{Drls, DrlsConfig, DrlsMode};
-    use crate::wnn::{Activation, Group, InputScaling, WnnShape};
+    use crate::train::{Drls, DrlsConfig, DrlsMode, Trainer};
+    use crate::wnn::{Activation, Group, InputScaling, ShapeError, WnnShape};
 
-    /// Hidden neurons of both presets: the paper's 30.
+    /// The paper's number of hidden neurons.
     pub const L: usize = 30;
 
-    /// The paper's identifier: inputs `[X, T]`, 30 wavelet neurons, DRLS eq. (15).
-    pub type Paper<const B: usize> = super::Identifier<RateTime, Drls<L>, 2, L, B>;
+    /// The paper's identifier: inputs `[X, T]`, wavelet neurons, DRLS.
+    pub type Paper<const B: usize, const NL: usize = L> =
+        super::Identifier<RateTime, Drls<NL>, 2, NL, B>;
 
-    /// The improved identifier: inputs `[level, trend, T]`, bias + linear link + 28 Gaussians,
+    /// The improved identifier: inputs `[level, trend, T]`, bias + linear link + Gaussians,
     /// sequential guarded DRLS.
-    pub type LevelTrend<const B: usize> = super::Identifier<LevelTrendTime, Drls<L>, 3, L, B>;
+    pub type LevelTrend<const B: usize, const NL: usize = L> =
+        super::Identifier<LevelTrendTime, Drls<NL>, 3, NL, B>;
 
     /// Default scaling of `[X, T]` for an E-Core-like static gyro over an 1800-s record
     /// (assumed, not measured: X in +-0.05 deg/s, T in 0..1800 s); `host-sim identify`
@@ -254,20 +262,22 @@ pub mod presets {
         gain: [1.0 / 0.02, 1.0 / 0.003, 1.0 / 900.0],
     };
 
-    /// The paper's network: 15 wavelet neurons along `X` and 15 along `T` (eq. 5 is a ridge
-    /// function, so each neuron looks along one direction; the paper does not say which),
-    /// centres evenly over the scaled range, neighbours one sigma apart.
-    pub fn paper_shape(activation: Activation) -> Result<WnnShape<2, L>, crate::wnn::ShapeError> {
+    /// The paper's network: `NL/2` wavelet neurons along `X`, the rest along `T` (eq. 5 is a
+    /// ridge function, so each neuron looks along one direction; the paper does not say
+    /// which), centres evenly over the scaled range [-1, 1], neighbours one sigma apart.
+    pub fn paper_shape<const NL: usize>(
+        activation: Activation,
+    ) -> Result<WnnShape<2, NL>, ShapeError> {
         WnnShape::from_groups(
             &[
                 Group::Along {
                     input: 0,
-                    count: 15,
+                    count: NL / 2,
                     overlap: 1.0,
                 },
                 Group::Along {
                     input: 1,
-                    count: 15,
+                    count: NL - NL / 2,
                     overlap: 1.0,
                 },
             ],
@@ -275,21 +285,22 @@ pub mod presets {
         )
     }
 
-    /// The improved network: bias, linear link to `level`, 14 Gaussians along `trend`, 14
-    /// along `T`.
-    pub fn level_trend_shape() -> Result<WnnShape<3, L>, crate::wnn::ShapeError> {
+    /// The improved network: bias, linear link to `level`, `(NL-2)/2` Gaussians along
+    /// `trend`, the rest along `T`. Needs `NL >= 4`.
+    pub fn level_trend_shape<const NL: usize>() -> Result<WnnShape<3, NL>, ShapeError> {
+        let k = NL.saturating_sub(2);
         WnnShape::from_groups(
             &[
                 Group::Bias,
                 Group::Linear(0),
                 Group::Along {
                     input: 1,
-                    count: 14,
+                    count: k / 2,
                     overlap: 1.0,
                 },
                 Group::Along {
                     input: 2,
-                    count: 14,
+                    count: k - k / 2,
                     overlap: 1.0,
                 },
             ],
@@ -297,7 +308,27 @@ pub mod presets {
         )
     }
 
-    /// The paper's identifier with `trainer` (e.g. [`DrlsConfig::PAPER`]), zero initial
+    /// The paper's identifier with any trainer, zero initial weights.
+    pub fn paper_with<T: Trainer<NL>, const B: usize, const NL: usize>(
+        activation: Activation,
+        scaling: InputScaling<2>,
+        trainer: T,
+        denoise: DenoiseConfig,
+        sample_period_s: f32,
+    ) -> Result<super::Identifier<RateTime, T, 2, NL, B>, IdentifyError> {
+        let shape = paper_shape::<NL>(activation).map_err(IdentifyError::Shape)?;
+        super::Identifier::new(
+            RateTime,
+            scaling,
+            shape,
+            [0.0; NL],
+            trainer,
+            denoise,
+            sample_period_s,
+        )
+    }
+
+    /// The paper's identifier with DRLS `trainer` (e.g. [`DrlsConfig::PAPER`]), zero initial
     /// weights, the paper's denoiser.
     pub fn paper<const B: usize>(
         activation: Activation,
@@ -305,13 +336,10 @@ pub mod presets {
         trainer: DrlsConfig,
         sample_period_s: f32,
     ) -> Result<Paper<B>, IdentifyError> {
-        let shape = paper_shape(activation).map_err(|_| IdentifyError::BadSamplePeriod)?;
-        let t = Drls::new(trainer).ok_or(IdentifyError::BadSamplePeriod)?;
-        super::Identifier::new(
-            RateTime,
+        let t = Drls::new(trainer).ok_or(IdentifyError::BadTrainer)?;
+        paper_with(
+            activation,
             scaling,
-            shape,
-            [0.0; L],
             t,
             DenoiseConfig::PAPER,
             sample_period_s,
@@ -319,8 +347,9 @@ pub mod presets {
     }
 
     /// Trainer of the improved identifier: sequential DRLS, `U` in `(0, 1]`, lambda 0.99999
-    /// (memory 10^5 samples, 1000 s at 100 Hz), the bias neuron lambda 0.9999 (10^4 samples)
-    /// and `U(0) = 1` so it follows the turn-on bias within a few blocks.
+    /// (memory 10^5 samples, 1000 s at 100 Hz); [`level_trend_drls`] gives the bias neuron
+    /// lambda 0.9999 (10^4 samples) and `U(0) = 1` so it follows the turn-on bias within a
+    /// few blocks.
     pub const LEVEL_TREND_DRLS: DrlsConfig = DrlsConfig {
         lambda: 0.99999,
         u0: 1.0e-4,
@@ -329,32 +358,48 @@ pub mod presets {
         mode: DrlsMode::Sequential,
     };
 
-    /// The improved identifier. Initial weights "from measured data" without a host: the
-    /// output starts as the 10-s level itself (`w_link = 1/gain`, `w_bias = offset`), i.e.
-    /// a 10-s moving average, and training moves it from there.
+    /// The improved identifier's DRLS trainer for `NL` neurons.
+    pub fn level_trend_drls<const NL: usize>() -> Option<Drls<NL>> {
+        let mut t = Drls::new(LEVEL_TREND_DRLS)?;
+        t.set_neuron(0, 0.9999, 1.0);
+        Some(t)
+    }
+
+    /// Initial weights "from measured data" without a host: the output starts as the 10-s
+    /// level itself (`w_link = 1/gain`, `w_bias = offset`), i.e. a 10-s moving average, and
+    /// training moves it from there.
+    pub fn level_identity_weights<const NL: usize>(scaling: &InputScaling<3>) -> [f32; NL] {
+        let mut w0 = [0.0; NL];
+        if NL >= 2 {
+            w0[0] = scaling.offset[0];
+            w0[1] = if scaling.gain[0] != 0.0 {
+                1.0 / scaling.gain[0]
+            } else {
+                1.0
+            };
+        }
+        w0
+    }
+
+    /// The improved identifier with any trainer.
+    pub fn level_trend_with<T: Trainer<NL>, const B: usize, const NL: usize>(
+        scaling: InputScaling<3>,
+        trainer: T,
+        denoise: DenoiseConfig,
+        sample_period_s: f32,
+    ) -> Result<super::Identifier<LevelTrendTime, T, 3, NL, B>, IdentifyError> {
+        let shape = level_trend_shape::<NL>().map_err(IdentifyError::Shape)?;
+        let w0 = level_identity_weights::<NL>(&scaling);
+        let f = LevelTrendTime::new(1.0 / sample_period_s);
+        super::Identifier::new(f, scaling, shape, w0, trainer, denoise, sample_period_s)
+    }
+
+    /// The improved identifier as configured by default (30 neurons, its DRLS).
     pub fn level_trend<const B: usize>(
         scaling: InputScaling<3>,
         sample_period_s: f32,
     ) -> Result<LevelTrend<B>, IdentifyError> {
-        let shape = level_trend_shape().map_err(|_| IdentifyError::BadSamplePeriod)?;
-        let mut t = Drls::new(LEVEL_TREND_DRLS).ok_or(IdentifyError::BadSamplePeriod)?;
-        t.set_neuron(0, 0.9999, 1.0);
-        let mut w0 = [0.0; L];
-        w0[0] = scaling.offset[0];
-        w0[1] = if scaling.gain[0] != 0.0 {
-            1.0 / scaling.gain[0]
-        } else {
-            1.0
-        };
-        let f = LevelTrendTime::new(1.0 / sample_period_s);
-        super::Identifier::new(
-            f,
-            scaling,
-            shape,
-            w0,
-            t,
-            DenoiseConfig::PAPER,
-            sample_period_s,
-        )
+        let t = level_trend_drls::<L>().ok_or(IdentifyError::BadTrainer)?;
+        level_trend_with(scaling, t, DenoiseConfig::PAPER, sample_period_s)
     }
 }
