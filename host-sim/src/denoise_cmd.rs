@@ -122,6 +122,29 @@ pub fn plan(n: usize, block: Option<usize>, levels: u32) -> Result<Vec<Block>> {
     Ok(out)
 }
 
+/// Denoises `rate_dps` block by block following `blocks` (from [`plan`]); returns the
+/// denoised samples and the sum of the finest-level sigmas of the blocks. On error, the
+/// failing block's first sample index and the error.
+pub fn denoise_blocks(
+    rate_dps: &[f32],
+    blocks: &[Block],
+    cfg: &DenoiseConfig,
+) -> Result<(Vec<f32>, f64), (usize, fog_core::DenoiseError)> {
+    let mut denoised = vec![0.0f32; rate_dps.len()];
+    let mut buf = Vec::new();
+    let mut scratch = Vec::new();
+    let mut sigma_sum = 0.0f64;
+    for b in blocks {
+        buf.clear();
+        buf.extend_from_slice(&rate_dps[b.start..b.start + b.len]);
+        scratch.resize(b.len, 0.0);
+        let t = denoise_in_place(&mut buf, &mut scratch, cfg).map_err(|e| (b.start, e))?;
+        sigma_sum += f64::from(t.sigma[0]);
+        denoised[b.start + b.keep_from..b.start + b.len].copy_from_slice(&buf[b.keep_from..]);
+    }
+    Ok((denoised, sigma_sum))
+}
+
 /// Runs the command.
 pub fn run(args: &Args) -> Result<()> {
     record::refuse_overwrite(&args.input, &args.output)?;
@@ -137,24 +160,8 @@ pub fn run(args: &Args) -> Result<()> {
         },
         sigma: args.sigma.0,
     };
-    let mut denoised = vec![0.0f32; n];
-    let mut buf = Vec::new();
-    let mut scratch = Vec::new();
-    let mut sigma_sum = 0.0f64;
-    for b in &blocks {
-        buf.clear();
-        buf.extend_from_slice(&rec.rate_dps[b.start..b.start + b.len]);
-        scratch.resize(b.len, 0.0);
-        let t = denoise_in_place(&mut buf, &mut scratch, &cfg).map_err(|e| {
-            anyhow::anyhow!(
-                "{}: block at line {}: {e}",
-                args.input.display(),
-                b.start + 2
-            )
-        })?;
-        sigma_sum += f64::from(t.sigma[0]);
-        denoised[b.start + b.keep_from..b.start + b.len].copy_from_slice(&buf[b.keep_from..]);
-    }
+    let (denoised, sigma_sum) = denoise_blocks(&rec.rate_dps, &blocks, &cfg)
+        .map_err(|(start, e)| anyhow::anyhow!("{}: block at line {}: {e}", args.input.display(), start + 2))?;
     let out_path = &args.output;
     record::write_atomic(out_path, |w| {
         let mut wtr = csv::Writer::from_writer(w);

@@ -2,10 +2,8 @@
 //! or simulated gyro data.
 #![forbid(unsafe_code)]
 
-mod denoise_cmd;
-mod record;
-
 use clap::{Parser, Subcommand};
+use host_sim::{allan_cmd, denoise_cmd, simulate_cmd};
 use std::process::ExitCode;
 
 /// FOG drift identification on the bench: the firmware's pipeline on recorded or simulated data.
@@ -21,12 +19,20 @@ enum Cmd {
     /// Wavelet-denoise a recording: adds a `denoised_dps` column (db4 lifting, soft universal
     /// threshold, as in the paper).
     Denoise(denoise_cmd::Args),
+    /// Simulate a FOG record from an error model (TOML or a built-in preset): interchange
+    /// CSV or E-Core binary frames, streamed sample by sample.
+    Simulate(simulate_cmd::Args),
+    /// Overlapping Allan deviation of a record with chi-square error bars and a weighted
+    /// NNLS fit of the IEEE 952 noise terms; JSON and optional SVG plot.
+    Allan(allan_cmd::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.cmd {
         Cmd::Denoise(a) => denoise_cmd::run(a),
+        Cmd::Simulate(a) => simulate_cmd::run(a),
+        Cmd::Allan(a) => allan_cmd::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -112,7 +112,7 @@ impl Record {
     }
 }
 
-fn parse_field<T: std::str::FromStr + Into<f64> + Copy>(
+pub(crate) fn parse_field<T: std::str::FromStr + Into<f64> + Copy>(
     rec: &csv::StringRecord,
     col: usize,
     what: &str,
@@ -167,6 +167,15 @@ pub fn write_atomic(
                 dir.display()
             )
         })?;
+    // tempfile creates the file 0600; output is an ordinary file (0644, less the umask
+    // that `File::create` would apply: we cannot read the umask portably, 0644 is the usual
+    // result of 0666 & !022).
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(tmp.path(), std::fs::Permissions::from_mode(0o644))
+            .with_context(|| format!("{}: cannot set permissions", path.display()))?;
+    }
     {
         let mut w = BufWriter::new(tmp.as_file_mut());
         fill(&mut w)?;

@@ -1,0 +1,455 @@
+//! Weighted non-negative least-squares fit of the IEEE Std 952 noise terms on the Allan
+//! variance:
+//! ```text
+//! AVAR(tau) = 3 Q^2 / tau^2 + N^2 / tau + (2 ln 2 / pi) B^2 + K^2 tau / 3 + R^2 tau^2 / 2
+//!             [+ gm_avar(sigma^2, T, tau)]
+//! ```
+//! Units (rate in deg/s, tau in s): Q deg (angle quantization; also arcsec), N deg/s/sqrt(Hz)
+//! = deg/sqrt(s) (also deg/sqrt(h) = 60 N), B deg/s (also deg/h), K deg/s^1.5 = deg/s/sqrt(s)
+//! (also deg/h/sqrt(h) = 216000 K), R deg/s^2 (also deg/h^2), Gauss-Markov sigma deg/s and
+//! correlation time T s.
+//!
+//! # Method
+//! - Unknowns: the coefficients `c = (Q^2, N^2, B^2, K^2, R^2[, sigma^2])`, linear in AVAR,
+//!   constrained `c >= 0`.
+//! - Weights: the variance of an AVAR estimate with `edf` degrees of freedom is
+//!   `2 AVAR^2 / edf`, so each point is weighted by `edf / (2 model^2)`; `model` starts as
+//!   the measured AVAR and is replaced by the fitted curve for 5 iterations (iteratively
+//!   reweighted least squares, which avoids the downward bias of weighting by the data).
+//! - NNLS: exact, by enumeration of the 2^5 - 1 (or 2^6 - 1) supports: the least-squares
+//!   solution on each support (Householder QR on scaled columns) that is strictly positive
+//!   and has the smallest weighted residual is the NNLS optimum.
+//! - Gauss-Markov (`--markov`): T is searched on a grid of 8 points per decade spanning the
+//!   taus of the curve; the best (T, support) wins. T has no error bar (grid step 33 %).
+//! - Uncertainty: the covariance of the active coefficients is `(A^T W A)^-1`, multiplied by
+//!   the reduced chi-square when that exceeds 1; values get `sigma_c / (2 sqrt(c))` (delta
+//!   method). Overlapping ADEV points at nearby taus are correlated, which this ignores:
+//!   treat the uncertainties as optimistic. An inactive term (at the bound 0) has value 0
+//!   and no uncertainty.
+
+use super::AdevPoint;
+use anyhow::{bail, Result};
+use serde::Serialize;
+
+/// `2 ln 2 / pi`: Allan variance of flicker noise per unit `B^2`.
+pub const FLICKER_AVAR: f64 = 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI;
+
+/// A term of the noise model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    /// Angle quantization Q.
+    Quantization,
+    /// Angle random walk N.
+    Arw,
+    /// Bias instability B.
+    BiasInstability,
+    /// Rate random walk K.
+    Rrw,
+    /// Rate ramp R.
+    RateRamp,
+    /// First-order Gauss-Markov (sigma, T).
+    GaussMarkov,
+}
+
+/// The terms always fitted, in order.
+pub const BASE: [Kind; 5] = [
+    Kind::Quantization,
+    Kind::Arw,
+    Kind::BiasInstability,
+    Kind::Rrw,
+    Kind::RateRamp,
+];
+
+impl Kind {
+    /// AVAR of the term per unit coefficient at `tau_s` (`gm_t_s`: the GM correlation time).
+    pub fn basis(self, tau_s: f64, gm_t_s: f64) -> f64 {
+        match self {
+            Kind::Quantization => 3.0 / (tau_s * tau_s),
+            Kind::Arw => 1.0 / tau_s,
+            Kind::BiasInstability => FLICKER_AVAR,
+            Kind::Rrw => tau_s / 3.0,
+            Kind::RateRamp => tau_s * tau_s / 2.0,
+            Kind::GaussMarkov => crate::sim::gm_avar(1.0, gm_t_s, tau_s),
+        }
+    }
+
+    /// Power-law noise type (alpha of the frequency PSD) the term looks like at `tau_s`.
+    pub fn alpha(self, tau_s: f64, gm_t_s: f64) -> i32 {
+        match self {
+            Kind::Quantization => 2,
+            Kind::Arw => 0,
+            Kind::BiasInstability => -1,
+            Kind::Rrw | Kind::RateRamp => -2,
+            Kind::GaussMarkov if tau_s < gm_t_s => -2,
+            Kind::GaussMarkov => 0,
+        }
+    }
+
+    /// (symbol, unit, other unit, factor to the other unit).
+    pub fn units(self) -> (&'static str, &'static str, &'static str, f64) {
+        match self {
+            Kind::Quantization => ("Q", "deg", "arcsec", 3600.0),
+            Kind::Arw => ("N", "deg/s/sqrt(Hz)", "deg/sqrt(h)", 60.0),
+            Kind::BiasInstability => ("B", "deg/s", "deg/h", 3600.0),
+            Kind::Rrw => ("K", "deg/s^1.5", "deg/h/sqrt(h)", 3600.0 * 60.0),
+            Kind::RateRamp => ("R", "deg/s^2", "deg/h^2", 3600.0 * 3600.0),
+            Kind::GaussMarkov => ("sigma_gm", "deg/s", "deg/h", 3600.0),
+        }
+    }
+}
+
+/// One fitted term.
+#[derive(Debug, Clone, Serialize)]
+pub struct Term {
+    /// Which term.
+    pub term: Kind,
+    /// Its symbol.
+    pub symbol: &'static str,
+    /// Coefficient on the Allan variance (the value squared), in `unit`^2.
+    pub coefficient: f64,
+    /// Its standard uncertainty (`None` when the term is at the bound 0).
+    pub coefficient_sigma: Option<f64>,
+    /// Value (square root of the coefficient), in `unit`.
+    pub value: f64,
+    /// Its standard uncertainty, in `unit`.
+    pub sigma: Option<f64>,
+    /// Unit of `value`.
+    pub unit: &'static str,
+    /// Value in the other customary unit.
+    pub value_alt: f64,
+    /// Its uncertainty in that unit.
+    pub sigma_alt: Option<f64>,
+    /// The other unit.
+    pub unit_alt: &'static str,
+    /// Whether the term is in the NNLS support (coefficient > 0).
+    pub active: bool,
+}
+
+/// Result of the fit.
+#[derive(Debug, Clone, Serialize)]
+pub struct Fit {
+    /// Every fitted term (Gauss-Markov only with `--markov`).
+    pub terms: Vec<Term>,
+    /// Gauss-Markov correlation time, s (when that term is active).
+    pub gm_tau_s: Option<f64>,
+    /// Weighted residual sum of squares over (points - parameters), final weights.
+    pub chi2_reduced: f64,
+    /// Points fitted.
+    pub n_points: usize,
+}
+
+impl Fit {
+    /// The term `kind`, if fitted.
+    pub fn get(&self, kind: Kind) -> Option<&Term> {
+        self.terms.iter().find(|t| t.term == kind)
+    }
+
+    fn gm_t(&self) -> f64 {
+        self.gm_tau_s.unwrap_or(1.0)
+    }
+
+    /// Fitted AVAR of one term at `tau_s`.
+    pub fn term_avar(&self, kind: Kind, tau_s: f64) -> f64 {
+        self.get(kind)
+            .map_or(0.0, |t| t.coefficient * kind.basis(tau_s, self.gm_t()))
+    }
+
+    /// Fitted total AVAR at `tau_s`.
+    pub fn avar(&self, tau_s: f64) -> f64 {
+        self.terms
+            .iter()
+            .map(|t| t.coefficient * t.term.basis(tau_s, self.gm_t()))
+            .sum()
+    }
+
+    /// Noise type of the dominant fitted term at `tau_s` (white FM when none).
+    pub fn dominant_alpha(&self, tau_s: f64) -> i32 {
+        self.terms
+            .iter()
+            .filter(|t| t.active)
+            .max_by(|a, b| {
+                let va = a.coefficient * a.term.basis(tau_s, self.gm_t());
+                let vb = b.coefficient * b.term.basis(tau_s, self.gm_t());
+                va.total_cmp(&vb)
+            })
+            .map_or(0, |t| t.term.alpha(tau_s, self.gm_t()))
+    }
+}
+
+/// Best NNLS solution for one design: coefficients (all columns), covariance on the
+/// support, weighted cost.
+struct Solution {
+    coef: Vec<f64>,
+    sigma: Vec<Option<f64>>,
+    cost: f64,
+    active: usize,
+}
+
+/// Fits the points (their `edf` must be set).
+pub fn fit(points: &[AdevPoint], markov: bool) -> Result<Fit> {
+    let n = points.len();
+    if n < 3 {
+        bail!("the fit needs at least 3 Allan points, got {n}");
+    }
+    let tau: Vec<f64> = points.iter().map(|p| p.tau_s).collect();
+    let avar: Vec<f64> = points.iter().map(|p| p.adev_dps * p.adev_dps).collect();
+    if avar.iter().all(|&v| v == 0.0) {
+        bail!("the Allan deviation is 0 at every tau (constant rate?): nothing to fit");
+    }
+    let mut kinds: Vec<Kind> = BASE.to_vec();
+    if markov {
+        kinds.push(Kind::GaussMarkov);
+    }
+    let grid: Vec<f64> = if markov {
+        let (lo, hi) = (tau[0].log10(), tau[n - 1].log10());
+        let k = ((hi - lo) * 8.0).ceil().max(1.0) as usize;
+        (0..=k)
+            .map(|j| 10f64.powf(lo + (hi - lo) * j as f64 / k as f64))
+            .collect()
+    } else {
+        vec![1.0]
+    };
+    let floor = avar.iter().cloned().fold(0.0, f64::max) * 1e-30;
+    let mut model: Vec<f64> = avar.iter().map(|&v| v.max(floor)).collect();
+    let mut best: Option<(Solution, f64)> = None;
+    for _ in 0..5 {
+        let w: Vec<f64> = points
+            .iter()
+            .zip(&model)
+            .map(|(p, &m)| p.edf / (2.0 * m * m))
+            .collect();
+        best = None;
+        for &t in &grid {
+            let cols: Vec<Vec<f64>> = kinds
+                .iter()
+                .map(|k| tau.iter().map(|&x| k.basis(x, t)).collect())
+                .collect();
+            if let Some(s) = nnls(&cols, &avar, &w) {
+                if best.as_ref().is_none_or(|(b, _)| s.cost < b.cost) {
+                    best = Some((s, t));
+                }
+            }
+        }
+        let Some((s, t)) = &best else {
+            bail!("the least-squares fit failed (no positive solution)");
+        };
+        model = tau
+            .iter()
+            .map(|&x| {
+                kinds
+                    .iter()
+                    .zip(&s.coef)
+                    .map(|(k, c)| c * k.basis(x, *t))
+                    .sum::<f64>()
+                    .max(floor)
+            })
+            .collect();
+    }
+    let Some((s, t)) = best else {
+        bail!("the least-squares fit failed");
+    };
+    let gm_active = markov && s.coef.last().is_some_and(|&c| c > 0.0);
+    let params = s.active + usize::from(gm_active);
+    let chi2_reduced = if n > params {
+        s.cost / (n - params) as f64
+    } else {
+        f64::NAN
+    };
+    let inflate = if chi2_reduced.is_finite() {
+        chi2_reduced.max(1.0).sqrt()
+    } else {
+        1.0
+    };
+    let terms = kinds
+        .iter()
+        .zip(s.coef.iter().zip(&s.sigma))
+        .map(|(&kind, (&c, &sc))| {
+            let (symbol, unit, unit_alt, factor) = kind.units();
+            let sc = sc.map(|v| v * inflate);
+            let value = c.sqrt();
+            let sigma = sc.map(|v| if c > 0.0 { v / (2.0 * value) } else { v.sqrt() });
+            Term {
+                term: kind,
+                symbol,
+                coefficient: c,
+                coefficient_sigma: sc,
+                value,
+                sigma,
+                unit,
+                value_alt: value * factor,
+                sigma_alt: sigma.map(|v| v * factor),
+                unit_alt,
+                active: c > 0.0,
+            }
+        })
+        .collect();
+    Ok(Fit {
+        terms,
+        gm_tau_s: gm_active.then_some(t),
+        chi2_reduced,
+        n_points: n,
+    })
+}
+
+/// Exact NNLS by enumerating supports (see the module docs).
+fn nnls(cols: &[Vec<f64>], b: &[f64], w: &[f64]) -> Option<Solution> {
+    let p = cols.len();
+    let mut best: Option<Solution> = None;
+    for mask in 1u32..(1 << p) {
+        let support: Vec<usize> = (0..p).filter(|j| mask & (1 << j) != 0).collect();
+        let sub: Vec<&[f64]> = support.iter().map(|&j| cols[j].as_slice()).collect();
+        let Some((x, cov)) = weighted_lstsq(&sub, b, w) else {
+            continue;
+        };
+        if x.iter().any(|&v| v <= 0.0 || !v.is_finite()) {
+            continue;
+        }
+        let cost: f64 = (0..b.len())
+            .map(|i| {
+                let fit: f64 = sub.iter().zip(&x).map(|(c, xj)| c[i] * xj).sum();
+                w[i] * (b[i] - fit).powi(2)
+            })
+            .sum();
+        if best.as_ref().is_none_or(|s| cost < s.cost) {
+            let mut coef = vec![0.0; p];
+            let mut sigma = vec![None; p];
+            for (k, &j) in support.iter().enumerate() {
+                coef[j] = x[k];
+                sigma[j] = Some(cov[k].sqrt());
+            }
+            best = Some(Solution {
+                coef,
+                sigma,
+                cost,
+                active: support.len(),
+            });
+        }
+    }
+    best
+}
+
+/// Weighted least squares `min sum w_i (b_i - sum_j x_j a_j[i])^2` by Householder QR on
+/// unit-norm columns: the solution and the variances `diag((A^T W A)^-1)`; `None` when the
+/// columns are (numerically) dependent.
+fn weighted_lstsq(cols: &[&[f64]], b: &[f64], w: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
+    let n = b.len();
+    let p = cols.len();
+    if n < p {
+        return None;
+    }
+    let sw: Vec<f64> = w.iter().map(|v| v.sqrt()).collect();
+    let mut scale = vec![0.0; p];
+    // a[j][i]: column-major copy, weighted and scaled to unit norm.
+    let mut a: Vec<Vec<f64>> = Vec::with_capacity(p);
+    for (j, c) in cols.iter().enumerate() {
+        let col: Vec<f64> = c.iter().zip(&sw).map(|(x, s)| x * s).collect();
+        let norm = col.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if !(norm > 0.0 && norm.is_finite()) {
+            return None;
+        }
+        scale[j] = norm;
+        a.push(col.iter().map(|v| v / norm).collect());
+    }
+    let mut y: Vec<f64> = b.iter().zip(&sw).map(|(v, s)| v * s).collect();
+    for k in 0..p {
+        let alpha = {
+            let norm = a[k][k..].iter().map(|v| v * v).sum::<f64>().sqrt();
+            if a[k][k] > 0.0 {
+                -norm
+            } else {
+                norm
+            }
+        };
+        let mut v: Vec<f64> = a[k][k..].to_vec();
+        v[0] -= alpha;
+        let vnorm2: f64 = v.iter().map(|x| x * x).sum();
+        if vnorm2 > 0.0 {
+            let apply = |col: &mut [f64]| {
+                let d: f64 = col.iter().zip(&v).map(|(x, vi)| x * vi).sum::<f64>() * 2.0 / vnorm2;
+                for (x, vi) in col.iter_mut().zip(&v) {
+                    *x -= d * vi;
+                }
+            };
+            for col in a.iter_mut().skip(k) {
+                apply(&mut col[k..]);
+            }
+            apply(&mut y[k..]);
+        }
+    }
+    // R is a[j][i] for i <= j.
+    let rmax = (0..p).map(|j| a[j][j].abs()).fold(0.0, f64::max);
+    if (0..p).any(|j| a[j][j].abs() <= 1e-10 * rmax) {
+        return None;
+    }
+    let mut x = vec![0.0; p];
+    for i in (0..p).rev() {
+        let s: f64 = (i + 1..p).map(|j| a[j][i] * x[j]).sum();
+        x[i] = (y[i] - s) / a[i][i];
+    }
+    // Rinv (upper triangular), then diag(Rinv Rinv^T).
+    let mut rinv = vec![vec![0.0; p]; p];
+    for j in 0..p {
+        rinv[j][j] = 1.0 / a[j][j];
+        for i in (0..j).rev() {
+            let s: f64 = (i + 1..=j).map(|k| a[k][i] * rinv[k][j]).sum();
+            rinv[i][j] = -s / a[i][i];
+        }
+    }
+    let var: Vec<f64> = (0..p)
+        .map(|i| (i..p).map(|j| rinv[i][j].powi(2)).sum::<f64>() / (scale[i] * scale[i]))
+        .collect();
+    let x = x.iter().zip(&scale).map(|(v, s)| v / s).collect();
+    Some((x, var))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn points(f: impl Fn(f64) -> f64) -> Vec<AdevPoint> {
+        (0..16)
+            .map(|k| {
+                let tau = 0.01 * 2f64.powi(k);
+                AdevPoint {
+                    m: 1 << k,
+                    tau_s: tau,
+                    adev_dps: f(tau).sqrt(),
+                    n_diff: 1000,
+                    edf: 100.0,
+                    alpha: 0,
+                    adev_lower_dps: 0.0,
+                    adev_upper_dps: 0.0,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn exact_curve_is_recovered() {
+        let (q, n, b, k) = (1e-5, 1e-3, 3e-4, 2e-5);
+        let pts =
+            points(|t| 3.0 * q * q / (t * t) + n * n / t + FLICKER_AVAR * b * b + k * k * t / 3.0);
+        let f = fit(&pts, false).expect("fit");
+        for (kind, want) in [
+            (Kind::Quantization, q),
+            (Kind::Arw, n),
+            (Kind::BiasInstability, b),
+            (Kind::Rrw, k),
+        ] {
+            let got = f.get(kind).map_or(0.0, |t| t.value);
+            assert!((got / want - 1.0).abs() < 1e-6, "{kind:?}: {got} vs {want}");
+        }
+        assert_eq!(f.get(Kind::RateRamp).map(|t| t.active), Some(false));
+    }
+
+    #[test]
+    fn markov_term_is_found() {
+        let pts = points(|t| 1e-6 / t + crate::sim::gm_avar(1e-4, 3.0, t));
+        let f = fit(&pts, true).expect("fit");
+        let gm = f.get(Kind::GaussMarkov).expect("gm");
+        assert!((gm.value / 1e-2 - 1.0).abs() < 0.1, "{}", gm.value);
+        let t = f.gm_tau_s.expect("T");
+        assert!((t / 3.0).ln().abs() < 0.3, "{t}");
+    }
+}

@@ -1,0 +1,10 @@
+//! `host-sim` as a library: the modules behind the subcommands, for tests, benches and
+//! other subcommands (the simulator in [`sim`], Allan analysis in [`allan`]).
+#![forbid(unsafe_code)]
+
+pub mod allan;
+pub mod allan_cmd;
+pub mod denoise_cmd;
+pub mod record;
+pub mod sim;
+pub mod simulate_cmd;

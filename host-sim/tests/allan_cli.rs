@@ -1,0 +1,176 @@
+//! `host-sim allan` end to end: JSON and SVG from a simulated record, bad inputs.
+
+use assert_cmd::Command;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+fn host_sim() -> Command {
+    Command::cargo_bin("host-sim").expect("binary built")
+}
+
+/// Simulates `duration_s` of white + flicker noise at 10 Hz into `dir/name`.
+fn simulated(dir: &Path, name: &str, duration_s: &str) -> PathBuf {
+    let model = dir.join("m.toml");
+    fs::write(
+        &model,
+        "sample_rate_hz = 10.0\n[noise]\narw_dps_per_rthz = 1e-3\nbias_instability_dps = 2e-4\nflicker_tau_min_s = 0.5\n",
+    )
+    .expect("write model");
+    let out = dir.join(name);
+    host_sim()
+        .args(["simulate", "--model"])
+        .arg(&model)
+        .args(["--duration-s", duration_s, "--seed", "5", "--output"])
+        .arg(&out)
+        .assert()
+        .success();
+    out
+}
+
+fn allan(input: &Path, json: &Path, extra: &[&str]) -> assert_cmd::assert::Assert {
+    host_sim()
+        .args(["allan", "--input"])
+        .arg(input)
+        .arg("--json")
+        .arg(json)
+        .args(extra)
+        .assert()
+}
+
+#[test]
+fn json_and_svg() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let input = simulated(dir.path(), "r.csv", "3000");
+    let json = dir.path().join("a.json");
+    let svg = dir.path().join("a.svg");
+    let a = allan(&input, &json, &["--svg", &svg.to_string_lossy()]).success();
+    let stderr = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert!(stderr.contains("median t_s step"), "{stderr}");
+    let v: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&json).expect("json")).expect("valid JSON");
+    let tau0 = v["tau0_s"].as_f64().expect("tau0");
+    assert!((tau0 - 0.1).abs() < 1e-9);
+    assert_eq!(v["n_samples"], 30_000);
+    let pts = v["points"].as_array().expect("points");
+    assert_eq!(pts.len(), 14, "octave m = 1 .. 8192");
+    for p in pts {
+        let (lo, d, hi) = (
+            p["adev_lower_dps"].as_f64().expect("lo"),
+            p["adev_dps"].as_f64().expect("adev"),
+            p["adev_upper_dps"].as_f64().expect("hi"),
+        );
+        assert!(lo < d && d < hi, "{p}");
+        assert!(p["edf"].as_f64().expect("edf") >= 1.0);
+        assert!(p["tau_s"].as_f64().expect("tau") > 0.0);
+    }
+    let terms = v["fit"]["terms"].as_array().expect("terms");
+    let arw = terms.iter().find(|t| t["term"] == "arw").expect("ARW term");
+    assert_eq!(arw["unit"], "deg/s/sqrt(Hz)");
+    assert_eq!(arw["unit_alt"], "deg/sqrt(h)");
+    let n = arw["value"].as_f64().expect("N");
+    assert!((n / 1e-3 - 1.0).abs() < 0.05, "N = {n}");
+    assert!(arw["sigma"].as_f64().expect("sigma") > 0.0);
+    let b = terms
+        .iter()
+        .find(|t| t["term"] == "bias_instability")
+        .expect("B term");
+    assert_eq!(b["unit_alt"], "deg/h");
+    let svg = fs::read_to_string(&svg).expect("svg");
+    assert!(svg.starts_with("<svg"));
+    assert!(svg.contains("<text") && svg.contains("tau (s)"));
+    assert!(svg.contains("<circle") && svg.contains("<polyline"));
+}
+
+#[test]
+fn other_tau_sets_and_markov() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let input = simulated(dir.path(), "r.csv", "200");
+    let json = dir.path().join("a.json");
+    let count = |extra: &[&str]| {
+        allan(&input, &json, extra).success();
+        let v: serde_json::Value =
+            serde_json::from_str(&fs::read_to_string(&json).expect("json")).expect("JSON");
+        v["points"].as_array().map_or(0, |p| p.len())
+    };
+    assert_eq!(count(&["--taus", "all"]), 1000);
+    let d = count(&["--taus", "decade:5", "--markov"]);
+    assert!((14..=17).contains(&d), "{d}");
+    allan(&input, &json, &["--taus", "decade:0"]).failure();
+    allan(&input, &json, &["--taus", "weekly"]).failure();
+}
+
+fn expect_error(content: &str, needle: &str) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let input = dir.path().join("bad.csv");
+    fs::write(&input, content).expect("write");
+    let json = dir.path().join("out.json");
+    let svg = dir.path().join("out.svg");
+    let a = allan(&input, &json, &["--svg", &svg.to_string_lossy()]).failure();
+    let stderr = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
+    assert!(stderr.contains(needle), "expected {needle:?} in {stderr}");
+    assert!(!json.exists() && !svg.exists(), "no output left behind");
+    let leftovers = fs::read_dir(dir.path())
+        .expect("dir")
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .count();
+    assert_eq!(leftovers, 0);
+}
+
+fn rows(n: usize) -> String {
+    (0..n)
+        .map(|i| format!("{},{}\n", i as f64 * 0.01, ((i * 7919) % 13) as f64 * 1e-3))
+        .collect()
+}
+
+#[test]
+fn nan_is_refused_with_file_and_line() {
+    expect_error(
+        &format!("t_s,rate_dps\n{}1.0,NaN\n", rows(100)),
+        "bad.csv:102: `rate_dps` is not finite",
+    );
+}
+
+#[test]
+fn other_bad_inputs() {
+    expect_error(
+        "t_s,gyro\n0,1\n",
+        "bad.csv:1: need columns `t_s` and `rate_dps`",
+    );
+    expect_error(&format!("t_s,rate_dps\n{}", rows(5)), "at least 8");
+    expect_error(
+        &format!("t_s,rate_dps\n{}0.5,1\n", rows(100)),
+        "bad.csv:102: t_s = 0.5 does not increase",
+    );
+    expect_error(
+        "t_s,rate_dps\n0,1\n1,1\n2,1\n3,1\n4,1\n5,1\n6,1\n7,1\n8,1\n",
+        "constant rate",
+    );
+}
+
+#[test]
+fn gaps_are_reported() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let mut text = String::from("t_s,rate_dps\n");
+    for i in 0..400 {
+        let t = if i < 200 {
+            i as f64 * 0.01
+        } else {
+            i as f64 * 0.01 + 1.0
+        };
+        text.push_str(&format!("{t},{}\n", ((i * 7919) % 13) as f64 * 1e-3));
+    }
+    let input = dir.path().join("gap.csv");
+    fs::write(&input, text).expect("write");
+    let json = dir.path().join("g.json");
+    let a = allan(&input, &json, &[]).success();
+    let stderr = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert!(
+        stderr.contains("1 gap(s)") && stderr.contains("line 202"),
+        "{stderr}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&json).expect("json")).expect("JSON");
+    assert_eq!(v["gaps"], 1);
+}

@@ -1,0 +1,265 @@
+//! `host-sim simulate` end to end: model errors, reproducibility, E-Core frames, atomicity.
+
+use assert_cmd::Command;
+use fog_core::frame::ecore::EcoreDecoder;
+use fog_core::frame::Decoder;
+use std::fs;
+use std::path::Path;
+
+fn host_sim() -> Command {
+    Command::cargo_bin("host-sim").expect("binary built")
+}
+
+fn simulate(args: &[&str], output: &Path) -> assert_cmd::assert::Assert {
+    host_sim()
+        .arg("simulate")
+        .args(args)
+        .arg("--output")
+        .arg(output)
+        .assert()
+}
+
+/// Runs `simulate` on a model file holding `toml`; expects a one-line error containing every
+/// needle, naming the file, and no output (nor temporary file) left behind.
+fn expect_model_error(toml: &str, needles: &[&str]) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let model = dir.path().join("bad_model.toml");
+    fs::write(&model, toml).expect("write");
+    let output = dir.path().join("out.csv");
+    let a = simulate(
+        &[
+            "--model",
+            &model.to_string_lossy(),
+            "--duration-s",
+            "1",
+            "--seed",
+            "1",
+            "--rate-hz",
+            "100",
+        ],
+        &output,
+    )
+    .failure();
+    let stderr = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
+    assert!(
+        stderr.contains("bad_model.toml"),
+        "names the file: {stderr}"
+    );
+    for n in needles {
+        assert!(stderr.contains(n), "expected {n:?} in {stderr}");
+    }
+    assert!(!output.exists(), "no output left behind");
+    assert_no_tmp(dir.path());
+}
+
+fn assert_no_tmp(dir: &Path) {
+    let leftovers: Vec<_> = fs::read_dir(dir)
+        .expect("dir")
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary file left behind");
+}
+
+#[test]
+fn unknown_key_names_key_file_and_line() {
+    expect_model_error(
+        "[noise]\narw_dps_per_rthz = 0.001\nflux_capacitor_dps = 1.0\n",
+        &["bad_model.toml:3", "unknown field `flux_capacitor_dps`"],
+    );
+    expect_model_error("[warp]\nspeed_c = 9\n", &["unknown field `warp`"]);
+}
+
+#[test]
+fn negative_noise_density_is_refused() {
+    expect_model_error(
+        "[noise]\nbias_instability_dps = 1e-4\narw_dps_per_rthz = -0.001\n",
+        &[
+            "bad_model.toml:3",
+            "arw_dps_per_rthz = -0.001",
+            "noise density must be >= 0",
+        ],
+    );
+    expect_model_error(
+        "[noise]\nrrw_dps_per_s_rthz = -1e-6\n",
+        &["rrw_dps_per_s_rthz", ">= 0"],
+    );
+}
+
+#[test]
+fn wrong_or_missing_units_are_refused() {
+    expect_model_error(
+        "[noise]\narw = 0.001\n",
+        &["bad_model.toml:2", "`arw` has no unit", "arw_dps_per_rthz"],
+    );
+    expect_model_error(
+        "[noise]\narw_dph_per_rthz = 4.0\n",
+        &[
+            "unknown field `arw_dph_per_rthz`",
+            "wrong unit",
+            "arw_dps_per_rthz",
+        ],
+    );
+    expect_model_error(
+        "[temperature]\nbias_dps_per_k = 1e-5\n",
+        &["bias_dps_per_k", "bias_dps_per_c"],
+    );
+}
+
+#[test]
+fn bad_values_are_refused() {
+    expect_model_error("[faults]\ndrop_probability = 1.5\n", &["probability"]);
+    expect_model_error(
+        "[noise]\ngm_sigma_dps = 1e-3\ngm_tau_s = 0\n",
+        &["gm_tau_s", "> 0"],
+    );
+    expect_model_error(
+        "[noise]\narw_dps_per_rthz = \"a lot\"\n",
+        &["bad_model.toml:2"],
+    );
+}
+
+#[test]
+fn same_seed_same_bytes_other_seed_other_bytes() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let run = |seed: &str, name: &str| {
+        let out = dir.path().join(name);
+        simulate(
+            &[
+                "--preset",
+                "ecore2000",
+                "--duration-s",
+                "20",
+                "--seed",
+                seed,
+            ],
+            &out,
+        )
+        .success();
+        fs::read(out).expect("read")
+    };
+    let a = run("42", "a.csv");
+    let b = run("42", "b.csv");
+    let c = run("43", "c.csv");
+    assert_eq!(a, b);
+    assert_ne!(a, c);
+    let text = String::from_utf8(a).expect("utf8");
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("t_s,rate_dps,temp_c,drift_dps,true_rate_dps")
+    );
+    assert_eq!(lines.count(), 2000, "20 s at 100 Hz");
+}
+
+#[test]
+fn ecore_frames_decode_to_the_counts() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let csv_out = dir.path().join("r.csv");
+    let bin_out = dir.path().join("r.bin");
+    let args = ["--preset", "ecore2000", "--duration-s", "30", "--seed", "7"];
+    simulate(&args, &csv_out).success();
+    let mut bin_args = args.to_vec();
+    bin_args.extend(["--format", "ecore-bin"]);
+    simulate(&bin_args, &bin_out).success();
+    let bytes = fs::read(&bin_out).expect("read");
+    assert_eq!(bytes.len(), 8 * 3000, "8 bytes per sample");
+    let mut dec = EcoreDecoder::new(60.0).expect("decoder");
+    let frames: Vec<_> = bytes.iter().filter_map(|&b| dec.push(b)).collect();
+    assert_eq!(frames.len(), 3000);
+    assert_eq!(dec.stats().frames_bad, 0);
+    let mut rdr = csv::Reader::from_path(&csv_out).expect("csv");
+    let mut nonzero = 0;
+    for (row, f) in rdr.records().zip(&frames) {
+        let row = row.expect("row");
+        let rate: f64 = row[1].parse().expect("rate");
+        let counts = rate * 32768.0 / 60.0;
+        assert_eq!(counts, counts.round(), "CSV rate is a whole count");
+        assert_eq!(f.counts as f64, counts);
+        assert_eq!(f64::from(f.rate_dps), rate);
+        nonzero += usize::from(f.counts != 0);
+    }
+    assert!(nonzero > 1000, "the counts carry the noise");
+}
+
+#[test]
+fn no_half_written_output_on_error() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = dir.path().join("keep.csv");
+    fs::write(&out, "previous content\n").expect("write");
+    let model = dir.path().join("m.toml");
+    // No full_scale_dps: ecore-bin is refused; the old file must survive untouched.
+    fs::write(
+        &model,
+        "sample_rate_hz = 100.0\n[noise]\narw_dps_per_rthz = 1e-3\n",
+    )
+    .expect("w");
+    simulate(
+        &[
+            "--model",
+            &model.to_string_lossy(),
+            "--duration-s",
+            "1",
+            "--seed",
+            "1",
+            "--format",
+            "ecore-bin",
+        ],
+        &out,
+    )
+    .failure();
+    assert_eq!(
+        fs::read_to_string(&out).expect("read"),
+        "previous content\n"
+    );
+    assert_no_tmp(dir.path());
+    // Output into a missing directory: an error naming it, nothing written.
+    let a = simulate(
+        &["--preset", "ecore2000", "--duration-s", "1", "--seed", "1"],
+        &dir.path().join("missing/out.csv"),
+    )
+    .failure();
+    let stderr = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert!(stderr.contains("missing"), "{stderr}");
+    // A good run replaces the old content.
+    simulate(
+        &[
+            "--model",
+            &model.to_string_lossy(),
+            "--duration-s",
+            "1",
+            "--seed",
+            "1",
+        ],
+        &out,
+    )
+    .success();
+    assert!(fs::read_to_string(&out)
+        .expect("read")
+        .starts_with("t_s,rate_dps"));
+}
+
+#[test]
+fn needs_a_model_and_a_rate() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = dir.path().join("o.csv");
+    simulate(&["--duration-s", "1", "--seed", "1"], &out).failure();
+    let model = dir.path().join("m.toml");
+    fs::write(&model, "[noise]\narw_dps_per_rthz = 1e-3\n").expect("w");
+    let a = simulate(
+        &[
+            "--model",
+            &model.to_string_lossy(),
+            "--duration-s",
+            "1",
+            "--seed",
+            "1",
+        ],
+        &out,
+    )
+    .failure();
+    let stderr = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert!(stderr.contains("--rate-hz"), "{stderr}");
+    assert!(!out.exists());
+}
