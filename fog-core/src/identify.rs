@@ -191,6 +191,13 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
         Ok(())
     }
 
+    /// The denoised values of the last completed block (oldest first): the training targets
+    /// of the next `B` samples. All zero before the first block completes; check
+    /// [`Estimate::block_done`] to know when it changes.
+    pub fn last_denoised_block(&self) -> &[f32; B] {
+        &self.targets
+    }
+
     /// Current output weights.
     pub fn weights(&self) -> &[f32; L] {
         &self.w
