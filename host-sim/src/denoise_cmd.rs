@@ -160,8 +160,10 @@ pub fn run(args: &Args) -> Result<()> {
         },
         sigma: args.sigma.0,
     };
-    let (denoised, sigma_sum) = denoise_blocks(&rec.rate_dps, &blocks, &cfg)
-        .map_err(|(start, e)| anyhow::anyhow!("{}: block at line {}: {e}", args.input.display(), start + 2))?;
+    let (denoised, sigma_sum) =
+        denoise_blocks(&rec.rate_dps, &blocks, &cfg).map_err(|(start, e)| {
+            anyhow::anyhow!("{}: block at line {}: {e}", args.input.display(), start + 2)
+        })?;
     let out_path = &args.output;
     record::write_atomic(out_path, |w| {
         let mut wtr = csv::Writer::from_writer(w);

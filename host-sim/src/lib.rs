@@ -5,6 +5,8 @@
 pub mod allan;
 pub mod allan_cmd;
 pub mod denoise_cmd;
+pub mod identify;
+pub mod identify_cmd;
 pub mod record;
 pub mod sim;
 pub mod simulate_cmd;

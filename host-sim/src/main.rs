@@ -3,7 +3,7 @@
 #![forbid(unsafe_code)]
 
 use clap::{Parser, Subcommand};
-use host_sim::{allan_cmd, denoise_cmd, simulate_cmd};
+use host_sim::{allan_cmd, denoise_cmd, identify_cmd, simulate_cmd};
 use std::process::ExitCode;
 
 /// FOG drift identification on the bench: the firmware's pipeline on recorded or simulated data.
@@ -25,6 +25,9 @@ enum Cmd {
     /// Overlapping Allan deviation of a record with chi-square error bars and a weighted
     /// NNLS fit of the IEEE 952 noise terms; JSON and optional SVG plot.
     Allan(allan_cmd::Args),
+    /// Train the on-line drift identifier on training records and score it, still on line,
+    /// on validation records beside causal baselines; JSON report.
+    Identify(identify_cmd::Args),
 }
 
 fn main() -> ExitCode {
@@ -33,6 +36,7 @@ fn main() -> ExitCode {
         Cmd::Denoise(a) => denoise_cmd::run(a),
         Cmd::Simulate(a) => simulate_cmd::run(a),
         Cmd::Allan(a) => allan_cmd::run(a),
+        Cmd::Identify(a) => identify_cmd::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

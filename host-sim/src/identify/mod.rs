@@ -1,0 +1,588 @@
+//! `host-sim identify`: trains the on-line identifier on training records and scores it,
+//! still running on line, on validation records, beside causal baselines.
+//!
+//! # Protocol (assumptions named)
+//! - Training: the records are fed in order through one identifier; the weights and the
+//!   trainer's state carry from record to record; at each record start the identifier is
+//!   restarted (time 0, empty denoiser and input ring), as at a power-on.
+//! - Validation: the identifier goes on from where training left it, on line, record after
+//!   record, restarted at each record start. `y(k)` is its output for sample `k` before
+//!   it trained on `k` (it trains on `k` at sample `k + B`).
+//! - `d` is the denoised measurement: the record denoised in blocks of `B` from its start
+//!   (the identifier's own blocks), the tail by the tail rule of `host-sim denoise`.
+//! - Every estimator is scored on the same samples: from sample `2B` of each validation
+//!   record on (before, the identifier has had no target of that record).
+//! - Baselines, all causal with zero output latency (they output at `k` from samples up to
+//!   `k`, like the identifier): moving average of the raw rate (10 s, and the window best on
+//!   the training records), random-walk Kalman filter (q/r best on the training records),
+//!   and a moving average of the denoised target over one block as the identifier sees it,
+//!   `B` samples late (the identifier's own information latency).
+//! - Input scaling "from measured data": each network input's 1st and 99th percentiles over
+//!   the training records map to -1 and 1 (every 10th sample is kept for the percentiles).
+
+pub mod metrics;
+pub mod series;
+
+use crate::denoise_cmd;
+use anyhow::{anyhow, bail, Result};
+use fog_core::baseline::RandomWalkKalman;
+use fog_core::denoise::DenoiseConfig;
+use fog_core::features::{FeatureMap, LevelTrendTime, RateTime};
+use fog_core::identify::{presets, Identifier};
+use fog_core::train::{Drls, DrlsConfig, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer};
+use fog_core::wnn::{Activation, InputScaling};
+use metrics::{ErrorAcc, Figures};
+use serde::Serialize;
+use series::{Records, Series};
+use std::collections::VecDeque;
+use std::time::Instant;
+
+/// Network layout and inputs.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum Preset {
+    /// The paper: inputs X and T, wavelet neurons, no bias.
+    Paper,
+    /// Inputs 10-s level, trend, T; bias + linear link + Gaussians.
+    LevelTrend,
+}
+
+/// Output-weight trainer.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum TrainerKind {
+    /// DRLS, eq. (15) as written (one a-priori error for all weights).
+    DrlsParallel,
+    /// DRLS with the error refreshed after each weight.
+    DrlsSequential,
+    /// Full exponentially weighted RLS, O(L^2).
+    Rls,
+    /// Normalised LMS.
+    Nlms,
+}
+
+/// Wavelet neuron.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum Act {
+    /// exp(-t^2/2).
+    Gaussian,
+    /// (1 - t^2) exp(-t^2/2).
+    MexicanHat,
+}
+
+/// Everything that defines one identification run.
+#[derive(Clone, Debug, Serialize)]
+pub struct Options {
+    /// Layout and inputs.
+    pub preset: Preset,
+    /// Trainer.
+    pub trainer: TrainerKind,
+    /// Hidden neurons (10, 20, 30, 40 or 60).
+    pub hidden: usize,
+    /// Forgetting factor.
+    pub lambda: f32,
+    /// DRLS guard: `U <= u_max`, `|w| <= w_max` (off = eq. 15 exactly).
+    pub guard: bool,
+    /// `U(0)` of DRLS (bias neuron of level-trend excepted: 1).
+    pub u0: f32,
+    /// Denoising levels.
+    pub levels: u32,
+    /// Denoising block (256, 512 or 1024).
+    pub block: usize,
+    /// Wavelet neuron (the level-trend preset uses Gaussians).
+    pub activation: Act,
+    /// Scale inputs by the training records' percentiles (else the presets' defaults).
+    pub scale_from_training: bool,
+}
+
+impl Options {
+    /// The paper's configuration exactly.
+    pub fn paper() -> Self {
+        Self {
+            preset: Preset::Paper,
+            trainer: TrainerKind::DrlsParallel,
+            hidden: 30,
+            lambda: 0.63,
+            guard: false,
+            u0: 1.0,
+            levels: 3,
+            block: 512,
+            activation: Act::MexicanHat,
+            scale_from_training: true,
+        }
+    }
+
+    /// The improved configuration.
+    pub fn level_trend() -> Self {
+        Self {
+            preset: Preset::LevelTrend,
+            trainer: TrainerKind::DrlsSequential,
+            hidden: 30,
+            lambda: presets::LEVEL_TREND_DRLS.lambda,
+            guard: true,
+            u0: presets::LEVEL_TREND_DRLS.u0,
+            levels: 3,
+            block: 512,
+            activation: Act::Gaussian,
+            scale_from_training: true,
+        }
+    }
+}
+
+/// Figures of a baseline, with its tuned parameter.
+#[derive(Debug, Clone, Serialize)]
+pub struct Baseline {
+    /// What it is.
+    pub name: &'static str,
+    /// Its parameter (window in s, or q/r), tuned on the training records where stated.
+    pub parameter: f64,
+    /// Error figures on the validation samples.
+    #[serde(flatten)]
+    pub figures: Figures,
+}
+
+/// The JSON report of `host-sim identify`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// The configuration.
+    pub config: Options,
+    /// RMS(y - d)/RMS(d).
+    pub e_rel: Option<f64>,
+    /// RMS(y - d)/(max d - min d).
+    pub e_range: Option<f64>,
+    /// max |y - d|/(max d - min d).
+    pub e_max: Option<f64>,
+    /// RMS(y - drift)/RMS(drift).
+    pub e_truth: Option<f64>,
+    /// RMS(y - drift) in deg/h.
+    pub rms_err_truth_dph: Option<f64>,
+    /// All figures of the identifier.
+    pub identifier: Figures,
+    /// The baselines.
+    pub baselines: Vec<Baseline>,
+    /// Identifier samples per second on this host (training and validation, one core).
+    pub samples_per_s: f64,
+    /// Training samples until the RMS a-priori training error over one block fell to
+    /// `goal` times the RMS of that block's targets; null if it never did.
+    pub samples_to_goal: Option<u64>,
+    /// The same with an absolute goal of 0.001 deg/s (3.6 deg/h).
+    pub samples_to_goal_abs: Option<u64>,
+    /// The paper's training error goal.
+    pub goal: f64,
+    /// Training records and samples.
+    pub train_records: usize,
+    /// Training samples.
+    pub train_samples: u64,
+    /// Validation records.
+    pub validate_records: usize,
+    /// Validation samples scored.
+    pub scored_samples: u64,
+    /// Validation samples at which the identifier's output was first not finite, if ever.
+    pub diverged_at_sample: Option<u64>,
+    /// Definitions of the figures, in words.
+    pub definitions: &'static str,
+}
+
+const DEFINITIONS: &str = "y = identifier output for a sample before it trained on that sample; d = the record denoised in blocks of B from its start (db4, soft universal threshold); drift = the simulator's true drift_dps; scored from sample 2B of every validation record, the same samples for every estimator; e_rel = RMS(y-d)/RMS(d) (RMS(d) includes any constant bias, so e_rel falls as the bias grows); e_range = RMS(y-d)/(max d - min d); e_max = max|y-d|/(max d - min d); e_truth = RMS(y-drift)/RMS(drift); figures are null when an estimate was NaN or infinite (divergence).";
+
+/// Causal moving average of the last `w` samples (host-side baseline).
+struct MovingAverage {
+    w: usize,
+    buf: VecDeque<f64>,
+    sum: f64,
+}
+
+impl MovingAverage {
+    fn new(w: usize) -> Self {
+        Self {
+            w: w.max(1),
+            buf: VecDeque::new(),
+            sum: 0.0,
+        }
+    }
+    fn push(&mut self, x: f64) -> f64 {
+        self.buf.push_back(x);
+        self.sum += x;
+        if self.buf.len() > self.w {
+            self.sum -= self.buf.pop_front().unwrap_or(0.0);
+        }
+        self.sum / self.buf.len() as f64
+    }
+}
+
+const MA_WINDOWS_S: [f64; 8] = [1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0];
+const KALMAN_Q_OVER_R: [f64; 11] = [
+    1e-9, 3e-9, 1e-8, 3e-8, 1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5, 1e-4,
+];
+/// Training records used to tune the baselines (enough for a stable choice).
+const TUNE_RECORDS: usize = 20;
+
+fn denoised(s: &Series, block: usize, levels: u32) -> Result<Vec<f32>> {
+    let plan = denoise_cmd::plan(s.rate_dps.len(), Some(block), levels)?;
+    let cfg = DenoiseConfig {
+        levels,
+        ..DenoiseConfig::PAPER
+    };
+    denoise_cmd::denoise_blocks(&s.rate_dps, &plan, &cfg)
+        .map(|(d, _)| d)
+        .map_err(|(i, e)| anyhow!("{}: sample {i}: {e}", s.name))
+}
+
+/// 1st/99th percentile scaling of the feature map's outputs over the training records.
+fn training_scaling<F: FeatureMap<N>, const N: usize>(
+    train: &dyn Records,
+    make: &dyn Fn(f32) -> F,
+) -> Result<InputScaling<N>> {
+    let mut vals: [Vec<f32>; N] = std::array::from_fn(|_| Vec::new());
+    for i in 0..train.len() {
+        let s = train.get(i)?;
+        let dt = s.sample_period_s() as f32;
+        let mut f = make(dt);
+        for (k, &x) in s.rate_dps.iter().enumerate() {
+            let v = f.next(x, k as f32 * dt);
+            if k % 10 == 0 {
+                for j in 0..N {
+                    vals[j].push(v[j]);
+                }
+            }
+        }
+    }
+    let mut lo = [0.0; N];
+    let mut hi = [0.0; N];
+    for j in 0..N {
+        let v = &mut vals[j];
+        if v.is_empty() {
+            bail!("no training samples");
+        }
+        v.sort_by(f32::total_cmp);
+        lo[j] = v[v.len() / 100];
+        hi[j] = v[(v.len() * 99 / 100).min(v.len() - 1)];
+    }
+    Ok(InputScaling::from_ranges(lo, hi))
+}
+
+/// Runs one configuration. `make_features(dt)` builds the feature map for a record of
+/// sample period `dt`; `make_id(scaling, dt)` the identifier.
+#[allow(clippy::too_many_lines)]
+fn run_generic<F, T, const N: usize, const L: usize, const B: usize>(
+    opts: &Options,
+    train: &dyn Records,
+    validate: &dyn Records,
+    default_scaling: InputScaling<N>,
+    make_features: &dyn Fn(f32) -> F,
+    make_id: &dyn Fn(
+        InputScaling<N>,
+        f32,
+    ) -> Result<Identifier<F, T, N, L, B>, fog_core::identify::IdentifyError>,
+) -> Result<Report>
+where
+    F: FeatureMap<N>,
+    T: Trainer<L>,
+{
+    let scaling = if opts.scale_from_training {
+        training_scaling::<F, N>(train, make_features)?
+    } else {
+        default_scaling
+    };
+    let first_dt = train.get(0)?.sample_period_s() as f32;
+    let mut id = make_id(scaling, first_dt).map_err(|e| anyhow!("{e}"))?;
+    let mut busy_s = 0.0f64;
+    let mut pushed = 0u64;
+
+    // Training, with the baselines tuned on the first records.
+    let mut ma_sq = [0.0f64; MA_WINDOWS_S.len()];
+    let mut kf_sq = [0.0f64; KALMAN_Q_OVER_R.len()];
+    let mut train_samples = 0u64;
+    let (mut goal_at, mut goal_abs_at) = (None, None);
+    let (mut blk_e2, mut blk_d2, mut blk_n) = (0.0f64, 0.0f64, 0usize);
+    for i in 0..train.len() {
+        let s = train.get(i)?;
+        let dt = s.sample_period_s() as f32;
+        id.restart(make_features(dt), dt)
+            .map_err(|e| anyhow!("{}: {e}", s.name))?;
+        let t0 = Instant::now();
+        let mut train_err = Vec::with_capacity(s.rate_dps.len());
+        for &x in &s.rate_dps {
+            let e = id.push(x).map_err(|e| anyhow!("{}: {e}", s.name))?;
+            train_err.push(e.train_error_dps);
+        }
+        busy_s += t0.elapsed().as_secs_f64();
+        pushed += s.rate_dps.len() as u64;
+        // Convergence: RMS of the a-priori training error per block of B training steps
+        // (the error at sample k is for target d(k - B)).
+        let d = denoised(&s, B, opts.levels)?;
+        for (k, e) in train_err.iter().enumerate() {
+            if !e.is_finite() || k < B {
+                continue;
+            }
+            blk_e2 += f64::from(*e).powi(2);
+            blk_d2 += f64::from(d[k - B]).powi(2);
+            blk_n += 1;
+            if blk_n == B {
+                let rms_e = (blk_e2 / B as f64).sqrt();
+                let rms_d = (blk_d2 / B as f64).sqrt();
+                let at = train_samples + k as u64 + 1;
+                if goal_at.is_none() && rms_e <= 0.001 * rms_d {
+                    goal_at = Some(at);
+                }
+                if goal_abs_at.is_none() && rms_e <= 0.001 {
+                    goal_abs_at = Some(at);
+                }
+                (blk_e2, blk_d2, blk_n) = (0.0, 0.0, 0);
+            }
+        }
+        if i < TUNE_RECORDS {
+            let reference: Vec<f64> = match &s.drift_dps {
+                Some(t) => t.iter().map(|&v| f64::from(v)).collect(),
+                None => d.iter().map(|&v| f64::from(v)).collect(),
+            };
+            for (wi, w_s) in MA_WINDOWS_S.iter().enumerate() {
+                let mut ma = MovingAverage::new((w_s / f64::from(dt)).round() as usize);
+                for (k, &x) in s.rate_dps.iter().enumerate() {
+                    let y = ma.push(f64::from(x));
+                    if k >= 2 * B {
+                        ma_sq[wi] += (y - reference[k]).powi(2);
+                    }
+                }
+            }
+            for (qi, q) in KALMAN_Q_OVER_R.iter().enumerate() {
+                let mut kf = RandomWalkKalman::new(*q as f32, 1.0);
+                for (k, &x) in s.rate_dps.iter().enumerate() {
+                    let y = f64::from(kf.push(x));
+                    if k >= 2 * B {
+                        kf_sq[qi] += (y - reference[k]).powi(2);
+                    }
+                }
+            }
+        }
+        train_samples += s.rate_dps.len() as u64;
+    }
+    let argmin = |v: &[f64]| {
+        v.iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .map_or(0, |(i, _)| i)
+    };
+    let best_ma_s = MA_WINDOWS_S[argmin(&ma_sq)];
+    let best_q = KALMAN_Q_OVER_R[argmin(&kf_sq)];
+
+    // Validation.
+    let mut acc_id = ErrorAcc::default();
+    let mut acc_ma10 = ErrorAcc::default();
+    let mut acc_ma_best = ErrorAcc::default();
+    let mut acc_kf = ErrorAcc::default();
+    let mut acc_lag = ErrorAcc::default();
+    let mut diverged_at = None;
+    let mut scored = 0u64;
+    let mut val_index = 0u64;
+    for i in 0..validate.len() {
+        let s = validate.get(i)?;
+        let dt = s.sample_period_s() as f32;
+        id.restart(make_features(dt), dt)
+            .map_err(|e| anyhow!("{}: {e}", s.name))?;
+        let d = denoised(&s, B, opts.levels)?;
+        let mut ma10 = MovingAverage::new((10.0 / f64::from(dt)).round() as usize);
+        let mut ma_best = MovingAverage::new((best_ma_s / f64::from(dt)).round() as usize);
+        let mut kf = RandomWalkKalman::new(best_q as f32, 1.0);
+        let mut lag = MovingAverage::new(B);
+        let t0 = Instant::now();
+        let mut ys = Vec::with_capacity(s.rate_dps.len());
+        for &x in &s.rate_dps {
+            ys.push(
+                id.push(x)
+                    .map_err(|e| anyhow!("{}: {e}", s.name))?
+                    .drift_dps,
+            );
+        }
+        busy_s += t0.elapsed().as_secs_f64();
+        pushed += s.rate_dps.len() as u64;
+        for (k, &x) in s.rate_dps.iter().enumerate() {
+            let xf = f64::from(x);
+            let (y10, yb, yk) = (ma10.push(xf), ma_best.push(xf), f64::from(kf.push(x)));
+            // The target d(k - B) becomes known at sample k (block-aligned: at the end of its
+            // block; averaging over the last B of them is the same as their block mean then).
+            let ylag = if k >= B {
+                lag.push(f64::from(d[k - B]))
+            } else {
+                f64::NAN
+            };
+            if k < 2 * B {
+                continue;
+            }
+            let dk = f64::from(d[k]);
+            let truth = s.drift_dps.as_ref().map(|t| f64::from(t[k]));
+            let y = f64::from(ys[k]);
+            if !y.is_finite() && diverged_at.is_none() {
+                diverged_at = Some(val_index + k as u64);
+            }
+            acc_id.add(y, dk, truth);
+            acc_ma10.add(y10, dk, truth);
+            acc_ma_best.add(yb, dk, truth);
+            acc_kf.add(yk, dk, truth);
+            acc_lag.add(ylag, dk, truth);
+            scored += 1;
+        }
+        val_index += s.rate_dps.len() as u64;
+    }
+    let fig = acc_id.figures();
+    Ok(Report {
+        config: opts.clone(),
+        e_rel: fig.e_rel,
+        e_range: fig.e_range,
+        e_max: fig.e_max,
+        e_truth: fig.e_truth,
+        rms_err_truth_dph: fig.rms_err_truth_dph,
+        identifier: fig,
+        baselines: vec![
+            Baseline {
+                name: "moving_average_10s",
+                parameter: 10.0,
+                figures: acc_ma10.figures(),
+            },
+            Baseline {
+                name: "moving_average_best_window_s",
+                parameter: best_ma_s,
+                figures: acc_ma_best.figures(),
+            },
+            Baseline {
+                name: "kalman_random_walk_q_over_r",
+                parameter: best_q,
+                figures: acc_kf.figures(),
+            },
+            Baseline {
+                name: "moving_average_of_target_lagged_one_block",
+                parameter: B as f64,
+                figures: acc_lag.figures(),
+            },
+        ],
+        samples_per_s: pushed as f64 / busy_s.max(1e-9),
+        samples_to_goal: goal_at,
+        samples_to_goal_abs: goal_abs_at,
+        goal: 0.001,
+        train_records: train.len(),
+        train_samples,
+        validate_records: validate.len(),
+        scored_samples: scored,
+        diverged_at_sample: diverged_at,
+        definitions: DEFINITIONS,
+    })
+}
+
+/// The guard's ceiling on every DRLS `U_a`: 1, the largest `U(0)` of the presets (the
+/// level-trend bias neuron's), so a silent neuron's `U` never exceeds what it started with.
+const GUARD_U_MAX: f32 = 1.0;
+
+fn drls_config(o: &Options) -> DrlsConfig {
+    DrlsConfig {
+        lambda: o.lambda,
+        u0: o.u0,
+        u_max: if o.guard { GUARD_U_MAX } else { f32::INFINITY },
+        w_max: if o.guard { 1.0e4 } else { f32::INFINITY },
+        mode: if o.trainer == TrainerKind::DrlsParallel {
+            DrlsMode::Parallel
+        } else {
+            DrlsMode::Sequential
+        },
+    }
+}
+
+fn activation(a: Act) -> Activation {
+    match a {
+        Act::Gaussian => Activation::Gaussian,
+        Act::MexicanHat => Activation::MexicanHat,
+    }
+}
+
+fn with_trainer<const L: usize, const B: usize>(
+    o: &Options,
+    train: &dyn Records,
+    validate: &dyn Records,
+) -> Result<Report> {
+    let den = DenoiseConfig {
+        levels: o.levels,
+        ..DenoiseConfig::PAPER
+    };
+    let act = activation(o.activation);
+    let rls = RlsConfig {
+        lambda: o.lambda,
+        delta: 1.0,
+        trace_max: 1.0e6,
+        w_max: 1.0e4,
+    };
+    let nlms = NlmsConfig {
+        mu: (1.0 - o.lambda).clamp(1e-4, 1.0),
+        eps: 1e-3,
+        w_max: 1.0e4,
+    };
+    let bad = || anyhow!("invalid trainer configuration: {o:?}");
+    macro_rules! go {
+        ($features:expr, $default:expr, $mk:expr) => {
+            match o.trainer {
+                TrainerKind::DrlsParallel | TrainerKind::DrlsSequential => {
+                    let mut t = Drls::<L>::new(drls_config(o)).ok_or_else(bad)?;
+                    if o.preset == Preset::LevelTrend {
+                        t.set_neuron(0, 0.9999, 1.0);
+                    }
+                    run_generic::<_, _, _, L, B>(
+                        o,
+                        train,
+                        validate,
+                        $default,
+                        &$features,
+                        &|s, dt| $mk(s, t.clone(), dt),
+                    )
+                }
+                TrainerKind::Rls => {
+                    let t = Rls::<L>::new(rls).ok_or_else(bad)?;
+                    run_generic::<_, _, _, L, B>(
+                        o,
+                        train,
+                        validate,
+                        $default,
+                        &$features,
+                        &|s, dt| $mk(s, t.clone(), dt),
+                    )
+                }
+                TrainerKind::Nlms => {
+                    let t = Nlms::new(nlms).ok_or_else(bad)?;
+                    run_generic::<_, _, _, L, B>(
+                        o,
+                        train,
+                        validate,
+                        $default,
+                        &$features,
+                        &|s, dt| $mk(s, t.clone(), dt),
+                    )
+                }
+            }
+        };
+    }
+    match o.preset {
+        Preset::Paper => go!(|_dt: f32| RateTime, presets::PAPER_SCALING, |s, t, dt| {
+            presets::paper_with::<_, B, L>(act, s, t, den, dt)
+        }),
+        Preset::LevelTrend => go!(
+            |dt: f32| LevelTrendTime::new(1.0 / dt),
+            presets::LEVEL_TREND_SCALING,
+            |s, t, dt| presets::level_trend_with::<_, B, L>(s, t, den, dt)
+        ),
+    }
+}
+
+/// Runs one identification experiment.
+pub fn run(o: &Options, train: &dyn Records, validate: &dyn Records) -> Result<Report> {
+    if train.is_empty() || validate.is_empty() {
+        bail!("need at least one training and one validation record");
+    }
+    match (o.hidden, o.block) {
+        (10, 512) => with_trainer::<10, 512>(o, train, validate),
+        (20, 512) => with_trainer::<20, 512>(o, train, validate),
+        (30, 512) => with_trainer::<30, 512>(o, train, validate),
+        (40, 512) => with_trainer::<40, 512>(o, train, validate),
+        (60, 512) => with_trainer::<60, 512>(o, train, validate),
+        (30, 256) => with_trainer::<30, 256>(o, train, validate),
+        (30, 1024) => with_trainer::<30, 1024>(o, train, validate),
+        (h, b) => bail!("--hidden {h} with --block {b} is not built in: hidden 10, 20, 30, 40 or 60 with block 512, or hidden 30 with block 256 or 1024"),
+    }
+}

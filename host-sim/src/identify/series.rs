@@ -1,0 +1,127 @@
+//! One record as columns, and where records come from (files or the simulator).
+
+use crate::record::parse_field;
+use anyhow::{bail, Context, Result};
+use std::path::{Path, PathBuf};
+
+/// A record's columns. `drift_dps` is the ground truth, present in simulated records.
+#[derive(Debug, Clone)]
+pub struct Series {
+    /// Where it came from (file path or simulator seed), for messages.
+    pub name: String,
+    /// Seconds since the start.
+    pub t_s: Vec<f64>,
+    /// Measured rate, deg/s.
+    pub rate_dps: Vec<f32>,
+    /// True drift, deg/s, when the record carries it.
+    pub drift_dps: Option<Vec<f32>>,
+}
+
+impl Series {
+    /// Sample period: the median step of `t_s` (1 s for a one-sample record).
+    pub fn sample_period_s(&self) -> f64 {
+        let mut dt: Vec<f64> = self.t_s.windows(2).map(|w| w[1] - w[0]).collect();
+        if dt.is_empty() {
+            return 1.0;
+        }
+        let mid = dt.len() / 2;
+        *dt.select_nth_unstable_by(mid, f64::total_cmp).1
+    }
+
+    /// Reads an interchange CSV (`t_s`, `rate_dps`, optional `drift_dps`), with the same
+    /// checks and messages as every host-sim reader.
+    pub fn read_csv(path: &Path) -> Result<Self> {
+        let name = path.display().to_string();
+        let mut rdr =
+            csv::Reader::from_path(path).with_context(|| format!("{name}: cannot open"))?;
+        let header = rdr
+            .headers()
+            .with_context(|| format!("{name}:1: cannot read the header"))?
+            .clone();
+        let col = |want: &str| header.iter().position(|h| h.trim() == want);
+        let (Some(tc), Some(rc)) = (col("t_s"), col("rate_dps")) else {
+            bail!("{name}:1: needs columns `t_s` and `rate_dps`");
+        };
+        let dc = col("drift_dps");
+        let mut s = Series {
+            name: name.clone(),
+            t_s: Vec::new(),
+            rate_dps: Vec::new(),
+            drift_dps: dc.map(|_| Vec::new()),
+        };
+        for rec in rdr.records() {
+            let rec = rec.map_err(|e| {
+                anyhow::anyhow!("{name}:{}: {e}", e.position().map_or(0, |p| p.line()))
+            })?;
+            let line = rec.position().map_or(0, |p| p.line());
+            let t: f64 = parse_field(&rec, tc, "t_s", path, line)?;
+            if s.t_s.last().is_some_and(|&p| t <= p) {
+                bail!("{name}:{line}: t_s = {t} does not increase");
+            }
+            s.t_s.push(t);
+            s.rate_dps
+                .push(parse_field(&rec, rc, "rate_dps", path, line)?);
+            if let (Some(c), Some(v)) = (dc, s.drift_dps.as_mut()) {
+                v.push(parse_field(&rec, c, "drift_dps", path, line)?);
+            }
+        }
+        if s.t_s.is_empty() {
+            bail!("{name}: no data rows");
+        }
+        Ok(s)
+    }
+}
+
+/// A list of records read one at a time (so that memory holds one record, not the set).
+pub trait Records {
+    /// Number of records.
+    fn len(&self) -> usize;
+    /// Record `i`.
+    fn get(&self, i: usize) -> Result<Series>;
+    /// True when there is no record.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// CSV files given on the command line: files, or folders whose `*.csv` files are taken in
+/// name order.
+pub struct CsvFiles(pub Vec<PathBuf>);
+
+impl CsvFiles {
+    /// Expands folders; refuses a path that does not exist or a set with no file.
+    pub fn from_args(paths: &[PathBuf]) -> Result<Self> {
+        let mut out = Vec::new();
+        for p in paths {
+            if p.is_dir() {
+                let mut v: Vec<PathBuf> = std::fs::read_dir(p)
+                    .with_context(|| format!("{}: cannot list", p.display()))?
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|q| q.extension().is_some_and(|x| x == "csv"))
+                    .collect();
+                v.sort();
+                if v.is_empty() {
+                    bail!("{}: no .csv file in this folder", p.display());
+                }
+                out.extend(v);
+            } else if p.is_file() {
+                out.push(p.clone());
+            } else {
+                bail!("{}: no such file or folder", p.display());
+            }
+        }
+        if out.is_empty() {
+            bail!("no record given");
+        }
+        Ok(Self(out))
+    }
+}
+
+impl Records for CsvFiles {
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn get(&self, i: usize) -> Result<Series> {
+        Series::read_csv(&self.0[i])
+    }
+}
