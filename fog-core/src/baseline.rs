@@ -27,6 +27,16 @@ impl RandomWalkKalman {
         }
     }
 
+    /// Process noise variance per sample.
+    pub fn q(&self) -> f32 {
+        self.q
+    }
+
+    /// Measurement noise variance.
+    pub fn r(&self) -> f32 {
+        self.r
+    }
+
     /// Estimate of the bias *before* this measurement (the causal prediction), then updates.
     pub fn push(&mut self, z: f32) -> f32 {
         if !z.is_finite() {

@@ -89,6 +89,12 @@ impl<const BINS: usize> BinnedMean<BINS> {
 /// Inputs `[level, trend, t_s]`: `level` = mean rate over the last 10 s (a [`BinnedMean`] of
 /// 1-s bins), `trend` = `level` minus the mean of the levels seen at the last 50 bin ends.
 ///
+/// With [`LevelTrendTime::with_kalman`] the level is instead the causal estimate (the
+/// prediction before the sample's update) of a random-walk Kalman filter (its steady state
+/// is an exponential average): the same filter
+/// as the [`crate::baseline::RandomWalkKalman`] baseline, so that a network initialised as
+/// the identity on its level starts exactly as that baseline.
+///
 /// Why: the denoised target arrives one block (5.12 s) late, so the network needs an input
 /// that follows the drift *now*; the raw rate carries the full white noise (the paper's `X`
 /// input makes the network pass it through), the 10-s level carries a tenth of it. Memory:
@@ -96,7 +102,10 @@ impl<const BINS: usize> BinnedMean<BINS> {
 #[derive(Debug, Clone, PartialEq)]
 pub struct LevelTrendTime {
     level: BinnedMean<10>,
+    kalman: Option<crate::baseline::RandomWalkKalman>,
     levels: BinnedMean<50>,
+    per_bin: u32,
+    in_bin: u32,
 }
 
 impl LevelTrendTime {
@@ -109,14 +118,37 @@ impl LevelTrendTime {
         };
         Self {
             level: BinnedMean::new(per_bin),
+            kalman: None,
             levels: BinnedMean::new(1),
+            per_bin,
+            in_bin: 0,
         }
+    }
+
+    /// Level from a random-walk Kalman filter with process-to-measurement noise ratio
+    /// `q_over_r` per sample (time constant about `1/sqrt(q_over_r)` samples) instead of the
+    /// 10-s mean.
+    pub fn with_kalman(samples_per_s: f32, q_over_r: f32) -> Self {
+        let mut s = Self::new(samples_per_s);
+        s.kalman = Some(crate::baseline::RandomWalkKalman::new(q_over_r, 1.0));
+        s
     }
 }
 
 impl FeatureMap<3> for LevelTrendTime {
     fn next(&mut self, rate_dps: f32, t_s: f32) -> [f32; 3] {
-        let (level, bin_done) = self.level.push(rate_dps);
+        let (boxcar, boxcar_bin_done) = self.level.push(rate_dps);
+        let (level, bin_done) = match self.kalman.as_mut() {
+            None => (boxcar, boxcar_bin_done),
+            Some(k) => {
+                self.in_bin += 1;
+                let done = self.in_bin >= self.per_bin;
+                if done {
+                    self.in_bin = 0;
+                }
+                (k.push(rate_dps), done)
+            }
+        };
         if bin_done {
             self.levels.push(level);
         }
@@ -131,6 +163,10 @@ impl FeatureMap<3> for LevelTrendTime {
     fn reset(&mut self) {
         self.level.reset();
         self.levels.reset();
+        self.in_bin = 0;
+        if let Some(k) = self.kalman.as_mut() {
+            *k = crate::baseline::RandomWalkKalman::new(k.q(), k.r());
+        }
     }
 }
 

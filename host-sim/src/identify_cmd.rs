@@ -1,20 +1,14 @@
 //! `host-sim identify`: see [`crate::identify`].
 
 use crate::identify::series::CsvFiles;
-use crate::identify::{self, Act, Options, Preset, TrainerKind};
+use crate::identify::{self, Act, LevelInput, Options, Preset, TrainerKind};
 use crate::record;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 
-/// Arguments of `host-sim identify`.
-#[derive(clap::Args, Debug)]
-pub struct Args {
-    /// Training records: CSV files or folders of them.
-    #[arg(long, num_args = 1.., required = true)]
-    pub train: Vec<PathBuf>,
-    /// Validation records: CSV files or folders of them.
-    #[arg(long, num_args = 1.., required = true)]
-    pub validate: Vec<PathBuf>,
+/// The identifier's options, shared by `identify` and `reproduce`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct IdentifierArgs {
     /// Network layout and inputs (`paper` = the paper's exact configuration).
     #[arg(long, value_enum, default_value_t = Preset::LevelTrend)]
     pub preset: Preset,
@@ -27,9 +21,12 @@ pub struct Args {
     /// Forgetting factor (default: the preset's, 0.63 for paper).
     #[arg(long)]
     pub lambda: Option<f32>,
-    /// Keep `U` and the weights bounded (default: off for paper, on otherwise).
+    /// Keep `U <= 1` and `|w| <= 1e4` (default: off for paper, on otherwise).
     #[arg(long)]
     pub guard: Option<bool>,
+    /// DRLS `U(0)` (default: the preset's).
+    #[arg(long)]
+    pub u0: Option<f32>,
     /// Denoising levels.
     #[arg(long, default_value_t = 3)]
     pub levels: u32,
@@ -39,13 +36,45 @@ pub struct Args {
     /// Wavelet neuron of the paper preset.
     #[arg(long, value_enum)]
     pub activation: Option<Act>,
+    /// Level input of the level-trend preset: `mean10s` (trained bias and link), `kalman`
+    /// (a random-walk Kalman filter with q/r tuned on the training records, frozen as the
+    /// network's linear part), or a q/r value per sample for that filter.
+    #[arg(long, value_parser = parse_level)]
+    pub level: Option<LevelInput>,
+}
+
+fn parse_level(s: &str) -> Result<LevelInput, String> {
+    match s {
+        "mean10s" => Ok(LevelInput::Mean10s),
+        "kalman" => Ok(LevelInput::KalmanTuned),
+        v => match v.parse::<f32>() {
+            Ok(q) if q > 0.0 && q.is_finite() => Ok(LevelInput::Kalman { q_over_r: q }),
+            _ => Err(format!(
+                "expected `mean10s`, `kalman` or a q/r > 0, got {v:?}"
+            )),
+        },
+    }
+}
+
+/// Arguments of `host-sim identify`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Training records: CSV files or folders of them.
+    #[arg(long, num_args = 1.., required = true)]
+    pub train: Vec<PathBuf>,
+    /// Validation records: CSV files or folders of them.
+    #[arg(long, num_args = 1.., required = true)]
+    pub validate: Vec<PathBuf>,
+    /// Identifier options.
+    #[command(flatten)]
+    pub id: IdentifierArgs,
     /// JSON report to write.
     #[arg(long)]
     pub json: PathBuf,
 }
 
 /// Options from the arguments.
-pub fn options(a: &Args) -> Options {
+pub fn options(a: &IdentifierArgs) -> Options {
     let mut o = match a.preset {
         Preset::Paper => Options::paper(),
         Preset::LevelTrend => Options::level_trend(),
@@ -59,13 +88,50 @@ pub fn options(a: &Args) -> Options {
     if let Some(g) = a.guard {
         o.guard = g;
     }
+    if let Some(u) = a.u0 {
+        o.u0 = u;
+    }
     if let Some(act) = a.activation {
         o.activation = act;
+    }
+    if let Some(l) = a.level {
+        o.level = l;
     }
     o.hidden = a.hidden;
     o.levels = a.levels;
     o.block = a.block;
     o
+}
+
+/// Writes a report as pretty JSON, atomically, and prints its headline figures.
+pub fn write_report<T: serde::Serialize>(
+    json: &std::path::Path,
+    report: &T,
+    headline: &identify::Report,
+) -> Result<()> {
+    let text = serde_json::to_string_pretty(report).context("report to JSON")?;
+    record::write_atomic(json, |w| {
+        use std::io::Write;
+        w.write_all(text.as_bytes())?;
+        Ok(())
+    })?;
+    let f = |v: Option<f64>| v.map_or("null".to_string(), |x| format!("{x:.4}"));
+    let best_baseline = headline
+        .baselines
+        .iter()
+        .filter_map(|b| b.figures.e_truth.map(|e| (e, b.name)))
+        .min_by(|a, b| a.0.total_cmp(&b.0));
+    eprintln!(
+        "e_rel {} e_truth {} (best baseline {}) rms_err_truth {} deg/h; {} training / {} validation records -> {}",
+        f(headline.e_rel),
+        f(headline.e_truth),
+        best_baseline.map_or("none".into(), |(e, n)| format!("{n} {e:.4}")),
+        f(headline.rms_err_truth_dph),
+        headline.train_records,
+        headline.validate_records,
+        json.display()
+    );
+    Ok(())
 }
 
 /// Runs the command.
@@ -75,23 +141,6 @@ pub fn run(a: &Args) -> Result<()> {
     for p in train.0.iter().chain(&validate.0) {
         record::refuse_overwrite(p, &a.json)?;
     }
-    let o = options(a);
-    let report = identify::run(&o, &train, &validate)?;
-    let text = serde_json::to_string_pretty(&report).context("report to JSON")?;
-    record::write_atomic(&a.json, |w| {
-        use std::io::Write;
-        w.write_all(text.as_bytes())?;
-        Ok(())
-    })?;
-    let f = |v: Option<f64>| v.map_or("null".to_string(), |x| format!("{x:.4}"));
-    eprintln!(
-        "identify: e_rel {} e_truth {} rms_err_truth {} deg/h; {} training / {} validation records -> {}",
-        f(report.e_rel),
-        f(report.e_truth),
-        f(report.rms_err_truth_dph),
-        report.train_records,
-        report.validate_records,
-        a.json.display()
-    );
-    Ok(())
+    let report = identify::run(&options(&a.id), &train, &validate)?;
+    write_report(&a.json, &report, &report)
 }

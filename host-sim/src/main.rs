@@ -3,7 +3,9 @@
 #![forbid(unsafe_code)]
 
 use clap::{Parser, Subcommand};
-use host_sim::{allan_cmd, denoise_cmd, identify_cmd, simulate_cmd};
+use host_sim::{
+    allan_cmd, demo_cmd, denoise_cmd, identify_cmd, replay_cmd, reproduce_cmd, simulate_cmd,
+};
 use std::process::ExitCode;
 
 /// FOG drift identification on the bench: the firmware's pipeline on recorded or simulated data.
@@ -28,6 +30,15 @@ enum Cmd {
     /// Train the on-line drift identifier on training records and score it, still on line,
     /// on validation records beside causal baselines; JSON report.
     Identify(identify_cmd::Args),
+    /// The paper's section 5 on simulated records: 265 records of 1800 s (180 train, 85
+    /// validate) at different seeds, sample periods and conditions; JSON report.
+    Reproduce(reproduce_cmd::Args),
+    /// Replay a recording (interchange CSV, E-Core binary capture or DSP-3000 lines) through
+    /// the firmware's pipeline, streamed: per-sample CSV and an optional report folder.
+    Replay(replay_cmd::Args),
+    /// The main job with no configuration: simulate an E-Core record, write it as binary
+    /// frames, replay it, and write a report folder (index.html, SVG figures, summary.json).
+    Demo(demo_cmd::Args),
 }
 
 fn main() -> ExitCode {
@@ -37,6 +48,9 @@ fn main() -> ExitCode {
         Cmd::Simulate(a) => simulate_cmd::run(a),
         Cmd::Allan(a) => allan_cmd::run(a),
         Cmd::Identify(a) => identify_cmd::run(a),
+        Cmd::Reproduce(a) => reproduce_cmd::run(a),
+        Cmd::Replay(a) => replay_cmd::run(a),
+        Cmd::Demo(a) => demo_cmd::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

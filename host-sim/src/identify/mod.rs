@@ -21,6 +21,7 @@
 //!   the training records map to -1 and 1 (every 10th sample is kept for the percentiles).
 
 pub mod metrics;
+pub mod repro;
 pub mod series;
 
 use crate::denoise_cmd;
@@ -94,6 +95,24 @@ pub struct Options {
     pub activation: Act,
     /// Scale inputs by the training records' percentiles (else the presets' defaults).
     pub scale_from_training: bool,
+    /// Level input of the level-trend preset.
+    pub level: LevelInput,
+}
+
+/// Where the level-trend preset's level input comes from.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+#[serde(rename_all = "kebab-case")]
+pub enum LevelInput {
+    /// Mean of the last 10 s (bias and link neurons trained).
+    Mean10s,
+    /// Random-walk Kalman estimate with this q/r per sample; bias and link neurons frozen at
+    /// the identity, so the network is this filter plus what its wavelet neurons learn.
+    Kalman {
+        /// Process-to-measurement noise variance ratio per sample.
+        q_over_r: f32,
+    },
+    /// As `Kalman`, with q/r chosen on the training records exactly as the Kalman baseline's.
+    KalmanTuned,
 }
 
 impl Options {
@@ -110,6 +129,7 @@ impl Options {
             block: 512,
             activation: Act::MexicanHat,
             scale_from_training: true,
+            level: LevelInput::Mean10s,
         }
     }
 
@@ -126,6 +146,7 @@ impl Options {
             block: 512,
             activation: Act::Gaussian,
             scale_from_training: true,
+            level: LevelInput::Mean10s,
         }
     }
 }
@@ -292,7 +313,6 @@ where
 
     // Training, with the baselines tuned on the first records.
     let mut ma_sq = [0.0f64; MA_WINDOWS_S.len()];
-    let mut kf_sq = [0.0f64; KALMAN_Q_OVER_R.len()];
     let mut train_samples = 0u64;
     let (mut goal_at, mut goal_abs_at) = (None, None);
     let (mut blk_e2, mut blk_d2, mut blk_n) = (0.0f64, 0.0f64, 0usize);
@@ -346,15 +366,6 @@ where
                     }
                 }
             }
-            for (qi, q) in KALMAN_Q_OVER_R.iter().enumerate() {
-                let mut kf = RandomWalkKalman::new(*q as f32, 1.0);
-                for (k, &x) in s.rate_dps.iter().enumerate() {
-                    let y = f64::from(kf.push(x));
-                    if k >= 2 * B {
-                        kf_sq[qi] += (y - reference[k]).powi(2);
-                    }
-                }
-            }
         }
         train_samples += s.rate_dps.len() as u64;
     }
@@ -365,7 +376,7 @@ where
             .map_or(0, |(i, _)| i)
     };
     let best_ma_s = MA_WINDOWS_S[argmin(&ma_sq)];
-    let best_q = KALMAN_Q_OVER_R[argmin(&kf_sq)];
+    let best_q = tune_kalman(train, B, opts.levels)?;
 
     // Validation.
     let mut acc_id = ErrorAcc::default();
@@ -473,6 +484,9 @@ where
 /// level-trend bias neuron's), so a silent neuron's `U` never exceeds what it started with.
 const GUARD_U_MAX: f32 = 1.0;
 
+/// `U(0)` that keeps a neuron's weight where it starts (with lambda = 1 it only shrinks).
+const FROZEN_U: f32 = 1.0e-20;
+
 fn drls_config(o: &Options) -> DrlsConfig {
     DrlsConfig {
         lambda: o.lambda,
@@ -522,7 +536,14 @@ fn with_trainer<const L: usize, const B: usize>(
                 TrainerKind::DrlsParallel | TrainerKind::DrlsSequential => {
                     let mut t = Drls::<L>::new(drls_config(o)).ok_or_else(bad)?;
                     if o.preset == Preset::LevelTrend {
-                        t.set_neuron(0, 0.9999, 1.0);
+                        if matches!(o.level, LevelInput::Kalman { .. }) {
+                            // The linear part (bias + link) is the Kalman filter itself:
+                            // frozen, the wavelet neurons learn only what it misses.
+                            t.set_neuron(0, 1.0, FROZEN_U);
+                            t.set_neuron(1, 1.0, FROZEN_U);
+                        } else {
+                            t.set_neuron(0, 0.9999, 1.0);
+                        }
                     }
                     run_generic::<_, _, _, L, B>(
                         o,
@@ -563,11 +584,46 @@ fn with_trainer<const L: usize, const B: usize>(
             presets::paper_with::<_, B, L>(act, s, t, den, dt)
         }),
         Preset::LevelTrend => go!(
-            |dt: f32| LevelTrendTime::new(1.0 / dt),
+            |dt: f32| match o.level {
+                LevelInput::Kalman { q_over_r } => LevelTrendTime::with_kalman(1.0 / dt, q_over_r),
+                LevelInput::Mean10s | LevelInput::KalmanTuned => LevelTrendTime::new(1.0 / dt),
+            },
             presets::LEVEL_TREND_SCALING,
             |s, t, dt| presets::level_trend_with::<_, B, L>(s, t, den, dt)
         ),
     }
+}
+
+/// The Kalman baseline's q/r: the grid value with the least squared error on the first
+/// training records, against the true drift when the records carry it, else against the
+/// denoised measurement; samples from `2 * block` on, as everywhere.
+pub fn tune_kalman(train: &dyn Records, block: usize, levels: u32) -> Result<f64> {
+    let mut sq = [0.0f64; KALMAN_Q_OVER_R.len()];
+    for i in 0..train.len().min(TUNE_RECORDS) {
+        let s = train.get(i)?;
+        let reference: Vec<f64> = match &s.drift_dps {
+            Some(t) => t.iter().map(|&v| f64::from(v)).collect(),
+            None => denoised(&s, block, levels)?
+                .iter()
+                .map(|&v| f64::from(v))
+                .collect(),
+        };
+        for (qi, q) in KALMAN_Q_OVER_R.iter().enumerate() {
+            let mut kf = RandomWalkKalman::new(*q as f32, 1.0);
+            for (k, &x) in s.rate_dps.iter().enumerate() {
+                let y = f64::from(kf.push(x));
+                if k >= 2 * block {
+                    sq[qi] += (y - reference[k]).powi(2);
+                }
+            }
+        }
+    }
+    let best = sq
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(i, _)| i);
+    Ok(KALMAN_Q_OVER_R[best])
 }
 
 /// Runs one identification experiment.
@@ -575,6 +631,16 @@ pub fn run(o: &Options, train: &dyn Records, validate: &dyn Records) -> Result<R
     if train.is_empty() || validate.is_empty() {
         bail!("need at least one training and one validation record");
     }
+    let mut tuned;
+    let o = if o.level == LevelInput::KalmanTuned {
+        tuned = o.clone();
+        tuned.level = LevelInput::Kalman {
+            q_over_r: tune_kalman(train, o.block, o.levels)? as f32,
+        };
+        &tuned
+    } else {
+        o
+    };
     match (o.hidden, o.block) {
         (10, 512) => with_trainer::<10, 512>(o, train, validate),
         (20, 512) => with_trainer::<20, 512>(o, train, validate),
