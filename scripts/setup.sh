@@ -1,18 +1,38 @@
 #!/usr/bin/env bash
 # Installs what the project needs on a fresh machine of this kind (idempotent):
 # - the Rust toolchain, components and targets pinned in rust-toolchain.toml (rustup);
-# - qemu-system-arm for the firmware's hardware-in-the-loop tests, when the firmware exists.
+# - qemu-system-arm for the firmware's hardware-in-the-loop tests, when the firmware exists;
+# - chromium (headless) for the test that loads the demo's index.html.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 channel=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
-rustup toolchain install "$channel" --profile minimal --component clippy,rustfmt --target thumbv7em-none-eabihf >/dev/null 2>&1 \
-  || rustup toolchain install "$channel" --profile minimal --component clippy,rustfmt --target thumbv7em-none-eabihf
-rustup target add --toolchain "$channel" thumbv7em-none-eabihf >/dev/null
+# Only what is missing: `rustup toolchain install` on an installed toolchain reinstalls it,
+# and while it does, every concurrent build fails.
+if ! rustup run "$channel" rustc --version >/dev/null 2>&1; then
+  echo "setup: installing Rust $channel" >&2
+  rustup toolchain install "$channel" --profile minimal --component clippy,rustfmt --target thumbv7em-none-eabihf
+fi
+rustup target list --installed --toolchain "$channel" | grep -qx thumbv7em-none-eabihf \
+  || rustup target add --toolchain "$channel" thumbv7em-none-eabihf
+for c in clippy rustfmt; do
+  rustup component list --installed --toolchain "$channel" | grep -q "^$c" \
+    || rustup component add --toolchain "$channel" "$c"
+done
 
 if [ -d fog-firmware ] && ! command -v qemu-system-arm >/dev/null 2>&1; then
   echo "setup: installing qemu-system-arm" >&2
   SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq qemu-system-arm >/dev/null
+fi
+
+# Headless Chromium for the test that opens the demo's index.html (it skips, saying why,
+# when no browser is found).
+if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1 \
+   && command -v apt-get >/dev/null 2>&1; then
+  echo "setup: installing chromium" >&2
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null
 fi

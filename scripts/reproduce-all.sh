@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# The paper's section 5 reproduced on simulated records (265 x 1800 s, 180 train / 85
+# validate; conditions in host-sim/src/identify/repro.rs), for the paper's exact
+# configuration, the improved ones, every trainer, and the three condition groups.
+# Writes docs/results/repro-*.json and prints one line per run. About 30-60 min on one core.
+# Usage: bash scripts/reproduce-all.sh [RECORDS TRAIN]   (defaults 265 180)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+records=${1:-265}
+train=${2:-180}
+cargo build -q --release -p host-sim
+out=docs/results
+mkdir -p "$out"
+run() {
+  local name=$1; shift
+  printf '%-34s ' "$name"
+  ./target/release/host-sim reproduce --records "$records" --train "$train" "$@" --json "$out/repro-$name.json" 2>&1 | tail -1
+}
+run paper-exact                 --preset paper
+run paper-guarded-sequential    --preset paper --trainer drls-sequential --guard true
+run paper-guarded-seq-lambda999 --preset paper --trainer drls-sequential --guard true --lambda 0.999
+run level-trend                 --preset level-trend
+run level-kalman                --preset level-trend --level kalman --lambda 1 --u0 1e-6
+run level-trend-drls-parallel   --preset level-trend --trainer drls-parallel
+run level-trend-nlms            --preset level-trend --trainer nlms --lambda 0.9999
+run level-trend-rls             --preset level-trend --trainer rls --lambda 0.99999
+for g in stochastic quiet; do
+  run "paper-exact-$g"  --group "$g" --preset paper
+  run "level-trend-$g"  --group "$g" --preset level-trend
+  run "level-kalman-$g" --group "$g" --preset level-trend --level kalman --lambda 1 --u0 1e-6
+done
