@@ -65,6 +65,9 @@ pub struct Args {
     /// Validation records: CSV files or folders of them.
     #[arg(long, num_args = 1.., required = true)]
     pub validate: Vec<PathBuf>,
+    /// Column holding the rate in deg/s (e.g. `gz_dps` of a multi-axis recording).
+    #[arg(long, default_value = "rate_dps")]
+    pub rate_column: String,
     /// Identifier options.
     #[command(flatten)]
     pub id: IdentifierArgs,
@@ -136,8 +139,8 @@ pub fn write_report<T: serde::Serialize>(
 
 /// Runs the command.
 pub fn run(a: &Args) -> Result<()> {
-    let train = CsvFiles::from_args(&a.train)?;
-    let validate = CsvFiles::from_args(&a.validate)?;
+    let train = CsvFiles::from_args(&a.train, &a.rate_column)?;
+    let validate = CsvFiles::from_args(&a.validate, &a.rate_column)?;
     for p in train.0.iter().chain(&validate.0) {
         record::refuse_overwrite(p, &a.json)?;
     }

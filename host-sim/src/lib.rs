@@ -4,10 +4,13 @@
 
 pub mod allan;
 pub mod allan_cmd;
+pub mod demo_cmd;
 pub mod denoise_cmd;
 pub mod identify;
 pub mod identify_cmd;
 pub mod record;
+pub mod replay_cmd;
+pub mod report;
 pub mod reproduce_cmd;
 pub mod sim;
 pub mod simulate_cmd;

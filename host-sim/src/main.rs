@@ -4,7 +4,7 @@
 
 use clap::{Parser, Subcommand};
 use host_sim::{
-    allan_cmd, denoise_cmd, identify_cmd, reproduce_cmd, simulate_cmd,
+    allan_cmd, demo_cmd, denoise_cmd, identify_cmd, replay_cmd, reproduce_cmd, simulate_cmd,
 };
 use std::process::ExitCode;
 
@@ -33,6 +33,12 @@ enum Cmd {
     /// The paper's section 5 on simulated records: 265 records of 1800 s (180 train, 85
     /// validate) at different seeds, sample periods and conditions; JSON report.
     Reproduce(reproduce_cmd::Args),
+    /// Replay a recording (interchange CSV, E-Core binary capture or DSP-3000 lines) through
+    /// the firmware's pipeline, streamed: per-sample CSV and an optional report folder.
+    Replay(replay_cmd::Args),
+    /// The main job with no configuration: simulate an E-Core record, write it as binary
+    /// frames, replay it, and write a report folder (index.html, SVG figures, summary.json).
+    Demo(demo_cmd::Args),
 }
 
 fn main() -> ExitCode {
@@ -43,6 +49,8 @@ fn main() -> ExitCode {
         Cmd::Allan(a) => allan_cmd::run(a),
         Cmd::Identify(a) => identify_cmd::run(a),
         Cmd::Reproduce(a) => reproduce_cmd::run(a),
+        Cmd::Replay(a) => replay_cmd::run(a),
+        Cmd::Demo(a) => demo_cmd::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

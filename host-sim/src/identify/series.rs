@@ -31,16 +31,27 @@ impl Series {
     /// Reads an interchange CSV (`t_s`, `rate_dps`, optional `drift_dps`), with the same
     /// checks and messages as every host-sim reader.
     pub fn read_csv(path: &Path) -> Result<Self> {
+        Self::read_csv_column(path, "rate_dps")
+    }
+
+    /// [`Series::read_csv`] taking the rate from column `rate_column` (e.g. `gz_dps` of a
+    /// multi-axis recording); a `.gz` file is decompressed on the fly.
+    pub fn read_csv_column(path: &Path, rate_column: &str) -> Result<Self> {
         let name = path.display().to_string();
-        let mut rdr =
-            csv::Reader::from_path(path).with_context(|| format!("{name}: cannot open"))?;
+        let file = std::fs::File::open(path).with_context(|| format!("{name}: cannot open"))?;
+        let input: Box<dyn std::io::Read> = if path.extension().is_some_and(|e| e == "gz") {
+            Box::new(flate2::read::GzDecoder::new(std::io::BufReader::new(file)))
+        } else {
+            Box::new(std::io::BufReader::new(file))
+        };
+        let mut rdr = csv::Reader::from_reader(input);
         let header = rdr
             .headers()
             .with_context(|| format!("{name}:1: cannot read the header"))?
             .clone();
         let col = |want: &str| header.iter().position(|h| h.trim() == want);
-        let (Some(tc), Some(rc)) = (col("t_s"), col("rate_dps")) else {
-            bail!("{name}:1: needs columns `t_s` and `rate_dps`");
+        let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
+            bail!("{name}:1: needs columns `t_s` and `{rate_column}`");
         };
         let dc = col("drift_dps");
         let mut s = Series {
@@ -84,20 +95,23 @@ pub trait Records {
     }
 }
 
-/// CSV files given on the command line: files, or folders whose `*.csv` files are taken in
-/// name order.
-pub struct CsvFiles(pub Vec<PathBuf>);
+/// CSV files given on the command line: files, or folders whose `*.csv` (and `*.csv.gz`)
+/// files are taken in name order; the rate is read from `rate_column`.
+pub struct CsvFiles(pub Vec<PathBuf>, pub String);
 
 impl CsvFiles {
     /// Expands folders; refuses a path that does not exist or a set with no file.
-    pub fn from_args(paths: &[PathBuf]) -> Result<Self> {
+    pub fn from_args(paths: &[PathBuf], rate_column: &str) -> Result<Self> {
         let mut out = Vec::new();
         for p in paths {
             if p.is_dir() {
                 let mut v: Vec<PathBuf> = std::fs::read_dir(p)
                     .with_context(|| format!("{}: cannot list", p.display()))?
                     .filter_map(|e| e.ok().map(|e| e.path()))
-                    .filter(|q| q.extension().is_some_and(|x| x == "csv"))
+                    .filter(|q| {
+                        let n = q.to_string_lossy();
+                        n.ends_with(".csv") || n.ends_with(".csv.gz")
+                    })
                     .collect();
                 v.sort();
                 if v.is_empty() {
@@ -113,7 +127,7 @@ impl CsvFiles {
         if out.is_empty() {
             bail!("no record given");
         }
-        Ok(Self(out))
+        Ok(Self(out, rate_column.to_string()))
     }
 }
 
@@ -122,6 +136,6 @@ impl Records for CsvFiles {
         self.0.len()
     }
     fn get(&self, i: usize) -> Result<Series> {
-        Series::read_csv(&self.0[i])
+        Series::read_csv_column(&self.0[i], &self.1)
     }
 }

@@ -1,0 +1,198 @@
+//! `host-sim demo`: the report folder it writes, and that its page loads in a browser.
+
+use assert_cmd::Command;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::Stdio;
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+const SVGS: [&str; 5] = [
+    "fig3_denoised.svg",
+    "fig5_drift.svg",
+    "fig5_drift_detail.svg",
+    "allan.svg",
+    "error_vs_truth.svg",
+];
+
+/// Runs the demo once for every test of this file; returns its folder and stdout.
+fn demo() -> &'static (PathBuf, String) {
+    static DEMO: OnceLock<(PathBuf, String)> = OnceLock::new();
+    DEMO.get_or_init(|| {
+        // Under target/tmp: kept for inspection, replaced on the next run.
+        let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("demo_cli");
+        if out.exists() {
+            fs::remove_dir_all(&out).expect("clean the previous demo");
+        }
+        let a = Command::cargo_bin("host-sim")
+            .expect("binary built")
+            .args(["demo", "--out"])
+            .arg(&out)
+            .assert()
+            .success();
+        let stdout = String::from_utf8_lossy(&a.get_output().stdout).to_string();
+        (out, stdout)
+    })
+}
+
+fn finite(v: &serde_json::Value, path: &str) -> f64 {
+    let x = path
+        .split('.')
+        .fold(v, |v, k| &v[k])
+        .as_f64()
+        .unwrap_or(f64::NAN);
+    assert!(x.is_finite(), "{path} = {x}");
+    x
+}
+
+#[test]
+fn demo_writes_the_report() {
+    let (dir, stdout) = demo();
+    let index = dir.join("index.html");
+    assert_eq!(
+        stdout.trim(),
+        index.display().to_string(),
+        "prints index.html"
+    );
+    for f in SVGS {
+        let svg = fs::read_to_string(dir.join(f)).expect(f);
+        assert!(svg.contains("<svg") && svg.contains("</svg>"), "{f}");
+    }
+    let s: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(dir.join("summary.json")).expect("summary"))
+            .expect("JSON");
+    assert_eq!(s["samples_read"], 180_000);
+    assert_eq!(s["samples_identified"], 180_000);
+    assert_eq!(s["samples_rejected"], 0);
+    assert_eq!(s["bytes"]["bytes_dropped"], 0);
+    assert_eq!(s["bytes"]["bytes_total"], 1_440_000);
+    assert_eq!(s["rows_without_denoised"], 180_000 % 512);
+    let rms_truth = finite(&s, "truth.rms_true_drift_dph");
+    assert!(rms_truth > 0.0);
+    for k in ["identifier", "moving_average_10s", "kalman_random_walk"] {
+        assert!(finite(&s, &format!("truth.rms_error_dph.{k}")) > 0.0);
+        let e = finite(&s, &format!("truth.e_truth.{k}"));
+        let r = finite(&s, &format!("truth.rms_error_dph.{k}"));
+        assert!(
+            (e - r / rms_truth).abs() < 1e-9,
+            "e_truth = RMS error / RMS drift"
+        );
+    }
+    finite(&s, "rms_train_error_dps");
+    assert!(s["allan"]["fit"]["terms"].is_array());
+    assert_eq!(s["allan"]["samples_used"], 180_000);
+    let html = fs::read_to_string(&index).expect("index.html");
+    assert_eq!(html.matches("<svg").count(), SVGS.len(), "SVGs inlined");
+    assert!(
+        !html.contains("src=\"http") && !html.contains("href=\"http"),
+        "no external resource"
+    );
+    assert!(!html.contains("<script"));
+}
+
+fn find_browser() -> Option<PathBuf> {
+    let names = [
+        "chromium",
+        "chromium-browser",
+        "google-chrome",
+        "google-chrome-stable",
+    ];
+    let path = std::env::var_os("PATH")?;
+    std::env::split_paths(&path)
+        .flat_map(|d| names.iter().map(move |n| d.join(n)))
+        .find(|p| p.is_file())
+}
+
+/// Runs the browser with its output in files (a pipe would fill up and block it); returns
+/// stdout and stderr.
+fn headless(browser: &Path, profile: &Path, extra: &[&str], url: &str) -> (String, String) {
+    let out_path = profile.with_extension("stdout");
+    let err_path = profile.with_extension("stderr");
+    let mut child = std::process::Command::new(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--enable-logging=stderr",
+            "--v=0",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .args(extra)
+        .arg(url)
+        .stdin(Stdio::null())
+        .stdout(fs::File::create(&out_path).expect("stdout file"))
+        .stderr(fs::File::create(&err_path).expect("stderr file"))
+        .spawn()
+        .expect("browser starts");
+    let start = Instant::now();
+    while child.try_wait().expect("wait").is_none() {
+        if start.elapsed() > Duration::from_secs(30) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{} did not finish in 30 s", browser.display());
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let read = |p: &Path| String::from_utf8_lossy(&fs::read(p).unwrap_or_default()).to_string();
+    let r = (read(&out_path), read(&err_path));
+    let _ = fs::remove_file(&out_path);
+    let _ = fs::remove_file(&err_path);
+    r
+}
+
+#[test]
+fn index_html_loads_in_headless_chromium() {
+    let Some(browser) = find_browser() else {
+        eprintln!(
+            "SKIPPED: no chromium / chrome on PATH (scripts/setup.sh installs Debian's chromium)"
+        );
+        return;
+    };
+    let (dir, _) = demo();
+    let index = dir.join("index.html").canonicalize().expect("path");
+    let url = format!("file://{}", index.display());
+    let profile = tempfile::tempdir().expect("tmp");
+    let (dom, log) = headless(&browser, profile.path(), &["--dump-dom"], &url);
+    assert!(
+        dom.contains("<h1>"),
+        "page rendered: {}",
+        &dom[..dom.len().min(500)]
+    );
+    assert_eq!(
+        dom.matches("<svg").count(),
+        SVGS.len(),
+        "every figure in the DOM"
+    );
+    assert!(
+        dom.contains("<polyline") || dom.contains("<path"),
+        "plots drawn"
+    );
+    for line in log.lines() {
+        let l = line.to_ascii_lowercase();
+        assert!(
+            !(l.contains("uncaught") || (l.contains("console") && l.contains("error"))),
+            "browser console: {line}"
+        );
+        assert!(
+            !l.contains("err_file_not_found"),
+            "missing resource: {line}"
+        );
+    }
+    let png = profile.path().join("shot.png");
+    let shot = format!("--screenshot={}", png.display());
+    let profile2 = tempfile::tempdir().expect("tmp");
+    let _ = headless(
+        &browser,
+        profile2.path(),
+        &[&shot, "--window-size=1000,3000"],
+        &url,
+    );
+    let bytes = fs::read(&png).expect("screenshot written");
+    assert!(bytes.starts_with(b"\x89PNG"), "a PNG");
+    assert!(bytes.len() > 20_000, "not blank: {} bytes", bytes.len());
+}
