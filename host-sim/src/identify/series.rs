@@ -18,14 +18,17 @@ pub struct Series {
 }
 
 impl Series {
-    /// Sample period: the median step of `t_s` (1 s for a one-sample record).
+    /// Sample period: the mean step of `t_s`, `(t_last - t_first) / (n - 1)` (1 s for a
+    /// one-sample record). The mean, not the median: some real recordings carry host arrival
+    /// times in bursts (the MPU6050 set: median step 2 ms, mean 10 ms), where only the mean
+    /// gives the sensor's rate; a gap lengthens it by the gap's share of the record.
     pub fn sample_period_s(&self) -> f64 {
-        let mut dt: Vec<f64> = self.t_s.windows(2).map(|w| w[1] - w[0]).collect();
-        if dt.is_empty() {
-            return 1.0;
+        match (self.t_s.first(), self.t_s.last()) {
+            (Some(a), Some(b)) if self.t_s.len() > 1 && b > a => {
+                (b - a) / (self.t_s.len() - 1) as f64
+            }
+            _ => 1.0,
         }
-        let mid = dt.len() / 2;
-        *dt.select_nth_unstable_by(mid, f64::total_cmp).1
     }
 
     /// Reads an interchange CSV (`t_s`, `rate_dps`, optional `drift_dps`), with the same
