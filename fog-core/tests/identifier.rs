@@ -109,3 +109,46 @@ fn memory_is_fixed_and_small() {
     assert!(lt < 14 * 1024, "{lt}");
     assert!(p < 12 * 1024, "{p}");
 }
+
+mod finite {
+    use fog_core::identify::presets;
+    use fog_core::train::DrlsConfig;
+    use fog_core::wnn::Activation;
+    use proptest::prelude::*;
+
+    fn stream() -> impl Strategy<Value = Vec<f32>> {
+        let v = prop_oneof![
+            Just(0.0f32),
+            -1e-30f32..1e-30,
+            -0.1f32..0.1,
+            -60.0f32..60.0,
+            Just(60.0f32),
+            Just(-60.0f32),
+            -1e20f32..1e20,
+        ];
+        // Runs of one value (constant stretches, silence) mixed with arbitrary values.
+        prop::collection::vec((v, 1usize..400), 1..40).prop_map(|runs| {
+            runs.into_iter()
+                .flat_map(|(x, n)| std::iter::repeat_n(x, n))
+                .collect()
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// Any finite input: the guarded identifiers' outputs and weights stay finite.
+        #[test]
+        fn guarded_identifiers_stay_finite(x in stream()) {
+            let mut lt = presets::level_trend::<64>(presets::LEVEL_TREND_SCALING, 0.01).expect("valid");
+            let mut pg = presets::paper::<64>(Activation::MexicanHat, presets::PAPER_SCALING, DrlsConfig::PAPER_GUARDED, 0.01).expect("valid");
+            for &r in &x {
+                let a = lt.push(r).expect("finite input accepted");
+                let b = pg.push(r).expect("finite input accepted");
+                prop_assert!(a.drift_dps.is_finite() && a.compensated_dps.is_finite(), "{a:?}");
+                prop_assert!(b.drift_dps.is_finite(), "{b:?}");
+            }
+            prop_assert!(lt.weights().iter().chain(pg.weights()).all(|w| w.is_finite()));
+        }
+    }
+}
