@@ -21,11 +21,16 @@ run paper-guarded-sequential    --preset paper --trainer drls-sequential --guard
 run paper-guarded-seq-lambda999 --preset paper --trainer drls-sequential --guard true --lambda 0.999
 run level-trend                 --preset level-trend
 run level-kalman                --preset level-trend --level kalman --lambda 1 --u0 1e-6
-run level-trend-drls-parallel   --preset level-trend --trainer drls-parallel
-run level-trend-nlms            --preset level-trend --trainer nlms --lambda 0.9999
-run level-trend-rls             --preset level-trend --trainer rls --lambda 0.99999
 for g in stochastic quiet; do
   run "paper-exact-$g"  --group "$g" --preset paper
   run "level-trend-$g"  --group "$g" --preset level-trend
   run "level-kalman-$g" --group "$g" --preset level-trend --level kalman --lambda 1 --u0 1e-6
 done
+# Trainers side by side on one smaller common set (full RLS at L = 30 costs ~3 L^2 per
+# sample): 60 records, 40 train / 20 validate, nominal group.
+records=60; train=40
+run trainers60-drls-parallel      --preset level-trend --trainer drls-parallel
+run trainers60-drls-sequential    --preset level-trend --trainer drls-sequential
+run trainers60-rls                --preset level-trend --trainer rls --lambda 0.99999
+run trainers60-nlms               --preset level-trend --trainer nlms --lambda 0.9999
+run trainers60-paper-exact        --preset paper
