@@ -16,3 +16,18 @@ cargo build -q -p fog-core --target thumbv7em-none-eabihf --features defmt
 cargo clippy -q -p fog-core --target thumbv7em-none-eabihf --features defmt -- -D warnings
 step "tests (host workspace)"
 cargo test --workspace
+# fog-firmware is its own workspace (defmt, cortex-m-rt): checked apart from the host crates.
+# Its hardware-in-the-loop test under QEMU runs above, in `cargo test --workspace`
+# (tests/tests/firmware_qemu.rs). The STM32F407 board builds into its own target directory so
+# that switching boards does not rebuild the QEMU board's dependencies.
+step "fog-firmware: rustfmt, clippy -D warnings, build (QEMU mps2-an386 and STM32F407 boards)"
+(
+  cd fog-firmware
+  unset RUSTFLAGS
+  cargo fmt -- --check
+  cargo clippy -q --release -- -D warnings
+  cargo clippy -q --release --features budget -- -D warnings
+  cargo build -q --release
+  cargo clippy -q --release --no-default-features --features board-stm32f407 --target-dir target/stm32 -- -D warnings
+  cargo build -q --release --no-default-features --features board-stm32f407 --target-dir target/stm32
+)

@@ -40,3 +40,62 @@ pub fn shared_real() -> Option<PathBuf> {
         None
     }
 }
+
+/// The firmware crate's directory (`fog-firmware/`, its own cargo workspace).
+pub fn firmware_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fog-firmware")
+}
+
+/// Builds the firmware (`cargo build --release` inside `fog-firmware/`, same toolchain,
+/// `extra_args` appended, e.g. features) and returns the ELF's path. The firmware always
+/// builds into `fog-firmware/target`, whatever `CARGO_TARGET_DIR` says, and without the
+/// caller's `RUSTFLAGS` (they are meant for host crates).
+///
+/// # Panics
+/// If the build fails.
+pub fn firmware_elf(extra_args: &[&str]) -> PathBuf {
+    let dir = firmware_dir();
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let target_dir = dir.join("target");
+    let status = Command::new(cargo)
+        .current_dir(&dir)
+        .args(["build", "-q", "--release"])
+        .args(extra_args)
+        .env("CARGO_TARGET_DIR", &target_dir)
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_TARGET")
+        .status()
+        .expect("cargo runs");
+    assert!(status.success(), "building fog-firmware failed");
+    target_dir.join("thumbv7em-none-eabihf/release/fog-firmware")
+}
+
+fn on_path(program: &str) -> Option<PathBuf> {
+    std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|d| d.join(program))
+            .find(|p| p.is_file())
+    })
+}
+
+/// `qemu-system-arm`: from `PATH`, or installed by `scripts/setup.sh` (apt-get) if missing.
+/// `None`, with the reason printed, only when it is missing and cannot be installed.
+pub fn qemu_system_arm() -> Option<PathBuf> {
+    if let Some(p) = on_path("qemu-system-arm") {
+        return Some(p);
+    }
+    let setup = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scripts/setup.sh");
+    eprintln!("qemu-system-arm not found: running {}", setup.display());
+    let ran = Command::new("bash").arg(&setup).status();
+    match on_path("qemu-system-arm") {
+        Some(p) => Some(p),
+        None => {
+            eprintln!(
+                "SKIPPED: qemu-system-arm is missing and {} could not install it ({ran:?})",
+                setup.display()
+            );
+            None
+        }
+    }
+}

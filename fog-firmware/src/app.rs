@@ -1,0 +1,187 @@
+//! The main loop, shared by every board: serial bytes in, records out, statistics.
+#![forbid(unsafe_code)]
+
+use core::cell::Cell;
+
+use embedded_hal_nb::serial::{ErrorType, Read, Write};
+use fog_core::driver::GyroReader;
+use fog_core::frame::{ByteStats, Decoder, EcoreDecoder};
+
+use crate::pipeline::{self, EndDetector, RunTotals};
+
+/// Periodic statistics on defmt every this many samples.
+pub const STATS_EVERY_SAMPLES: u32 = 1000;
+
+/// A free-running counter of the board (SysTick or DWT CYCCNT).
+pub trait TickCounter {
+    /// What one tick is, for the logs.
+    const UNIT: &'static str;
+    /// Ticks per instruction, times 10 (16 on QEMU under `-icount shift=6`; 10 when the unit
+    /// is a core cycle and cycles are reported as they are).
+    const TICKS_PER_UNIT_X10: u32;
+    /// Current stamp.
+    fn stamp(&self) -> u32;
+    /// Ticks elapsed since `start` (one wrap at most).
+    fn ticks_since(&self, start: u32) -> u32;
+    /// Ticks converted to the unit reported (instructions or cycles).
+    fn to_units(ticks: u32) -> u32 {
+        (u64::from(ticks) * 10 / u64::from(Self::TICKS_PER_UNIT_X10)) as u32
+    }
+}
+
+/// Why the loop stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum Stop {
+    /// The end marker arrived; the final record was written.
+    EndOfInput,
+    /// The stage could not be built.
+    Setup,
+}
+
+/// A receive half that watches for [`pipeline::END_MARKER`] and reports `WouldBlock` for
+/// ever once it has passed (the bytes of the marker are given to the decoder like any byte).
+struct EndTap<'a, R> {
+    rx: R,
+    detector: EndDetector,
+    ended: &'a Cell<bool>,
+}
+
+impl<R: ErrorType> ErrorType for EndTap<'_, R> {
+    type Error = R::Error;
+}
+
+impl<R: Read<u8>> Read<u8> for EndTap<'_, R> {
+    fn read(&mut self) -> nb::Result<u8, Self::Error> {
+        if self.ended.get() {
+            return Err(nb::Error::WouldBlock);
+        }
+        let byte = self.rx.read()?;
+        if self.detector.push(byte) {
+            self.ended.set(true);
+        }
+        Ok(byte)
+    }
+}
+
+/// Writes all of `bytes`, blocking. A transmit error loses the rest of this record only.
+pub fn write_all<W: Write<u8>>(tx: &mut W, bytes: &[u8]) {
+    for &b in bytes {
+        if nb::block!(tx.write(b)).is_err() {
+            return;
+        }
+    }
+}
+
+/// Per-period instruction statistics.
+#[derive(Default)]
+struct Period {
+    samples: u32,
+    ticks_sum: u64,
+    ticks_max: u32,
+}
+
+fn log_stats<C: TickCounter>(s: &ByteStats, t: &RunTotals, p: &Period) {
+    let mean = if p.samples > 0 {
+        (p.ticks_sum / u64::from(p.samples)) as u32
+    } else {
+        0
+    };
+    defmt::info!(
+        "samples {=u32}: frames good {=u64} bad {=u64}; bytes total {=u64} good {=u64} skipped {=u64} pending {=u64}; serial errors {=u32}; identify+record per sample: mean {=u32}, max {=u32} {=str}",
+        t.samples,
+        s.frames_good,
+        s.frames_bad,
+        s.bytes_total,
+        s.bytes_good,
+        s.skipped.total(),
+        s.bytes_pending,
+        t.serial_errors,
+        C::to_units(mean),
+        C::to_units(p.ticks_max),
+        C::UNIT
+    );
+}
+
+/// Runs until the end marker: decodes E-Core frames from `rx`, writes one record per good
+/// frame to `tx`, then flushes the decoder and writes the statistics record.
+///
+/// `stack_bytes` is called once at the end for the final record.
+pub fn run<R, W, C>(rx: R, tx: &mut W, counter: &C, stack_bytes: fn() -> u32) -> Stop
+where
+    R: Read<u8>,
+    W: Write<u8>,
+    C: TickCounter,
+{
+    let Ok(decoder) = EcoreDecoder::new(pipeline::FULL_SCALE_DPS) else {
+        defmt::error!("decoder configuration refused");
+        return Stop::Setup;
+    };
+    let mut stage = match pipeline::new_stage() {
+        Ok(s) => s,
+        Err(e) => {
+            defmt::error!("identifier configuration refused: {}", e);
+            return Stop::Setup;
+        }
+    };
+    let ended = Cell::new(false);
+    let tap = EndTap {
+        rx,
+        detector: EndDetector::default(),
+        ended: &ended,
+    };
+    let mut reader = GyroReader::new(tap, decoder);
+    let mut totals = RunTotals::default();
+    let mut period = Period::default();
+    defmt::info!(
+        "fog-firmware: E-Core {=f32} deg/s full scale, {=f32} s per sample, block {=usize}, {=usize} neurons",
+        pipeline::FULL_SCALE_DPS,
+        pipeline::SAMPLE_PERIOD_S,
+        pipeline::BLOCK,
+        pipeline::NEURONS
+    );
+    loop {
+        match reader.read() {
+            Ok(frame) => {
+                let t0 = counter.stamp();
+                let (est, status) = pipeline::process(&mut stage, frame.rate_dps);
+                let record = pipeline::sample_record(totals.samples, frame.rate_dps, &est, status);
+                let ticks = counter.ticks_since(t0);
+                write_all(tx, &record);
+                totals.samples = totals.samples.wrapping_add(1);
+                if status & pipeline::STATUS_REJECTED != 0 {
+                    totals.rejected = totals.rejected.wrapping_add(1);
+                }
+                period.samples += 1;
+                period.ticks_sum += u64::from(ticks);
+                period.ticks_max = period.ticks_max.max(ticks);
+                if period.samples >= STATS_EVERY_SAMPLES {
+                    log_stats::<C>(reader.stats(), &totals, &period);
+                    period = Period::default();
+                }
+            }
+            Err(nb::Error::WouldBlock) => {
+                if ended.get() {
+                    break;
+                }
+            }
+            Err(nb::Error::Other(_)) => {
+                // Already counted by the decoder as one lost byte.
+                totals.serial_errors = totals.serial_errors.wrapping_add(1);
+            }
+        }
+    }
+    reader.decoder_mut().flush();
+    totals.stack_bytes = stack_bytes();
+    let stats = *reader.stats();
+    log_stats::<C>(&stats, &totals, &period);
+    defmt::info!(
+        "end of input: {=u32} samples, stack high-water {=u32} bytes, accounting consistent {=bool}",
+        totals.samples,
+        totals.stack_bytes,
+        stats.is_consistent()
+    );
+    write_all(tx, &pipeline::stats_record(&stats, &totals));
+    // A transmit error at this point has nowhere to be reported.
+    let _ = nb::block!(tx.flush());
+    Stop::EndOfInput
+}

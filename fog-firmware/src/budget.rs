@@ -1,0 +1,396 @@
+//! Instruction budget (feature `budget`): measures each stage on built-in data and prints a
+//! table on the UART. Run by `scripts/fw-budget.sh` under QEMU with
+//! `-icount shift=6,align=off,sleep=off`, where the board's counter advances a fixed number
+//! of ticks per instruction; the ratio is calibrated here with a loop of known length.
+//!
+//! Figures are **instructions** executed, not cycles: on a real Cortex-M4F, VDIV (14
+//! cycles), loads, taken branches and flash wait states make cycles larger.
+#![forbid(unsafe_code)]
+
+use core::fmt::Write as _;
+
+use embedded_hal_nb::serial::Write;
+use fog_core::denoise::{BlockDenoiser, DenoiseConfig, Push};
+use fog_core::features::{FeatureMap, LevelTrendTime};
+use fog_core::frame::{ecore, Decoder, EcoreDecoder};
+use fog_core::train::Trainer;
+use fog_core::wnn::dot;
+
+use crate::app::TickCounter;
+use crate::pipeline::{self, BLOCK, NEURONS};
+
+/// Samples measured: 8 blocks; steady-state figures skip the first two (no training yet).
+const SAMPLES: usize = 8 * BLOCK;
+/// First sample of the steady state (training on every sample from here).
+const STEADY_FROM: usize = 2 * BLOCK;
+/// Clock and sample rate of the budget line.
+const CLOCK_HZ: u64 = 168_000_000;
+const SAMPLE_RATE_HZ: u64 = 1_000;
+/// Goals (instructions per sample at L = 30, flash, RAM).
+const GOAL_PIPELINE_INSTR: u64 = 2_000;
+
+/// Ticks to instructions: `instr = ticks * cal_instr / cal_ticks`, after removing the
+/// counter's own overhead.
+#[derive(Clone, Copy)]
+struct Calibration {
+    overhead_ticks: u32,
+    cal_ticks: u64,
+    cal_instr: u64,
+}
+
+impl Calibration {
+    /// Instructions times 10 (one decimal).
+    fn instr_x10(&self, ticks: u64, measurements: u64) -> u64 {
+        let net = ticks.saturating_sub(u64::from(self.overhead_ticks) * measurements);
+        if self.cal_ticks == 0 {
+            return 0;
+        }
+        (net * self.cal_instr * 10 + self.cal_ticks / 2) / self.cal_ticks
+    }
+}
+
+/// Sum, count and maximum of measured ticks.
+#[derive(Default, Clone, Copy)]
+struct Acc {
+    ticks: u64,
+    n: u64,
+    max: u32,
+}
+
+impl Acc {
+    fn add(&mut self, ticks: u32) {
+        self.ticks += u64::from(ticks);
+        self.n += 1;
+        self.max = self.max.max(ticks);
+    }
+}
+
+/// Times `f` once, in ticks.
+#[inline(always)]
+fn time<C: TickCounter, R>(c: &C, f: impl FnOnce() -> R) -> (R, u32) {
+    let t0 = c.stamp();
+    let r = f();
+    (r, c.ticks_since(t0))
+}
+
+fn calibrate<C: TickCounter>(c: &C, spin: fn(u32)) -> Calibration {
+    let overhead_ticks = (0..16).map(|_| time(c, || ()).1).min().unwrap_or(0);
+    // Two loop lengths: the difference cancels the call and the counter overhead.
+    let (n1, n2) = (1_000u32, 101_000u32);
+    let t1 = (0..4).map(|_| time(c, || spin(n1)).1).min().unwrap_or(0);
+    let t2 = (0..4).map(|_| time(c, || spin(n2)).1).min().unwrap_or(0);
+    Calibration {
+        overhead_ticks,
+        cal_ticks: u64::from(t2.saturating_sub(t1)),
+        cal_instr: 2 * u64::from(n2 - n1),
+    }
+}
+
+/// Deterministic E-Core-like counts (same model as the HIL test, in f32): bias 0.012 deg/s,
+/// slow drift, white noise 0.015 deg/s, 60/32768 deg/s per count.
+struct Source {
+    state: u32,
+    k: u32,
+}
+
+impl Source {
+    fn uniform(&mut self) -> f32 {
+        self.state = self
+            .state
+            .wrapping_mul(1_664_525)
+            .wrapping_add(1_013_904_223);
+        (self.state >> 8) as f32 / (1u32 << 24) as f32
+    }
+
+    fn next_counts(&mut self) -> i16 {
+        let t_s = self.k as f32 * pipeline::SAMPLE_PERIOD_S;
+        self.k += 1;
+        let mut n = -6.0f32;
+        for _ in 0..12 {
+            n += self.uniform();
+        }
+        let drift_dps = 0.006 * (1.0 - libm::expf(-t_s / 15.0))
+            + 0.003 * libm::sinf(2.0 * core::f32::consts::PI * t_s / 25.0);
+        let rate_dps = 0.012 + drift_dps + 0.015 * n;
+        libm::roundf(rate_dps / (pipeline::FULL_SCALE_DPS / 32768.0)) as i16
+    }
+}
+
+fn row<W: core::fmt::Write>(
+    w: &mut W,
+    cal: &Calibration,
+    name: &str,
+    per: &str,
+    acc: &Acc,
+) -> core::fmt::Result {
+    let mean = cal.instr_x10(acc.ticks, acc.n) / acc.n.max(1);
+    let max = cal.instr_x10(u64::from(acc.max), 1);
+    writeln!(
+        w,
+        "| {name:<40} | {per:<6} | {:>7}.{} | {:>7}.{} |",
+        mean / 10,
+        mean % 10,
+        max / 10,
+        max % 10
+    )
+}
+
+/// Measures and prints; false if something could not be set up.
+pub fn run<W, C>(tx: &mut W, c: &C, spin: fn(u32), stack_bytes: fn() -> u32) -> bool
+where
+    W: Write<u8>,
+    C: TickCounter,
+{
+    let cal = calibrate(c, spin);
+    let Ok(mut decoder) = EcoreDecoder::new(pipeline::FULL_SCALE_DPS) else {
+        return false;
+    };
+    let Ok(mut stage) = pipeline::new_stage() else {
+        return false;
+    };
+    // Stand-alone copies of the identifier's parts, timed one by one.
+    let Ok(mut denoiser) = BlockDenoiser::<BLOCK>::new(DenoiseConfig::PAPER) else {
+        return false;
+    };
+    let Ok(probe) = pipeline::new_stage() else {
+        return false;
+    };
+    let mut features = LevelTrendTime::new(1.0 / pipeline::SAMPLE_PERIOD_S);
+    let mut trainer = probe.trainer().clone();
+    let mut w = *probe.weights();
+    let mut targets = [0.0f32; BLOCK];
+
+    let mut source = Source {
+        state: 0x5EED,
+        k: 0,
+    };
+    let (mut a_decode, mut a_denoise, mut a_features) =
+        (Acc::default(), Acc::default(), Acc::default());
+    let (mut a_forward, mut a_drls) = (Acc::default(), Acc::default());
+    let (mut a_pipe_all, mut a_pipe_steady, mut a_stage_steady) =
+        (Acc::default(), Acc::default(), Acc::default());
+    let mut sink = 0.0f32;
+    let mut frames = 0u32;
+
+    for k in 0..SAMPLES {
+        let counts = source.next_counts();
+        let wire = ecore::encode(counts, [0x10, (k >> 8) as u8, k as u8, 0x5A]);
+
+        // Whole pipeline: decode the frame's 8 bytes, identify, build the record; the
+        // identifier's push is also timed on its own, inside.
+        let mut rate_dps = f32::NAN;
+        let mut stage_ticks = 0;
+        let (_, ticks) = time(c, || {
+            for &b in &wire {
+                if let Some(f) = decoder.push(b) {
+                    let ((est, status), t) = time(c, || pipeline::process(&mut stage, f.rate_dps));
+                    stage_ticks = t;
+                    let r = pipeline::sample_record(frames, f.rate_dps, &est, status);
+                    frames += 1;
+                    rate_dps = f.rate_dps;
+                    sink += f32::from(r[7]);
+                }
+            }
+        });
+        a_pipe_all.add(ticks);
+        if k >= STEADY_FROM {
+            a_pipe_steady.add(ticks);
+            a_stage_steady.add(stage_ticks);
+        }
+
+        // Frame decode alone, on a second decoder fed the same bytes.
+        let mut d2 = decoder.clone();
+        let (_, t) = time(c, || {
+            let mut n = 0u32;
+            for &b in &wire {
+                if d2.push(b).is_some() {
+                    n += 1;
+                }
+            }
+            n
+        });
+        a_decode.add(t);
+
+        // Denoise, amortised: every sample's push, block completions included.
+        let (done, t) = time(c, || match denoiser.push(rate_dps) {
+            Ok(Push::Block(b, _)) => {
+                targets = *b;
+                true
+            }
+            _ => false,
+        });
+        let _ = done;
+        a_denoise.add(t);
+
+        // Features (10-s level, trend, T), then scaling.
+        let t_s = k as f32 * pipeline::SAMPLE_PERIOD_S;
+        let (x, t) = time(c, || probe.scaling().apply(&features.next(rate_dps, t_s)));
+        a_features.add(t);
+
+        // Network forward pass: hidden layer of L = 30 neurons and the output dot product.
+        let mut h = [0.0f32; NEURONS];
+        let (y, t) = time(c, || {
+            probe.shape().hidden(&x, &mut h);
+            dot(&w, &h)
+        });
+        a_forward.add(t);
+        sink += y;
+
+        // One DRLS step (sequential, guarded, L = 30) on that h and a denoised target.
+        let d = targets[k % BLOCK];
+        let (e, t) = time(c, || trainer.step(&mut w, &h, d));
+        a_drls.add(t);
+        sink += e;
+    }
+    // Stack used by all of the above (the stage and the copies live on the stack here).
+    let stack = stack_bytes();
+
+    let instr_per_sample = (CLOCK_HZ / SAMPLE_RATE_HZ) as u32;
+    let pipe_mean_x10 =
+        cal.instr_x10(a_pipe_steady.ticks, a_pipe_steady.n) / a_pipe_steady.n.max(1);
+    let pipe = pipe_mean_x10 / 10;
+
+    let mut out = Out(tx);
+    let r = (|| -> core::fmt::Result {
+        writeln!(
+            out,
+            "fog-firmware instruction budget (QEMU mps2-an386, -icount shift=6)"
+        )?;
+        writeln!(
+            out,
+            "calibration: {} instructions (subs/bne loop) = {} ticks; counter overhead {} ticks (removed)",
+            cal.cal_instr, cal.cal_ticks, cal.overhead_ticks
+        )?;
+        writeln!(
+            out,
+            "ticks per instruction x1000 = {}",
+            (cal.cal_ticks * 1000 + cal.cal_instr / 2) / cal.cal_instr.max(1)
+        )?;
+        writeln!(
+            out,
+            "{} samples ({} blocks of {}), L = {}, steady state = samples {}..{}",
+            SAMPLES,
+            SAMPLES / BLOCK,
+            BLOCK,
+            NEURONS,
+            STEADY_FROM,
+            SAMPLES
+        )?;
+        writeln!(out)?;
+        writeln!(
+            out,
+            "| {:<40} | {:<6} | {:>9} | {:>9} |",
+            "stage", "per", "mean", "max"
+        )?;
+        writeln!(out, "|{:-<42}|{:-<8}|{:->11}|{:->11}|", "", "", "", "")?;
+        row(&mut out, &cal, "frame decode (8 bytes)", "frame", &a_decode)?;
+        row(
+            &mut out,
+            &cal,
+            "denoise db4 x3, B=512, amortised",
+            "sample",
+            &a_denoise,
+        )?;
+        row(
+            &mut out,
+            &cal,
+            "features (level, trend, T) + scaling",
+            "sample",
+            &a_features,
+        )?;
+        row(
+            &mut out,
+            &cal,
+            "network forward (hidden L=30 + dot)",
+            "sample",
+            &a_forward,
+        )?;
+        row(
+            &mut out,
+            &cal,
+            "DRLS update (sequential, L=30)",
+            "sample",
+            &a_drls,
+        )?;
+        row(
+            &mut out,
+            &cal,
+            "identifier push (steady state)",
+            "sample",
+            &a_stage_steady,
+        )?;
+        row(
+            &mut out,
+            &cal,
+            "whole pipeline (decode+identify+record)",
+            "sample",
+            &a_pipe_steady,
+        )?;
+        row(
+            &mut out,
+            &cal,
+            "whole pipeline, all samples",
+            "sample",
+            &a_pipe_all,
+        )?;
+        writeln!(out)?;
+        writeln!(
+            out,
+            "budget at {} MHz, {} Hz: {} instructions per sample available; pipeline uses {} ({}.{} %)",
+            CLOCK_HZ / 1_000_000,
+            SAMPLE_RATE_HZ,
+            instr_per_sample,
+            pipe,
+            pipe_mean_x10 * 100 / u64::from(instr_per_sample) / 10,
+            pipe_mean_x10 * 1000 / u64::from(instr_per_sample) % 10
+        )?;
+        if pipe <= GOAL_PIPELINE_INSTR {
+            writeln!(
+                out,
+                "goal <= {GOAL_PIPELINE_INSTR} instructions per sample (mean, steady state): met, {} to spare",
+                GOAL_PIPELINE_INSTR - pipe
+            )?;
+        } else {
+            writeln!(
+                out,
+                "goal <= {GOAL_PIPELINE_INSTR} instructions per sample (mean, steady state): NOT met, over by {} ({}.{}x)",
+                pipe - GOAL_PIPELINE_INSTR,
+                pipe / GOAL_PIPELINE_INSTR,
+                pipe * 10 / GOAL_PIPELINE_INSTR % 10
+            )?;
+        }
+        let worst = cal.instr_x10(u64::from(a_pipe_all.max), 1) / 10;
+        writeln!(
+            out,
+            "worst sample (the one completing a block: whole denoise at once): {worst} instructions = {}.{} sample periods at {} MHz, {} Hz",
+            worst / u64::from(instr_per_sample),
+            worst * 10 / u64::from(instr_per_sample) % 10,
+            CLOCK_HZ / 1_000_000,
+            SAMPLE_RATE_HZ
+        )?;
+        writeln!(
+            out,
+            "budget-variant stack high-water: {stack} bytes (holds two identifiers and copies; see the production figure from the HIL test)"
+        )?;
+        writeln!(
+            out,
+            "(checksum of results, ignore: {})",
+            sink.to_bits() & 0xFF
+        )?;
+        Ok(())
+    })();
+    let _ = nb::block!(out.0.flush());
+    r.is_ok()
+}
+
+/// `core::fmt::Write` over the UART (bytes sent as they are).
+struct Out<'a, W>(&'a mut W);
+
+impl<W: Write<u8>> core::fmt::Write for Out<'_, W> {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        for b in s.bytes() {
+            nb::block!(self.0.write(b)).map_err(|_| core::fmt::Error)?;
+        }
+        Ok(())
+    }
+}
