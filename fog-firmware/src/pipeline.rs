@@ -155,26 +155,7 @@ pub struct RunTotals {
 
 /// The final statistics record: every [`ByteStats`] counter, then [`RunTotals`].
 pub fn stats_record(s: &ByteStats, t: &RunTotals) -> [u8; STATS_RECORD_LEN] {
-    let k = &s.skipped;
-    let counters: [u64; 17] = [
-        s.bytes_total,
-        s.bytes_good,
-        s.bytes_pending,
-        k.no_sync,
-        k.checksum,
-        k.cut_short,
-        k.uart_overrun,
-        k.uart_framing,
-        k.uart_parity,
-        k.uart_noise,
-        k.uart_other,
-        k.malformed,
-        k.too_long,
-        k.incomplete,
-        s.frames_good,
-        s.frames_fault,
-        s.frames_bad,
-    ];
+    let counters = s.counters();
     let mut r = [0u8; STATS_RECORD_LEN];
     for (chunk, c) in r[3..3 + 17 * 8].chunks_exact_mut(8).zip(counters) {
         chunk.copy_from_slice(&c.to_le_bytes());

@@ -37,16 +37,7 @@ impl Record {
     pub fn read(path: &Path) -> Result<Self> {
         let name = path.display();
         let file = File::open(path).with_context(|| format!("{name}: cannot open"))?;
-        let mut rdr = csv::ReaderBuilder::new()
-            .has_headers(true)
-            .from_reader(file);
-        let header = rdr
-            .headers()
-            .with_context(|| format!("{name}:1: cannot read the header"))?
-            .clone();
-        if header.is_empty() || (header.len() == 1 && header[0].is_empty()) {
-            bail!("{name}: empty file (no header line)");
-        }
+        let (mut rdr, header) = csv_with_header(&name.to_string(), file)?;
         let col = |want: &str| header.iter().position(|h| h.trim() == want);
         let Some(t_col) = col("t_s") else {
             bail!(
@@ -134,6 +125,25 @@ pub(crate) fn parse_field<T: std::str::FromStr + Into<f64> + Copy>(
         bail!("{name}:{line}: `{what}` is not finite: {raw:?}");
     }
     Ok(v)
+}
+
+/// A CSV reader over `input` with its header read; refuses an empty file. `name` names the
+/// file in messages. Every host-sim CSV reader starts here.
+pub(crate) fn csv_with_header<R: std::io::Read>(
+    name: &str,
+    input: R,
+) -> Result<(csv::Reader<R>, csv::StringRecord)> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .from_reader(input);
+    let header = rdr
+        .headers()
+        .with_context(|| format!("{name}:1: cannot read the header"))?
+        .clone();
+    if header.is_empty() || (header.len() == 1 && header[0].is_empty()) {
+        bail!("{name}: empty file (no header line)");
+    }
+    Ok((rdr, header))
 }
 
 /// Refuses to write `output` when it is the same file as `input`.

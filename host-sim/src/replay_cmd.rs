@@ -243,16 +243,7 @@ struct CsvSource {
 impl CsvSource {
     fn new(path: &Path, reader: BufReader<File>, rate_hz: f64) -> Result<Self> {
         let name = path.display().to_string();
-        let mut rdr = csv::ReaderBuilder::new()
-            .has_headers(true)
-            .from_reader(reader);
-        let header = rdr
-            .headers()
-            .with_context(|| format!("{name}:1: cannot read the header"))?
-            .clone();
-        if header.is_empty() || (header.len() == 1 && header[0].is_empty()) {
-            bail!("{name}: empty file (no header line)");
-        }
+        let (rdr, header) = crate::record::csv_with_header(&name, reader)?;
         let col = |want: &str| header.iter().position(|h| h.trim() == want);
         let joined = || header.iter().collect::<Vec<_>>().join(",");
         let Some(t_col) = col("t_s") else {

@@ -195,29 +195,6 @@ fn parse_records(out: &[u8]) -> (Vec<SampleRecord>, Option<StatsRecord>) {
     (samples, stats)
 }
 
-fn counters_of(s: &ByteStats) -> [u64; 17] {
-    let k = &s.skipped;
-    [
-        s.bytes_total,
-        s.bytes_good,
-        s.bytes_pending,
-        k.no_sync,
-        k.checksum,
-        k.cut_short,
-        k.uart_overrun,
-        k.uart_framing,
-        k.uart_parity,
-        k.uart_noise,
-        k.uart_other,
-        k.malformed,
-        k.too_long,
-        k.incomplete,
-        s.frames_good,
-        s.frames_fault,
-        s.frames_bad,
-    ]
-}
-
 /// Kills QEMU whatever happens to the test.
 struct KillOnDrop(Child);
 
@@ -337,7 +314,7 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
     }
     assert_eq!(mismatches, 0, "per-sample records differ from the host");
 
-    let want = counters_of(&expected.stats);
+    let want = expected.stats.counters();
     assert_eq!(
         stats.counters, want,
         "byte counters (ByteStats field order)"

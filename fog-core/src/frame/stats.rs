@@ -150,6 +150,36 @@ pub struct ByteStats {
 }
 
 impl ByteStats {
+    /// Number of counters in [`ByteStats::counters`].
+    pub const COUNTERS: usize = 17;
+
+    /// Every counter in one fixed order (the order of the firmware's statistics record):
+    /// `bytes_total, bytes_good, bytes_pending`, the skipped bytes by reason (`no_sync,
+    /// checksum, cut_short, uart_overrun, uart_framing, uart_parity, uart_noise, uart_other,
+    /// malformed, too_long, incomplete`), then `frames_good, frames_fault, frames_bad`.
+    pub fn counters(&self) -> [u64; Self::COUNTERS] {
+        let k = &self.skipped;
+        [
+            self.bytes_total,
+            self.bytes_good,
+            self.bytes_pending,
+            k.no_sync,
+            k.checksum,
+            k.cut_short,
+            k.uart_overrun,
+            k.uart_framing,
+            k.uart_parity,
+            k.uart_noise,
+            k.uart_other,
+            k.malformed,
+            k.too_long,
+            k.incomplete,
+            self.frames_good,
+            self.frames_fault,
+            self.frames_bad,
+        ]
+    }
+
     /// All zero.
     pub const ZERO: Self = Self {
         bytes_total: 0,

@@ -47,11 +47,7 @@ impl Series {
         } else {
             Box::new(std::io::BufReader::new(file))
         };
-        let mut rdr = csv::Reader::from_reader(input);
-        let header = rdr
-            .headers()
-            .with_context(|| format!("{name}:1: cannot read the header"))?
-            .clone();
+        let (mut rdr, header) = crate::record::csv_with_header(&name, input)?;
         let col = |want: &str| header.iter().position(|h| h.trim() == want);
         let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
             bail!("{name}:1: needs columns `t_s` and `{rate_column}`");
