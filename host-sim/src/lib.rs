@@ -6,6 +6,8 @@ pub mod allan;
 pub mod allan_cmd;
 pub mod demo_cmd;
 pub mod denoise_cmd;
+pub mod gap;
+pub mod gap_cmd;
 pub mod identify;
 pub mod identify_cmd;
 pub mod record;

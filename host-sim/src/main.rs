@@ -4,7 +4,8 @@
 
 use clap::{Parser, Subcommand};
 use host_sim::{
-    allan_cmd, demo_cmd, denoise_cmd, identify_cmd, replay_cmd, reproduce_cmd, simulate_cmd,
+    allan_cmd, demo_cmd, denoise_cmd, gap_cmd, identify_cmd, replay_cmd, reproduce_cmd,
+    simulate_cmd,
 };
 use std::process::ExitCode;
 
@@ -39,6 +40,11 @@ enum Cmd {
     /// The main job with no configuration: simulate an E-Core record, write it as binary
     /// frames, replay it, and write a report folder (index.html, SVG figures, summary.json).
     Demo(demo_cmd::Args),
+    /// Sim-to-real gap: where a real record departs from its model's simulations, which
+    /// effect the model lacks, and how much of the gap closes on held-out data.
+    Gap(gap_cmd::Args),
+    /// Benchmark of `gap` on simulated records with one withheld effect: confusion matrix.
+    GapBench(gap_cmd::BenchArgs),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +57,8 @@ fn main() -> ExitCode {
         Cmd::Reproduce(a) => reproduce_cmd::run(a),
         Cmd::Replay(a) => replay_cmd::run(a),
         Cmd::Demo(a) => demo_cmd::run(a),
+        Cmd::Gap(a) => gap_cmd::run(a),
+        Cmd::GapBench(a) => gap_cmd::run_bench(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,596 @@
+//! The candidate effects: the vocabulary, how each is fitted to the fit blocks of the real
+//! record, and the simulation spec (model plus what the simulator cannot know: the real
+//! temperature and reference rate).
+
+use super::features::robust_sigma;
+use super::Rec;
+use crate::sim::{flicker_adev, gm_avar, Model, QuantMode, Simulator};
+use anyhow::{bail, Result};
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// An effect the model may lack.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Effect {
+    /// Rate quantization (rounded to a count).
+    Quantization,
+    /// More white rate noise (ARW).
+    WhiteNoise,
+    /// More bias instability (flicker).
+    BiasInstability,
+    /// More rate random walk.
+    RateRandomWalk,
+    /// A rate ramp.
+    RateRamp,
+    /// First-order Gauss-Markov noise.
+    Markov,
+    /// A sinusoidal disturbance.
+    Sinusoid,
+    /// Bias proportional to the measured temperature.
+    Temperature,
+    /// Exponential warm-up transient.
+    Warmup,
+    /// Isolated spikes.
+    Spikes,
+    /// Dropped samples.
+    Dropouts,
+    /// Scale-factor error against a reference rate.
+    ScaleFactor,
+}
+
+/// The vocabulary, in order.
+pub const ALL: [Effect; 12] = [
+    Effect::Quantization,
+    Effect::WhiteNoise,
+    Effect::BiasInstability,
+    Effect::RateRandomWalk,
+    Effect::RateRamp,
+    Effect::Markov,
+    Effect::Sinusoid,
+    Effect::Temperature,
+    Effect::Warmup,
+    Effect::Spikes,
+    Effect::Dropouts,
+    Effect::ScaleFactor,
+];
+
+impl Effect {
+    /// The word of the vocabulary.
+    pub fn name(self) -> &'static str {
+        match self {
+            Effect::Quantization => "quantization",
+            Effect::WhiteNoise => "white_noise",
+            Effect::BiasInstability => "bias_instability",
+            Effect::RateRandomWalk => "rate_random_walk",
+            Effect::RateRamp => "rate_ramp",
+            Effect::Markov => "markov",
+            Effect::Sinusoid => "sinusoid",
+            Effect::Temperature => "temperature",
+            Effect::Warmup => "warmup",
+            Effect::Spikes => "spikes",
+            Effect::Dropouts => "dropouts",
+            Effect::ScaleFactor => "scale_factor",
+        }
+    }
+
+    /// Parses a comma-separated list of words.
+    pub fn parse_list(s: &str) -> Result<Vec<Effect>> {
+        let mut out = Vec::new();
+        for w in s.split(',').map(str::trim).filter(|w| !w.is_empty()) {
+            match ALL.iter().find(|e| e.name() == w) {
+                Some(&e) => out.push(e),
+                None => bail!(
+                    "--effects: unknown effect `{w}` (known: {})",
+                    ALL.map(Effect::name).join(", ")
+                ),
+            }
+        }
+        if out.is_empty() {
+            bail!("--effects: no effect given");
+        }
+        Ok(out)
+    }
+}
+
+/// What one simulation is made of.
+#[derive(Debug, Clone)]
+pub struct Spec {
+    /// Simulator model (quantization, motion and scale factor taken out when the record
+    /// carries a reference rate).
+    pub model: Model,
+    /// Rounding quantum applied after everything else, deg/s (0 = none).
+    pub quantum_dps: f64,
+    /// Scale-factor error on the reference rate, ppm.
+    pub sf_ppm: f64,
+    /// Bias per deg C of the record's own `temp_c`, deg/s/degC.
+    pub temp_dps_per_c: f64,
+    /// Temperature at which that bias is 0, deg C.
+    pub temp_ref_c: f64,
+    /// Extra warm-up: (amplitude deg/s, time constant s).
+    pub warmup: Option<(f64, f64)>,
+    /// Extra sinusoid: (amplitude deg/s, frequency Hz, phase rad).
+    pub sine: Option<(f64, f64, f64)>,
+}
+
+impl Spec {
+    /// The spec of a model for a record (`has_ref`: the record carries a reference rate).
+    pub fn from_model(m: &Model, has_ref: bool) -> Self {
+        let mut model = m.clone();
+        let mut quantum_dps = 0.0;
+        let mut sf_ppm = 0.0;
+        if model.quantization.mode == QuantMode::Round {
+            quantum_dps = model.quantization.quantum_dps;
+            model.quantization.quantum_dps = 0.0;
+        }
+        if has_ref {
+            sf_ppm = model.scale_factor.error_ppm;
+            model.scale_factor = Default::default();
+            model.motion = Default::default();
+        }
+        model.full_scale_dps = None;
+        Self {
+            model,
+            quantum_dps,
+            sf_ppm,
+            temp_dps_per_c: 0.0,
+            temp_ref_c: 25.0,
+            warmup: None,
+            sine: None,
+        }
+    }
+
+    /// One simulated record on the real record's time span: (t_s, rate_dps, rate_dps less
+    /// `g_base` times the reference rate).
+    pub fn simulate(&self, real: &Rec, seed: u64, g_base: f64) -> Result<Sim> {
+        let mut sim = Simulator::new(&self.model, seed, 1.0 / real.dt_s)?;
+        let t_end = real.t_s.last().copied().unwrap_or(0.0) + 0.5 * real.dt_s;
+        let n = real.t_s.len() + 16;
+        let (mut t, mut y, mut res) = (
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+        );
+        let mut cursor = 0usize;
+        loop {
+            let s = sim.next_sample();
+            if s.t_s > t_end {
+                break;
+            }
+            let mut v = s.rate_dps;
+            let mut r_dps = 0.0;
+            if real.ref_dps.is_some() || real.temp_c.is_some() {
+                while cursor + 1 < real.t_s.len() && real.t_s[cursor + 1] <= s.t_s {
+                    cursor += 1;
+                }
+                if let Some(r) = &real.ref_dps {
+                    r_dps = interp(&real.t_s, r, cursor, s.t_s);
+                    v += r_dps * (1.0 + 1e-6 * self.sf_ppm);
+                }
+                if let (Some(tc), true) = (&real.temp_c, self.temp_dps_per_c != 0.0) {
+                    v += self.temp_dps_per_c
+                        * (interp(&real.t_s, tc, cursor, s.t_s) - self.temp_ref_c);
+                }
+            }
+            if let Some((a, tau)) = self.warmup {
+                v += a * (-s.t_s / tau).exp();
+            }
+            if let Some((a, f, p)) = self.sine {
+                v += a * (std::f64::consts::TAU * f * s.t_s + p).sin();
+            }
+            if self.quantum_dps > 0.0 {
+                v = (v / self.quantum_dps).round() * self.quantum_dps;
+            }
+            t.push(s.t_s);
+            y.push(v);
+            res.push(v - g_base * r_dps);
+        }
+        Ok(Sim { t, raw: y, res })
+    }
+}
+
+/// A simulated (or real) series.
+pub struct Sim {
+    /// Time, s.
+    pub t: Vec<f64>,
+    /// Rate, deg/s.
+    pub raw: Vec<f64>,
+    /// Rate less the baseline's view of the reference rate, deg/s.
+    pub res: Vec<f64>,
+}
+
+/// Linear interpolation of `v(t)` at `x`, `t[i] <= x` (clamped at the ends).
+fn interp(t: &[f64], v: &[f64], i: usize, x: f64) -> f64 {
+    if i + 1 >= t.len() || x <= t[i] {
+        return v[i.min(v.len() - 1)];
+    }
+    let w = (x - t[i]) / (t[i + 1] - t[i]);
+    v[i] + w * (v[i + 1] - v[i])
+}
+
+/// What the fits need from the fit blocks.
+pub struct FitCtx<'a> {
+    /// The real record, rate less the baseline's view of the reference rate.
+    pub real: &'a Rec,
+    /// The real record's rate as read.
+    pub raw: &'a [f64],
+    /// Baseline spec.
+    pub base: &'a Spec,
+    /// Sample ranges of the fit blocks in the real record.
+    pub fit_ranges: Vec<(usize, usize)>,
+    /// Averaging factors.
+    pub ms: Vec<usize>,
+    /// Real pooled AVAR on the fit blocks.
+    pub real_avar: Vec<(f64, usize)>,
+    /// Median over the baseline simulations of the same.
+    pub sim_avar: Vec<f64>,
+    /// Spike count on the fit blocks: real, median of the baseline simulations.
+    pub spikes: (f64, f64),
+    /// Median spike size in the real fit blocks, deg/s.
+    pub spike_size_dps: f64,
+    /// Missing slots on the fit blocks: real, median of the baseline simulations.
+    pub missing: (f64, f64),
+    /// Time stamps are bursty (gaps are not measurable).
+    pub bursty: bool,
+}
+
+/// The result of fitting one effect.
+pub enum Fitted {
+    /// The baseline plus the effect, and the fitted parameters (unit in the key).
+    Spec(Box<Spec>, BTreeMap<String, f64>),
+    /// Why the effect cannot be fitted to this record.
+    NotApplicable(String),
+}
+
+/// Spike test statistic on ranges: residuals from a 5-point running median beyond 6 robust
+/// sigma: (count, their sizes).
+pub fn spike_stats(y: &[f64], ranges: &[(usize, usize)]) -> (f64, Vec<f64>) {
+    let mut e = Vec::new();
+    for &(lo, hi) in ranges {
+        for k in lo + 2..hi.saturating_sub(2) {
+            let mut w = [y[k - 2], y[k - 1], y[k], y[k + 1], y[k + 2]];
+            w.sort_by(f64::total_cmp);
+            e.push(y[k] - w[2]);
+        }
+    }
+    let s = robust_sigma(&e);
+    let big: Vec<f64> = e
+        .iter()
+        .filter(|x| x.abs() > 6.0 * s)
+        .map(|x| x.abs())
+        .collect();
+    (big.len() as f64, big)
+}
+
+/// Missing slots in ranges (steps longer than 1.5 periods).
+pub fn missing_slots(t: &[f64], ranges: &[(usize, usize)], dt_s: f64) -> f64 {
+    let mut m = 0.0;
+    for &(lo, hi) in ranges {
+        for w in t[lo..hi].windows(2) {
+            let k = ((w[1] - w[0]) / dt_s).round();
+            if k > 1.0 {
+                m += k - 1.0;
+            }
+        }
+    }
+    m
+}
+
+/// Weighted one-term fit of the AVAR excess `real - sim` on `basis(tau)`: (coefficient >= 0,
+/// weighted residual).
+fn excess_fit(ctx: &FitCtx, dt_s: f64, basis: &dyn Fn(f64) -> f64) -> (f64, f64) {
+    let mut sxy = 0.0;
+    let mut sxx = 0.0;
+    let pts: Vec<(f64, f64, f64)> = ctx
+        .ms
+        .iter()
+        .zip(&ctx.real_avar)
+        .zip(&ctx.sim_avar)
+        .filter(|((_, (r, n)), s)| r.is_finite() && s.is_finite() && **s > 0.0 && *n > 0)
+        .map(|((&m, (r, n)), s)| {
+            let tau = m as f64 * dt_s;
+            // Variance of an AVAR estimate ~ 2 AVAR^2 / edf, edf ~ n / m.
+            let w = (*n as f64 / m as f64) / (s * s);
+            (r - s, basis(tau), w)
+        })
+        .collect();
+    for &(d, b, w) in &pts {
+        sxy += w * d * b;
+        sxx += w * b * b;
+    }
+    let c = if sxx > 0.0 { (sxy / sxx).max(0.0) } else { 0.0 };
+    let res = pts.iter().map(|&(d, b, w)| w * (d - c * b).powi(2)).sum();
+    (c, res)
+}
+
+/// Least squares `y = X beta` by normal equations (small `p`): `row(i, x)` fills row `i`
+/// of `X` and returns `y_i`; `None` if singular.
+fn lstsq(n: usize, p: usize, row: &mut dyn FnMut(usize, &mut [f64]) -> f64) -> Option<Vec<f64>> {
+    let mut a = vec![vec![0.0; p + 1]; p];
+    let mut r = vec![0.0; p];
+    for k in 0..n {
+        let v = row(k, &mut r);
+        for i in 0..p {
+            for j in 0..p {
+                a[i][j] += r[i] * r[j];
+            }
+            a[i][p] += r[i] * v;
+        }
+    }
+    // Gauss-Jordan with partial pivoting.
+    for c in 0..p {
+        let piv = (c..p).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        a.swap(c, piv);
+        let d = a[c][c];
+        if d.abs() < 1e-300 {
+            return None;
+        }
+        for v in a[c].iter_mut() {
+            *v /= d;
+        }
+        let row_c = a[c].clone();
+        for (i, ai) in a.iter_mut().enumerate() {
+            if i != c {
+                let f = ai[c];
+                for (v, rc) in ai.iter_mut().zip(&row_c) {
+                    *v -= f * rc;
+                }
+            }
+        }
+    }
+    Some(a.iter().map(|r| r[p]).collect())
+}
+
+/// Fits `effect` to the fit blocks; the baseline spec with the effect added.
+pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
+    let real = ctx.real;
+    let dt = real.dt_s;
+    let mut spec = ctx.base.clone();
+    let mut p = BTreeMap::new();
+    let idx: Vec<usize> = ctx.fit_ranges.iter().flat_map(|&(a, b)| a..b).collect();
+    let y: Vec<f64> = idx.iter().map(|&i| real.rate_dps[i]).collect();
+    let n = &mut spec.model.noise;
+    match effect {
+        Effect::Quantization => {
+            let mut v: Vec<f64> = idx.iter().map(|&i| ctx.raw[i]).collect();
+            v.sort_by(f64::total_cmp);
+            v.dedup();
+            let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let d: Vec<f64> = v
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .filter(|&d| d > 1e-9 * scale)
+                .collect();
+            let q0 = d.iter().copied().fold(f64::INFINITY, f64::min);
+            let on = d
+                .iter()
+                .filter(|&&x| ((x / q0) - (x / q0).round()).abs() < 0.01)
+                .count();
+            if d.len() < 2 || !q0.is_finite() || (on as f64) < 0.95 * d.len() as f64 {
+                return Ok(Fitted::NotApplicable(format!(
+                    "values are not on a lattice ({} distinct in {} samples)",
+                    v.len(),
+                    idx.len()
+                )));
+            }
+            // Refine: mean step of the differences that are one quantum.
+            let ones: Vec<f64> = d
+                .iter()
+                .copied()
+                .filter(|&x| (x / q0).round() == 1.0)
+                .collect();
+            let q = if ones.is_empty() {
+                q0
+            } else {
+                super::features::mean(&ones)
+            };
+            spec.quantum_dps = q;
+            p.insert("quantum_dps".into(), q);
+        }
+        Effect::WhiteNoise => {
+            let (c, _) = excess_fit(ctx, dt, &|tau| 1.0 / tau);
+            n.arw_dps_per_rthz = (n.arw_dps_per_rthz.powi(2) + c).sqrt();
+            p.insert("added_arw_dps_per_rthz".into(), c.sqrt());
+        }
+        Effect::BiasInstability => {
+            let (lo, hi) = (n.flicker_tau_min_s, n.flicker_tau_max_s);
+            let (c, _) = excess_fit(ctx, dt, &|tau| flicker_adev(1.0, lo, hi, tau).powi(2));
+            n.bias_instability_dps = (n.bias_instability_dps.powi(2) + c).sqrt();
+            p.insert("added_bias_instability_dps".into(), c.sqrt());
+        }
+        Effect::RateRandomWalk => {
+            let (c, _) = excess_fit(ctx, dt, &|tau| tau / 3.0);
+            n.rrw_dps_per_s_rthz = (n.rrw_dps_per_s_rthz.powi(2) + c).sqrt();
+            p.insert("added_rrw_dps_per_s_rthz".into(), c.sqrt());
+        }
+        Effect::Markov => {
+            let t_hi = real.t_s.last().copied().unwrap_or(1.0) / 6.0;
+            let mut best = (f64::INFINITY, 0.0, 1.0);
+            let mut tc = (4.0 * dt).max(1e-3);
+            while tc <= t_hi {
+                let (c, res) = excess_fit(ctx, dt, &|tau| gm_avar(1.0, tc, tau));
+                if res < best.0 {
+                    best = (res, c, tc);
+                }
+                tc *= 10f64.powf(1.0 / 8.0);
+            }
+            let (_, c, tc) = best;
+            if n.gm_sigma_dps > 0.0 {
+                // The model has its own Gauss-Markov term: this one replaces it when larger.
+                n.gm_sigma_dps = n.gm_sigma_dps.max(c.sqrt());
+            } else {
+                n.gm_sigma_dps = c.sqrt();
+            }
+            n.gm_tau_s = tc;
+            p.insert("gm_sigma_dps".into(), c.sqrt());
+            p.insert("gm_tau_s".into(), tc);
+        }
+        Effect::RateRamp => {
+            // One common offset: offsets per block would absorb a ramp between blocks.
+            let beta = lstsq(idx.len(), 2, &mut |k, r| {
+                r[0] = 1.0;
+                r[1] = real.t_s[idx[k]];
+                y[k]
+            })
+            .unwrap_or_else(|| vec![0.0, 0.0]);
+            n.rate_ramp_dps_per_s += beta[1];
+            p.insert("rate_ramp_dps_per_s".into(), beta[1]);
+        }
+        Effect::Warmup => {
+            // A warm-up decays within the record: tau up to a third of it (a longer one is a
+            // ramp, which has its own candidate).
+            let t_hi = real.t_s.last().copied().unwrap_or(1.0) / 3.0;
+            let mut best = (f64::INFINITY, 0.0, 1.0);
+            let mut tau = (10.0 * dt).max(5.0);
+            while tau <= t_hi {
+                let mut row = |k: usize, r: &mut [f64]| {
+                    r[0] = 1.0;
+                    r[1] = (-real.t_s[idx[k]] / tau).exp();
+                    y[k]
+                };
+                if let Some(beta) = lstsq(idx.len(), 2, &mut row) {
+                    let sse: f64 = idx
+                        .iter()
+                        .zip(&y)
+                        .map(|(&i, v)| (v - beta[0] - beta[1] * (-real.t_s[i] / tau).exp()).powi(2))
+                        .sum();
+                    if sse < best.0 {
+                        best = (sse, beta[1], tau);
+                    }
+                }
+                tau *= 10f64.powf(1.0 / 16.0);
+            }
+            spec.warmup = Some((best.1, best.2));
+            p.insert("warmup_dps".into(), best.1);
+            p.insert("warmup_tau_s".into(), best.2);
+        }
+        Effect::Temperature => {
+            let Some(tc) = &real.temp_c else {
+                return Ok(Fitted::NotApplicable(
+                    "the record has no `temp_c` column".into(),
+                ));
+            };
+            let tv: Vec<f64> = idx.iter().map(|&i| tc[i]).collect();
+            let tref = super::features::mean(&tv);
+            let Some(beta) = lstsq(idx.len(), 2, &mut |k, r| {
+                r[0] = 1.0;
+                r[1] = tv[k] - tref;
+                y[k]
+            }) else {
+                return Ok(Fitted::NotApplicable(
+                    "`temp_c` does not vary on the fit blocks".into(),
+                ));
+            };
+            spec.temp_dps_per_c += beta[1];
+            spec.temp_ref_c = tref;
+            p.insert("bias_dps_per_c".into(), beta[1]);
+            p.insert("reference_c".into(), tref);
+        }
+        Effect::Sinusoid => {
+            let (f, a, ph) = fit_sine(real, &ctx.fit_ranges);
+            spec.sine = Some((a, f, ph));
+            p.insert("sine_amplitude_dps".into(), a);
+            p.insert("sine_freq_hz".into(), f);
+            p.insert("sine_phase_deg".into(), ph.to_degrees());
+        }
+        Effect::Spikes => {
+            let nfit = idx.len().max(1) as f64;
+            let extra = (ctx.spikes.0 - ctx.spikes.1).max(0.0) / nfit;
+            let f = &mut spec.model.faults;
+            f.spike_probability = (f.spike_probability + extra).min(0.5);
+            f.spike_amplitude_dps = if ctx.spike_size_dps > 0.0 {
+                ctx.spike_size_dps
+            } else {
+                f.spike_amplitude_dps
+            };
+            p.insert("spike_probability".into(), extra);
+            p.insert("spike_amplitude_dps".into(), ctx.spike_size_dps);
+        }
+        Effect::Dropouts => {
+            if ctx.bursty {
+                return Ok(Fitted::NotApplicable(
+                    "time stamps are bursty: missing samples are not measurable".into(),
+                ));
+            }
+            let slots = idx.len() as f64 + ctx.missing.0;
+            let extra = (ctx.missing.0 - ctx.missing.1).max(0.0) / slots.max(1.0);
+            let f = &mut spec.model.faults;
+            f.drop_probability = (f.drop_probability + extra).min(0.5);
+            p.insert("drop_probability".into(), extra);
+        }
+        Effect::ScaleFactor => {
+            let Some(r) = &real.ref_dps else {
+                return Ok(Fitted::NotApplicable(
+                    "not applicable: the record has no reference rate column".into(),
+                ));
+            };
+            let Some(beta) = lstsq(idx.len(), 2, &mut |k, row| {
+                let i = idx[k];
+                row[0] = 1.0;
+                row[1] = r[i];
+                real.rate_dps[i]
+            }) else {
+                return Ok(Fitted::NotApplicable(
+                    "not applicable: the reference rate does not vary on the fit blocks".into(),
+                ));
+            };
+            spec.sf_ppm += beta[1] * 1e6;
+            p.insert("scale_factor_error_ppm".into(), beta[1] * 1e6);
+        }
+    }
+    Ok(Fitted::Spec(Box::new(spec), p))
+}
+
+/// The strongest sinusoid in the fit blocks: (frequency Hz, amplitude deg/s, phase rad at
+/// t = 0). The blocks (each less its mean and trend) are laid on a zero-filled time line and
+/// transformed; the peak above 4 cycles per block is refined by a parabola, then amplitude
+/// and phase come from least squares with an offset per block.
+fn fit_sine(real: &Rec, ranges: &[(usize, usize)]) -> (f64, f64, f64) {
+    let dt = real.dt_s;
+    let n_line = ((real.t_s.last().copied().unwrap_or(0.0) / dt).round() as usize) + 1;
+    let nfft = n_line.next_power_of_two() * 2;
+    let mut buf = vec![rustfft::num_complex::Complex::new(0.0, 0.0); nfft];
+    let mut block_len = usize::MAX;
+    for &(lo, hi) in ranges {
+        let m = super::features::mean(&real.rate_dps[lo..hi]);
+        block_len = block_len.min(hi - lo);
+        for i in lo..hi {
+            let k = ((real.t_s[i] / dt).round() as usize).min(nfft - 1);
+            buf[k].re = real.rate_dps[i] - m;
+        }
+    }
+    let mut planner = rustfft::FftPlanner::<f64>::new();
+    planner.plan_fft_forward(nfft).process(&mut buf);
+    let p: Vec<f64> = buf[..nfft / 2].iter().map(|c| c.norm_sqr()).collect();
+    let k_lo = ((4.0 * nfft as f64 / block_len.max(1) as f64).ceil() as usize).max(2);
+    let k = (k_lo..nfft / 2 - 1)
+        .max_by(|&a, &b| p[a].total_cmp(&p[b]))
+        .unwrap_or(k_lo);
+    let (a, b, c) = (p[k - 1].ln(), p[k].ln(), p[k + 1].ln());
+    let den = a - 2.0 * b + c;
+    let delta = if den.abs() > 0.0 {
+        (0.5 * (a - c) / den).clamp(-0.5, 0.5)
+    } else {
+        0.0
+    };
+    let f = (k as f64 + delta) / (nfft as f64 * dt);
+    // Amplitude and phase.
+    let nb = ranges.len();
+    let at: Vec<(usize, usize)> = ranges
+        .iter()
+        .enumerate()
+        .flat_map(|(b, &(lo, hi))| (lo..hi).map(move |i| (b, i)))
+        .collect();
+    let beta = lstsq(at.len(), nb + 2, &mut |k, r| {
+        let (b, i) = at[k];
+        let w = std::f64::consts::TAU * f * real.t_s[i];
+        r.fill(0.0);
+        r[b] = 1.0;
+        r[nb] = w.sin();
+        r[nb + 1] = w.cos();
+        real.rate_dps[i]
+    })
+    .unwrap_or_else(|| vec![0.0; nb + 2]);
+    let (s, co) = (beta[nb], beta[nb + 1]);
+    (f, s.hypot(co), co.atan2(s))
+}

@@ -1,0 +1,858 @@
+//! Sim-to-real gap diagnosis: where a real gyro record departs from its model's simulations,
+//! which effect of a fixed vocabulary the model lacks, and how much of the gap closes on
+//! held-out data once that effect is added. See `docs/gap.md`.
+//!
+//! # Split
+//! The record is cut in time into 6 equal blocks. Even blocks (0, 2, 4: the first sixth,
+//! the third, the fifth) are the **fit** part: the baseline (without `--sim`) and every
+//! candidate's parameters are fitted there. Odd blocks (1, 3, 5) are **held out**: the gap
+//! before and after is scored there only. Simulations always span the whole record, so
+//! time-dependent effects (warm-up, ramp, temperature) are compared at the same times.
+//!
+//! # Gap measure
+//! For each feature ([`features`]), `z = (real - median_sims) / spread_sims`; the spread is
+//! the seed-to-seed standard deviation (floored, Poisson for counts). The gap is the mean over
+//! the four groups (adev, psd, time, dist) of the mean `z^2` in the group: about 1 when the
+//! real record is one more draw of the model.
+//!
+//! # Significance
+//! Each baseline simulation is scored like the real record against the other simulations
+//! (leave one out): these null gaps give `g50` and `g95`. An effect is named only when the
+//! baseline gap exceeds `g95` (the gap itself is significant at 95 %) and the best
+//! candidate lowers it by more than `g95 - g50` (more than the seed-to-seed spread of the
+//! gap gives by chance); otherwise `none`.
+
+pub mod bench;
+pub mod effects;
+pub mod features;
+pub mod report;
+
+use crate::identify::series::{Records, Series};
+use crate::sim::Model;
+use anyhow::{bail, Context, Result};
+use effects::{Effect, FitCtx, Fitted, Spec};
+use features::{Def, Fft, Group, Layout, BLOCKS};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// A record as the diagnosis sees it.
+#[derive(Debug, Clone)]
+pub struct Rec {
+    /// Name for messages.
+    pub name: String,
+    /// Time from the first sample, s.
+    pub t_s: Vec<f64>,
+    /// Measured rate, deg/s.
+    pub rate_dps: Vec<f64>,
+    /// Sensor temperature, deg C.
+    pub temp_c: Option<Vec<f64>>,
+    /// Reference (true) rate, deg/s.
+    pub ref_dps: Option<Vec<f64>>,
+    /// Nominal sample period, s.
+    pub dt_s: f64,
+}
+
+/// How the time stamps of a record were read.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct TimeInfo {
+    /// Sample period used, s.
+    pub dt_s: f64,
+    /// Median step of the file's time stamps, s.
+    pub median_step_s: f64,
+    /// Mean step, s.
+    pub mean_step_s: f64,
+    /// Bursty time stamps (median step < 0.7 mean step): samples taken as evenly spaced
+    /// at the mean step; gaps are then not detectable.
+    pub bursty: bool,
+    /// Gaps (steps > 1.5 periods): count.
+    pub gap_count: usize,
+    /// Sample slots missing in the gaps.
+    pub missing_slots: f64,
+    /// The first gaps: (time of the sample before, s; step length, s).
+    pub gaps: Vec<(f64, f64)>,
+}
+
+/// Reads a CSV (`.gz` too): `t_s`, the rate column, `temp_c` if present, the reference
+/// column if asked for (or `true_rate_dps` if present).
+pub fn read_rec(
+    path: &Path,
+    rate_column: &str,
+    ref_column: Option<&str>,
+) -> Result<(Rec, TimeInfo)> {
+    let name = path.display().to_string();
+    let file = std::fs::File::open(path).with_context(|| format!("{name}: cannot open"))?;
+    let input: Box<dyn std::io::Read> = if path.extension().is_some_and(|e| e == "gz") {
+        Box::new(flate2::read::GzDecoder::new(std::io::BufReader::new(file)))
+    } else {
+        Box::new(std::io::BufReader::new(file))
+    };
+    let mut rdr = csv::Reader::from_reader(input);
+    let header = rdr
+        .headers()
+        .with_context(|| format!("{name}:1: cannot read the header"))?
+        .clone();
+    let col = |want: &str| header.iter().position(|h| h.trim() == want);
+    let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
+        bail!("{name}:1: needs columns `t_s` and `{rate_column}`");
+    };
+    let temp = col("temp_c");
+    let refc = match ref_column {
+        Some(c) => Some(col(c).with_context(|| format!("{name}:1: no reference column `{c}`"))?),
+        None => col("true_rate_dps"),
+    };
+    let mut t = Vec::new();
+    let mut y = Vec::new();
+    let mut tv = temp.map(|_| Vec::new());
+    let mut rv = refc.map(|_| Vec::new());
+    for rec in rdr.records() {
+        let rec = rec
+            .map_err(|e| anyhow::anyhow!("{name}:{}: {e}", e.position().map_or(0, |p| p.line())))?;
+        let line = rec.position().map_or(0, |p| p.line());
+        let get = |c: usize, what: &str| -> Result<f64> {
+            let raw = rec
+                .get(c)
+                .with_context(|| format!("{name}:{line}: missing field `{what}`"))?;
+            let v: f64 = raw.trim().parse().map_err(|_| {
+                anyhow::anyhow!("{name}:{line}: `{what}` = {raw:?} is not a number")
+            })?;
+            if !v.is_finite() {
+                bail!("{name}:{line}: `{what}` = {raw} is not finite");
+            }
+            Ok(v)
+        };
+        let tt = get(tc, "t_s")?;
+        if t.last().is_some_and(|&p| tt <= p) {
+            bail!("{name}:{line}: t_s = {tt} does not increase");
+        }
+        t.push(tt);
+        y.push(get(rc, rate_column)?);
+        if let (Some(c), Some(v)) = (temp, tv.as_mut()) {
+            v.push(get(c, "temp_c")?);
+        }
+        if let (Some(c), Some(v)) = (refc, rv.as_mut()) {
+            v.push(get(c, ref_column.unwrap_or("true_rate_dps"))?);
+        }
+    }
+    if t.len() < 2 {
+        bail!("{name}: fewer than 2 data rows");
+    }
+    let t0 = t[0];
+    for v in &mut t {
+        *v -= t0;
+    }
+    let (rec, info) = regularise(name, t, y, tv, rv)?;
+    Ok((rec, info))
+}
+
+/// Finds the period and the gaps; bursty stamps become evenly spaced at the mean step.
+pub fn regularise(
+    name: String,
+    mut t: Vec<f64>,
+    y: Vec<f64>,
+    temp_c: Option<Vec<f64>>,
+    ref_dps: Option<Vec<f64>>,
+) -> Result<(Rec, TimeInfo)> {
+    let steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    let med = features::median(&steps);
+    let mean = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    let mut info = TimeInfo {
+        median_step_s: med,
+        mean_step_s: mean,
+        ..Default::default()
+    };
+    if med < 0.7 * mean {
+        info.bursty = true;
+        info.dt_s = mean;
+        for (i, v) in t.iter_mut().enumerate() {
+            *v = i as f64 * mean;
+        }
+    } else {
+        info.dt_s = med;
+        for (i, s) in steps.iter().enumerate() {
+            if *s > 1.5 * med {
+                info.gap_count += 1;
+                info.missing_slots += (s / med).round() - 1.0;
+                if info.gaps.len() < 20 {
+                    info.gaps.push((t[i], *s));
+                }
+            }
+        }
+    }
+    Ok((
+        Rec {
+            name,
+            t_s: t,
+            rate_dps: y,
+            temp_c,
+            ref_dps,
+            dt_s: info.dt_s,
+        },
+        info,
+    ))
+}
+
+/// Diagnosis options.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Simulations per model.
+    pub seeds: usize,
+    /// First seed.
+    pub first_seed: u64,
+    /// Candidate effects.
+    pub effects: Vec<Effect>,
+    /// The candidates were named by the user (a missing input is then an error).
+    pub explicit: bool,
+    /// Run the identification (task) comparison.
+    pub task: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            seeds: 10,
+            first_seed: 1_000,
+            effects: effects::ALL.to_vec(),
+            explicit: false,
+            task: true,
+        }
+    }
+}
+
+/// One candidate's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    /// The effect.
+    pub effect: Effect,
+    /// Fitted parameters, unit in the key (null when skipped).
+    pub params: Option<BTreeMap<String, f64>>,
+    /// Held-out gap with the effect added (null when skipped).
+    pub gap_after: Option<f64>,
+    /// `1 - gap_after / gap_before`.
+    pub shrink: Option<f64>,
+    /// Why it was skipped.
+    pub skipped: Option<String>,
+}
+
+/// Where the gap lies (full record, baseline): hulls of the features with |z| > 2.
+#[derive(Debug, Clone, Serialize)]
+pub struct Where {
+    /// Tau range, s.
+    pub tau_s: Option<[f64; 2]>,
+    /// Frequency range, Hz.
+    pub freq_hz: Option<[f64; 2]>,
+    /// Time range, s.
+    pub time_s: Option<[f64; 2]>,
+    /// Distribution features with |z| > 2.
+    pub distribution: Vec<String>,
+    /// Gap per group (mean z^2), full record.
+    pub group_gap: BTreeMap<String, f64>,
+}
+
+/// One feature, full record: real, simulation median and spread, z.
+#[derive(Debug, Clone, Serialize)]
+pub struct FeatureRow {
+    /// Feature name.
+    pub feature: String,
+    /// Real value.
+    pub real: f64,
+    /// Median of the simulations.
+    pub sim_median: f64,
+    /// Spread of the simulations.
+    pub sim_spread: f64,
+    /// z.
+    pub z: f64,
+}
+
+/// The identification task on real vs simulated data.
+#[derive(Debug, Clone, Serialize)]
+pub struct Task {
+    /// RMS(y - d) / RMS(d) on the real record (trained on one simulation).
+    pub e_rel_real: Option<f64>,
+    /// The same on another simulation.
+    pub e_rel_sim: Option<f64>,
+    /// RMS(y - d), deg/h, real.
+    pub rms_err_real_dph: Option<f64>,
+    /// RMS(y - d), deg/h, simulation.
+    pub rms_err_sim_dph: Option<f64>,
+}
+
+/// Curves for the report: (x, real, baseline median, with-effect median).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Curves {
+    /// tau, s.
+    pub tau_s: Vec<f64>,
+    /// ADEV, deg/s: real.
+    pub adev_real: Vec<f64>,
+    /// Baseline median.
+    pub adev_base: Vec<f64>,
+    /// Baseline + effect median.
+    pub adev_after: Vec<f64>,
+    /// Frequency, Hz.
+    pub freq_hz: Vec<f64>,
+    /// PSD, (deg/s)^2/Hz: real.
+    pub psd_real: Vec<f64>,
+    /// Baseline median.
+    pub psd_base: Vec<f64>,
+    /// Baseline + effect median.
+    pub psd_after: Vec<f64>,
+}
+
+/// The diagnosis.
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    /// The record.
+    pub record: String,
+    /// Samples.
+    pub samples: usize,
+    /// Time stamps.
+    pub time: TimeInfo,
+    /// The named effect or `none`.
+    pub effect: String,
+    /// Held-out gap of the baseline.
+    pub gap_before: f64,
+    /// Held-out gap with the named effect (= gap_before for `none`).
+    pub gap_after: f64,
+    /// `1 - gap_after / gap_before`.
+    pub shrink: f64,
+    /// Best candidate, even when not significant.
+    pub best_candidate: Option<Effect>,
+    /// Fitted parameters of the named effect.
+    pub params: Option<BTreeMap<String, f64>>,
+    /// Null gaps: median and 95 % quantile.
+    pub null_gap_median: f64,
+    /// 95 % quantile.
+    pub null_gap_95: f64,
+    /// Why the answer is what it is.
+    pub decision: String,
+    /// Held-out gap per group, baseline.
+    pub group_gap_before: BTreeMap<String, f64>,
+    /// Null gaps per group (one per simulation).
+    pub null_group_gaps: BTreeMap<String, Vec<f64>>,
+    /// Where.
+    #[serde(rename = "where")]
+    pub where_: Where,
+    /// Every candidate.
+    pub candidates: Vec<Candidate>,
+    /// Baseline model (TOML-shaped).
+    pub baseline: Model,
+    /// Where the baseline comes from.
+    pub baseline_source: String,
+    /// Task comparison.
+    pub task: Option<Task>,
+    /// Full-record features.
+    pub features: Vec<FeatureRow>,
+    /// Split and measure, in words.
+    pub definitions: &'static str,
+    /// Report curves (not in JSON).
+    #[serde(skip)]
+    pub curves: Curves,
+}
+
+const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --sim) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = mean over groups (adev, psd, time, dist) of mean z^2. An effect is named when gap_before > null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others).";
+
+/// Per-simulation summary.
+struct SimOut {
+    score: Vec<f64>,
+    all: Vec<f64>,
+    adev: Vec<f64>,
+    psd: Vec<f64>,
+}
+
+/// Everything computed from one series.
+fn analyse(
+    layout: &Layout,
+    s: &effects::Sim,
+    sel_score: &[bool],
+    sel_all: Option<&[bool]>,
+    fft: &mut Fft,
+) -> SimOut {
+    let (t, y) = (&s.t, &s.res);
+    let all_ranges = layout.ranges(t);
+    SimOut {
+        score: layout.features(t, y, &s.raw, sel_score, fft),
+        all: sel_all.map_or_else(Vec::new, |a| layout.features(t, y, &s.raw, a, fft)),
+        adev: features::pooled_avar(y, &all_ranges, layout.dt_s, &layout.ms)
+            .iter()
+            .map(|(v, _)| v.sqrt())
+            .collect(),
+        psd: layout.welch(y, &all_ranges, fft),
+    }
+}
+
+/// Leave-one-out null gaps per group: (group, gap) for each simulation.
+fn null_group_gaps(defs: &[Def], sims: &[Vec<f64>]) -> Vec<Vec<(Group, f64)>> {
+    (0..sims.len())
+        .map(|i| {
+            let others: Vec<&Vec<f64>> = sims
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != i)
+                .map(|(_, s)| s)
+                .collect();
+            let st = features::stats(defs, &others);
+            features::group_gaps(defs, &features::zscores(&sims[i], &st))
+        })
+        .collect()
+}
+
+/// Leave-one-out null gaps of the simulations' held-out features.
+#[allow(dead_code)]
+fn null_gaps(defs: &[Def], sims: &[Vec<f64>]) -> Vec<f64> {
+    (0..sims.len())
+        .map(|i| {
+            let others: Vec<&Vec<f64>> = sims
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != i)
+                .map(|(_, s)| s)
+                .collect();
+            let st = features::stats(defs, &others);
+            features::gap(defs, &features::zscores(&sims[i], &st))
+        })
+        .collect()
+}
+
+/// Baseline model fitted to the fit blocks: ARW, bias instability and RRW (allan fit).
+pub fn fit_baseline(real: &Rec, layout: &Layout, fit_ranges: &[(usize, usize)]) -> Result<Model> {
+    use crate::allan::{edf, fit, AdevPoint};
+    let pooled = features::pooled_avar(&real.rate_dps, fit_ranges, real.dt_s, &layout.ms);
+    let mut pts: Vec<AdevPoint> = layout
+        .ms
+        .iter()
+        .zip(&pooled)
+        .filter(|(_, (v, n))| v.is_finite() && *v > 0.0 && *n > 0)
+        .map(|(&m, &(v, n))| AdevPoint {
+            m,
+            tau_s: m as f64 * real.dt_s,
+            adev_dps: v.sqrt(),
+            n_diff: n,
+            edf: 0.0,
+            alpha: 0,
+            adev_lower_dps: f64::NAN,
+            adev_upper_dps: f64::NAN,
+        })
+        .collect();
+    if pts.len() < 3 {
+        bail!("{}: fewer than 3 Allan points on the fit blocks", real.name);
+    }
+    let set_edf = |pts: &mut Vec<AdevPoint>, f: Option<&fit::Fit>| {
+        for p in pts.iter_mut() {
+            p.alpha = f.map_or(0, |f| f.dominant_alpha(p.tau_s));
+            p.edf = fit_ranges
+                .iter()
+                .map(|&(lo, hi)| {
+                    if 2 * p.m < hi - lo + 1 {
+                        edf::edf_simple(hi - lo + 1, p.m, p.alpha)
+                    } else {
+                        0.0
+                    }
+                })
+                .sum::<f64>()
+                .max(1.0);
+        }
+    };
+    set_edf(&mut pts, None);
+    let mut f = fit::fit(&pts, false).with_context(|| format!("{}: baseline fit", real.name))?;
+    set_edf(&mut pts, Some(&f));
+    f = fit::fit(&pts, false).with_context(|| format!("{}: baseline fit", real.name))?;
+    let get = |k| f.get(k).map_or(0.0, |t| t.value);
+    let mut m = Model {
+        sample_rate_hz: Some(1.0 / real.dt_s),
+        ..Default::default()
+    };
+    m.noise.arw_dps_per_rthz = get(fit::Kind::Arw);
+    m.noise.bias_instability_dps = get(fit::Kind::BiasInstability);
+    m.noise.rrw_dps_per_s_rthz = get(fit::Kind::Rrw);
+    m.noise.flicker_tau_min_s = (2.5 * real.dt_s).max(1.0);
+    m.noise.flicker_tau_max_s = 1e5;
+    Ok(m)
+}
+
+/// Runs the diagnosis of `real` against `model` (or a baseline fitted to it).
+pub fn diagnose(
+    real: &Rec,
+    time: TimeInfo,
+    model: Option<&Model>,
+    o: &Options,
+) -> Result<Diagnosis> {
+    let layout = Layout::new(&real.t_s, real.dt_s).with_context(|| real.name.clone())?;
+    if o.seeds < 4 {
+        bail!(
+            "--seeds {}: at least 4 simulations are needed for a spread",
+            o.seeds
+        );
+    }
+    if o.explicit && o.effects.contains(&Effect::Temperature) && real.temp_c.is_none() {
+        bail!(
+            "{}: --effects asks for temperature but the record has no `temp_c` column",
+            real.name
+        );
+    }
+    if o.explicit && o.effects.contains(&Effect::ScaleFactor) && real.ref_dps.is_none() {
+        bail!(
+            "{}: --effects asks for scale_factor but the record has no reference rate column",
+            real.name
+        );
+    }
+    let sel_fit: Vec<bool> = (0..BLOCKS).map(|b| b % 2 == 0).collect();
+    let sel_score: Vec<bool> = (0..BLOCKS).map(|b| b % 2 == 1).collect();
+    let sel_all = vec![true; BLOCKS];
+    let real_ranges = layout.ranges(&real.t_s);
+    let fit_ranges: Vec<(usize, usize)> = real_ranges
+        .iter()
+        .enumerate()
+        .filter(|(b, _)| sel_fit[*b])
+        .map(|(_, r)| *r)
+        .collect();
+    let (base_model, source) = match model {
+        Some(m) => (m.clone(), "user model (--sim)".to_string()),
+        None => (
+            fit_baseline(real, &layout, &fit_ranges)?,
+            "fitted to the fit blocks: ARW, bias instability, rate random walk".to_string(),
+        ),
+    };
+    let base = Spec::from_model(&base_model, real.ref_dps.is_some());
+    let g_base = 1.0 + 1e-6 * base.sf_ppm;
+    let raw = real;
+    let mut resid = real.clone();
+    if let Some(r) = &real.ref_dps {
+        for (v, r) in resid.rate_dps.iter_mut().zip(r) {
+            *v -= g_base * r;
+        }
+    }
+    let real = &resid;
+    let real_sim = effects::Sim {
+        t: real.t_s.clone(),
+        raw: raw.rate_dps.clone(),
+        res: real.rate_dps.clone(),
+    };
+    let defs_score = layout.defs(&sel_score);
+    let defs_all = layout.defs(&sel_all);
+    let mut fft = Fft::default();
+    let real_out = analyse(&layout, &real_sim, &sel_score, Some(&sel_all), &mut fft);
+    let seeds: Vec<u64> = (0..o.seeds as u64).map(|i| o.first_seed + i).collect();
+
+    // Baseline simulations.
+    let mut base_outs = Vec::new();
+    let mut sim_avars = Vec::new();
+    let mut sim_spikes = Vec::new();
+    let mut sim_missing = Vec::new();
+    let mut task_sims = Vec::new();
+    for (i, &s) in seeds.iter().enumerate() {
+        let sim = base.simulate(real, s, g_base)?;
+        let r = layout.ranges(&sim.t);
+        let fr: Vec<(usize, usize)> = r.iter().step_by(2).copied().collect();
+        sim_avars.push(features::pooled_avar(&sim.res, &fr, real.dt_s, &layout.ms));
+        sim_spikes.push(effects::spike_stats(&sim.res, &fr).0);
+        sim_missing.push(effects::missing_slots(&sim.t, &fr, real.dt_s));
+        base_outs.push(analyse(&layout, &sim, &sel_score, Some(&sel_all), &mut fft));
+        if o.task && i < 2 {
+            task_sims.push((sim.t, sim.raw));
+        }
+    }
+    let score_sims: Vec<Vec<f64>> = base_outs.iter().map(|s| s.score.clone()).collect();
+    let nulls = null_gaps(&defs_score, &score_sims);
+    let ng = null_group_gaps(&defs_score, &score_sims);
+    let null_groups: BTreeMap<String, Vec<f64>> = features::GROUPS
+        .iter()
+        .enumerate()
+        .map(|(k, g)| {
+            (
+                format!("{g:?}").to_lowercase(),
+                ng.iter().map(|v| v[k].1).collect(),
+            )
+        })
+        .collect();
+    let real_groups: BTreeMap<String, f64> = features::group_gaps(
+        &defs_score,
+        &features::zscores(
+            &real_out.score,
+            &features::stats(
+                &defs_score,
+                &base_outs.iter().map(|s| &s.score).collect::<Vec<_>>(),
+            ),
+        ),
+    )
+    .into_iter()
+    .map(|(g, v)| (format!("{g:?}").to_lowercase(), v))
+    .collect();
+    let g50 = features::median(&nulls);
+    let g95 = features::quantile(&nulls, 0.95);
+    let st_score = features::stats(
+        &defs_score,
+        &base_outs.iter().map(|s| &s.score).collect::<Vec<_>>(),
+    );
+    let gap_before = features::gap(&defs_score, &features::zscores(&real_out.score, &st_score));
+
+    // Where (full record).
+    let st_all = features::stats(
+        &defs_all,
+        &base_outs.iter().map(|s| &s.all).collect::<Vec<_>>(),
+    );
+    let z_all = features::zscores(&real_out.all, &st_all);
+    let where_ = where_of(&defs_all, &z_all);
+    let feature_rows = defs_all
+        .iter()
+        .zip(&real_out.all)
+        .zip(&st_all)
+        .zip(&z_all)
+        .map(|(((d, &r), &(m, s)), &z)| FeatureRow {
+            feature: d.label.clone(),
+            real: r,
+            sim_median: m,
+            sim_spread: s,
+            z,
+        })
+        .collect();
+
+    // Fit context.
+    let (spike_n, spike_sizes) = effects::spike_stats(&real.rate_dps, &fit_ranges);
+    let sim_avar: Vec<f64> = (0..layout.ms.len())
+        .map(|j| features::median(&sim_avars.iter().map(|a| a[j].0).collect::<Vec<_>>()))
+        .collect();
+    let ctx = FitCtx {
+        real,
+        raw: &raw.rate_dps,
+        base: &base,
+        fit_ranges: fit_ranges.clone(),
+        ms: layout.ms.clone(),
+        real_avar: features::pooled_avar(&real.rate_dps, &fit_ranges, real.dt_s, &layout.ms),
+        sim_avar,
+        spikes: (spike_n, features::median(&sim_spikes)),
+        spike_size_dps: if spike_sizes.is_empty() {
+            0.0
+        } else {
+            features::median(&spike_sizes)
+        },
+        missing: (
+            effects::missing_slots(&real.t_s, &fit_ranges, real.dt_s),
+            features::median(&sim_missing),
+        ),
+        bursty: time.bursty,
+    };
+
+    // Candidates.
+    let mut candidates = Vec::new();
+    let mut curves_by: BTreeMap<Effect, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
+    for &e in &o.effects {
+        match effects::fit(e, &ctx)? {
+            Fitted::NotApplicable(why) => candidates.push(Candidate {
+                effect: e,
+                params: None,
+                gap_after: None,
+                shrink: None,
+                skipped: Some(why),
+            }),
+            Fitted::Spec(spec, params) => {
+                let mut outs = Vec::new();
+                for &s in &seeds {
+                    let sim = spec.simulate(real, s, g_base)?;
+                    outs.push(analyse(&layout, &sim, &sel_score, None, &mut fft));
+                }
+                let st = features::stats(
+                    &defs_score,
+                    &outs.iter().map(|s| &s.score).collect::<Vec<_>>(),
+                );
+                let after = features::gap(&defs_score, &features::zscores(&real_out.score, &st));
+                curves_by.insert(
+                    e,
+                    (
+                        median_curve(&outs, |o| &o.adev),
+                        median_curve(&outs, |o| &o.psd),
+                    ),
+                );
+                candidates.push(Candidate {
+                    effect: e,
+                    params: Some(params),
+                    gap_after: Some(after),
+                    shrink: Some(1.0 - after / gap_before),
+                    skipped: None,
+                });
+            }
+        }
+    }
+    let best = candidates
+        .iter()
+        .filter(|c| c.gap_after.is_some())
+        .min_by(|a, b| {
+            a.gap_after
+                .unwrap_or(f64::INFINITY)
+                .total_cmp(&b.gap_after.unwrap_or(f64::INFINITY))
+        });
+    let (effect, gap_after, params, decision) = match best {
+        None => (
+            "none".to_string(),
+            gap_before,
+            None,
+            "no candidate could be fitted".to_string(),
+        ),
+        Some(c) => {
+            let after = c.gap_after.unwrap_or(gap_before);
+            if gap_before <= g95 {
+                (
+                    "none".into(),
+                    gap_before,
+                    None,
+                    format!("gap_before {gap_before:.3} <= null_gap_95 {g95:.3}: the record is within the simulations' seed-to-seed spread"),
+                )
+            } else if gap_before - after <= g95 - g50 {
+                (
+                    "none".into(),
+                    gap_before,
+                    None,
+                    format!(
+                        "best candidate {} lowers the gap by {:.3} <= null_gap_95 - null_gap_median = {:.3}: not significant",
+                        c.effect.name(),
+                        gap_before - after,
+                        g95 - g50
+                    ),
+                )
+            } else {
+                (
+                    c.effect.name().to_string(),
+                    after,
+                    c.params.clone(),
+                    format!(
+                        "{} lowers the held-out gap from {gap_before:.3} to {after:.3} (by {:.3} > {:.3} = null_gap_95 - null_gap_median)",
+                        c.effect.name(),
+                        gap_before - after,
+                        g95 - g50
+                    ),
+                )
+            }
+        }
+    };
+    let best_effect = best.map(|c| c.effect);
+
+    // Curves.
+    let mut curves = Curves {
+        tau_s: layout.ms.iter().map(|&m| m as f64 * real.dt_s).collect(),
+        adev_real: real_out.adev.clone(),
+        adev_base: median_curve(&base_outs, |o| &o.adev),
+        freq_hz: (0..=layout.nseg / 2).map(|k| layout.freq_hz(k)).collect(),
+        psd_real: real_out.psd.clone(),
+        psd_base: median_curve(&base_outs, |o| &o.psd),
+        ..Default::default()
+    };
+    if let Some((a, p)) = best_effect.and_then(|e| curves_by.get(&e)) {
+        curves.adev_after = a.clone();
+        curves.psd_after = p.clone();
+    }
+
+    let task = if o.task {
+        Some(run_task(raw, &task_sims)?)
+    } else {
+        None
+    };
+    Ok(Diagnosis {
+        record: raw.name.clone(),
+        samples: real.t_s.len(),
+        time,
+        effect,
+        gap_before,
+        gap_after,
+        shrink: 1.0 - gap_after / gap_before,
+        best_candidate: best_effect,
+        params,
+        null_gap_median: g50,
+        null_gap_95: g95,
+        decision,
+        group_gap_before: real_groups,
+        null_group_gaps: null_groups,
+        where_,
+        candidates,
+        baseline: base_model,
+        baseline_source: source,
+        task,
+        features: feature_rows,
+        definitions: DEFINITIONS,
+        curves,
+    })
+}
+
+fn median_curve(outs: &[SimOut], f: impl Fn(&SimOut) -> &Vec<f64>) -> Vec<f64> {
+    let n = outs.first().map_or(0, |o| f(o).len());
+    (0..n)
+        .map(|j| features::median(&outs.iter().map(|o| f(o)[j]).collect::<Vec<_>>()))
+        .collect()
+}
+
+fn where_of(defs: &[Def], z: &[f64]) -> Where {
+    let hull = |g: Group| -> Option<[f64; 2]> {
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        for (d, &z) in defs.iter().zip(z) {
+            if d.group == g && z.abs() > 2.0 {
+                if let Some((a, b)) = d.range {
+                    lo = lo.min(a);
+                    hi = hi.max(b);
+                }
+            }
+        }
+        (lo <= hi).then_some([lo, hi])
+    };
+    Where {
+        tau_s: hull(Group::Adev),
+        freq_hz: hull(Group::Psd),
+        time_s: hull(Group::Time),
+        distribution: defs
+            .iter()
+            .zip(z)
+            .filter(|(d, z)| d.group == Group::Dist && z.abs() > 2.0)
+            .map(|(d, z)| format!("{} (z = {z:.1})", d.label))
+            .collect(),
+        group_gap: features::group_gaps(defs, z)
+            .into_iter()
+            .map(|(g, v)| (format!("{g:?}").to_lowercase(), v))
+            .collect(),
+    }
+}
+
+/// Records held in memory.
+struct InMemory(Vec<Series>);
+
+impl Records for InMemory {
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn get(&self, i: usize) -> Result<Series> {
+        self.0
+            .get(i)
+            .cloned()
+            .with_context(|| format!("record {i} of {}", self.0.len()))
+    }
+}
+
+fn series(name: &str, t: &[f64], y: &[f64]) -> Series {
+    Series {
+        name: name.to_string(),
+        t_s: t.to_vec(),
+        rate_dps: y.iter().map(|&v| v as f32).collect(),
+        drift_dps: None,
+    }
+}
+
+/// The level-trend identifier trained on one baseline simulation, scored on the real record
+/// and on another simulation.
+fn run_task(real: &Rec, sims: &[(Vec<f64>, Vec<f64>)]) -> Result<Task> {
+    let o = crate::identify::Options::level_trend();
+    let [(ta, ya), (tb, yb)] = sims else {
+        bail!("task: needs two simulations");
+    };
+    let train = InMemory(vec![series("sim-train", ta, ya)]);
+    let on_real = crate::identify::run(
+        &o,
+        &train,
+        &InMemory(vec![series(&real.name, &real.t_s, &real.rate_dps)]),
+    )
+    .context("task on the real record")?;
+    let on_sim = crate::identify::run(&o, &train, &InMemory(vec![series("sim-validate", tb, yb)]))
+        .context("task on a simulation")?;
+    Ok(Task {
+        e_rel_real: on_real.e_rel,
+        e_rel_sim: on_sim.e_rel,
+        rms_err_real_dph: on_real.identifier.rms_err_d_dph,
+        rms_err_sim_dph: on_sim.identifier.rms_err_d_dph,
+    })
+}

@@ -1,0 +1,191 @@
+//! `host-sim gap` and `host-sim gap-bench`: the sim-to-real gap diagnosis and its benchmark
+//! on simulated records with a withheld effect (see `docs/gap.md`).
+
+use crate::gap::{self, bench, effects::Effect};
+use crate::sim::Model;
+use anyhow::{Context, Result};
+use std::path::PathBuf;
+
+/// `host-sim gap`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Real record: CSV or .csv.gz with `t_s`, the rate column, optional `temp_c`.
+    #[arg(long)]
+    pub real: PathBuf,
+    /// The user's model (TOML); without it the baseline is ARW + bias instability + rate
+    /// random walk fitted to the record's fit blocks.
+    #[arg(long)]
+    pub sim: Option<PathBuf>,
+    /// JSON output.
+    #[arg(long)]
+    pub json: PathBuf,
+    /// Report folder (index.html, adev.svg, psd.svg).
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Column holding the rate, deg/s.
+    #[arg(long, default_value = "rate_dps")]
+    pub rate_column: String,
+    /// Reference (true) rate column for `scale_factor` (default: `true_rate_dps` if present).
+    #[arg(long)]
+    pub reference_column: Option<String>,
+    /// Candidate effects, comma-separated (default: all twelve). Naming `temperature` or
+    /// `scale_factor` here makes a missing column an error instead of a skip.
+    #[arg(long)]
+    pub effects: Option<String>,
+    /// Simulations per model.
+    #[arg(long, default_value_t = 12)]
+    pub seeds: usize,
+    /// Skip the identification-task comparison.
+    #[arg(long)]
+    pub no_task: bool,
+}
+
+/// Runs `gap`.
+pub fn run(a: &Args) -> Result<()> {
+    let model = match &a.sim {
+        Some(p) => Some(Model::load(p)?),
+        None => None,
+    };
+    let (rec, time) = gap::read_rec(&a.real, &a.rate_column, a.reference_column.as_deref())?;
+    let mut o = gap::Options {
+        seeds: a.seeds,
+        task: !a.no_task,
+        ..Default::default()
+    };
+    if let Some(e) = &a.effects {
+        o.effects = Effect::parse_list(e)?;
+        o.explicit = true;
+    }
+    let d = gap::diagnose(&rec, time, model.as_ref(), &o)?;
+    let text = serde_json::to_string_pretty(&d).context("JSON encoding")?;
+    crate::record::write_atomic(&a.json, |w| {
+        use std::io::Write;
+        w.write_all(text.as_bytes())
+            .with_context(|| format!("{}: write failed", a.json.display()))
+    })?;
+    eprintln!(
+        "{}: effect {} (held-out gap {:.3} -> {:.3}, shrink {:.3}); {}",
+        rec.name, d.effect, d.gap_before, d.gap_after, d.shrink, d.decision
+    );
+    if let Some(dir) = &a.report {
+        let page = gap::report::write(dir, &d)?;
+        println!("{}", page.display());
+    }
+    Ok(())
+}
+
+/// `host-sim gap-bench`.
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Records per class (each effect, and none).
+    #[arg(long, default_value_t = 8)]
+    pub per_effect: usize,
+    /// Simulations per model in each diagnosis.
+    #[arg(long, default_value_t = 12)]
+    pub seeds: usize,
+    /// Record length, s.
+    #[arg(long, default_value_t = 1800.0)]
+    pub duration_s: f64,
+    /// Sample rate, Hz.
+    #[arg(long, default_value_t = 100.0)]
+    pub rate_hz: f64,
+    /// First record seed.
+    #[arg(long, default_value_t = 1)]
+    pub first_seed: u64,
+    /// Worker threads.
+    #[arg(long, default_value_t = 1)]
+    pub jobs: usize,
+    /// Classes to run, comma-separated effect words and `none` (default: all thirteen).
+    #[arg(long)]
+    pub classes: Option<String>,
+    /// Also write every record (CSV: t_s, rate_dps, temp_c, true_rate_dps) and the baseline
+    /// model (`baseline.toml`) into this folder, to rerun `gap` on one.
+    #[arg(long)]
+    pub write_records: Option<PathBuf>,
+    /// JSON output.
+    #[arg(long)]
+    pub json: PathBuf,
+}
+
+/// Runs `gap-bench`.
+pub fn run_bench(a: &BenchArgs) -> Result<()> {
+    let mut o = bench::BenchOptions {
+        per_effect: a.per_effect,
+        seeds: a.seeds,
+        duration_s: a.duration_s,
+        rate_hz: a.rate_hz,
+        first_seed: a.first_seed,
+        jobs: a.jobs,
+        ..Default::default()
+    };
+    if let Some(c) = &a.classes {
+        o.classes = Vec::new();
+        for w in c.split(',').map(str::trim) {
+            if w == "none" {
+                o.classes.push(None);
+            } else {
+                o.classes
+                    .extend(Effect::parse_list(w)?.into_iter().map(Some));
+            }
+        }
+    }
+    if let Some(dir) = &a.write_records {
+        write_records(dir, &o)?;
+    }
+    let r = bench::run(&o, &|r| {
+        eprintln!(
+            "{:>18} -> {:<18} gap {:8.2} shrink(true) {:>6}",
+            r.truth,
+            r.diagnosed,
+            r.gap_before,
+            r.shrink_true_effect
+                .map_or("-".to_string(), |s| format!("{s:.2}"))
+        );
+    })?;
+    let text = serde_json::to_string_pretty(&r).context("JSON encoding")?;
+    crate::record::write_atomic(&a.json, |w| {
+        use std::io::Write;
+        w.write_all(text.as_bytes())
+            .with_context(|| format!("{}: write failed", a.json.display()))
+    })?;
+    print!("{}", bench::table(&r));
+    Ok(())
+}
+
+/// Writes the benchmark's records and baseline model into `dir`.
+fn write_records(dir: &std::path::Path, o: &bench::BenchOptions) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let base = bench::baseline_model(o.rate_hz);
+    let toml = toml::to_string(&base).context("baseline model to TOML")?;
+    let p = dir.join("baseline.toml");
+    crate::record::write_atomic(&p, |w| {
+        use std::io::Write;
+        w.write_all(toml.as_bytes())
+            .with_context(|| format!("{}: write failed", p.display()))
+    })?;
+    for (ci, c) in o.classes.iter().enumerate() {
+        for k in 0..o.per_effect {
+            let seed = o.first_seed + (ci * 1000 + k) as u64;
+            let (rec, _, _) = bench::make_record(*c, seed, o.duration_s, o.rate_hz)?;
+            let p = dir.join(format!("{}_{seed}.csv", c.map_or("none", Effect::name)));
+            crate::record::write_atomic(&p, |w| {
+                use std::io::Write;
+                let e = |e: std::io::Error| anyhow::anyhow!("{}: {e}", p.display());
+                writeln!(w, "t_s,rate_dps,temp_c,true_rate_dps").map_err(e)?;
+                for i in 0..rec.t_s.len() {
+                    writeln!(
+                        w,
+                        "{},{},{},{}",
+                        rec.t_s[i],
+                        rec.rate_dps[i],
+                        rec.temp_c.as_ref().map_or(0.0, |v| v[i]),
+                        rec.ref_dps.as_ref().map_or(0.0, |v| v[i])
+                    )
+                    .map_err(e)?;
+                }
+                Ok(())
+            })?;
+        }
+    }
+    Ok(())
+}
