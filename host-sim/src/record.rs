@@ -127,6 +127,16 @@ pub(crate) fn parse_field<T: std::str::FromStr + Into<f64> + Copy>(
     Ok(v)
 }
 
+/// Opens `path` for reading, decompressing a `.gz` file on the fly.
+pub(crate) fn open_maybe_gz(path: &Path) -> Result<Box<dyn std::io::Read>> {
+    let file = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    Ok(if path.extension().is_some_and(|e| e == "gz") {
+        Box::new(flate2::read::GzDecoder::new(std::io::BufReader::new(file)))
+    } else {
+        Box::new(std::io::BufReader::new(file))
+    })
+}
+
 /// A CSV reader over `input` with its header read; refuses an empty file. `name` names the
 /// file in messages. Every host-sim CSV reader starts here.
 pub(crate) fn csv_with_header<R: std::io::Read>(

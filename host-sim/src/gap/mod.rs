@@ -81,17 +81,8 @@ pub fn read_rec(
     ref_column: Option<&str>,
 ) -> Result<(Rec, TimeInfo)> {
     let name = path.display().to_string();
-    let file = std::fs::File::open(path).with_context(|| format!("{name}: cannot open"))?;
-    let input: Box<dyn std::io::Read> = if path.extension().is_some_and(|e| e == "gz") {
-        Box::new(flate2::read::GzDecoder::new(std::io::BufReader::new(file)))
-    } else {
-        Box::new(std::io::BufReader::new(file))
-    };
-    let mut rdr = csv::Reader::from_reader(input);
-    let header = rdr
-        .headers()
-        .with_context(|| format!("{name}:1: cannot read the header"))?
-        .clone();
+    let (mut rdr, header) =
+        crate::record::csv_with_header(&name, crate::record::open_maybe_gz(path)?)?;
     let col = |want: &str| header.iter().position(|h| h.trim() == want);
     let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
         bail!("{name}:1: needs columns `t_s` and `{rate_column}`");
@@ -380,8 +371,9 @@ fn analyse(
     }
 }
 
-/// Leave-one-out null gaps per group: (group, gap) for each simulation.
-fn null_group_gaps(defs: &[Def], sims: &[Vec<f64>]) -> Vec<Vec<(Group, f64)>> {
+/// For each simulation, `score(z)` of its features' z-scores against the other
+/// simulations (leave one out): the null distribution of a gap measure.
+fn leave_one_out<T>(defs: &[Def], sims: &[Vec<f64>], score: impl Fn(&[f64]) -> T) -> Vec<T> {
     (0..sims.len())
         .map(|i| {
             let others: Vec<&Vec<f64>> = sims
@@ -391,26 +383,19 @@ fn null_group_gaps(defs: &[Def], sims: &[Vec<f64>]) -> Vec<Vec<(Group, f64)>> {
                 .map(|(_, s)| s)
                 .collect();
             let st = features::stats(defs, &others);
-            features::group_gaps(defs, &features::zscores(&sims[i], &st))
+            score(&features::zscores(&sims[i], &st))
         })
         .collect()
 }
 
+/// Leave-one-out null gaps per group: (group, gap) for each simulation.
+fn null_group_gaps(defs: &[Def], sims: &[Vec<f64>]) -> Vec<Vec<(Group, f64)>> {
+    leave_one_out(defs, sims, |z| features::group_gaps(defs, z))
+}
+
 /// Leave-one-out null gaps of the simulations' held-out features.
-#[allow(dead_code)]
 fn null_gaps(defs: &[Def], sims: &[Vec<f64>]) -> Vec<f64> {
-    (0..sims.len())
-        .map(|i| {
-            let others: Vec<&Vec<f64>> = sims
-                .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != i)
-                .map(|(_, s)| s)
-                .collect();
-            let st = features::stats(defs, &others);
-            features::gap(defs, &features::zscores(&sims[i], &st))
-        })
-        .collect()
+    leave_one_out(defs, sims, |z| features::gap(defs, z))
 }
 
 /// Baseline model fitted to the fit blocks: ARW, bias instability and RRW (allan fit).

@@ -41,12 +41,7 @@ impl Series {
     /// multi-axis recording); a `.gz` file is decompressed on the fly.
     pub fn read_csv_column(path: &Path, rate_column: &str) -> Result<Self> {
         let name = path.display().to_string();
-        let file = std::fs::File::open(path).with_context(|| format!("{name}: cannot open"))?;
-        let input: Box<dyn std::io::Read> = if path.extension().is_some_and(|e| e == "gz") {
-            Box::new(flate2::read::GzDecoder::new(std::io::BufReader::new(file)))
-        } else {
-            Box::new(std::io::BufReader::new(file))
-        };
+        let input = crate::record::open_maybe_gz(path)?;
         let (mut rdr, header) = crate::record::csv_with_header(&name, input)?;
         let col = |want: &str| header.iter().position(|h| h.trim() == want);
         let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
