@@ -72,9 +72,21 @@ pub fn shrink(x: f32, mu: f32, rule: ThresholdRule) -> f32 {
 }
 
 /// Shrinks every coefficient of `coeffs` in place.
+///
+/// The rule is chosen once, outside the loop, so that each loop is branch-free and
+/// vectorised; the values are exactly those of [`shrink`].
 pub fn shrink_all(coeffs: &mut [f32], mu: f32, rule: ThresholdRule) {
-    for c in coeffs {
-        *c = shrink(*c, mu, rule);
+    match rule {
+        ThresholdRule::Soft => {
+            for c in coeffs {
+                *c = shrink(*c, mu, ThresholdRule::Soft);
+            }
+        }
+        ThresholdRule::Hard => {
+            for c in coeffs {
+                *c = shrink(*c, mu, ThresholdRule::Hard);
+            }
+        }
     }
 }
 
