@@ -117,3 +117,40 @@ proptest! {
         prop_assert_eq!(got, want);
     }
 }
+
+/// Mixed magnitudes: continuous noise, exact zeros, and quantized values (many ties).
+fn mixed_values(len: std::ops::Range<usize>) -> impl Strategy<Value = Vec<f32>> {
+    prop::collection::vec(
+        prop_oneof![
+            4 => -1.0f32..1.0,
+            1 => Just(0.0f32),
+            2 => (-8i32..=8).prop_map(|k| k as f32 / 8.0),
+        ],
+        len,
+    )
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// The bracketed median (inputs of 4096 values or more) gives the bits of a plain sort.
+    #[test]
+    fn mad_sigma_equals_sorted_median(x in mixed_values(4096..6000), tol in prop_oneof![Just(0.0f32), Just(1e-6), Just(0.1)]) {
+        let mut kept: Vec<f32> = x.iter().map(|v| v.abs()).filter(|a| *a > tol).collect();
+        kept.sort_by(f32::total_cmp);
+        let n = kept.len();
+        let median = if n == 0 {
+            0.0
+        } else if n % 2 == 1 {
+            kept[n / 2]
+        } else {
+            0.5 * (kept[n / 2 - 1] + kept[n / 2])
+        };
+        let mut work = vec![0.0f32; x.len()];
+        if let Some(b) = fog_core::threshold::median_abs_bracketed(&x, &mut work, tol) {
+            prop_assert_eq!(b.to_bits(), median.to_bits());
+        }
+        let sigma = fog_core::threshold::mad_sigma(&x, &mut work, tol);
+        prop_assert_eq!(sigma.to_bits(), (median / fog_core::threshold::MAD_TO_SIGMA).to_bits());
+    }
+}
