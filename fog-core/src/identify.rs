@@ -293,7 +293,10 @@ pub mod presets {
     }
 
     /// The improved network: bias, linear link to `level`, `(NL-2)/2` Gaussians along
-    /// `trend`, the rest along `T`. Needs `NL >= 4`.
+    /// `trend`, the rest along `T`. Needs `NL >= 4`. Its two Gaussian groups are evaluated
+    /// by the recurrence of [`WnnShape::with_recurrence`] (2 `expf` per group instead of one
+    /// per neuron; accuracy documented there); the paper's network ([`paper_shape`]) keeps
+    /// the direct evaluation of eq. (5).
     pub fn level_trend_shape<const NL: usize>() -> Result<WnnShape<3, NL>, ShapeError> {
         let k = NL.saturating_sub(2);
         WnnShape::from_groups(
@@ -313,6 +316,7 @@ pub mod presets {
             ],
             Activation::Gaussian,
         )
+        .map(WnnShape::with_recurrence)
     }
 
     /// The paper's identifier with any trainer, zero initial weights.

@@ -20,8 +20,7 @@
 //!   the forgotten energy never drops below a floor), and caps `|w_a| <= w_max`. With
 //!   `u_max = INFINITY` and `w_max = INFINITY` the trainer is eq. (15) exactly.
 
-use super::{bound_weights, finite_inputs, Trainer};
-use crate::wnn::dot;
+use super::Trainer;
 
 /// How the error is shared among the weights within one sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -129,28 +128,78 @@ impl<const L: usize> Drls<L> {
     }
 }
 
+impl<const L: usize> Drls<L> {
+    /// The per-weight sweep with the a-priori error `e0`. `SEQ`: refresh the error after
+    /// each weight; `BOUND`: limit each weight to `w_max` (and NaN to 0) right after its
+    /// update. Each weight's bound depends on that weight only, and the error is refreshed
+    /// with the unbounded `dw`, so bounding inside the sweep gives the same weights as
+    /// bounding after it (eq. 15 plus the guard, as documented above). Returns whether a
+    /// weight hit the bound.
+    #[inline(always)]
+    fn sweep<const SEQ: bool, const BOUND: bool>(
+        &mut self,
+        w: &mut [f32; L],
+        h: &[f32; L],
+        e0: f32,
+    ) -> bool {
+        let u_max = self.cfg.u_max;
+        let w_max = self.cfg.w_max;
+        let mut e = e0;
+        let mut hit = false;
+        for (((ua, il), wa), &ha) in self
+            .u
+            .iter_mut()
+            .zip(&self.inv_lambda)
+            .zip(w.iter_mut())
+            .zip(h)
+        {
+            let up = *ua * il;
+            let un = up / (1.0 + up * ha * ha);
+            let un = if un > u_max { u_max } else { un };
+            *ua = un;
+            let dw = un * ha * e;
+            let wn = *wa + dw;
+            if SEQ {
+                e -= dw * ha;
+            }
+            *wa = if BOUND && !(libm::fabsf(wn) <= w_max) {
+                hit = true;
+                if wn.is_nan() {
+                    0.0
+                } else {
+                    libm::copysignf(w_max, wn)
+                }
+            } else {
+                wn
+            };
+        }
+        hit
+    }
+}
+
 impl<const L: usize> Trainer<L> for Drls<L> {
     fn step(&mut self, w: &mut [f32; L], h: &[f32; L], d: f32) -> f32 {
-        if !finite_inputs(h, d) {
+        // One pass for the a-priori output (left to right, as `wnn::dot`) and a finiteness
+        // probe: `h * 0` is NaN exactly when `h` is infinite or NaN, and a sum of signed
+        // zeros stays 0.
+        let mut y = 0.0f32;
+        let mut probe = 0.0f32;
+        for (wl, hl) in w.iter().zip(h) {
+            y += wl * hl;
+            probe += hl * 0.0;
+        }
+        if !(d.is_finite() && probe == 0.0) {
             return f32::NAN;
         }
-        let e0 = d - dot(w, h);
-        let mut e = e0;
-        for a in 0..L {
-            let up = self.u[a] * self.inv_lambda[a];
-            let ua = up / (1.0 + up * h[a] * h[a]);
-            self.u[a] = if ua > self.cfg.u_max {
-                self.cfg.u_max
-            } else {
-                ua
-            };
-            let dw = self.u[a] * h[a] * e;
-            w[a] += dw;
-            if self.cfg.mode == DrlsMode::Sequential {
-                e -= dw * h[a];
-            }
-        }
-        if self.cfg.w_max.is_finite() && bound_weights(w, self.cfg.w_max) > 0 {
+        let e0 = d - y;
+        let bound = self.cfg.w_max.is_finite();
+        let hit = match (self.cfg.mode, bound) {
+            (DrlsMode::Sequential, true) => self.sweep::<true, true>(w, h, e0),
+            (DrlsMode::Sequential, false) => self.sweep::<true, false>(w, h, e0),
+            (DrlsMode::Parallel, true) => self.sweep::<false, true>(w, h, e0),
+            (DrlsMode::Parallel, false) => self.sweep::<false, false>(w, h, e0),
+        };
+        if hit {
             self.weight_saturations = self.weight_saturations.saturating_add(1);
         }
         e0
