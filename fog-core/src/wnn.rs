@@ -657,7 +657,10 @@ mod tests {
             // Relative errors are dominated by the f32 rounding of t itself (t^2 * 2^-24 at
             // the tails, and the Mexican hat's zero crossings), which both evaluations share.
             assert!(abs_f < 1e-6, "{name}: {abs_f}");
-            assert!(rel_f < 1.1 * rel_d + 1e-6, "{name}: {rel_f} vs direct {rel_d}");
+            assert!(
+                rel_f < 1.1 * rel_d + 1e-6,
+                "{name}: {rel_f} vs direct {rel_d}"
+            );
         }
         extern crate std;
         let lt = WnnShape::<3, 30>::from_groups(

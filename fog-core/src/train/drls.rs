@@ -20,7 +20,7 @@
 //!   the forgotten energy never drops below a floor), and caps `|w_a| <= w_max`. With
 //!   `u_max = INFINITY` and `w_max = INFINITY` the trainer is eq. (15) exactly.
 
-use super::Trainer;
+use super::{bound_weights, Trainer};
 
 /// How the error is shared among the weights within one sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -129,52 +129,57 @@ impl<const L: usize> Drls<L> {
 }
 
 impl<const L: usize> Drls<L> {
-    /// The per-weight sweep with the a-priori error `e0`. `SEQ`: refresh the error after
-    /// each weight; `BOUND`: limit each weight to `w_max` (and NaN to 0) right after its
-    /// update. Each weight's bound depends on that weight only, and the error is refreshed
-    /// with the unbounded `dw`, so bounding inside the sweep gives the same weights as
-    /// bounding after it (eq. 15 plus the guard, as documented above). Returns whether a
-    /// weight hit the bound.
+    /// One weight's update with the error `e`; returns `dw`. `SEQ`: refresh `e`.
     #[inline(always)]
-    fn sweep<const SEQ: bool, const BOUND: bool>(
-        &mut self,
-        w: &mut [f32; L],
-        h: &[f32; L],
-        e0: f32,
-    ) -> bool {
-        let u_max = self.cfg.u_max;
-        let w_max = self.cfg.w_max;
-        let mut e = e0;
-        let mut hit = false;
-        for (((ua, il), wa), &ha) in self
-            .u
-            .iter_mut()
-            .zip(&self.inv_lambda)
-            .zip(w.iter_mut())
-            .zip(h)
-        {
-            let up = *ua * il;
-            let un = up / (1.0 + up * ha * ha);
-            let un = if un > u_max { u_max } else { un };
-            *ua = un;
-            let dw = un * ha * e;
-            let wn = *wa + dw;
-            if SEQ {
-                e -= dw * ha;
-            }
-            *wa = if BOUND && !(libm::fabsf(wn) <= w_max) {
-                hit = true;
-                if wn.is_nan() {
-                    0.0
-                } else {
-                    libm::copysignf(w_max, wn)
-                }
-            } else {
-                wn
-            };
+    fn update<const SEQ: bool>(&mut self, w: &mut [f32; L], h: &[f32; L], a: usize, e: &mut f32) {
+        if a >= L {
+            return;
         }
-        hit
+        let ha = h[a];
+        let up = self.u[a] * self.inv_lambda[a];
+        let un = up / (1.0 + up * ha * ha);
+        let un = if un > self.cfg.u_max {
+            self.cfg.u_max
+        } else {
+            un
+        };
+        self.u[a] = un;
+        let dw = un * ha * *e;
+        w[a] += dw;
+        if SEQ {
+            *e -= dw * ha;
+        }
     }
+
+    /// The per-weight sweep with the a-priori error `e0`, two weights per iteration.
+    /// `SEQ`: refresh the error after each weight (Gauss-Seidel).
+    #[inline(always)]
+    fn sweep<const SEQ: bool>(&mut self, w: &mut [f32; L], h: &[f32; L], e0: f32) {
+        let mut e = e0;
+        let mut a = 0;
+        while a + 1 < L {
+            self.update::<SEQ>(w, h, a, &mut e);
+            self.update::<SEQ>(w, h, a + 1, &mut e);
+            a += 2;
+        }
+        self.update::<SEQ>(w, h, a, &mut e);
+    }
+}
+
+/// `sum w_l^2`, two terms per iteration (order irrelevant: only compared with a bound).
+#[inline(always)]
+fn sum_squares<const L: usize>(w: &[f32; L]) -> f32 {
+    let (mut s0, mut s1) = (0.0f32, 0.0f32);
+    let mut a = 0;
+    while a + 1 < L {
+        s0 += w[a] * w[a];
+        s1 += w[a + 1] * w[a + 1];
+        a += 2;
+    }
+    if a < L {
+        s0 += w[a] * w[a];
+    }
+    s0 + s1
 }
 
 impl<const L: usize> Trainer<L> for Drls<L> {
@@ -192,15 +197,20 @@ impl<const L: usize> Trainer<L> for Drls<L> {
             return f32::NAN;
         }
         let e0 = d - y;
-        let bound = self.cfg.w_max.is_finite();
-        let hit = match (self.cfg.mode, bound) {
-            (DrlsMode::Sequential, true) => self.sweep::<true, true>(w, h, e0),
-            (DrlsMode::Sequential, false) => self.sweep::<true, false>(w, h, e0),
-            (DrlsMode::Parallel, true) => self.sweep::<false, true>(w, h, e0),
-            (DrlsMode::Parallel, false) => self.sweep::<false, false>(w, h, e0),
-        };
-        if hit {
-            self.weight_saturations = self.weight_saturations.saturating_add(1);
+        match self.cfg.mode {
+            DrlsMode::Sequential => self.sweep::<true>(w, h, e0),
+            DrlsMode::Parallel => self.sweep::<false>(w, h, e0),
+        }
+        // The guard on the weights: no weight can exceed `w_max` (or be NaN) unless the sum
+        // of squares does (or is NaN), so the per-weight pass runs only then. `w_max^2` is
+        // held below infinity so that an infinite weight is caught too.
+        let w_max = self.cfg.w_max;
+        if w_max.is_finite() {
+            let w_max2 = w_max * w_max;
+            let w_max2 = if w_max2 > f32::MAX { f32::MAX } else { w_max2 };
+            if !(sum_squares(w) <= w_max2) && bound_weights(w, w_max) > 0 {
+                self.weight_saturations = self.weight_saturations.saturating_add(1);
+            }
         }
         e0
     }
