@@ -214,6 +214,30 @@ impl EcoreDecoder {
         self.damage = None;
     }
 
+    /// [`Decoder::push`] for a sync byte, a byte outside a frame, or a frame's last byte
+    /// (the byte is already counted as received).
+    #[inline(never)]
+    fn push_slow(&mut self, byte: u8) -> Option<EcoreFrame> {
+        if byte & SYNC_FLAG != 0 {
+            self.drop_partial(SkipReason::CutShort);
+            self.buf[0] = byte;
+            self.len = 1;
+            return None;
+        }
+        match self.buf.get_mut(self.len) {
+            Some(slot) if self.len > 0 => {
+                *slot = byte;
+                self.len += 1;
+                self.complete()
+            }
+            _ => {
+                // Hunting (E3); `len` never reaches FRAME_LEN outside `complete`.
+                self.stats.skip(1, SkipReason::NoSync);
+                None
+            }
+        }
+    }
+
     /// Judges the frame in progress once all 8 slots are filled.
     fn complete(&mut self) -> Option<EcoreFrame> {
         if self.len < FRAME_LEN {
@@ -242,26 +266,19 @@ impl EcoreDecoder {
 impl Decoder for EcoreDecoder {
     type Output = EcoreFrame;
 
+    /// Fast path inline (a byte inside a frame: count it, store it); the sync byte, noise
+    /// and the frame's last byte go out of line.
+    #[inline]
     fn push(&mut self, byte: u8) -> Option<EcoreFrame> {
         self.stats.receive();
-        if byte & SYNC_FLAG != 0 {
-            self.drop_partial(SkipReason::CutShort);
-            self.buf[0] = byte;
-            self.len = 1;
+        if byte & SYNC_FLAG == 0 && self.len > 0 && self.len < FRAME_LEN - 1 {
+            if let Some(slot) = self.buf.get_mut(self.len) {
+                *slot = byte;
+            }
+            self.len += 1;
             return None;
         }
-        match self.buf.get_mut(self.len) {
-            Some(slot) if self.len > 0 => {
-                *slot = byte;
-                self.len += 1;
-                self.complete()
-            }
-            _ => {
-                // Hunting (E3); `len` never reaches FRAME_LEN outside `complete`.
-                self.stats.skip(1, SkipReason::NoSync);
-                None
-            }
-        }
+        self.push_slow(byte)
     }
 
     fn push_error(&mut self, error: UartError) {

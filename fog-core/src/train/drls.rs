@@ -129,57 +129,55 @@ impl<const L: usize> Drls<L> {
 }
 
 impl<const L: usize> Drls<L> {
-    /// One weight's update with the error `e`; returns `dw`. `SEQ`: refresh `e`.
+    /// One weight's update with the error `e` (`SEQ`: refresh `e`); adds the new weight's
+    /// square to `sq`.
     #[inline(always)]
-    fn update<const SEQ: bool>(&mut self, w: &mut [f32; L], h: &[f32; L], a: usize, e: &mut f32) {
+    #[allow(clippy::too_many_arguments)]
+    fn update<const SEQ: bool>(
+        u: &mut [f32; L],
+        inv_lambda: &[f32; L],
+        u_max: f32,
+        w: &mut [f32; L],
+        h: &[f32; L],
+        a: usize,
+        e: &mut f32,
+        sq: &mut f32,
+    ) {
         if a >= L {
             return;
         }
         let ha = h[a];
-        let up = self.u[a] * self.inv_lambda[a];
+        let up = u[a] * inv_lambda[a];
         let un = up / (1.0 + up * ha * ha);
-        let un = if un > self.cfg.u_max {
-            self.cfg.u_max
-        } else {
-            un
-        };
-        self.u[a] = un;
+        let un = if un > u_max { u_max } else { un };
+        u[a] = un;
         let dw = un * ha * *e;
-        w[a] += dw;
+        let wn = w[a] + dw;
+        w[a] = wn;
+        *sq += wn * wn;
         if SEQ {
             *e -= dw * ha;
         }
     }
 
     /// The per-weight sweep with the a-priori error `e0`, two weights per iteration.
-    /// `SEQ`: refresh the error after each weight (Gauss-Seidel).
+    /// `SEQ`: refresh the error after each weight (Gauss-Seidel). Returns the sum of the
+    /// new weights' squares (in any order: it is only compared with a bound).
     #[inline(always)]
-    fn sweep<const SEQ: bool>(&mut self, w: &mut [f32; L], h: &[f32; L], e0: f32) {
+    fn sweep<const SEQ: bool>(&mut self, w: &mut [f32; L], h: &[f32; L], e0: f32) -> f32 {
+        let u_max = self.cfg.u_max;
+        let (u, il) = (&mut self.u, &self.inv_lambda);
         let mut e = e0;
+        let (mut sq0, mut sq1) = (0.0f32, 0.0f32);
         let mut a = 0;
         while a + 1 < L {
-            self.update::<SEQ>(w, h, a, &mut e);
-            self.update::<SEQ>(w, h, a + 1, &mut e);
+            Self::update::<SEQ>(u, il, u_max, w, h, a, &mut e, &mut sq0);
+            Self::update::<SEQ>(u, il, u_max, w, h, a + 1, &mut e, &mut sq1);
             a += 2;
         }
-        self.update::<SEQ>(w, h, a, &mut e);
+        Self::update::<SEQ>(u, il, u_max, w, h, a, &mut e, &mut sq0);
+        sq0 + sq1
     }
-}
-
-/// `sum w_l^2`, two terms per iteration (order irrelevant: only compared with a bound).
-#[inline(always)]
-fn sum_squares<const L: usize>(w: &[f32; L]) -> f32 {
-    let (mut s0, mut s1) = (0.0f32, 0.0f32);
-    let mut a = 0;
-    while a + 1 < L {
-        s0 += w[a] * w[a];
-        s1 += w[a + 1] * w[a + 1];
-        a += 2;
-    }
-    if a < L {
-        s0 += w[a] * w[a];
-    }
-    s0 + s1
 }
 
 impl<const L: usize> Trainer<L> for Drls<L> {
@@ -188,19 +186,27 @@ impl<const L: usize> Trainer<L> for Drls<L> {
         // probe: `h * 0` is NaN exactly when `h` is infinite or NaN, and a sum of signed
         // zeros stays 0.
         let mut y = 0.0f32;
-        let mut probe = 0.0f32;
-        for (wl, hl) in w.iter().zip(h) {
-            y += wl * hl;
-            probe += hl * 0.0;
+        let (mut probe0, mut probe1) = (0.0f32, 0.0f32);
+        let mut a = 0;
+        while a + 1 < L {
+            y += w[a] * h[a];
+            y += w[a + 1] * h[a + 1];
+            probe0 += h[a] * 0.0;
+            probe1 += h[a + 1] * 0.0;
+            a += 2;
         }
-        if !(d.is_finite() && probe == 0.0) {
+        if a < L {
+            y += w[a] * h[a];
+            probe0 += h[a] * 0.0;
+        }
+        if !d.is_finite() || probe0 + probe1 != 0.0 {
             return f32::NAN;
         }
         let e0 = d - y;
-        match self.cfg.mode {
+        let sq = match self.cfg.mode {
             DrlsMode::Sequential => self.sweep::<true>(w, h, e0),
             DrlsMode::Parallel => self.sweep::<false>(w, h, e0),
-        }
+        };
         // The guard on the weights: no weight can exceed `w_max` (or be NaN) unless the sum
         // of squares does (or is NaN), so the per-weight pass runs only then. `w_max^2` is
         // held below infinity so that an infinite weight is caught too.
@@ -208,7 +214,9 @@ impl<const L: usize> Trainer<L> for Drls<L> {
         if w_max.is_finite() {
             let w_max2 = w_max * w_max;
             let w_max2 = if w_max2 > f32::MAX { f32::MAX } else { w_max2 };
-            if !(sum_squares(w) <= w_max2) && bound_weights(w, w_max) > 0 {
+            #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must take this branch
+            let suspect = !(sq <= w_max2);
+            if suspect && bound_weights(w, w_max) > 0 {
                 self.weight_saturations = self.weight_saturations.saturating_add(1);
             }
         }
