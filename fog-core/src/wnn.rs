@@ -155,7 +155,7 @@ pub struct WnnShape<const N: usize, const L: usize> {
 
 /// Most runs of evenly spaced neurons a shape evaluates by recurrence; further runs are
 /// evaluated directly.
-pub const MAX_RUNS: usize = 4;
+pub const MAX_RUNS: usize = 2;
 
 /// Largest spacing of neighbouring centres, in units of `t` (standard deviations of the
 /// Gaussian), for which a run is evaluated by recurrence. Beyond it `exp(-step^2)` and the
@@ -178,8 +178,6 @@ pub struct Run {
     pub step: f32,
     /// `1 / step`.
     pub inv_step: f32,
-    /// `step^2 / 2`.
-    pub half_step2: f32,
     /// `exp(-step^2)`: ratio of two successive neighbour ratios.
     pub q: f32,
 }
@@ -381,7 +379,7 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
         // <= 4): inside exp_anchor's domain.
         let g = exp_anchor(-0.5 * t2);
         // g_{i+1} / g_i = exp(step t_i - step^2/2); each step further multiplies it by q.
-        let up = exp_anchor(run.step * tn - run.half_step2);
+        let up = exp_anchor(run.step * tn - 0.5 * run.step * run.step);
         let down = run.q / up;
         // Neurons with |t| < T_CUTOFF on each side (floor; a neuron exactly on the border
         // gets exp(-84.5) instead of 0).
@@ -444,7 +442,6 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
             a: 0.0,
             step: 0.0,
             inv_step: 0.0,
-            half_step2: 0.0,
             q: 0.0,
         }; MAX_RUNS];
         let mut n = 0usize;
@@ -522,7 +519,6 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
             a,
             step,
             inv_step: 1.0 / step,
-            half_step2: 0.5 * step * step,
             q: libm::expf(-step * step),
         })
     }
