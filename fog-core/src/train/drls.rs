@@ -129,54 +129,106 @@ impl<const L: usize> Drls<L> {
 }
 
 impl<const L: usize> Drls<L> {
-    /// One weight's update with the error `e` (`SEQ`: refresh `e`); adds the new weight's
-    /// square to `sq`.
+    /// The per-weight sweep with the a-priori error `e0`, in two passes. Pass 1: every
+    /// `U_a` (independent of the error: no dependency chain, so a host vectorises its
+    /// divisions). Pass 2: the weights, `SEQ` refreshing the error after each one
+    /// (Gauss-Seidel), which is the only serial chain. The operations on each weight are
+    /// the same, in the same order, as in a single pass. Returns the sum of the new
+    /// weights' squares (in any order: it is only compared with a bound).
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn update<const SEQ: bool>(
-        u: &mut [f32; L],
-        inv_lambda: &[f32; L],
-        u_max: f32,
+    pub(crate) fn sweep_two_pass<const SEQ: bool>(
+        &mut self,
         w: &mut [f32; L],
         h: &[f32; L],
-        a: usize,
-        e: &mut f32,
-        sq: &mut f32,
-    ) {
-        if a >= L {
-            return;
-        }
-        let ha = h[a];
-        let up = u[a] * inv_lambda[a];
-        let un = up / (1.0 + up * ha * ha);
-        let un = if un > u_max { u_max } else { un };
-        u[a] = un;
-        let dw = un * ha * *e;
-        let wn = w[a] + dw;
-        w[a] = wn;
-        *sq += wn * wn;
-        if SEQ {
-            *e -= dw * ha;
-        }
-    }
-
-    /// The per-weight sweep with the a-priori error `e0`, two weights per iteration.
-    /// `SEQ`: refresh the error after each weight (Gauss-Seidel). Returns the sum of the
-    /// new weights' squares (in any order: it is only compared with a bound).
-    #[inline(always)]
-    fn sweep<const SEQ: bool>(&mut self, w: &mut [f32; L], h: &[f32; L], e0: f32) -> f32 {
+        e0: f32,
+    ) -> f32 {
         let u_max = self.cfg.u_max;
-        let (u, il) = (&mut self.u, &self.inv_lambda);
+        for ((ua, il), &ha) in self.u.iter_mut().zip(&self.inv_lambda).zip(h) {
+            let up = *ua * il;
+            let un = up / (1.0 + up * ha * ha);
+            *ua = if un > u_max { u_max } else { un };
+        }
         let mut e = e0;
         let (mut sq0, mut sq1) = (0.0f32, 0.0f32);
         let mut a = 0;
         while a + 1 < L {
-            Self::update::<SEQ>(u, il, u_max, w, h, a, &mut e, &mut sq0);
-            Self::update::<SEQ>(u, il, u_max, w, h, a + 1, &mut e, &mut sq1);
+            let dw = self.u[a] * h[a] * e;
+            if SEQ {
+                e -= dw * h[a];
+            }
+            let w0 = w[a] + dw;
+            w[a] = w0;
+            sq0 += w0 * w0;
+            let dw = self.u[a + 1] * h[a + 1] * e;
+            if SEQ {
+                e -= dw * h[a + 1];
+            }
+            let w1 = w[a + 1] + dw;
+            w[a + 1] = w1;
+            sq1 += w1 * w1;
             a += 2;
         }
-        Self::update::<SEQ>(u, il, u_max, w, h, a, &mut e, &mut sq0);
+        if a < L {
+            let dw = self.u[a] * h[a] * e;
+            let w0 = w[a] + dw;
+            w[a] = w0;
+            sq0 += w0 * w0;
+        }
         sq0 + sq1
+    }
+
+    /// The same sweep in one pass: the same operations on each weight in the same order as
+    /// [`Self::sweep_two_pass`], so the same bits (test `sweeps_agree`), with fewer
+    /// instructions on a core without SIMD (no second load of `U_a` and `h_a`).
+    #[inline(always)]
+    pub(crate) fn sweep_fused<const SEQ: bool>(
+        &mut self,
+        w: &mut [f32; L],
+        h: &[f32; L],
+        e0: f32,
+    ) -> f32 {
+        let u_max = self.cfg.u_max;
+        let (u, il) = (&mut self.u, &self.inv_lambda);
+        // One weight: the same operations as the two passes, in the same order.
+        let mut one = |a: usize, e: &mut f32, sq: &mut f32| {
+            if a >= L {
+                return;
+            }
+            let ha = h[a];
+            let up = u[a] * il[a];
+            let un = up / (1.0 + up * ha * ha);
+            let un = if un > u_max { u_max } else { un };
+            u[a] = un;
+            let dw = un * ha * *e;
+            if SEQ {
+                *e -= dw * ha;
+            }
+            let wn = w[a] + dw;
+            w[a] = wn;
+            *sq += wn * wn;
+        };
+        let mut e = e0;
+        let (mut sq0, mut sq1) = (0.0f32, 0.0f32);
+        let mut a = 0;
+        while a + 1 < L {
+            one(a, &mut e, &mut sq0);
+            one(a + 1, &mut e, &mut sq1);
+            a += 2;
+        }
+        one(a, &mut e, &mut sq0);
+        sq0 + sq1
+    }
+
+    /// The sweep: one pass on 32-bit ARM (the firmware's Cortex-M4F, where it is the
+    /// fewest instructions), two passes elsewhere (a host vectorises the `U_a` pass);
+    /// bit-identical either way.
+    #[inline(always)]
+    fn sweep<const SEQ: bool>(&mut self, w: &mut [f32; L], h: &[f32; L], e0: f32) -> f32 {
+        if cfg!(target_arch = "arm") {
+            self.sweep_fused::<SEQ>(w, h, e0)
+        } else {
+            self.sweep_two_pass::<SEQ>(w, h, e0)
+        }
     }
 }
 
@@ -226,5 +278,44 @@ impl<const L: usize> Trainer<L> for Drls<L> {
     fn reset(&mut self) {
         self.u = self.u0;
         self.weight_saturations = 0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The one-pass and two-pass sweeps give the same bits (the HIL test relies on it: the
+    /// firmware runs one, the host the other).
+    #[test]
+    fn sweeps_agree() {
+        let mut state = 5u32;
+        let mut next = move || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1u32 << 24) as f32
+        };
+        for cfg in [DrlsConfig::PAPER, DrlsConfig::PAPER_GUARDED] {
+            let mut a = Drls::<31>::new(cfg).expect("valid");
+            a.set_neuron(0, 0.9, 0.5);
+            let mut b = a.clone();
+            let (mut wa, mut wb) = ([0.0f32; 31], [0.0f32; 31]);
+            for _ in 0..500 {
+                let h: [f32; 31] = core::array::from_fn(|_| 2.0 * next() - 1.0);
+                let e0 = next() - 0.5;
+                let (sa, sb) = match cfg.mode {
+                    DrlsMode::Sequential => (
+                        a.sweep_fused::<true>(&mut wa, &h, e0),
+                        b.sweep_two_pass::<true>(&mut wb, &h, e0),
+                    ),
+                    DrlsMode::Parallel => (
+                        a.sweep_fused::<false>(&mut wa, &h, e0),
+                        b.sweep_two_pass::<false>(&mut wb, &h, e0),
+                    ),
+                };
+                assert_eq!(sa.to_bits(), sb.to_bits());
+                assert_eq!(wa.map(f32::to_bits), wb.map(f32::to_bits));
+                assert_eq!(a.u().map(f32::to_bits), b.u().map(f32::to_bits));
+            }
+        }
     }
 }
