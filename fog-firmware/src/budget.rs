@@ -341,8 +341,9 @@ where
             SAMPLE_RATE_HZ,
             instr_per_sample,
             pipe,
+            // pipe_mean_x10 * 100 / instr = percent times 10.
             pipe_mean_x10 * 100 / u64::from(instr_per_sample) / 10,
-            pipe_mean_x10 * 1000 / u64::from(instr_per_sample) % 10
+            pipe_mean_x10 * 100 / u64::from(instr_per_sample) % 10
         )?;
         if pipe <= GOAL_PIPELINE_INSTR {
             writeln!(
@@ -362,9 +363,10 @@ where
         let worst = cal.instr_x10(u64::from(a_pipe_all.max), 1) / 10;
         writeln!(
             out,
-            "worst sample (the one completing a block: whole denoise at once): {worst} instructions = {}.{} sample periods at {} MHz, {} Hz",
+            "worst sample (the one completing a block: whole denoise at once): {worst} instructions = {}.{:02} sample periods ({} us at least) at {} MHz, {} Hz",
             worst / u64::from(instr_per_sample),
-            worst * 10 / u64::from(instr_per_sample) % 10,
+            worst * 100 / u64::from(instr_per_sample) % 100,
+            worst * 1_000_000 / CLOCK_HZ,
             CLOCK_HZ / 1_000_000,
             SAMPLE_RATE_HZ
         )?;
