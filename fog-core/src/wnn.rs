@@ -542,18 +542,21 @@ impl<const L: usize, const M: usize> OutputWeights<L, M> {
     }
 }
 
-/// `sum_l a_l b_l`, left to right (two terms per iteration, one accumulator).
+/// `sum_l a_l b_l`, left to right (four terms per iteration, one accumulator: the same
+/// sum, term by term, as a plain loop).
 #[inline]
 pub fn dot<const L: usize>(a: &[f32; L], b: &[f32; L]) -> f32 {
     let mut acc = 0.0f32;
-    let mut l = 0;
-    while l + 1 < L {
-        acc += a[l] * b[l];
-        acc += a[l + 1] * b[l + 1];
-        l += 2;
+    let mut ca = a.chunks_exact(4);
+    let mut cb = b.chunks_exact(4);
+    for (x, y) in (&mut ca).zip(&mut cb) {
+        acc += x[0] * y[0];
+        acc += x[1] * y[1];
+        acc += x[2] * y[2];
+        acc += x[3] * y[3];
     }
-    if l < L {
-        acc += a[l] * b[l];
+    for (x, y) in ca.remainder().iter().zip(cb.remainder()) {
+        acc += x * y;
     }
     acc
 }

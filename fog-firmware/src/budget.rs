@@ -166,7 +166,8 @@ where
     };
     let (mut a_decode, mut a_denoise, mut a_features) =
         (Acc::default(), Acc::default(), Acc::default());
-    let (mut a_forward, mut a_drls) = (Acc::default(), Acc::default());
+    let (mut a_forward, mut a_drls, mut a_hidden) =
+        (Acc::default(), Acc::default(), Acc::default());
     let (mut a_pipe_all, mut a_pipe_steady, mut a_stage_steady) =
         (Acc::default(), Acc::default(), Acc::default());
     let mut sink = 0.0f32;
@@ -234,6 +235,11 @@ where
             dot(&w, &h)
         });
         a_forward.add(t);
+        // The hidden layer alone (the identifier evaluates it twice per sample).
+        let mut h2 = [0.0f32; NEURONS];
+        let ((), t) = time(c, || probe.shape().hidden(&x, &mut h2));
+        a_hidden.add(t);
+        sink += h2[NEURONS - 1];
         sink += y;
 
         // One DRLS step (sequential, guarded, L = 30) on that h and a denoised target.
@@ -304,6 +310,13 @@ where
             "network forward (hidden L=30 + dot)",
             "sample",
             &a_forward,
+        )?;
+        row(
+            &mut out,
+            &cal,
+            "  of which hidden layer (recurrence)",
+            "sample",
+            &a_hidden,
         )?;
         row(
             &mut out,

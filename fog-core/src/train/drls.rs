@@ -239,17 +239,21 @@ impl<const L: usize> Trainer<L> for Drls<L> {
         // zeros stays 0.
         let mut y = 0.0f32;
         let (mut probe0, mut probe1) = (0.0f32, 0.0f32);
-        let mut a = 0;
-        while a + 1 < L {
-            y += w[a] * h[a];
-            y += w[a + 1] * h[a + 1];
-            probe0 += h[a] * 0.0;
-            probe1 += h[a + 1] * 0.0;
-            a += 2;
+        let mut cw = w.chunks_exact(4);
+        let mut ch = h.chunks_exact(4);
+        for (x, g) in (&mut cw).zip(&mut ch) {
+            y += x[0] * g[0];
+            y += x[1] * g[1];
+            y += x[2] * g[2];
+            y += x[3] * g[3];
+            probe0 += g[0] * 0.0;
+            probe1 += g[1] * 0.0;
+            probe0 += g[2] * 0.0;
+            probe1 += g[3] * 0.0;
         }
-        if a < L {
-            y += w[a] * h[a];
-            probe0 += h[a] * 0.0;
+        for (x, g) in cw.remainder().iter().zip(ch.remainder()) {
+            y += x * g;
+            probe0 += g * 0.0;
         }
         if !d.is_finite() || probe0 + probe1 != 0.0 {
             return f32::NAN;
