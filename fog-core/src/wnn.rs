@@ -310,12 +310,32 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
                 let mut next = 0usize;
                 for run in runs.iter().take(usize::from(*n)) {
                     let start = usize::from(run.start);
-                    self.hidden_direct(x, h, next, start);
+                    self.hidden_each(x, h, next, start);
                     self.hidden_run(run, x, h);
                     next = start + usize::from(run.count);
                 }
-                self.hidden_direct(x, h, next, L);
+                self.hidden_each(x, h, next, L);
             }
+        }
+    }
+
+    #[allow(clippy::needless_range_loop)] // five arrays indexed by neuron
+    /// Neurons `from..to` one by one, for the few outside the runs (bias, link): the same
+    /// values as [`Self::hidden_direct`], without its loop set-up.
+    #[inline(always)]
+    fn hidden_each(&self, x: &[f32; N], h: &mut [f32; L], from: usize, to: usize) {
+        for l in from..to.min(L) {
+            h[l] = match self.kind[l] {
+                Neuron::Bias => 1.0,
+                Neuron::Linear(j) => x.get(usize::from(j)).copied().unwrap_or(0.0),
+                Neuron::Wavelet => {
+                    let mut t = -self.b[l];
+                    for (aj, xj) in self.a[l].iter().zip(x) {
+                        t += aj * xj;
+                    }
+                    self.activation.eval(t)
+                }
+            };
         }
     }
 
