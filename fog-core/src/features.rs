@@ -29,6 +29,9 @@ impl FeatureMap<2> for RateTime {
 pub struct BinnedMean<const BINS: usize> {
     samples_per_bin: u32,
     sums: [f32; BINS],
+    /// Sum of `sums[..filled_bins]`, in that order, updated when a bin completes (the same
+    /// value the per-sample sum would give, computed once per bin).
+    complete_sum: f32,
     filled_bins: usize,
     next_bin: usize,
     partial_sum: f32,
@@ -41,6 +44,7 @@ impl<const BINS: usize> BinnedMean<BINS> {
         Self {
             samples_per_bin: samples_per_bin.max(1),
             sums: [0.0; BINS],
+            complete_sum: 0.0,
             filled_bins: 0,
             next_bin: 0,
             partial_sum: 0.0,
@@ -63,6 +67,7 @@ impl<const BINS: usize> BinnedMean<BINS> {
                 self.next_bin + 1
             };
             self.filled_bins = (self.filled_bins + 1).min(BINS);
+            self.complete_sum = self.sums[..self.filled_bins].iter().sum::<f32>();
             self.partial_sum = 0.0;
             self.partial_n = 0;
             completed = true;
@@ -76,8 +81,7 @@ impl<const BINS: usize> BinnedMean<BINS> {
         if n == 0 {
             return 0.0;
         }
-        let total: f32 = self.sums[..self.filled_bins].iter().sum::<f32>() + self.partial_sum;
-        total / n as f32
+        (self.complete_sum + self.partial_sum) / n as f32
     }
 
     /// Forgets everything.

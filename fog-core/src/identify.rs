@@ -12,10 +12,13 @@
 //! 4. `X(k)` goes into the [`BlockDenoiser`]; when it completes a block, the block's
 //!    denoised values become the targets of the next `B` training steps.
 //!
-//! Memory, fixed at compile time: denoiser `8 B` bytes, target copy `4 B`, input ring
-//! `4 N B`, network `4 L (N + 3)`, plus the trainer and the feature map.
+//! Memory, fixed at compile time: denoising block and its scratch `8 B` bytes, input ring
+//! `4 N B`, network `4 L (N + 3)`, plus the trainer and the feature map. The block buffer
+//! doubles as the store of targets: slot `k mod B` holds `d(k - B)` until sample `k` is
+//! trained on it and then stored in its place (the same as
+//! [`crate::denoise::BlockDenoiser`] plus a copy of each denoised block, without the copy).
 
-use crate::denoise::{BlockDenoiser, DenoiseConfig, DenoiseError, Push};
+use crate::denoise::{denoise_in_place, DenoiseConfig, DenoiseError};
 use crate::features::FeatureMap;
 use crate::train::Trainer;
 use crate::wnn::{dot, InputScaling, WnnShape};
@@ -92,9 +95,12 @@ pub struct Identifier<F, T, const N: usize, const L: usize, const B: usize> {
     shape: WnnShape<N, L>,
     w: [f32; L],
     trainer: T,
-    denoiser: BlockDenoiser<B>,
+    denoise: DenoiseConfig,
+    /// Samples `0..k mod B` of the current block, then the denoised values of the last
+    /// completed block (the targets of the next training steps).
+    block: [f32; B],
+    scratch: [f32; B],
     ring: [[f32; N]; B],
-    targets: [f32; B],
     have_targets: bool,
     sample_period_s: f32,
     stats: IdentifierStats,
@@ -116,15 +122,26 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
         if !(sample_period_s > 0.0 && sample_period_s.is_finite()) {
             return Err(IdentifyError::BadSamplePeriod);
         }
+        // The checks of `BlockDenoiser::new`: length, levels and sigma against `B`.
+        crate::db4::check(B, B, denoise.levels).map_err(DenoiseError::from)?;
+        if denoise.levels > crate::denoise::MAX_LEVELS {
+            return Err(DenoiseError::Transform(crate::db4::TransformError::BadLevels).into());
+        }
+        if let crate::threshold::Sigma::Fixed(v) = denoise.sigma {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(DenoiseError::BadSigma.into());
+            }
+        }
         Ok(Self {
             features,
             scaling,
             shape,
             w: w0,
             trainer,
-            denoiser: BlockDenoiser::new(denoise)?,
+            denoise,
+            block: [0.0; B],
+            scratch: [0.0; B],
             ring: [[0.0; N]; B],
-            targets: [0.0; B],
             have_targets: false,
             sample_period_s,
             stats: IdentifierStats::default(),
@@ -154,14 +171,16 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
         let mut train_error_dps = f32::NAN;
         if self.have_targets {
             self.shape.hidden(&self.ring[slot], &mut h);
-            train_error_dps = self.trainer.step(&mut self.w, &h, self.targets[slot]);
+            train_error_dps = self.trainer.step(&mut self.w, &h, self.block[slot]);
             self.stats.trained = self.stats.trained.wrapping_add(1);
         }
         self.ring[slot] = x;
+        // The target d(k - B) has been used: the slot takes this sample.
+        self.block[slot] = rate_dps;
 
         let mut block_done = false;
-        if let Push::Block(d, _) = self.denoiser.push(rate_dps)? {
-            self.targets.copy_from_slice(d);
+        if slot + 1 == B {
+            denoise_in_place(&mut self.block, &mut self.scratch, &self.denoise)?;
             self.have_targets = true;
             block_done = true;
             self.stats.blocks = self.stats.blocks.wrapping_add(1);
@@ -185,17 +204,17 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
         }
         self.features = features;
         self.sample_period_s = sample_period_s;
-        self.denoiser.reset();
         self.have_targets = false;
         self.stats.samples = 0;
         Ok(())
     }
 
-    /// The denoised values of the last completed block (oldest first): the training targets
-    /// of the next `B` samples. All zero before the first block completes; check
-    /// [`Estimate::block_done`] to know when it changes.
+    /// The denoised values of the block the last push completed (oldest first): read it
+    /// right after a push whose [`Estimate::block_done`] is true. The buffer is shared with
+    /// the next block, so each later push replaces one value (the oldest, once it has
+    /// served as a target) with its raw sample. All zero before the first sample.
     pub fn last_denoised_block(&self) -> &[f32; B] {
-        &self.targets
+        &self.block
     }
 
     /// Current output weights.
@@ -293,7 +312,10 @@ pub mod presets {
     }
 
     /// The improved network: bias, linear link to `level`, `(NL-2)/2` Gaussians along
-    /// `trend`, the rest along `T`. Needs `NL >= 4`.
+    /// `trend`, the rest along `T`. Needs `NL >= 4`. Its two Gaussian groups are evaluated
+    /// by the recurrence of [`WnnShape::with_recurrence`] (2 `expf` per group instead of one
+    /// per neuron; accuracy documented there); the paper's network ([`paper_shape`]) keeps
+    /// the direct evaluation of eq. (5).
     pub fn level_trend_shape<const NL: usize>() -> Result<WnnShape<3, NL>, ShapeError> {
         let k = NL.saturating_sub(2);
         WnnShape::from_groups(
@@ -313,6 +335,7 @@ pub mod presets {
             ],
             Activation::Gaussian,
         )
+        .map(WnnShape::with_recurrence)
     }
 
     /// The paper's identifier with any trainer, zero initial weights.

@@ -43,6 +43,48 @@ impl Activation {
     }
 }
 
+/// `e^x` for `x` in `[-87, 88]` (the caller guarantees it; outside, the result is wrong but
+/// finite or infinite, never a panic): `2^k e^r` with `k = round(x / ln 2)`, `|r| <= ln2/2`,
+/// and a degree-7 Taylor polynomial for `e^r` (truncation below 5e-9 relative); rounding
+/// makes it within 2 ulp of `e^x` (checked over the domain against f64 in the test
+/// `exp_recurrence_accuracy`). About 20 instructions on a Cortex-M4F, against about 55
+/// for `libm::expf`, and the same f32 operations on every target (no fused multiply-add).
+#[inline(always)]
+fn exp_anchor(x: f32) -> f32 {
+    const LOG2E: f32 = core::f32::consts::LOG2_E;
+    // Adding 1.5 * 2^23 rounds to an integer (|x log2 e| < 2^22).
+    const ROUND: f32 = 12_582_912.0;
+    const LN2_HI: f32 = 0.693_145_75; // 0x3f317200: k * LN2_HI is exact for |k| < 256
+    const LN2_LO: f32 = 1.428_606_8e-6;
+    let z = x * LOG2E + ROUND;
+    let kf = z - ROUND;
+    let k = (z.to_bits() as i32).wrapping_sub(ROUND.to_bits() as i32);
+    let r = (x - kf * LN2_HI) - kf * LN2_LO;
+    let p = 1.0
+        + r * (1.0
+            + r * (0.5
+                + r * (1.0 / 6.0
+                    + r * (1.0 / 24.0
+                        + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0)))))));
+    f32::from_bits((p.to_bits() as i32).wrapping_add(k.wrapping_shl(23)) as u32)
+}
+
+/// Fills `h` (walking away from the anchor) with `g r`, `g r (r q)`, ... : two values per
+/// iteration.
+#[inline(always)]
+fn walk<'a>(mut h: impl Iterator<Item = &'a mut f32>, g: f32, r: f32, q: f32) {
+    let (mut g, mut r) = (g, r);
+    while let Some(a) = h.next() {
+        g *= r;
+        r *= q;
+        *a = g;
+        let Some(b) = h.next() else { break };
+        g *= r;
+        r *= q;
+        *b = g;
+    }
+}
+
 /// Affine scaling of the raw inputs into the network's units: `x_scaled = (x - offset) * gain`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InputScaling<const N: usize> {
@@ -105,6 +147,55 @@ pub struct WnnShape<const N: usize, const L: usize> {
     pub activation: Activation,
     /// Kind of each neuron; all [`Neuron::Wavelet`] in the paper.
     pub kind: [Neuron; L],
+    /// How [`WnnShape::hidden`] evaluates the wavelet neurons: [`Evaluation::Direct`] (eq. 5
+    /// neuron by neuron, the reference) or [`Evaluation::Recurrence`] (see
+    /// [`WnnShape::with_recurrence`]).
+    pub evaluation: Evaluation,
+}
+
+/// Most runs of evenly spaced neurons a shape evaluates by recurrence; further runs are
+/// evaluated directly.
+pub const MAX_RUNS: usize = 2;
+
+/// Largest spacing of neighbouring centres, in units of `t` (standard deviations of the
+/// Gaussian), for which a run is evaluated by recurrence. Beyond it `exp(-step^2)` and the
+/// ratios leave f32's normal range; such neurons barely overlap and are evaluated directly.
+pub const MAX_RECURRENCE_STEP: f32 = 4.0;
+
+/// A run of neurons `start..start + count` that look along one input with the same dilation
+/// `a` and translations `b_start + i * step`: `t_i = a x - b_i = t_0 - i * step`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Run {
+    /// First neuron.
+    pub start: u8,
+    /// Neurons in the run (at least 2).
+    pub count: u8,
+    /// The input they look along.
+    pub input: u8,
+    /// Common dilation.
+    pub a: f32,
+    /// Spacing of `t` between neighbours (`b_{i+1} - b_i`), > 0.
+    pub step: f32,
+    /// `1 / step`.
+    pub inv_step: f32,
+    /// `exp(-step^2)`: ratio of two successive neighbour ratios.
+    pub q: f32,
+}
+
+/// How the hidden layer is evaluated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Evaluation {
+    /// Every neuron by eq. (5): one `expf` per wavelet neuron. The reference.
+    Direct,
+    /// Runs of evenly spaced single-input neurons by a recurrence (2 `expf` and 1 division
+    /// per run, then 2 multiplications per neuron; see [`WnnShape::with_recurrence`]); the
+    /// other neurons directly. Only `runs[..n]` are used.
+    Recurrence {
+        /// The runs, sorted by `start`, not overlapping.
+        runs: [Run; MAX_RUNS],
+        /// Runs in use.
+        n: u8,
+    },
 }
 
 /// Why a network shape could not be built.
@@ -159,6 +250,7 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
             b: [0.0; L],
             activation,
             kind: [Neuron::Wavelet; L],
+            evaluation: Evaluation::Direct,
         };
         let mut l = 0usize;
         for g in groups {
@@ -208,10 +300,57 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
         Ok(s)
     }
 
-    /// Hidden layer outputs `h` for scaled inputs `x` (eq. 5).
+    /// Hidden layer outputs `h` for scaled inputs `x` (eq. 5), evaluated as
+    /// [`WnnShape::evaluation`] says.
     #[inline]
     pub fn hidden(&self, x: &[f32; N], h: &mut [f32; L]) {
-        for (((hl, kind), al), bl) in h.iter_mut().zip(&self.kind).zip(&self.a).zip(&self.b) {
+        match &self.evaluation {
+            Evaluation::Direct => self.hidden_direct(x, h, 0, L),
+            Evaluation::Recurrence { runs, n } => {
+                let mut next = 0usize;
+                for run in runs.iter().take(usize::from(*n)) {
+                    let start = usize::from(run.start);
+                    self.hidden_each(x, h, next, start);
+                    self.hidden_run(run, x, h);
+                    next = start + usize::from(run.count);
+                }
+                self.hidden_each(x, h, next, L);
+            }
+        }
+    }
+
+    #[allow(clippy::needless_range_loop)] // five arrays indexed by neuron
+    /// Neurons `from..to` one by one, for the few outside the runs (bias, link): the same
+    /// values as [`Self::hidden_direct`], without its loop set-up.
+    #[inline(always)]
+    fn hidden_each(&self, x: &[f32; N], h: &mut [f32; L], from: usize, to: usize) {
+        for l in from..to.min(L) {
+            h[l] = match self.kind[l] {
+                Neuron::Bias => 1.0,
+                Neuron::Linear(j) => x.get(usize::from(j)).copied().unwrap_or(0.0),
+                Neuron::Wavelet => {
+                    let mut t = -self.b[l];
+                    for (aj, xj) in self.a[l].iter().zip(x) {
+                        t += aj * xj;
+                    }
+                    self.activation.eval(t)
+                }
+            };
+        }
+    }
+
+    /// Neurons `from..to` by eq. (5), one by one.
+    #[inline]
+    fn hidden_direct(&self, x: &[f32; N], h: &mut [f32; L], from: usize, to: usize) {
+        let (Some(hs), Some(kinds), Some(as_), Some(bs)) = (
+            h.get_mut(from..to),
+            self.kind.get(from..to),
+            self.a.get(from..to),
+            self.b.get(from..to),
+        ) else {
+            return;
+        };
+        for (((hl, kind), al), bl) in hs.iter_mut().zip(kinds).zip(as_).zip(bs) {
             *hl = match *kind {
                 Neuron::Wavelet => {
                     let mut t = -*bl;
@@ -224,6 +363,184 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
                 Neuron::Linear(j) => x.get(usize::from(j)).copied().unwrap_or(0.0),
             };
         }
+    }
+
+    /// One run by the recurrence (see [`WnnShape::with_recurrence`]).
+    #[inline]
+    fn hidden_run(&self, run: &Run, x: &[f32; N], h: &mut [f32; L]) {
+        let start = usize::from(run.start);
+        let count = usize::from(run.count);
+        let (Some(hr), Some(br)) = (
+            h.get_mut(start..start + count),
+            self.b.get(start..start + count),
+        ) else {
+            return;
+        };
+        let xj = x.get(usize::from(run.input)).copied().unwrap_or(0.0);
+        let p = run.a * xj;
+        // The neuron nearest the input (NaN and below the run: 0; above: the last).
+        let v = (p - br[0]) * run.inv_step + 0.5;
+        let near = if v > 0.0 {
+            (v as usize).min(count - 1)
+        } else {
+            0
+        };
+        // Its t exactly as eq. (5) computes it, so the anchor is the direct value.
+        let tn = p - br[near];
+        let t2 = tn * tn;
+        #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must take this branch
+        let beyond = !(t2 < T_CUTOFF * T_CUTOFF);
+        if beyond {
+            // The nearest neuron is beyond the cut-off (or x is NaN): so is every other.
+            hr.fill(0.0);
+            return;
+        }
+        // Arguments: -t2/2 in (-84.5, 0]; step tn - step^2/2 in [-60, 60] (|tn| < 13, step
+        // <= 4): inside exp_anchor's domain.
+        let g = exp_anchor(-0.5 * t2);
+        // g_{i+1} / g_i = exp(step t_i - step^2/2); each step further multiplies it by q.
+        let up = exp_anchor(run.step * tn - 0.5 * run.step * run.step);
+        let down = run.q / up;
+        // Neurons with |t| < T_CUTOFF on each side (floor; a neuron exactly on the border
+        // gets exp(-84.5) instead of 0).
+        let reach_up = ((tn + T_CUTOFF) * run.inv_step) as usize;
+        let reach_down = ((T_CUTOFF - tn) * run.inv_step) as usize;
+        let (below, from_near) = hr.split_at_mut(near);
+        let (at, above) = from_near.split_at_mut(1);
+        if let Some(a) = at.first_mut() {
+            *a = g;
+        }
+        let live = reach_up.min(above.len());
+        let (live_up, dead_up) = above.split_at_mut(live);
+        walk(live_up.iter_mut(), g, up, run.q);
+        dead_up.fill(0.0);
+        let live = reach_down.min(below.len());
+        let (dead_down, live_down) = below.split_at_mut(below.len() - live);
+        walk(live_down.iter_mut().rev(), g, down, run.q);
+        dead_down.fill(0.0);
+        if self.activation == Activation::MexicanHat {
+            // (1 - t^2) g with t exactly as eq. (5) computes it (no cancellation error near
+            // the zero crossings |t| = 1).
+            for (hl, bl) in hr.iter_mut().zip(br) {
+                let t = p - bl;
+                *hl *= 1.0 - t * t;
+            }
+        }
+    }
+
+    /// This shape with [`Evaluation::Recurrence`]: finds the runs (at most [`MAX_RUNS`], in
+    /// order) of at least 2 consecutive wavelet neurons that look along one input with the
+    /// same dilation and evenly spaced translations (within 1e-5 of the spacing, spacing in
+    /// `(0, MAX_RECURRENCE_STEP]`), as [`WnnShape::from_groups`]'s `Along` groups are.
+    ///
+    /// # The recurrence
+    /// In a run, `t_i = t_0 - i s` (`s` = spacing), so for the Gaussian
+    /// `g_{i+1} / g_i = exp(s t_i - s^2/2) = r_i` and `r_{i+1} = r_i exp(-s^2)`. The run starts
+    /// at the neuron nearest the input (`|t_n| <= s/2` inside the range), evaluated exactly
+    /// as eq. (5) does, and walks both ways, where every value and every ratio only
+    /// decreases: nothing overflows, and values underflow only past the cut-off
+    /// ([`T_CUTOFF`]), where they are set to 0 as eq. (5) does. Cost per run: 2 `expf`, 1
+    /// division; per neuron: 2 multiplications (plus 4 operations for the Mexican hat,
+    /// `(1 - t^2) g` with `t = a x - b_i` as eq. (5) has it). Only the run's own input matters (a direct neuron would also turn a
+    /// NaN in another input, times its zero dilation, into 0).
+    ///
+    /// # Accuracy
+    /// The value `m` neurons from the anchor carries about `m^2/2` roundings of the ratios
+    /// on top of `expf`'s: measured against [`Evaluation::Direct`] over the level-trend and
+    /// paper layouts against eq. (5) in f64 (`cargo test -p fog-core --lib wnn --
+    /// --nocapture`, test `recurrence_matches_direct`, inputs over [-4, 4]): largest
+    /// absolute error 3.9e-7 (direct: 2.5e-7), largest relative error 1.5e-5 to 1.8e-5
+    /// (direct: 1.5e-5 to 2.0e-5; at the tails both are dominated by the f32 rounding of
+    /// `t` itself, `t^2 2^-24`); Mexican hat: absolute 6.1e-7, as direct. The
+    /// translations of `from_groups` are `a c_i` rounded to f32, so "evenly spaced" itself
+    /// holds only to an ulp of `b`; that difference is inside the figures above.
+    pub fn with_recurrence(mut self) -> Self {
+        let mut runs = [Run {
+            start: 0,
+            count: 0,
+            input: 0,
+            a: 0.0,
+            step: 0.0,
+            inv_step: 0.0,
+            q: 0.0,
+        }; MAX_RUNS];
+        let mut n = 0usize;
+        let mut l = 0usize;
+        while l < L && n < MAX_RUNS {
+            let len = self.run_at(l);
+            if len >= 2 {
+                if let Some(run) = self.make_run(l, len) {
+                    runs[n] = run;
+                    n += 1;
+                }
+                l += len;
+            } else {
+                l += 1;
+            }
+        }
+        self.evaluation = Evaluation::Recurrence { runs, n: n as u8 };
+        self
+    }
+
+    /// The single input of wavelet neuron `l` and its dilation, if it looks along one input.
+    fn single_input(&self, l: usize) -> Option<(usize, f32)> {
+        if self.kind.get(l) != Some(&Neuron::Wavelet) {
+            return None;
+        }
+        let row = self.a.get(l)?;
+        let mut found = None;
+        for (j, &aj) in row.iter().enumerate() {
+            if aj != 0.0 {
+                if found.is_some() || !aj.is_finite() {
+                    return None;
+                }
+                found = Some((j, aj));
+            }
+        }
+        found
+    }
+
+    /// Length of the longest evenly spaced run starting at neuron `l` (0 or 1 if none).
+    fn run_at(&self, l: usize) -> usize {
+        let Some((j, a)) = self.single_input(l) else {
+            return 0;
+        };
+        let (Some(&b0), Some(&b1)) = (self.b.get(l), self.b.get(l + 1)) else {
+            return 1;
+        };
+        let step = b1 - b0;
+        if !(step > 0.0 && step <= MAX_RECURRENCE_STEP) {
+            return 1;
+        }
+        let mut len = 1;
+        while l + len < L && len < usize::from(u8::MAX) {
+            let i = l + len;
+            if self.single_input(i) != Some((j, a)) {
+                break;
+            }
+            let expect = b0 + len as f32 * step;
+            if libm::fabsf(self.b[i] - expect) > 1e-5 * step {
+                break;
+            }
+            len += 1;
+        }
+        len
+    }
+
+    fn make_run(&self, l: usize, len: usize) -> Option<Run> {
+        let (j, a) = self.single_input(l)?;
+        let first = *self.b.get(l)?;
+        let last = *self.b.get(l + len - 1)?;
+        let step = (last - first) / (len - 1) as f32;
+        Some(Run {
+            start: u8::try_from(l).ok()?,
+            count: u8::try_from(len).ok()?,
+            input: u8::try_from(j).ok()?,
+            a,
+            step,
+            inv_step: 1.0 / step,
+            q: libm::expf(-step * step),
+        })
     }
 }
 
@@ -245,11 +562,20 @@ impl<const L: usize, const M: usize> OutputWeights<L, M> {
     }
 }
 
-/// `sum_l a_l b_l`, left to right.
+/// `sum_l a_l b_l`, left to right (four terms per iteration, one accumulator: the same
+/// sum, term by term, as a plain loop).
 #[inline]
 pub fn dot<const L: usize>(a: &[f32; L], b: &[f32; L]) -> f32 {
     let mut acc = 0.0f32;
-    for (x, y) in a.iter().zip(b) {
+    let mut ca = a.chunks_exact(4);
+    let mut cb = b.chunks_exact(4);
+    for (x, y) in (&mut ca).zip(&mut cb) {
+        acc += x[0] * y[0];
+        acc += x[1] * y[1];
+        acc += x[2] * y[2];
+        acc += x[3] * y[3];
+    }
+    for (x, y) in ca.remainder().iter().zip(cb.remainder()) {
         acc += x * y;
     }
     acc
@@ -278,6 +604,7 @@ mod tests {
             b: [0.0, 1.0, 0.5],
             activation: Activation::Gaussian,
             kind: [Neuron::Wavelet; 3],
+            evaluation: Evaluation::Direct,
         };
         let mut h = [0.0; 3];
         shape.hidden(&[0.0, 1.0], &mut h);
@@ -317,5 +644,167 @@ mod tests {
         );
         let s = InputScaling::from_ranges([0.0, 10.0], [2.0, 10.0]);
         assert_eq!(s.apply(&[2.0, 11.0]), [1.0, 1.0]);
+    }
+
+    #[allow(clippy::needless_range_loop)]
+    /// Recurrence vs direct evaluation: the level-trend layout (bias, link, 14 + 14
+    /// Gaussians) and the paper's (15 + 15, Gaussian and Mexican hat), inputs over
+    /// [-4, 4] (the scaled range is [-1, 1]) plus NaN and infinities.
+    #[test]
+    fn recurrence_matches_direct() {
+        fn check<const N: usize, const L: usize>(shape: WnnShape<N, L>, name: &str) {
+            let fast = shape.with_recurrence();
+            let Evaluation::Recurrence { n, .. } = fast.evaluation else {
+                panic!("no recurrence");
+            };
+            assert_eq!(n, 2, "{name}: runs found");
+            let mut state = 99u32;
+            // Errors of both evaluations against eq. (5) in f64 (from the same f32 a, b, x).
+            let (mut rel_f, mut abs_f, mut rel_d, mut abs_d) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+            for i in 0..20_000 {
+                let mut x = [0.0f32; N];
+                for v in x.iter_mut() {
+                    state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    *v = 8.0 * ((state >> 8) as f32 / (1u32 << 24) as f32) - 4.0;
+                }
+                let (mut hd, mut hf) = ([0.0f32; L], [0.0f32; L]);
+                if i % 1000 == 7 {
+                    // Non-finite input: the neurons along it give 0 both ways.
+                    x[N - 1] = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY][i / 1000 % 3];
+                    fast.hidden(&x, &mut hf);
+                    shape.hidden(&x, &mut hd);
+                    for l in 0..L {
+                        if shape.a[l][N - 1] != 0.0 {
+                            assert_eq!((hd[l], hf[l]), (0.0, 0.0), "{name}");
+                        }
+                    }
+                    continue;
+                }
+                shape.hidden(&x, &mut hd);
+                fast.hidden(&x, &mut hf);
+                for l in 0..L {
+                    if shape.kind[l] != Neuron::Wavelet {
+                        assert_eq!(hd[l].to_bits(), hf[l].to_bits());
+                        continue;
+                    }
+                    let mut t = -f64::from(shape.b[l]);
+                    for j in 0..N {
+                        t += f64::from(shape.a[l][j]) * f64::from(x[j]);
+                    }
+                    let g = (-0.5 * t * t).exp();
+                    let e = match shape.activation {
+                        Activation::Gaussian => g,
+                        Activation::MexicanHat => (1.0 - t * t) * g,
+                    };
+                    let e = if t.abs() >= f64::from(T_CUTOFF) {
+                        0.0
+                    } else {
+                        e
+                    };
+                    let (d, f) = (f64::from(hd[l]), f64::from(hf[l]));
+                    assert!(f.is_finite(), "{name}: {x:?}");
+                    abs_f = abs_f.max((f - e).abs());
+                    abs_d = abs_d.max((d - e).abs());
+                    if e.abs() > 1e-30 {
+                        rel_f = rel_f.max((f - e).abs() / e.abs());
+                        rel_d = rel_d.max((d - e).abs() / e.abs());
+                    }
+                }
+            }
+            std::println!(
+                "{name}: vs f64: recurrence max relative {rel_f:.2e} absolute {abs_f:.2e}; direct max relative {rel_d:.2e} absolute {abs_d:.2e}"
+            );
+            // Relative errors are dominated by the f32 rounding of t itself (t^2 * 2^-24 at
+            // the tails, and the Mexican hat's zero crossings), which both evaluations share.
+            assert!(abs_f < 1e-6, "{name}: {abs_f}");
+            assert!(
+                rel_f < 1.1 * rel_d + 1e-6,
+                "{name}: {rel_f} vs direct {rel_d}"
+            );
+        }
+        extern crate std;
+        let lt = WnnShape::<3, 30>::from_groups(
+            &[
+                Group::Bias,
+                Group::Linear(0),
+                Group::Along {
+                    input: 1,
+                    count: 14,
+                    overlap: 1.0,
+                },
+                Group::Along {
+                    input: 2,
+                    count: 14,
+                    overlap: 1.0,
+                },
+            ],
+            Activation::Gaussian,
+        )
+        .expect("valid");
+        check(lt, "level-trend 14+14 Gaussian");
+        for act in [Activation::Gaussian, Activation::MexicanHat] {
+            let p = WnnShape::<2, 30>::from_groups(
+                &[
+                    Group::Along {
+                        input: 0,
+                        count: 15,
+                        overlap: 1.0,
+                    },
+                    Group::Along {
+                        input: 1,
+                        count: 15,
+                        overlap: 1.0,
+                    },
+                ],
+                act,
+            )
+            .expect("valid");
+            check(
+                p,
+                if act == Activation::Gaussian {
+                    "paper 15+15 Gaussian"
+                } else {
+                    "paper 15+15 Mexican hat"
+                },
+            );
+        }
+        // Wider overlap (neighbours half a sigma apart) and sparser (2.5 and 3.75 sigma).
+        for overlap in [0.5f32, 2.5] {
+            let s = WnnShape::<1, 10>::from_groups(
+                &[
+                    Group::Along {
+                        input: 0,
+                        count: 5,
+                        overlap,
+                    },
+                    Group::Along {
+                        input: 0,
+                        count: 5,
+                        overlap: overlap * 1.5,
+                    },
+                ],
+                Activation::MexicanHat,
+            )
+            .expect("valid");
+            check(s, "1 input, 5+5 neurons, other overlaps");
+        }
+    }
+
+    /// `exp_anchor` against f64 over its whole domain [-87, 88].
+    #[test]
+    fn exp_recurrence_accuracy() {
+        let mut worst_ulp = 0.0f64;
+        let n = 2_000_000;
+        for i in 0..=n {
+            let x = -87.0f32 + 175.0 * i as f32 / n as f32;
+            let got = f64::from(exp_anchor(x));
+            let want = f64::from(x).exp();
+            let ulp = f64::from(f32::EPSILON)
+                * f64::from(2.0f32.powi((want as f32).log2().floor() as i32));
+            worst_ulp = worst_ulp.max((got - want).abs() / ulp);
+        }
+        extern crate std;
+        std::println!("exp_anchor: worst error {worst_ulp:.2} ulp over [-87, 88]");
+        assert!(worst_ulp <= 2.0, "{worst_ulp}");
     }
 }

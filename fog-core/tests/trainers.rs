@@ -2,7 +2,7 @@
 //! "no NaN or infinity for any finite input" (proptest).
 
 use fog_core::train::{Drls, DrlsConfig, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer};
-use fog_core::wnn::{Activation, Neuron, WnnShape};
+use fog_core::wnn::{Activation, Evaluation, Neuron, WnnShape};
 use proptest::prelude::*;
 
 const L: usize = 4;
@@ -29,6 +29,7 @@ fn problem(n: usize, seed: u64, noise: f64) -> (Vec<[f32; L]>, Vec<f32>) {
         b: [-1.5, -0.5, 0.5, 1.5],
         activation: Activation::Gaussian,
         kind: [Neuron::Wavelet; L],
+        evaluation: Evaluation::Direct,
     };
     let w_true = [0.8, -0.3, 0.5, 1.2];
     let mut rng = Lcg(seed);

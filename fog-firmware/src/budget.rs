@@ -166,7 +166,8 @@ where
     };
     let (mut a_decode, mut a_denoise, mut a_features) =
         (Acc::default(), Acc::default(), Acc::default());
-    let (mut a_forward, mut a_drls) = (Acc::default(), Acc::default());
+    let (mut a_forward, mut a_drls, mut a_hidden) =
+        (Acc::default(), Acc::default(), Acc::default());
     let (mut a_pipe_all, mut a_pipe_steady, mut a_stage_steady) =
         (Acc::default(), Acc::default(), Acc::default());
     let mut sink = 0.0f32;
@@ -234,6 +235,11 @@ where
             dot(&w, &h)
         });
         a_forward.add(t);
+        // The hidden layer alone (the identifier evaluates it twice per sample).
+        let mut h2 = [0.0f32; NEURONS];
+        let ((), t) = time(c, || probe.shape().hidden(&x, &mut h2));
+        a_hidden.add(t);
+        sink += h2[NEURONS - 1];
         sink += y;
 
         // One DRLS step (sequential, guarded, L = 30) on that h and a denoised target.
@@ -308,6 +314,13 @@ where
         row(
             &mut out,
             &cal,
+            "  of which hidden layer (recurrence)",
+            "sample",
+            &a_hidden,
+        )?;
+        row(
+            &mut out,
+            &cal,
             "DRLS update (sequential, L=30)",
             "sample",
             &a_drls,
@@ -341,8 +354,9 @@ where
             SAMPLE_RATE_HZ,
             instr_per_sample,
             pipe,
+            // pipe_mean_x10 * 100 / instr = percent times 10.
             pipe_mean_x10 * 100 / u64::from(instr_per_sample) / 10,
-            pipe_mean_x10 * 1000 / u64::from(instr_per_sample) % 10
+            pipe_mean_x10 * 100 / u64::from(instr_per_sample) % 10
         )?;
         if pipe <= GOAL_PIPELINE_INSTR {
             writeln!(
@@ -362,9 +376,10 @@ where
         let worst = cal.instr_x10(u64::from(a_pipe_all.max), 1) / 10;
         writeln!(
             out,
-            "worst sample (the one completing a block: whole denoise at once): {worst} instructions = {}.{} sample periods at {} MHz, {} Hz",
+            "worst sample (the one completing a block: whole denoise at once): {worst} instructions = {}.{:02} sample periods ({} us at least) at {} MHz, {} Hz",
             worst / u64::from(instr_per_sample),
-            worst * 10 / u64::from(instr_per_sample) % 10,
+            worst * 100 / u64::from(instr_per_sample) % 100,
+            worst * 1_000_000 / CLOCK_HZ,
             CLOCK_HZ / 1_000_000,
             SAMPLE_RATE_HZ
         )?;

@@ -97,14 +97,22 @@ pub fn process(stage: &mut Stage, rate_dps: f32) -> (Estimate, u8) {
     }
 }
 
-/// Fletcher-16 (mod 255) of `bytes`: `sum1 | sum2 << 8`.
+/// Fletcher-16 (mod 255) of `bytes`: `sum1 | sum2 << 8`, with `sum1 = (sum1 + b) % 255` and
+/// `sum2 = (sum2 + sum1) % 255` per byte.
+///
+/// The sums are reduced once per 256 bytes instead of per byte (same result: both sums are
+/// taken mod 255 in the end, and 256 bytes keep them below 2^32 from any reduced start).
 pub fn fletcher16(bytes: &[u8]) -> u16 {
-    let (mut s1, mut s2) = (0u16, 0u16);
-    for &b in bytes {
-        s1 = (s1 + u16::from(b)) % 255;
-        s2 = (s2 + s1) % 255;
+    let (mut s1, mut s2) = (0u32, 0u32);
+    for chunk in bytes.chunks(256) {
+        for &b in chunk {
+            s1 += u32::from(b);
+            s2 += s1;
+        }
+        s1 %= 255;
+        s2 %= 255;
     }
-    s1 | (s2 << 8)
+    (s1 | (s2 << 8)) as u16
 }
 
 /// Writes header and checksum around a payload already in `out[3..3 + len]`.

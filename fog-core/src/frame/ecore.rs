@@ -25,19 +25,28 @@ pub const COUNTS_PER_FULL_SCALE: f32 = 32768.0;
 ///
 /// The sync flags (bit 7) are ignored; [`pack`] is the inverse.
 pub const fn unpack(wire: &[u8; FRAME_LEN]) -> [u8; PAYLOAD_LEN] {
-    let mut bits: u64 = 0;
-    let mut i = 0;
-    while i < FRAME_LEN {
-        bits = (bits << 7) | (wire[i] & 0x7F) as u64;
-        i += 1;
-    }
-    let mut m = [0u8; PAYLOAD_LEN];
-    let mut j = 0;
-    while j < PAYLOAD_LEN {
-        m[j] = (bits >> (8 * (PAYLOAD_LEN - 1 - j))) as u8;
-        j += 1;
-    }
-    m
+    // Two 28-bit halves (cheap on a 32-bit core): bits = hi << 28 | lo.
+    let w = [
+        (wire[0] & 0x7F) as u32,
+        (wire[1] & 0x7F) as u32,
+        (wire[2] & 0x7F) as u32,
+        (wire[3] & 0x7F) as u32,
+        (wire[4] & 0x7F) as u32,
+        (wire[5] & 0x7F) as u32,
+        (wire[6] & 0x7F) as u32,
+        (wire[7] & 0x7F) as u32,
+    ];
+    let hi = w[0] << 21 | w[1] << 14 | w[2] << 7 | w[3];
+    let lo = w[4] << 21 | w[5] << 14 | w[6] << 7 | w[7];
+    [
+        (hi >> 20) as u8,
+        (hi >> 12) as u8,
+        (hi >> 4) as u8,
+        (hi << 4 | lo >> 24) as u8,
+        (lo >> 16) as u8,
+        (lo >> 8) as u8,
+        lo as u8,
+    ]
 }
 
 /// Splits `m[0..7)` into 8 wire bytes of 7 bits, most significant first, and sets the sync
@@ -176,6 +185,12 @@ impl EcoreDecoder {
         if !has_frame_layout(wire) {
             return None;
         }
+        self.decode_payload(wire)
+    }
+
+    /// Checksum and conversion of a frame whose sync layout is known to be right.
+    #[inline]
+    fn decode_payload(&self, wire: &[u8; FRAME_LEN]) -> Option<EcoreFrame> {
         let payload = unpack(wire);
         if payload_sum(&payload) != 0 {
             return None;
@@ -199,34 +214,10 @@ impl EcoreDecoder {
         self.damage = None;
     }
 
-    /// Judges the frame in progress once all 8 slots are filled.
-    fn complete(&mut self) -> Option<EcoreFrame> {
-        if self.len < FRAME_LEN {
-            return None;
-        }
-        let frame = match self.damage {
-            Some(_) => None,
-            None => self.decode_frame(&self.buf),
-        };
-        match frame {
-            Some(frame) => {
-                self.stats.deliver(FRAME_LEN, false);
-                self.len = 0;
-                Some(frame)
-            }
-            None => {
-                self.drop_partial(SkipReason::Checksum);
-                None
-            }
-        }
-    }
-}
-
-impl Decoder for EcoreDecoder {
-    type Output = EcoreFrame;
-
-    fn push(&mut self, byte: u8) -> Option<EcoreFrame> {
-        self.stats.receive();
+    /// [`Decoder::push`] for a sync byte, a byte outside a frame, or a frame's last byte
+    /// (the byte is already counted as received).
+    #[inline(never)]
+    fn push_slow(&mut self, byte: u8) -> Option<EcoreFrame> {
         if byte & SYNC_FLAG != 0 {
             self.drop_partial(SkipReason::CutShort);
             self.buf[0] = byte;
@@ -245,6 +236,49 @@ impl Decoder for EcoreDecoder {
                 None
             }
         }
+    }
+
+    /// Judges the frame in progress once all 8 slots are filled.
+    fn complete(&mut self) -> Option<EcoreFrame> {
+        if self.len < FRAME_LEN {
+            return None;
+        }
+        // `push` puts a sync byte only in slot 0 and bytes without it in slots 1..8, so
+        // the layout holds here and only the checksum is left to check.
+        let frame = match self.damage {
+            Some(_) => None,
+            None => self.decode_payload(&self.buf),
+        };
+        match frame {
+            Some(frame) => {
+                self.stats.deliver(FRAME_LEN, false);
+                self.len = 0;
+                Some(frame)
+            }
+            None => {
+                self.drop_partial(SkipReason::Checksum);
+                None
+            }
+        }
+    }
+}
+
+impl Decoder for EcoreDecoder {
+    type Output = EcoreFrame;
+
+    /// Fast path inline (a byte inside a frame: count it, store it); the sync byte, noise
+    /// and the frame's last byte go out of line.
+    #[inline]
+    fn push(&mut self, byte: u8) -> Option<EcoreFrame> {
+        self.stats.receive();
+        if byte & SYNC_FLAG == 0 && self.len > 0 && self.len < FRAME_LEN - 1 {
+            if let Some(slot) = self.buf.get_mut(self.len) {
+                *slot = byte;
+            }
+            self.len += 1;
+            return None;
+        }
+        self.push_slow(byte)
     }
 
     fn push_error(&mut self, error: UartError) {

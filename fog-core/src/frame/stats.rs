@@ -204,6 +204,7 @@ impl ByteStats {
     }
 
     /// One byte or error slot arrived; it is pending until judged.
+    #[inline]
     pub(crate) fn receive(&mut self) {
         self.bytes_total = self.bytes_total.wrapping_add(1);
         self.bytes_pending = self.bytes_pending.wrapping_add(1);
