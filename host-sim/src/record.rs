@@ -35,9 +35,15 @@ pub struct Gap {
 impl Record {
     /// Reads and validates an interchange CSV file.
     pub fn read(path: &Path) -> Result<Self> {
+        let file = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+        Self::from_reader(path, std::io::BufReader::new(file))
+    }
+
+    /// [`Record::read`] from any reader; `path` only names the input in messages (the fuzz
+    /// target `fuzz/fuzz_targets/csv_record.rs` feeds it arbitrary bytes).
+    pub fn from_reader<R: std::io::Read>(path: &Path, input: R) -> Result<Self> {
         let name = path.display();
-        let file = File::open(path).with_context(|| format!("{name}: cannot open"))?;
-        let (mut rdr, header) = csv_with_header(&name.to_string(), file)?;
+        let (mut rdr, header) = csv_with_header(&name.to_string(), input)?;
         let col = |want: &str| header.iter().position(|h| h.trim() == want);
         let Some(t_col) = col("t_s") else {
             bail!(
@@ -139,7 +145,7 @@ pub(crate) fn open_maybe_gz(path: &Path) -> Result<Box<dyn std::io::Read>> {
 
 /// A CSV reader over `input` with its header read; refuses an empty file. `name` names the
 /// file in messages. Every host-sim CSV reader starts here.
-pub(crate) fn csv_with_header<R: std::io::Read>(
+pub fn csv_with_header<R: std::io::Read>(
     name: &str,
     input: R,
 ) -> Result<(csv::Reader<R>, csv::StringRecord)> {
