@@ -162,14 +162,46 @@ pub fn csv_with_header<R: std::io::Read>(
     Ok((rdr, header))
 }
 
-/// Refuses to write `output` when it is the same file as `input`.
+/// Refuses to write `output` when it is the same file as `input`: the same path once
+/// symbolic links and `..` are resolved, or (Unix) another name of the same file, a hard
+/// link, found by device and inode. An `output` that does not exist yet is never the input.
+/// Every subcommand calls this for each (input, output) pair before it writes.
 pub fn refuse_overwrite(input: &Path, output: &Path) -> Result<()> {
-    if let (Ok(a), Ok(b)) = (input.canonicalize(), output.canonicalize()) {
-        if a == b {
-            bail!("{}: refusing to overwrite the input file", output.display());
+    if same_file(input, output) {
+        bail!(
+            "{}: refusing to overwrite the input file (it is {})",
+            output.display(),
+            input.display()
+        );
+    }
+    Ok(())
+}
+
+/// [`refuse_overwrite`] for every pair of `inputs` and `outputs`.
+pub fn refuse_overwrite_all(inputs: &[&Path], outputs: &[&Path]) -> Result<()> {
+    for i in inputs {
+        for o in outputs {
+            refuse_overwrite(i, o)?;
         }
     }
     Ok(())
+}
+
+/// Whether `a` and `b` name the same existing file.
+fn same_file(a: &Path, b: &Path) -> bool {
+    if let (Ok(x), Ok(y)) = (a.canonicalize(), b.canonicalize()) {
+        if x == y {
+            return true;
+        }
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return x.dev() == y.dev() && x.ino() == y.ino();
+        }
+    }
+    false
 }
 
 /// Writes a file atomically: into a temporary file beside `path`, renamed over `path` only
