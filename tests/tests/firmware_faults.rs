@@ -183,7 +183,7 @@ fn firmware_survives_faults_and_accounts_for_every_byte() {
     let elf = firmware_elf(&[]);
     let built = t0.elapsed();
 
-    let plan = plan(0xFA_17_5EED);
+    let plan = plan(0xFA17_5EED);
     let stream: Vec<u8> = plan.pieces.iter().flat_map(|(p, _)| p.clone()).collect();
     let expected = host_reference(&stream);
 
