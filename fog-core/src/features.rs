@@ -76,7 +76,8 @@ impl<const BINS: usize> BinnedMean<BINS> {
         if n == 0 {
             return 0.0;
         }
-        let total: f32 = self.sums[..self.filled_bins].iter().sum::<f32>() + self.partial_sum;
+        // `take`, not `[..filled_bins]`: no range check (filled_bins <= BINS always).
+        let total: f32 = self.sums.iter().take(self.filled_bins).sum::<f32>() + self.partial_sum;
         total / n as f32
     }
 

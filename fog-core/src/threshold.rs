@@ -94,7 +94,8 @@ pub fn mad_sigma(x: &[f32], work: &mut [f32], zero_tol: f32) -> f32 {
             }
         }
     }
-    median(&mut work[..n]) / MAD_TO_SIGMA
+    // `get_mut`, not `[..n]`: n <= work.len() by construction; no range check in the firmware.
+    median(work.get_mut(..n).unwrap_or_default()) / MAD_TO_SIGMA
 }
 
 /// Median of `v` (reordered in place); 0 for an empty slice.
