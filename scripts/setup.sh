@@ -39,6 +39,14 @@ if [ -d fog-firmware ] && ! command -v arm-none-eabi-objdump >/dev/null 2>&1 \
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq binutils-arm-none-eabi >/dev/null
 fi
 
+# A C++ compiler: libfuzzer-sys builds libFuzzer (scripts/fuzz.sh).
+if ! command -v c++ >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1; then
+  echo "setup: installing g++" >&2
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq g++ >/dev/null
+fi
+
 # Headless Chromium for the test that opens the demo's index.html (it skips, saying why,
 # when no browser is found).
 if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1 \

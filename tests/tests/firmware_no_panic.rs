@@ -111,8 +111,13 @@ fn run(cmd: &mut Command) -> String {
     String::from_utf8(out.stdout).expect("UTF-8 output")
 }
 
-/// Functions (start address, demangled name) and branches (site, target address).
-fn disassemble(objdump: &Path, elf: &Path) -> (Vec<(u32, String)>, Vec<(u32, u32)>) {
+/// Functions (start address, demangled name), sorted by address.
+type Functions = Vec<(u32, String)>;
+/// Branches (site address, target address).
+type Branches = Vec<(u32, u32)>;
+
+/// The ELF's functions and branches.
+fn disassemble(objdump: &Path, elf: &Path) -> (Functions, Branches) {
     let text = run(Command::new(objdump)
         .args(["-d", "-C", "--no-show-raw-insn"])
         .arg(elf));
