@@ -39,7 +39,7 @@ fn input(phase: usize, i: usize, rng: &mut u64) -> f32 {
         0 => 0.012,
         1 => FULL_SCALE_DPS,
         2 => {
-            if i % 2 == 0 {
+            if i.is_multiple_of(2) {
                 FULL_SCALE_DPS
             } else {
                 -FULL_SCALE_DPS
@@ -47,7 +47,7 @@ fn input(phase: usize, i: usize, rng: &mut u64) -> f32 {
         }
         3 => 0.0,
         4 => {
-            if (i / 256) % 2 == 0 {
+            if (i / 256).is_multiple_of(2) {
                 FULL_SCALE_DPS
             } else {
                 -FULL_SCALE_DPS
@@ -67,7 +67,7 @@ fn input(phase: usize, i: usize, rng: &mut u64) -> f32 {
         }
         6 => -FULL_SCALE_DPS,
         _ => {
-            if i % 2 == 0 {
+            if i.is_multiple_of(2) {
                 1e-30
             } else {
                 -1e-30

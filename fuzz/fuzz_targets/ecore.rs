@@ -10,6 +10,7 @@
 //!   and it is that frame; it re-encodes to the same 8 bytes (`ecore::encode`);
 //! - no NaN or infinity out: `rate_dps` finite, `|rate_dps| <= full scale`;
 //! - `flush` leaves nothing pending and keeps the invariant.
+//!
 //! The first input byte picks the full scale (finite ones only; invalid ones must be refused).
 #![no_main]
 

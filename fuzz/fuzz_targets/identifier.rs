@@ -33,7 +33,7 @@ fn samples(encoding: u8, data: &[u8]) -> Vec<f32> {
     let mut out = Vec::new();
     for c in data.chunks_exact(4) {
         let b = [c[0], c[1], c[2], c[3]];
-        if encoding % 2 == 0 {
+        if encoding.is_multiple_of(2) {
             out.push(f32::from_le_bytes(b));
         } else {
             let x = f32::from(i16::from_le_bytes([b[0], b[1]])) * LSB_DPS;
