@@ -7,7 +7,8 @@
 #
 #   bash scripts/fuzz.sh                 # every target, FUZZ_SECONDS (default 20) each
 #   bash scripts/fuzz.sh ecore 600       # one target, 10 minutes
-#   bash scripts/fuzz.sh --minimize      # re-minimise the committed corpora (fuzz/corpus/*)
+#   bash scripts/fuzz.sh --minimize      # merge the inputs found (target/fuzz-new/*) into the
+#                                        # committed corpora (fuzz/corpus/*), minimised
 #
 # New inputs found by a run go to target/fuzz-new/<target>/ (the committed corpus is only
 # read); a crash is written to target/fuzz-artifacts/<target>/ and fails the script.
@@ -40,7 +41,9 @@ echo "fuzz: build $(secs $(( $(ms) - t_build ))) s" >&2
 if [ "${1:-}" = "--minimize" ]; then
   for t in "${TARGETS[@]}"; do
     tmp=$(mktemp -d)
-    "$bin_dir/$t" -merge=1 -max_len="${MAX_LEN[$t]}" "$tmp" "fuzz/corpus/$t" 2>/dev/null
+    mkdir -p "$CARGO_TARGET_DIR/fuzz-new/$t"
+    "$bin_dir/$t" -merge=1 -max_len="${MAX_LEN[$t]}" "$tmp" "fuzz/corpus/$t" \
+      "$CARGO_TARGET_DIR/fuzz-new/$t" >/dev/null 2>&1
     rm -rf "fuzz/corpus/$t" && mv "$tmp" "fuzz/corpus/$t"
     echo "fuzz: $t corpus minimised to $(ls "fuzz/corpus/$t" | wc -l) inputs" >&2
   done
