@@ -20,7 +20,7 @@ TARGETS=(ecore dsp3000 csv_record identifier)
 declare -A MAX_LEN=([ecore]=4096 [dsp3000]=4096 [csv_record]=4096 [identifier]=16384)
 
 host=$(rustc -vV | sed -n 's/^host: //p')
-export CARGO_TARGET_DIR="$PWD/fuzz/target"
+export CARGO_TARGET_DIR="${FUZZ_TARGET_DIR:-$PWD/fuzz/target}"
 # RUSTFLAGS apply only to the target crates because --target is given (build scripts and
 # proc-macros are not instrumented), as cargo-fuzz does.
 export RUSTFLAGS="-Cpasses=sancov-module \
