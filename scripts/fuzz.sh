@@ -42,7 +42,7 @@ if [ "${1:-}" = "--minimize" ]; then
   for t in "${TARGETS[@]}"; do
     tmp=$(mktemp -d)
     mkdir -p "$CARGO_TARGET_DIR/fuzz-new/$t"
-    "$bin_dir/$t" -merge=1 -max_len="${MAX_LEN[$t]}" "$tmp" "fuzz/corpus/$t" \
+    "$bin_dir/$t" -merge=1 -use_counters=0 -max_len="${MAX_LEN[$t]}" "$tmp" "fuzz/corpus/$t" \
       "$CARGO_TARGET_DIR/fuzz-new/$t" >/dev/null 2>&1
     rm -rf "fuzz/corpus/$t" && mv "$tmp" "fuzz/corpus/$t"
     echo "fuzz: $t corpus minimised to $(ls "fuzz/corpus/$t" | wc -l) inputs" >&2
