@@ -189,18 +189,26 @@ pub fn run_qemu(
     input: Vec<u8>,
     defmt_log: &Path,
 ) -> (Vec<u8>, Option<i32>) {
-    let r = run_qemu_paced(qemu, elf, vec![(input, Duration::ZERO)], defmt_log);
+    let piece = Piece {
+        bytes: input,
+        pause: Duration::ZERO,
+        resume_after_output: 0,
+    };
+    let r = run_qemu_paced(qemu, elf, vec![piece], defmt_log);
     (r.out, r.code)
 }
 
-/// [`run_qemu`] with the input in pieces, the writer pausing after each piece for its
-/// duration (a UART that stalls: the firmware sees no byte meanwhile).
-pub fn run_qemu_paced(
-    qemu: &Path,
-    elf: &Path,
-    pieces: Vec<(Vec<u8>, Duration)>,
-    defmt_log: &Path,
-) -> QemuRun {
+/// One piece of a paced input: its bytes, then a pause of at least `pause` that lasts until
+/// UART0 has put out `resume_after_output` bytes in all (or [`DEADLINE`]).
+pub struct Piece {
+    pub bytes: Vec<u8>,
+    pub pause: Duration,
+    pub resume_after_output: usize,
+}
+
+/// [`run_qemu`] with the input in pieces, the writer pausing after each piece (a UART that
+/// stalls: the firmware sees no byte meanwhile).
+pub fn run_qemu_paced(qemu: &Path, elf: &Path, pieces: Vec<Piece>, defmt_log: &Path) -> QemuRun {
     let start = Instant::now();
     let log = std::fs::File::create(defmt_log).expect("defmt log file");
     let child = Command::new(qemu)
@@ -220,12 +228,19 @@ pub fn run_qemu_paced(
 
     // Writer and reader on their own threads: neither pipe can block the other.
     let (done_tx, done_rx) = mpsc::channel();
+    let out_bytes = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let out_seen = std::sync::Arc::clone(&out_bytes);
     let writer = std::thread::spawn(move || {
         let mut resumed = Vec::new();
-        for (piece, pause) in pieces {
-            stdin.write_all(&piece).and_then(|()| stdin.flush())?;
-            if !pause.is_zero() {
-                std::thread::sleep(pause);
+        for piece in pieces {
+            stdin.write_all(&piece.bytes).and_then(|()| stdin.flush())?;
+            if !piece.pause.is_zero() {
+                std::thread::sleep(piece.pause);
+                while out_seen.load(std::sync::atomic::Ordering::SeqCst) < piece.resume_after_output
+                    && start.elapsed() < DEADLINE
+                {
+                    std::thread::sleep(Duration::from_millis(10));
+                }
                 resumed.push(start.elapsed());
             }
         }
@@ -244,6 +259,7 @@ pub fn run_qemu_paced(
                 Ok(n) => {
                     out.extend_from_slice(&buf[..n]);
                     arrivals.push((start.elapsed(), out.len()));
+                    out_bytes.store(out.len(), std::sync::atomic::Ordering::SeqCst);
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
                 Err(e) => break Err(e),
