@@ -2,7 +2,9 @@
 # Installs what the project needs on a fresh machine of this kind (idempotent):
 # - the Rust toolchain, components and targets pinned in rust-toolchain.toml (rustup);
 # - qemu-system-arm for the firmware's hardware-in-the-loop tests, when the firmware exists;
-# - chromium (headless) for the test that loads the demo's index.html.
+# - chromium (headless) for the test that loads the demo's index.html;
+# - binutils-arm-none-eabi for the firmware's panic-path test;
+# - a C++ compiler (g++) for libFuzzer, built by the fuzz crate (scripts/fuzz.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -25,6 +27,24 @@ if [ -d fog-firmware ] && ! command -v qemu-system-arm >/dev/null 2>&1; then
   SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq qemu-system-arm >/dev/null
+fi
+
+# binutils for the Cortex-M (arm-none-eabi-objdump, -addr2line, -nm): the test that looks
+# for panic paths in the release firmware (tests/tests/firmware_no_panic.rs).
+if [ -d fog-firmware ] && ! command -v arm-none-eabi-objdump >/dev/null 2>&1 \
+   && command -v apt-get >/dev/null 2>&1; then
+  echo "setup: installing binutils-arm-none-eabi" >&2
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq binutils-arm-none-eabi >/dev/null
+fi
+
+# A C++ compiler: libfuzzer-sys builds libFuzzer (scripts/fuzz.sh).
+if ! command -v c++ >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1; then
+  echo "setup: installing g++" >&2
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq g++ >/dev/null
 fi
 
 # Headless Chromium for the test that opens the demo's index.html (it skips, saying why,

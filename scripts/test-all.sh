@@ -31,3 +31,16 @@ step "fog-firmware: rustfmt, clippy -D warnings, build (QEMU mps2-an386 and STM3
   cargo clippy -q --release --no-default-features --features board-stm32f407 --target-dir target/stm32 -- -D warnings
   cargo build -q --release --no-default-features --features board-stm32f407 --target-dir target/stm32
 )
+
+# Coverage-guided fuzzing (libFuzzer, plain cargo on the pinned stable toolchain): fuzz/ is its
+# own workspace (instrumented build, libfuzzer-sys) like fog-firmware. Each target runs
+# FUZZ_SECONDS (default 20) from its committed corpus; a crash fails the run. See
+# docs/reliability.md.
+step "fuzz: rustfmt, clippy -D warnings, every target ${FUZZ_SECONDS:-20} s"
+(
+  cd fuzz
+  unset RUSTFLAGS
+  cargo fmt -- --check
+  cargo clippy -q --release --locked -- -D warnings
+)
+bash scripts/fuzz.sh

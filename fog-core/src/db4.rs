@@ -493,12 +493,15 @@ pub fn inverse_offset(
     check(x.len(), scratch.len(), levels)?;
     let mut n = x.len() >> (levels - 1);
     for level in (0..levels).rev() {
-        inverse_level(
-            &mut x[..n],
-            scratch,
-            if level == 0 { offset } else { 0.0 },
-            BLOCKED_SWEEP,
-        );
+        // `get_mut`, not `[..n]`: n <= x.len() (checked above); no range check in the firmware.
+        if let Some(part) = x.get_mut(..n) {
+            inverse_level(
+                part,
+                scratch,
+                if level == 0 { offset } else { 0.0 },
+                BLOCKED_SWEEP,
+            );
+        }
         n *= 2;
     }
     Ok(())

@@ -164,8 +164,10 @@ pub fn denoise_in_place(
     };
     let finest_sigma = match cfg.sigma {
         Sigma::Fixed(s) => s,
+        // `get`, not indexing: detail ranges lie inside `x` (len >> level .. 2 (len >> level)),
+        // so the empty fallback is never taken; it keeps the firmware free of range checks.
         Sigma::FinestMad | Sigma::PerLevelMad => threshold::mad_sigma(
-            &x[db4::detail_range(n, 1)],
+            x.get(db4::detail_range(n, 1)).unwrap_or(&[]),
             scratch,
             ZERO_REL * peak * core::f32::consts::SQRT_2,
         ),
@@ -176,15 +178,19 @@ pub fn denoise_in_place(
         let range = db4::detail_range(n, level);
         let sigma = match cfg.sigma {
             Sigma::PerLevelMad if level > 1 => {
-                threshold::mad_sigma(&x[range.clone()], scratch, ZERO_REL * level_scale)
+                let detail = x.get(range.clone()).unwrap_or(&[]);
+                threshold::mad_sigma(detail, scratch, ZERO_REL * level_scale)
             }
             _ => finest_sigma,
         };
         let mu = threshold::universal_threshold(sigma, n);
         let i = (level - 1) as usize;
-        out.sigma[i] = sigma;
-        out.mu[i] = mu;
-        threshold::shrink_all(&mut x[range], mu, cfg.rule);
+        if let (Some(s), Some(m)) = (out.sigma.get_mut(i), out.mu.get_mut(i)) {
+            (*s, *m) = (sigma, mu);
+        }
+        if let Some(detail) = x.get_mut(range) {
+            threshold::shrink_all(detail, mu, cfg.rule);
+        }
     }
     db4::inverse_offset(x, scratch, cfg.levels, mean)?;
     Ok(out)

@@ -122,7 +122,8 @@ fn median_abs_direct(x: &[f32], work: &mut [f32], zero_tol: f32) -> f32 {
             }
         }
     }
-    median(&mut work[..n])
+    // `get_mut`, not `[..n]`: n <= work.len() by construction; no range check in the firmware.
+    median(work.get_mut(..n).unwrap_or_default())
 }
 
 /// Shortest input for which [`mad_sigma`] tries [`median_abs_bracketed`] first. Shorter

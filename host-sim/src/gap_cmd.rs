@@ -42,6 +42,18 @@ pub struct Args {
 
 /// Runs `gap`.
 pub fn run(a: &Args) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = std::iter::once(a.real.as_path())
+        .chain(a.sim.as_deref())
+        .collect();
+    let report_files: Vec<std::path::PathBuf> = a
+        .report
+        .iter()
+        .flat_map(|d| gap::report::FILES.iter().map(move |f| d.join(f)))
+        .collect();
+    let outputs: Vec<&std::path::Path> = std::iter::once(a.json.as_path())
+        .chain(report_files.iter().map(|p| p.as_path()))
+        .collect();
+    crate::record::refuse_overwrite_all(&inputs, &outputs)?;
     let model = match &a.sim {
         Some(p) => Some(Model::load(p)?),
         None => None,

@@ -35,9 +35,15 @@ pub struct Gap {
 impl Record {
     /// Reads and validates an interchange CSV file.
     pub fn read(path: &Path) -> Result<Self> {
+        let file = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+        Self::from_reader(path, std::io::BufReader::new(file))
+    }
+
+    /// [`Record::read`] from any reader; `path` only names the input in messages (the fuzz
+    /// target `fuzz/fuzz_targets/csv_record.rs` feeds it arbitrary bytes).
+    pub fn from_reader<R: std::io::Read>(path: &Path, input: R) -> Result<Self> {
         let name = path.display();
-        let file = File::open(path).with_context(|| format!("{name}: cannot open"))?;
-        let (mut rdr, header) = csv_with_header(&name.to_string(), file)?;
+        let (mut rdr, header) = csv_with_header(&name.to_string(), input)?;
         let col = |want: &str| header.iter().position(|h| h.trim() == want);
         let Some(t_col) = col("t_s") else {
             bail!(
@@ -139,7 +145,7 @@ pub(crate) fn open_maybe_gz(path: &Path) -> Result<Box<dyn std::io::Read>> {
 
 /// A CSV reader over `input` with its header read; refuses an empty file. `name` names the
 /// file in messages. Every host-sim CSV reader starts here.
-pub(crate) fn csv_with_header<R: std::io::Read>(
+pub fn csv_with_header<R: std::io::Read>(
     name: &str,
     input: R,
 ) -> Result<(csv::Reader<R>, csv::StringRecord)> {
@@ -156,14 +162,46 @@ pub(crate) fn csv_with_header<R: std::io::Read>(
     Ok((rdr, header))
 }
 
-/// Refuses to write `output` when it is the same file as `input`.
+/// Refuses to write `output` when it is the same file as `input`: the same path once
+/// symbolic links and `..` are resolved, or (Unix) another name of the same file, a hard
+/// link, found by device and inode. An `output` that does not exist yet is never the input.
+/// Every subcommand calls this for each (input, output) pair before it writes.
 pub fn refuse_overwrite(input: &Path, output: &Path) -> Result<()> {
-    if let (Ok(a), Ok(b)) = (input.canonicalize(), output.canonicalize()) {
-        if a == b {
-            bail!("{}: refusing to overwrite the input file", output.display());
+    if same_file(input, output) {
+        bail!(
+            "{}: refusing to overwrite the input file (it is {})",
+            output.display(),
+            input.display()
+        );
+    }
+    Ok(())
+}
+
+/// [`refuse_overwrite`] for every pair of `inputs` and `outputs`.
+pub fn refuse_overwrite_all(inputs: &[&Path], outputs: &[&Path]) -> Result<()> {
+    for i in inputs {
+        for o in outputs {
+            refuse_overwrite(i, o)?;
         }
     }
     Ok(())
+}
+
+/// Whether `a` and `b` name the same existing file.
+fn same_file(a: &Path, b: &Path) -> bool {
+    if let (Ok(x), Ok(y)) = (a.canonicalize(), b.canonicalize()) {
+        if x == y {
+            return true;
+        }
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return x.dev() == y.dev() && x.ino() == y.ino();
+        }
+    }
+    false
 }
 
 /// Writes a file atomically: into a temporary file beside `path`, renamed over `path` only

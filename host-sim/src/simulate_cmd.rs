@@ -108,6 +108,9 @@ pub fn run(args: &Args) -> Result<()> {
         ProgressBar::hidden()
     };
     let out = &args.output;
+    if let Some(model) = &args.model {
+        record::refuse_overwrite(model, out)?;
+    }
     let mut written = 0u64;
     record::write_atomic(out, |w| {
         let io = |e: std::io::Error| anyhow::anyhow!("{}: write failed: {e}", out.display());

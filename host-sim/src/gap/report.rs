@@ -86,6 +86,9 @@ fn esc(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
+/// The files [`write`] writes into its folder.
+pub const FILES: [&str; 3] = ["adev.svg", "psd.svg", "index.html"];
+
 /// Writes `adev.svg`, `psd.svg` and `index.html` into `dir`; returns the page's path.
 pub fn write(dir: &Path, d: &Diagnosis) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;

@@ -40,8 +40,14 @@ impl Series {
     /// [`Series::read_csv`] taking the rate from column `rate_column` (e.g. `gz_dps` of a
     /// multi-axis recording); a `.gz` file is decompressed on the fly.
     pub fn read_csv_column(path: &Path, rate_column: &str) -> Result<Self> {
+        Self::from_reader(path, crate::record::open_maybe_gz(path)?, rate_column)
+    }
+
+    /// [`Series::read_csv_column`] from any (already decompressed) reader; `path` only names
+    /// the input in messages (the fuzz target `fuzz/fuzz_targets/csv_record.rs` feeds it
+    /// arbitrary bytes).
+    pub fn from_reader<R: std::io::Read>(path: &Path, input: R, rate_column: &str) -> Result<Self> {
         let name = path.display().to_string();
-        let input = crate::record::open_maybe_gz(path)?;
         let (mut rdr, header) = crate::record::csv_with_header(&name, input)?;
         let col = |want: &str| header.iter().position(|h| h.trim() == want);
         let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {

@@ -1,0 +1,302 @@
+//! Helpers shared by the hardware-in-the-loop tests under QEMU (`firmware_qemu.rs`,
+//! `firmware_faults.rs`): the seeded generator, the host's reference run of the firmware's
+//! per-sample code, the record parser (written from `fog-firmware/README.md`) and the QEMU
+//! runner with its pipes and deadline.
+#![allow(dead_code)]
+
+use std::io::{Read, Write};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use fog_core::frame::{ByteStats, Decoder, EcoreDecoder, EcoreFrame};
+
+#[allow(dead_code)]
+#[path = "../../../fog-firmware/src/pipeline.rs"]
+pub mod pipeline;
+
+/// A whole QEMU run, writing included, must end within this.
+pub const DEADLINE: Duration = Duration::from_secs(50);
+
+/// xorshift64*: small, seeded, identical everywhere.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Standard normal (sum of 12 uniforms, minus 6).
+    pub fn normal(&mut self) -> f64 {
+        (0..12).map(|_| self.uniform()).sum::<f64>() - 6.0
+    }
+}
+
+/// What the host expects: one entry per good frame, then the flushed counters.
+pub struct Expected {
+    /// (rate, estimate, status) of each good frame, in order.
+    pub samples: Vec<(f32, pipeline::Estimate, u8)>,
+    /// The decoded frames themselves (their raw bytes tag them).
+    pub frames: Vec<EcoreFrame>,
+    /// Counters after the final flush.
+    pub stats: ByteStats,
+}
+
+pub fn host_reference(stream: &[u8]) -> Expected {
+    let mut decoder = EcoreDecoder::new(pipeline::FULL_SCALE_DPS).expect("valid full scale");
+    let mut stage = pipeline::new_stage().expect("valid identifier");
+    let mut samples = Vec::new();
+    let mut frames = Vec::new();
+    for &b in stream {
+        if let Some(frame) = decoder.push(b) {
+            let (est, status) = pipeline::process(&mut stage, frame.rate_dps);
+            samples.push((frame.rate_dps, est, status));
+            frames.push(frame);
+        }
+    }
+    decoder.flush();
+    Expected {
+        samples,
+        frames,
+        stats: *decoder.stats(),
+    }
+}
+
+/// Fletcher-16 as README.md defines it (written again here on purpose).
+pub fn fletcher16(bytes: &[u8]) -> u16 {
+    let (mut a, mut b) = (0u32, 0u32);
+    for &x in bytes {
+        a = (a + u32::from(x)) % 255;
+        b = (b + a) % 255;
+    }
+    (a | (b << 8)) as u16
+}
+
+#[derive(Debug)]
+pub struct SampleRecord {
+    pub index: u32,
+    pub bits: [u32; 4],
+    pub status: u8,
+}
+
+#[derive(Debug)]
+pub struct StatsRecord {
+    pub counters: [u64; 17],
+    pub samples: u32,
+    pub rejected: u32,
+    pub serial_errors: u32,
+    pub stack_bytes: u32,
+}
+
+pub fn le_u32(b: &[u8]) -> u32 {
+    u32::from_le_bytes(b.try_into().expect("4 bytes"))
+}
+
+/// Splits the UART output into records; panics on anything malformed.
+pub fn parse_records(out: &[u8]) -> (Vec<SampleRecord>, Option<StatsRecord>) {
+    let mut samples = Vec::new();
+    let mut stats = None;
+    let mut i = 0;
+    while i < out.len() {
+        assert!(stats.is_none(), "bytes after the statistics record at {i}");
+        assert_eq!(out[i], 0xA5, "record sync at offset {i}");
+        assert!(i + 3 <= out.len(), "truncated header at {i}");
+        let (kind, len) = (out[i + 1], usize::from(out[i + 2]));
+        let end = i + 3 + len + 2;
+        assert!(end <= out.len(), "truncated record at {i}");
+        let sum = u16::from_le_bytes([out[end - 2], out[end - 1]]);
+        assert_eq!(
+            sum,
+            fletcher16(&out[i + 1..end - 2]),
+            "checksum of record at {i}"
+        );
+        let p = &out[i + 3..i + 3 + len];
+        match (kind, len) {
+            (0x01, 21) => samples.push(SampleRecord {
+                index: le_u32(&p[0..4]),
+                bits: [
+                    le_u32(&p[4..8]),
+                    le_u32(&p[8..12]),
+                    le_u32(&p[12..16]),
+                    le_u32(&p[16..20]),
+                ],
+                status: p[20],
+            }),
+            (0x02, 152) => {
+                let mut counters = [0u64; 17];
+                for (c, chunk) in counters.iter_mut().zip(p[..136].chunks_exact(8)) {
+                    *c = u64::from_le_bytes(chunk.try_into().expect("8 bytes"));
+                }
+                stats = Some(StatsRecord {
+                    counters,
+                    samples: le_u32(&p[136..140]),
+                    rejected: le_u32(&p[140..144]),
+                    serial_errors: le_u32(&p[144..148]),
+                    stack_bytes: le_u32(&p[148..152]),
+                });
+            }
+            other => panic!("unknown record (kind, len) {other:?} at {i}"),
+        }
+        i = end;
+    }
+    (samples, stats)
+}
+
+/// Kills QEMU whatever happens to the test.
+pub struct KillOnDrop(Child);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// What a QEMU run gave: UART0's output with the time each piece arrived, the exit code, and
+/// when the writer resumed after each pause.
+pub struct QemuRun {
+    pub out: Vec<u8>,
+    pub code: Option<i32>,
+    /// (time since start, output bytes received so far), one entry per read.
+    pub arrivals: Vec<(Duration, usize)>,
+    /// Time since start at which the writer resumed after each pause.
+    pub resumed: Vec<Duration>,
+}
+
+impl QemuRun {
+    /// Output bytes received before `t` (since start).
+    pub fn bytes_before(&self, t: Duration) -> usize {
+        self.arrivals
+            .iter()
+            .take_while(|(at, _)| *at < t)
+            .last()
+            .map_or(0, |(_, n)| *n)
+    }
+}
+
+/// Runs the firmware under QEMU with `input` on UART0; returns (UART0 output, exit code).
+/// defmt's frames (semihosting stderr) go to `defmt_log`.
+pub fn run_qemu(
+    qemu: &Path,
+    elf: &Path,
+    input: Vec<u8>,
+    defmt_log: &Path,
+) -> (Vec<u8>, Option<i32>) {
+    let piece = Piece {
+        bytes: input,
+        pause: Duration::ZERO,
+        resume_after_output: 0,
+    };
+    let r = run_qemu_paced(qemu, elf, vec![piece], defmt_log);
+    (r.out, r.code)
+}
+
+/// One piece of a paced input: its bytes, then a pause of at least `pause` that lasts until
+/// UART0 has put out `resume_after_output` bytes in all (or [`DEADLINE`]).
+pub struct Piece {
+    pub bytes: Vec<u8>,
+    pub pause: Duration,
+    pub resume_after_output: usize,
+}
+
+/// [`run_qemu`] with the input in pieces, the writer pausing after each piece (a UART that
+/// stalls: the firmware sees no byte meanwhile).
+pub fn run_qemu_paced(qemu: &Path, elf: &Path, pieces: Vec<Piece>, defmt_log: &Path) -> QemuRun {
+    let start = Instant::now();
+    let log = std::fs::File::create(defmt_log).expect("defmt log file");
+    let child = Command::new(qemu)
+        .args(["-machine", "mps2-an386", "-nographic", "-monitor", "none"])
+        .args(["-serial", "stdio"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .arg("-kernel")
+        .arg(elf)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::from(log))
+        .spawn()
+        .expect("qemu-system-arm starts");
+    let mut qemu_proc = KillOnDrop(child);
+    let mut stdin = qemu_proc.0.stdin.take().expect("piped stdin");
+    let mut stdout = qemu_proc.0.stdout.take().expect("piped stdout");
+
+    // Writer and reader on their own threads: neither pipe can block the other.
+    let (done_tx, done_rx) = mpsc::channel();
+    let out_bytes = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let out_seen = std::sync::Arc::clone(&out_bytes);
+    let writer = std::thread::spawn(move || {
+        let mut resumed = Vec::new();
+        for piece in pieces {
+            stdin.write_all(&piece.bytes).and_then(|()| stdin.flush())?;
+            if !piece.pause.is_zero() {
+                std::thread::sleep(piece.pause);
+                while out_seen.load(std::sync::atomic::Ordering::SeqCst) < piece.resume_after_output
+                    && start.elapsed() < DEADLINE
+                {
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+                resumed.push(start.elapsed());
+            }
+        }
+        // Keep stdin open until the run is over (EOF is not the end-of-input signal).
+        let _ = done_rx.recv_timeout(DEADLINE);
+        Ok::<_, std::io::Error>(resumed)
+    });
+    let (out_tx, out_rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mut out = Vec::new();
+        let mut arrivals = Vec::new();
+        let mut buf = [0u8; 4096];
+        let r = loop {
+            match stdout.read(&mut buf) {
+                Ok(0) => break Ok(()),
+                Ok(n) => {
+                    out.extend_from_slice(&buf[..n]);
+                    arrivals.push((start.elapsed(), out.len()));
+                    out_bytes.store(out.len(), std::sync::atomic::Ordering::SeqCst);
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => break Err(e),
+            }
+        };
+        let _ = out_tx.send((out, arrivals, r));
+    });
+
+    let remaining = DEADLINE.saturating_sub(start.elapsed());
+    let received = out_rx.recv_timeout(remaining);
+    let _ = done_tx.send(());
+    let (out, arrivals, read_result) = match received {
+        Ok(v) => v,
+        Err(_) => {
+            drop(qemu_proc);
+            panic!("QEMU did not finish within {DEADLINE:?}");
+        }
+    };
+    read_result.expect("reading QEMU's stdout");
+    // stdout closed: QEMU is exiting; give it a moment, then kill.
+    let mut code = None;
+    let wait_until = Instant::now() + Duration::from_secs(5);
+    while Instant::now() < wait_until {
+        if let Ok(Some(status)) = qemu_proc.0.try_wait() {
+            code = status.code();
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let resumed = writer
+        .join()
+        .expect("writer thread")
+        .expect("writing QEMU's stdin");
+    QemuRun {
+        out,
+        code,
+        arrivals,
+        resumed,
+    }
+}
