@@ -26,9 +26,7 @@ fn diagnosis(c: &mut Criterion) {
         ..gap::Options::default()
     };
     g.bench_function("with_sim_and_task", |b| {
-        b.iter(|| {
-            black_box(gap::diagnose(&rec, time.clone(), Some(&base), &o).expect("diagnosis"))
-        })
+        b.iter(|| black_box(gap::diagnose(&rec, time.clone(), Some(&base), &o).expect("diagnosis")))
     });
     let o = gap::Options {
         seeds: 12,

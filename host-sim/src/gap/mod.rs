@@ -11,9 +11,9 @@
 //!
 //! # Gap measure
 //! For each feature ([`features`]), `z = (real - median_sims) / spread_sims`; the spread is
-//! the seed-to-seed standard deviation (floored, Poisson for counts). The gap is the mean over
-//! the four groups (adev, psd, time, dist) of the mean `z^2` in the group: about 1 when the
-//! real record is one more draw of the model.
+//! the seed-to-seed standard deviation (floored, Poisson for counts). The gap is the largest
+//! over the five groups (adev, psd, time, dist, drift) of the mean `z^2` in the group: about 1
+//! when the real record is one more draw of the model.
 //!
 //! # Significance
 //! Each baseline simulation is scored like the real record against the other simulations
@@ -343,7 +343,7 @@ pub struct Diagnosis {
     pub curves: Curves,
 }
 
-const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --sim) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = mean over groups (adev, psd, time, dist) of mean z^2. An effect is named when gap_before > null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others).";
+const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --sim) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2. An effect is named when gap_before > null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others). A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
 
 /// Per-simulation summary.
 struct SimOut {
