@@ -69,11 +69,15 @@ pub const GROUPS: [Group; 5] = [
     Group::Drift,
 ];
 
+/// One lag bin of the `drift` features: `[lo, hi)` in block lengths, and its window pairs
+/// `(i, j, lag in block lengths)`.
+pub type DriftBin = ((f64, f64), Vec<(usize, usize, f64)>);
+
 /// The window pairs of the `drift` features for a block selection: per lag bin (those with
 /// at least one pair), the bin's `[lo, hi)` in block lengths and the pairs as indices into
 /// the selected windows (block-major, [`DRIFT_WINDOWS`] per selected block) with their lag
 /// in block lengths. Depends on the selection only, so every series gets the same bins.
-pub fn drift_pairs(sel: &[bool]) -> Vec<((f64, f64), Vec<(usize, usize, f64)>)> {
+pub fn drift_pairs(sel: &[bool]) -> Vec<DriftBin> {
     let w = DRIFT_WINDOWS as f64;
     let pos: Vec<f64> = (0..sel.len())
         .filter(|&b| sel[b])
