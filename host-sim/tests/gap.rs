@@ -200,3 +200,29 @@ fn real_mpu6050_runs() {
     assert!(v["gap_before"].as_f64().is_some_and(f64::is_finite));
     assert_eq!(v["time"]["bursty"], true);
 }
+
+/// The drift variograms the markov / rate_random_walk fits use: at lag = window they are
+/// twice the Allan variance (adjacent windows), and a Gauss-Markov term with T far above
+/// the lags is a rate random walk with K^2 = 2 sigma^2 / T (the nested limit that makes
+/// `markov` collapse to `rate_random_walk`).
+#[test]
+fn drift_variograms_match_allan_and_the_nested_limit() {
+    use host_sim::gap::effects::{gm_variogram, rrw_variogram};
+    use host_sim::sim::gm_avar;
+    let w = 37.5;
+    assert!((rrw_variogram(w, w) - 2.0 * w / 3.0).abs() < 1e-12);
+    for t in [2.0, 40.0, 900.0] {
+        let v = gm_variogram(t, w, w);
+        let a = 2.0 * gm_avar(1.0, t, w);
+        assert!((v - a).abs() < 1e-6 * a, "T {t}: {v} vs {a}");
+    }
+    // T = 1e6 s, sigma^2 = T / 2 (K = 1): within 1 % of L - W/3 up to L = 1500 s.
+    for l in [75.0, 600.0, 1500.0] {
+        let g = 0.5e6 * gm_variogram(1e6, l, w);
+        let r = rrw_variogram(l, w);
+        assert!((g / r - 1.0).abs() < 0.01, "lag {l}: {g} vs {r}");
+    }
+    // Bounded: a short-T variogram is flat (2 Var(window mean)) beyond a few T.
+    let (a, b) = (gm_variogram(10.0, 300.0, w), gm_variogram(10.0, 1200.0, w));
+    assert!((a / b - 1.0).abs() < 1e-6, "{a} vs {b}");
+}

@@ -78,6 +78,8 @@ pub struct BenchRecord {
     pub shrink: f64,
     /// Held-out shrink of the true effect's candidate.
     pub shrink_true_effect: Option<f64>,
+    /// Every candidate (fitted parameters, held-out gap, exclusions).
+    pub candidates: Vec<super::Candidate>,
 }
 
 /// Per-class summary.
@@ -348,6 +350,7 @@ fn one(
         gap_after_true_effect: truth_c.and_then(|c| c.gap_after),
         shrink: d.shrink,
         shrink_true_effect: truth_c.and_then(|c| c.shrink),
+        candidates: d.candidates.clone(),
     })
 }
 

@@ -232,12 +232,122 @@ pub struct FitCtx<'a> {
     pub missing: (f64, f64),
     /// Time stamps are bursty (gaps are not measurable).
     pub bursty: bool,
+    /// ln-spread (seed-to-seed standard deviation of ln AVAR) of the baseline simulations
+    /// on the fit blocks, per `ms`.
+    pub avar_ln_sd: Vec<f64>,
+    /// Drift variogram of the real fit blocks per lag bin ([`super::features::drift_pairs`]
+    /// of the fit selection), (deg/s)^2.
+    pub real_drift: Vec<f64>,
+    /// Median over the baseline simulations of the same.
+    pub sim_drift: Vec<f64>,
+    /// Their ln-spread.
+    pub drift_ln_sd: Vec<f64>,
+    /// Lags of each bin's window pairs, s.
+    pub drift_lags_s: Vec<Vec<f64>>,
+    /// Drift window length, s.
+    pub drift_window_s: f64,
+}
+
+/// Variogram of `W`-s window means at lag `L >= W` (start to start) of a unit rate random
+/// walk (`K = 1`, AVAR `tau / 3`): `L - W / 3`, (deg/s)^2 per (deg/s^1.5)^2.
+pub fn rrw_variogram(lag_s: f64, w_s: f64) -> f64 {
+    lag_s - w_s / 3.0
+}
+
+/// Variogram of `W`-s window means at lag `L >= W` of a unit-variance first-order
+/// Gauss-Markov process of correlation time `T`: `2 (V - C(L))` with `V = 2 (T/W) -
+/// 2 (T/W)^2 (1 - e^(-W/T))` and `C(L) = (T/W)^2 e^(-L/T) (1 - e^(-W/T)) (e^(W/T) - 1)`.
+pub fn gm_variogram(t_s: f64, lag_s: f64, w_s: f64) -> f64 {
+    let r = t_s / w_s;
+    let a = (-w_s / t_s).exp();
+    let v = 2.0 * r - 2.0 * r * r * (1.0 - a);
+    // e^(-L/T) (e^(W/T) - 1) = e^(-(L-W)/T) - e^(-L/T), stable for W >> T.
+    let c = r * r * (1.0 - a) * ((-(lag_s - w_s) / t_s).exp() - (-lag_s / t_s).exp());
+    2.0 * (v - c)
+}
+
+/// Log-domain fit of one added drift term to the fit blocks' AVAR (every `ms`) and drift
+/// variogram (every lag bin) at once: the coefficient `c >= 0` minimising
+/// `chi2 = sum ((ln(sim + c basis) - ln real) / sd)^2`, `sd` the baseline simulations'
+/// ln-spread floored at 0.05 (AVAR) and 0.1 (variogram). Returns `(c, chi2, points)`.
+/// Unlike the linear excess fit this weighs the long-lag variogram (lags up to the record
+/// length) by its own scatter, so a bounded and an unbounded drift get different fits.
+pub fn drift_fit(
+    ctx: &FitCtx,
+    dt_s: f64,
+    avar_basis: &dyn Fn(f64) -> f64,
+    drift_basis: &dyn Fn(f64) -> f64,
+) -> (f64, f64, usize) {
+    // (ln real, sim, basis, sd)
+    let mut pts: Vec<(f64, f64, f64, f64)> = Vec::new();
+    for (j, &m) in ctx.ms.iter().enumerate() {
+        let (r, n) = ctx.real_avar[j];
+        let s = ctx.sim_avar[j];
+        if r.is_finite() && r > 0.0 && s.is_finite() && s > 0.0 && n > 0 {
+            let sd = ctx.avar_ln_sd.get(j).copied().unwrap_or(0.05).max(0.05);
+            pts.push((r.ln(), s, avar_basis(m as f64 * dt_s), sd));
+        }
+    }
+    for (k, lags) in ctx.drift_lags_s.iter().enumerate() {
+        let (r, s) = (ctx.real_drift[k], ctx.sim_drift[k]);
+        if r.is_finite() && r > 0.0 && s.is_finite() && s > 0.0 && !lags.is_empty() {
+            let b = lags.iter().map(|&l| drift_basis(l)).sum::<f64>() / lags.len() as f64;
+            let sd = ctx.drift_ln_sd.get(k).copied().unwrap_or(0.1).max(0.1);
+            pts.push((r.ln(), s, b, sd));
+        }
+    }
+    let chi2 = |c: f64| -> f64 {
+        pts.iter()
+            .map(|&(lr, s, b, sd)| (((s + c * b).max(1e-300).ln() - lr) / sd).powi(2))
+            .sum()
+    };
+    let scales: Vec<f64> = pts
+        .iter()
+        .filter(|p| p.2 > 0.0)
+        .map(|p| p.0.exp() / p.2)
+        .collect();
+    if scales.is_empty() {
+        return (0.0, chi2(0.0), pts.len());
+    }
+    let lo = (scales.iter().copied().fold(f64::INFINITY, f64::min) * 1e-4).ln();
+    let hi = (scales.iter().copied().fold(0.0, f64::max) * 1e2).ln();
+    // Coarse scan in ln c, then golden section around the best.
+    const STEPS: usize = 80;
+    let mut best = (chi2(0.0), f64::NEG_INFINITY);
+    for i in 0..=STEPS {
+        let u = lo + (hi - lo) * i as f64 / STEPS as f64;
+        let v = chi2(u.exp());
+        if v < best.0 {
+            best = (v, u);
+        }
+    }
+    if best.1.is_finite() {
+        let h = (hi - lo) / STEPS as f64;
+        let (mut a, mut b) = (best.1 - h, best.1 + h);
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        for _ in 0..40 {
+            let (x1, x2) = (b - g * (b - a), a + g * (b - a));
+            if chi2(x1.exp()) < chi2(x2.exp()) {
+                b = x2;
+            } else {
+                a = x1;
+            }
+        }
+        let u = 0.5 * (a + b);
+        let v = chi2(u.exp());
+        if v < best.0 {
+            best = (v, u);
+        }
+    }
+    (best.1.exp(), best.0, pts.len())
 }
 
 /// The result of fitting one effect.
 pub enum Fitted {
-    /// The baseline plus the effect, and the fitted parameters (unit in the key).
-    Spec(Box<Spec>, BTreeMap<String, f64>),
+    /// The baseline plus the effect, the fitted parameters (unit in the key), and why the
+    /// candidate may not be named even if it scores best (a nested model that collapsed to
+    /// a simpler candidate of the vocabulary).
+    Spec(Box<Spec>, BTreeMap<String, f64>, Option<String>),
     /// Why the effect cannot be fitted to this record.
     NotApplicable(String),
 }
@@ -350,6 +460,8 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
     let idx: Vec<usize> = ctx.fit_ranges.iter().flat_map(|&(a, b)| a..b).collect();
     let y: Vec<f64> = idx.iter().map(|&i| real.rate_dps[i]).collect();
     let n = &mut spec.model.noise;
+    let mut excluded = None;
+    let t_rec = real.t_s.last().copied().unwrap_or(1.0) + dt;
     match effect {
         Effect::Quantization => {
             let mut v: Vec<f64> = idx.iter().map(|&i| ctx.raw[i]).collect();
@@ -399,22 +511,31 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             p.insert("added_bias_instability_dps".into(), c.sqrt());
         }
         Effect::RateRandomWalk => {
-            let (c, _) = excess_fit(ctx, dt, &|tau| tau / 3.0);
+            let w = ctx.drift_window_s;
+            let (c, chi2, _) = drift_fit(ctx, dt, &|tau| tau / 3.0, &|l| rrw_variogram(l, w));
             n.rrw_dps_per_s_rthz = (n.rrw_dps_per_s_rthz.powi(2) + c).sqrt();
             p.insert("added_rrw_dps_per_s_rthz".into(), c.sqrt());
+            p.insert("fit_chi2".into(), chi2);
         }
         Effect::Markov => {
-            let t_hi = real.t_s.last().copied().unwrap_or(1.0) / 6.0;
+            // Correlation time on an 8-per-decade grid from 4 samples to 3 record lengths,
+            // fitted jointly to the fit blocks' AVAR and their long-lag drift variogram.
+            let w = ctx.drift_window_s;
+            let t_hi = 3.0 * t_rec;
             let mut best = (f64::INFINITY, 0.0, 1.0);
             let mut tc = (4.0 * dt).max(1e-3);
             while tc <= t_hi {
-                let (c, res) = excess_fit(ctx, dt, &|tau| gm_avar(1.0, tc, tau));
-                if res < best.0 {
-                    best = (res, c, tc);
+                let (c, chi2, _) = drift_fit(ctx, dt, &|tau| gm_avar(1.0, tc, tau), &|l| {
+                    gm_variogram(tc, l, w)
+                });
+                if chi2 < best.0 {
+                    best = (chi2, c, tc);
                 }
                 tc *= 10f64.powf(1.0 / 8.0);
             }
-            let (_, c, tc) = best;
+            let (chi2, c, tc) = best;
+            let (_, chi2_rrw, npts) =
+                drift_fit(ctx, dt, &|tau| tau / 3.0, &|l| rrw_variogram(l, w));
             if n.gm_sigma_dps > 0.0 {
                 // The model has its own Gauss-Markov term: this one replaces it when larger.
                 n.gm_sigma_dps = n.gm_sigma_dps.max(c.sqrt());
@@ -424,6 +545,20 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             n.gm_tau_s = tc;
             p.insert("gm_sigma_dps".into(), c.sqrt());
             p.insert("gm_tau_s".into(), tc);
+            p.insert("fit_chi2".into(), chi2);
+            p.insert("rrw_fit_chi2".into(), chi2_rrw);
+            // Nested limit: T >> record is a random walk (sigma^2 -> inf, 2 sigma^2 / T = K^2).
+            // The extra parameter must buy a BIC's worth of fit (ln of the points).
+            let penalty = (npts.max(2) as f64).ln();
+            if tc >= t_rec {
+                excluded = Some(format!(
+                    "correlation time {tc:.0} s >= the record ({t_rec:.0} s): within the record a Gauss-Markov term is a rate random walk (nested limit); see rate_random_walk"
+                ));
+            } else if chi2_rrw - chi2 <= penalty {
+                excluded = Some(format!(
+                    "fit-block chi2 {chi2:.1} vs rate_random_walk's {chi2_rrw:.1}: the correlation time does not buy more than the BIC penalty ln({npts}) = {penalty:.1}; indistinguishable from rate_random_walk here"
+                ));
+            }
         }
         Effect::RateRamp => {
             // One common offset: offsets per block would absorb a ramp between blocks.
@@ -538,7 +673,7 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             p.insert("scale_factor_error_ppm".into(), beta[1] * 1e6);
         }
     }
-    Ok(Fitted::Spec(Box::new(spec), p))
+    Ok(Fitted::Spec(Box::new(spec), p, excluded))
 }
 
 /// The strongest sinusoid in the fit blocks: (frequency Hz, amplitude deg/s, phase rad at

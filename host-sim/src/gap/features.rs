@@ -14,7 +14,12 @@
 //! - `dist`: the values less their local mean (blocks cut in [`DIST_WINDOWS`]), scaled by
 //!   the robust sigma (1.4826 MAD): excess kurtosis, counts beyond 5 and 10 sigma, the
 //!   Kolmogorov-Smirnov distance to the normal law, ln(distinct values / samples) and the
-//!   number of missing sample slots (time steps longer than 1.5 periods).
+//!   number of missing sample slots (time steps longer than 1.5 periods);
+//! - `drift`: each selected block cut in [`DRIFT_WINDOWS`] windows; ln of the mean squared
+//!   difference of window means per lag bin ([`DRIFT_LAG_EDGES`], in block lengths), lags
+//!   from 0.3 block to across the record: the structure that tells a bounded drift
+//!   (Gauss-Markov: flat beyond its correlation time) from an unbounded one (random walk:
+//!   linear in the lag; ramp: quadratic), which a quarter-block ADEV cannot see.
 
 use anyhow::{bail, Result};
 use rustfft::{num_complex::Complex, FftPlanner};
@@ -26,6 +31,13 @@ pub const BLOCKS: usize = 6;
 pub const TIME_WINDOWS: usize = 4;
 /// Windows per block whose mean is removed before the `dist` features.
 pub const DIST_WINDOWS: usize = 16;
+/// Windows per block for the `drift` features (window-mean variogram).
+pub const DRIFT_WINDOWS: usize = 8;
+/// Lag bins of the `drift` features, in block lengths: `[lo, hi)`. Lags below 0.3 block are
+/// left to the ADEV (which reaches a quarter block); lags of 1 block and more come from
+/// window pairs in different blocks (the selected blocks are 2 apart, so these lags are
+/// 1.125-2.875, 3.125-4.875 blocks, ... for every-other-block selections).
+pub const DRIFT_LAG_EDGES: [f64; 8] = [0.3, 0.55, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
 /// Frequency bands of the `psd` features.
 pub const BANDS: usize = 10;
 /// Fewest samples per block.
@@ -43,10 +55,51 @@ pub enum Group {
     Time,
     /// Value distribution.
     Dist,
+    /// Variogram of window means across the selected blocks (drift structure at lags up
+    /// to the record length).
+    Drift,
 }
 
 /// The groups, in order.
-pub const GROUPS: [Group; 4] = [Group::Adev, Group::Psd, Group::Time, Group::Dist];
+pub const GROUPS: [Group; 5] = [
+    Group::Adev,
+    Group::Psd,
+    Group::Time,
+    Group::Dist,
+    Group::Drift,
+];
+
+/// One lag bin of the `drift` features: `[lo, hi)` in block lengths, and its window pairs
+/// `(i, j, lag in block lengths)`.
+pub type DriftBin = ((f64, f64), Vec<(usize, usize, f64)>);
+
+/// The window pairs of the `drift` features for a block selection: per lag bin (those with
+/// at least one pair), the bin's `[lo, hi)` in block lengths and the pairs as indices into
+/// the selected windows (block-major, [`DRIFT_WINDOWS`] per selected block) with their lag
+/// in block lengths. Depends on the selection only, so every series gets the same bins.
+pub fn drift_pairs(sel: &[bool]) -> Vec<DriftBin> {
+    let w = DRIFT_WINDOWS as f64;
+    let pos: Vec<f64> = (0..sel.len())
+        .filter(|&b| sel[b])
+        .flat_map(|b| (0..DRIFT_WINDOWS).map(move |k| b as f64 + k as f64 / w))
+        .collect();
+    DRIFT_LAG_EDGES
+        .windows(2)
+        .map(|e| {
+            let mut pairs = Vec::new();
+            for i in 0..pos.len() {
+                for j in i + 1..pos.len() {
+                    let lag = pos[j] - pos[i];
+                    if lag >= e[0] - 1e-9 && lag < e[1] - 1e-9 {
+                        pairs.push((i, j, lag));
+                    }
+                }
+            }
+            ((e[0], e[1]), pairs)
+        })
+        .filter(|(_, p)| !p.is_empty())
+        .collect()
+}
 
 /// What a feature is, with the range of tau (s), frequency (Hz) or time (s) it covers.
 #[derive(Debug, Clone, Serialize)]
@@ -238,7 +291,55 @@ impl Layout {
         d.push(dist("ks_distance_to_normal", 0.001, false));
         d.push(dist("distinct_fraction_ln", 0.01, false));
         d.push(dist("missing_slots", 0.0, true));
+        let l = self.t_total_s / BLOCKS as f64;
+        for ((lo, hi), _) in drift_pairs(sel) {
+            d.push(Def {
+                group: Group::Drift,
+                label: format!("drift_ln@lag={:.0}-{:.0}s", lo * l, hi * l),
+                range: Some((lo * l, hi * l)),
+                floor: 0.01,
+                count: false,
+            });
+        }
         d
+    }
+
+    /// Means of the [`DRIFT_WINDOWS`] windows of each selected block (block-major; NaN for
+    /// an empty window).
+    pub fn drift_window_means(&self, t_s: &[f64], y: &[f64], sel: &[bool]) -> Vec<f64> {
+        let ranges = self.ranges(t_s);
+        let mut out = Vec::new();
+        for (b, &(lo, hi)) in ranges.iter().enumerate() {
+            if !sel[b] {
+                continue;
+            }
+            let (a, z) = self.block_span(b);
+            let w = (z - a) / DRIFT_WINDOWS as f64;
+            for k in 0..DRIFT_WINDOWS {
+                let (ta, tz) = (a + k as f64 * w, a + (k + 1) as f64 * w);
+                let i0 = lo + t_s[lo..hi].partition_point(|&t| t < ta);
+                let i1 = lo + t_s[lo..hi].partition_point(|&t| t < tz);
+                out.push(if i1 > i0 { mean(&y[i0..i1]) } else { f64::NAN });
+            }
+        }
+        out
+    }
+
+    /// The `drift` variogram of a series on a selection: per bin of [`drift_pairs`], the
+    /// mean of `(m_j - m_i)^2` over its window pairs, (deg/s)^2.
+    pub fn drift_variogram(&self, t_s: &[f64], y: &[f64], sel: &[bool]) -> Vec<f64> {
+        let m = self.drift_window_means(t_s, y, sel);
+        drift_pairs(sel)
+            .iter()
+            .map(|(_, pairs)| {
+                let v: Vec<f64> = pairs
+                    .iter()
+                    .map(|&(i, j, _)| (m[j] - m[i]).powi(2))
+                    .filter(|v| v.is_finite())
+                    .collect();
+                mean(&v)
+            })
+            .collect()
     }
 
     /// The features of the selected blocks of a series (see the module docs).
@@ -368,6 +469,10 @@ impl Layout {
             }
         }
         f.push(missing);
+        // Drift: ln of the window-mean variogram per lag bin.
+        for v in self.drift_variogram(t_s, y, sel) {
+            f.push(v.max(1e-300).ln());
+        }
         f
     }
 

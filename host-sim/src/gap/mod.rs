@@ -11,9 +11,9 @@
 //!
 //! # Gap measure
 //! For each feature ([`features`]), `z = (real - median_sims) / spread_sims`; the spread is
-//! the seed-to-seed standard deviation (floored, Poisson for counts). The gap is the mean over
-//! the four groups (adev, psd, time, dist) of the mean `z^2` in the group: about 1 when the
-//! real record is one more draw of the model.
+//! the seed-to-seed standard deviation (floored, Poisson for counts). The gap is the largest
+//! over the five groups (adev, psd, time, dist, drift) of the mean `z^2` in the group: about 1
+//! when the real record is one more draw of the model.
 //!
 //! # Significance
 //! Each baseline simulation is scored like the real record against the other simulations
@@ -223,6 +223,9 @@ pub struct Candidate {
     pub shrink: Option<f64>,
     /// Why it was skipped.
     pub skipped: Option<String>,
+    /// Why it is scored but may not be named (a nested model that collapsed to a simpler
+    /// candidate, e.g. `markov` whose correlation time reaches the record length).
+    pub excluded: Option<String>,
 }
 
 /// Where the gap lies (full record, baseline): hulls of the features with |z| > 2.
@@ -340,7 +343,7 @@ pub struct Diagnosis {
     pub curves: Curves,
 }
 
-const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --sim) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = mean over groups (adev, psd, time, dist) of mean z^2. An effect is named when gap_before > null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others).";
+const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --sim) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2. An effect is named when gap_before > null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others). A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
 
 /// Per-simulation summary.
 struct SimOut {
@@ -521,6 +524,7 @@ pub fn diagnose(
     // Baseline simulations.
     let mut base_outs = Vec::new();
     let mut sim_avars = Vec::new();
+    let mut sim_drifts = Vec::new();
     let mut sim_spikes = Vec::new();
     let mut sim_missing = Vec::new();
     let mut task_sims = Vec::new();
@@ -529,6 +533,7 @@ pub fn diagnose(
         let r = layout.ranges(&sim.t);
         let fr: Vec<(usize, usize)> = r.iter().step_by(2).copied().collect();
         sim_avars.push(features::pooled_avar(&sim.res, &fr, real.dt_s, &layout.ms));
+        sim_drifts.push(layout.drift_variogram(&sim.t, &sim.res, &sel_fit));
         sim_spikes.push(effects::spike_stats(&sim.res, &fr).0);
         sim_missing.push(effects::missing_slots(&sim.t, &fr, real.dt_s));
         base_outs.push(analyse(&layout, &sim, &sel_score, Some(&sel_all), &mut fft));
@@ -596,7 +601,35 @@ pub fn diagnose(
     let sim_avar: Vec<f64> = (0..layout.ms.len())
         .map(|j| features::median(&sim_avars.iter().map(|a| a[j].0).collect::<Vec<_>>()))
         .collect();
+    let ln_sd = |v: &[f64]| -> f64 {
+        let l: Vec<f64> = v
+            .iter()
+            .filter(|x| x.is_finite() && **x > 0.0)
+            .map(|x| x.ln())
+            .collect();
+        let m = features::mean(&l);
+        (l.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (l.len().max(2) - 1) as f64).sqrt()
+    };
+    let avar_ln_sd: Vec<f64> = (0..layout.ms.len())
+        .map(|j| ln_sd(&sim_avars.iter().map(|a| a[j].0).collect::<Vec<_>>()))
+        .collect();
+    let drift_bins = features::drift_pairs(&sel_fit);
+    let block_s = layout.t_total_s / BLOCKS as f64;
+    let col = |v: &[Vec<f64>], k: usize| v.iter().map(|a| a[k]).collect::<Vec<_>>();
     let ctx = FitCtx {
+        avar_ln_sd,
+        real_drift: layout.drift_variogram(&real.t_s, &real.rate_dps, &sel_fit),
+        sim_drift: (0..drift_bins.len())
+            .map(|k| features::median(&col(&sim_drifts, k)))
+            .collect(),
+        drift_ln_sd: (0..drift_bins.len())
+            .map(|k| ln_sd(&col(&sim_drifts, k)))
+            .collect(),
+        drift_lags_s: drift_bins
+            .iter()
+            .map(|(_, pairs)| pairs.iter().map(|p| p.2 * block_s).collect())
+            .collect(),
+        drift_window_s: block_s / features::DRIFT_WINDOWS as f64,
         real,
         raw: &raw.rate_dps,
         base: &base,
@@ -628,8 +661,9 @@ pub fn diagnose(
                 gap_after: None,
                 shrink: None,
                 skipped: Some(why),
+                excluded: None,
             }),
-            Fitted::Spec(spec, params) => {
+            Fitted::Spec(spec, params, excluded) => {
                 let mut outs = Vec::new();
                 for &s in &seeds {
                     let sim = spec.simulate(real, s, g_base)?;
@@ -653,13 +687,14 @@ pub fn diagnose(
                     gap_after: Some(after),
                     shrink: Some(1.0 - after / gap_before),
                     skipped: None,
+                    excluded,
                 });
             }
         }
     }
     let best = candidates
         .iter()
-        .filter(|c| c.gap_after.is_some())
+        .filter(|c| c.gap_after.is_some() && c.excluded.is_none())
         .min_by(|a, b| {
             a.gap_after
                 .unwrap_or(f64::INFINITY)
