@@ -41,6 +41,12 @@ pub struct IdentifierArgs {
     /// network's linear part), or a q/r value per sample for that filter.
     #[arg(long, value_parser = parse_level)]
     pub level: Option<LevelInput>,
+    /// time-temp preset: memory of the per-power-on bias neuron, s.
+    #[arg(long)]
+    pub bias_memory_s: Option<f32>,
+    /// time-temp preset: `U(0)` of the per-power-on warm-up neuron.
+    #[arg(long)]
+    pub warmup_u0: Option<f32>,
 }
 
 fn parse_level(s: &str) -> Result<LevelInput, String> {
@@ -81,7 +87,14 @@ pub fn options(a: &IdentifierArgs) -> Options {
     let mut o = match a.preset {
         Preset::Paper => Options::paper(),
         Preset::LevelTrend => Options::level_trend(),
+        Preset::TimeTemp => Options::time_temp(),
     };
+    if let Some(m) = a.bias_memory_s {
+        o.bias_memory_s = m;
+    }
+    if let Some(u) = a.warmup_u0 {
+        o.warmup_u0 = u;
+    }
     if let Some(t) = a.trainer {
         o.trainer = t;
     }
