@@ -276,6 +276,112 @@ impl FeatureMap<3> for TimeTemp {
     }
 }
 
+/// Memories of the [`LevelBank`] levels, s, shortest first.
+pub const BANK_MEMORIES_S: [f32; 6] = [3.0, 10.0, 30.0, 100.0, 300.0, 1000.0];
+
+/// Delay of the rate entering the [`LevelBank`] levels, samples: at least the half support
+/// of the denoiser's level-3 approximation (db4: (8 - 1)(2^3 - 1) + 1 = 50 samples), so that
+/// no sample's noise is both in a training input and in its target (see [`LevelBank`]).
+pub const BANK_DELAY: usize = 64;
+
+/// Number of inputs of [`LevelBank`].
+pub const BANK_INPUTS: usize = BANK_MEMORIES_S.len() + 3;
+
+/// Index of `T` among the [`LevelBank`] inputs (then `temp_c`, `dtemp_c_per_s`).
+pub const BANK_T: usize = BANK_MEMORIES_S.len();
+
+/// A bank of causal levels of the rate at several time scales, plus the known inputs:
+/// `[K_1000, K_3 - K_10, K_10 - K_30, K_30 - K_100, K_100 - K_300, K_300 - K_1000, T,
+/// temp_c, dtemp_c_per_s]`, where `K_m` is the causal estimate (before the sample's update)
+/// of a random-walk Kalman filter with memory `m` seconds (q/r = (dt/m)^2 per sample): it
+/// starts as the growing mean of the record and settles into an exponential average of
+/// memory `m`.
+///
+/// Why: any linear causal estimator of the drift from the rate is a filter; a weighted sum
+/// of these levels spans exponential filters from 3 s to 1000 s, so a linear output layer
+/// trained by least squares finds the best mixture (the single tuned Kalman filter is one
+/// of them: weights 1 on `K_1000` and on every difference from its memory up). The
+/// differences (not the levels themselves) are the inputs because the levels are nearly
+/// collinear (all carry the turn-on bias), which a per-weight trainer (DRLS) handles badly;
+/// the differences are nearly uncorrelated. `T`, `temp_c`, `dtemp_c_per_s` are those of
+/// [`TimeTemp`] (the part of the drift that known inputs predict, at zero lag).
+///
+/// The levels see the rate [`BANK_DELAY`] samples late. The training target `d(k)` is the
+/// denoised rate, which keeps the low-frequency part of the noise of the samples around
+/// `k`; a level that contains those same samples is correlated with the target's noise,
+/// and least squares then learns to reproduce that noise (measured: with no delay the
+/// learned mixture was far worse than the single level it started from). With the delay,
+/// inputs and target share no sample; the cost is that the levels are 64 samples (0.3 to
+/// 1.3 s) older than the sample whose drift they estimate, which for drift on time scales
+/// of tens of seconds is negligible, and no advantage over the zero-latency baselines.
+/// Memory: 6 filters (5 floats each) + 64 floats + [`TimeTemp`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct LevelBank {
+    levels: [crate::baseline::RandomWalkKalman; BANK_MEMORIES_S.len()],
+    known: TimeTemp,
+    delay: [f32; BANK_DELAY],
+    seen: usize,
+}
+
+impl LevelBank {
+    /// Features for a stream with `samples_per_s` samples per second.
+    pub fn new(samples_per_s: f32) -> Self {
+        let dt = if samples_per_s.is_finite() && samples_per_s > 0.0 {
+            1.0 / samples_per_s
+        } else {
+            1.0
+        };
+        Self {
+            levels: core::array::from_fn(|i| {
+                let r = dt / BANK_MEMORIES_S[i];
+                crate::baseline::RandomWalkKalman::new(r * r, 1.0)
+            }),
+            known: TimeTemp::new(samples_per_s),
+            delay: [0.0; BANK_DELAY],
+            seen: 0,
+        }
+    }
+}
+
+impl FeatureMap<BANK_INPUTS> for LevelBank {
+    fn next(&mut self, rate_dps: f32, t_s: f32) -> [f32; BANK_INPUTS] {
+        self.next_with_temp(rate_dps, t_s, f32::NAN)
+    }
+
+    fn next_with_temp(&mut self, rate_dps: f32, t_s: f32, temp_c: f32) -> [f32; BANK_INPUTS] {
+        let slot = self.seen % BANK_DELAY;
+        let old = self.delay.get(slot).copied().unwrap_or(0.0);
+        if let Some(v) = self.delay.get_mut(slot) {
+            *v = rate_dps;
+        }
+        let delayed = self.seen >= BANK_DELAY;
+        self.seen = self.seen.saturating_add(1);
+        let mut k = [0.0f32; BANK_MEMORIES_S.len()];
+        for (ki, f) in k.iter_mut().zip(self.levels.iter_mut()) {
+            // Before the delay line is full the levels wait (0 until their first sample).
+            *ki = if delayed { f.push(old) } else { f.push(f32::NAN) };
+        }
+        let known = self.known.next_with_temp(rate_dps, t_s, temp_c);
+        let mut out = [0.0f32; BANK_INPUTS];
+        let last = BANK_MEMORIES_S.len() - 1;
+        out[0] = k[last];
+        for i in 0..last {
+            out[1 + i] = k[i] - k[i + 1];
+        }
+        out[BANK_T..].copy_from_slice(&known);
+        out
+    }
+
+    fn reset(&mut self) {
+        for f in self.levels.iter_mut() {
+            *f = crate::baseline::RandomWalkKalman::new(f.q(), f.r());
+        }
+        self.known.reset();
+        self.delay = [0.0; BANK_DELAY];
+        self.seen = 0;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -247,7 +247,9 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
 pub mod presets {
     use super::IdentifyError;
     use crate::denoise::DenoiseConfig;
-    use crate::features::{LevelTrendTime, RateTime, TimeTemp};
+    use crate::features::{
+        LevelBank, LevelTrendTime, RateTime, TimeTemp, BANK_INPUTS, BANK_MEMORIES_S, BANK_T,
+    };
     use crate::train::{Drls, DrlsConfig, DrlsMode, Trainer};
     use crate::wnn::{Activation, Group, InputScaling, ShapeError, WnnShape};
 
@@ -555,6 +557,86 @@ pub mod presets {
         );
         id.set_weights(w);
         Ok(id)
+    }
+
+    /// The multi-scale identifier: inputs of [`LevelBank`] (levels at 3..1000 s and
+    /// known inputs), see [`level_bank_shape`].
+    pub type LevelBankNet<const B: usize, const NL: usize = L> =
+        super::Identifier<LevelBank, Drls<NL>, BANK_INPUTS, NL, B>;
+
+    /// Index of the `K_1000` link of [`level_bank_shape`] (kept at the identity).
+    pub const LB_LEVEL: usize = 0;
+    /// First neuron of [`level_bank_shape`] on the known inputs (T, temperature, its
+    /// rate): the links at 7, 8, then the Gaussians.
+    pub const LB_KNOWN: usize = 7;
+
+    /// The multi-scale network, `NL >= 12`: neuron 0 a linear link to the 1000-s level
+    /// (the identity: kept, not trained), 1 a bias, 2..=6 linear links to the five level
+    /// differences, 7, 8 linear links to `temp_c` and `dtemp_c_per_s`; the rest Gaussians,
+    /// 2/3 along `T` (the average warm-up shape the levels lag behind), 1/3 along `temp_c`.
+    pub fn level_bank_shape<const NL: usize>() -> Result<WnnShape<BANK_INPUTS, NL>, ShapeError>
+    {
+        let k = NL.saturating_sub(9);
+        let k_temp = k / 3;
+        WnnShape::from_groups(
+            &[
+                Group::Linear(0),
+                Group::Bias,
+                Group::Linear(1),
+                Group::Linear(2),
+                Group::Linear(3),
+                Group::Linear(4),
+                Group::Linear(5),
+                Group::Linear(BANK_T + 1),
+                Group::Linear(BANK_T + 2),
+                Group::Along {
+                    input: BANK_T,
+                    count: k - k_temp,
+                    overlap: 1.0,
+                },
+                Group::Along {
+                    input: BANK_T + 1,
+                    count: k_temp,
+                    overlap: 1.0,
+                },
+            ],
+            Activation::Gaussian,
+        )
+    }
+
+    /// Initial weights "from measured data": the output starts as the level of memory
+    /// `BANK_MEMORIES_S[from]` (identity on `K_1000` and on every difference from `from`
+    /// up, the offsets into the bias), i.e. as a random-walk Kalman filter of that memory.
+    pub fn level_bank_identity_weights<const NL: usize>(
+        scaling: &InputScaling<BANK_INPUTS>,
+        from: usize,
+    ) -> [f32; NL] {
+        let mut w0 = [0.0; NL];
+        let inv = |g: f32| if g != 0.0 { 1.0 / g } else { 1.0 };
+        if NL >= 7 {
+            w0[LB_LEVEL] = inv(scaling.gain[0]);
+            w0[1] = scaling.offset[0];
+            for i in from..BANK_MEMORIES_S.len() - 1 {
+                w0[2 + i] = inv(scaling.gain[1 + i]);
+                w0[1] += scaling.offset[1 + i];
+            }
+        }
+        w0
+    }
+
+    /// The multi-scale identifier with any trainer, starting as the level of memory
+    /// `BANK_MEMORIES_S[from]`.
+    pub fn level_bank_with<T: Trainer<NL>, const B: usize, const NL: usize>(
+        scaling: InputScaling<BANK_INPUTS>,
+        trainer: T,
+        denoise: DenoiseConfig,
+        sample_period_s: f32,
+        from: usize,
+    ) -> Result<super::Identifier<LevelBank, T, BANK_INPUTS, NL, B>, IdentifyError> {
+        let shape = level_bank_shape::<NL>().map_err(IdentifyError::Shape)?;
+        let w0 = level_bank_identity_weights::<NL>(&scaling, from);
+        let f = LevelBank::new(1.0 / sample_period_s);
+        super::Identifier::new(f, scaling, shape, w0, trainer, denoise, sample_period_s)
     }
 
     /// The improved identifier as configured by default (30 neurons, its DRLS).

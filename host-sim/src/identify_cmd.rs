@@ -47,6 +47,13 @@ pub struct IdentifierArgs {
     /// time-temp preset: `U(0)` of the per-power-on warm-up neuron.
     #[arg(long)]
     pub warmup_u0: Option<f32>,
+    /// level-bank preset: the level the network starts as (0..=5: memory 3, 10, 30, 100,
+    /// 300, 1000 s).
+    #[arg(long)]
+    pub bank_from: Option<usize>,
+    /// level-bank preset: train the neurons on T, temperature and its rate (default true).
+    #[arg(long)]
+    pub known_inputs: Option<bool>,
 }
 
 fn parse_level(s: &str) -> Result<LevelInput, String> {
@@ -88,7 +95,14 @@ pub fn options(a: &IdentifierArgs) -> Options {
         Preset::Paper => Options::paper(),
         Preset::LevelTrend => Options::level_trend(),
         Preset::TimeTemp => Options::time_temp(),
+        Preset::LevelBank => Options::level_bank(),
     };
+    if let Some(k) = a.known_inputs {
+        o.known_inputs = k;
+    }
+    if let Some(b) = a.bank_from {
+        o.bank_from = b.min(fog_core::features::BANK_MEMORIES_S.len() - 1);
+    }
     if let Some(m) = a.bias_memory_s {
         o.bias_memory_s = m;
     }

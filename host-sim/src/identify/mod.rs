@@ -29,7 +29,7 @@ use crate::denoise_cmd;
 use anyhow::{anyhow, bail, Result};
 use fog_core::baseline::RandomWalkKalman;
 use fog_core::denoise::DenoiseConfig;
-use fog_core::features::{FeatureMap, LevelTrendTime, RateTime, TimeTemp};
+use fog_core::features::{FeatureMap, LevelBank, LevelTrendTime, RateTime, TimeTemp};
 use fog_core::identify::{presets, Identifier};
 use fog_core::train::{Drls, DrlsConfig, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer};
 use fog_core::wnn::{Activation, InputScaling};
@@ -50,6 +50,9 @@ pub enum Preset {
     /// Inputs T, temperature, temperature rate (known inputs, none from the gyro): a
     /// per-power-on bias and warm-up neuron, shared links and Gaussians (needs `temp_c`).
     TimeTemp,
+    /// Levels of the rate at 3..1000 s (as differences) and T, temperature, its rate: a
+    /// learned mixture of causal filters plus what known inputs predict.
+    LevelBank,
 }
 
 /// Output-weight trainer.
@@ -105,6 +108,12 @@ pub struct Options {
     pub bias_memory_s: f32,
     /// time-temp preset: `U(0)` of the per-power-on warm-up neuron.
     pub warmup_u0: f32,
+    /// level-bank preset: index of the level (memory 3, 10, 30, 100, 300, 1000 s) the
+    /// network starts as.
+    pub bank_from: usize,
+    /// level-bank preset: train the neurons on T, temperature and its rate (false: they
+    /// stay at 0, the network is a learned mixture of levels only).
+    pub known_inputs: bool,
 }
 
 /// Where the level-trend preset's level input comes from.
@@ -140,6 +149,8 @@ impl Options {
             level: LevelInput::Mean10s,
             bias_memory_s: presets::TT_BIAS_MEMORY_S,
             warmup_u0: presets::TT_WARMUP_U0,
+            bank_from: 2,
+            known_inputs: true,
         }
     }
 
@@ -149,6 +160,16 @@ impl Options {
             preset: Preset::TimeTemp,
             lambda: presets::TIME_TEMP_DRLS.lambda,
             u0: presets::TIME_TEMP_DRLS.u0,
+            ..Self::level_trend()
+        }
+    }
+
+    /// The multi-scale configuration (levels at 3..1000 s, T, temperature, its rate).
+    pub fn level_bank() -> Self {
+        Self {
+            preset: Preset::LevelBank,
+            lambda: 1.0,
+            u0: 1.0e-4,
             ..Self::level_trend()
         }
     }
@@ -169,6 +190,8 @@ impl Options {
             level: LevelInput::Mean10s,
             bias_memory_s: presets::TT_BIAS_MEMORY_S,
             warmup_u0: presets::TT_WARMUP_U0,
+            bank_from: 2,
+            known_inputs: true,
         }
     }
 }
@@ -223,6 +246,8 @@ pub struct Report {
     pub scored_samples: u64,
     /// Validation samples at which the identifier's output was first not finite, if ever.
     pub diverged_at_sample: Option<u64>,
+    /// The output weights at the end of the validation records (network units).
+    pub final_weights: Vec<f32>,
     /// Records with a temperature channel: the share of the drift explained by known
     /// inputs (batch least squares, against the truth; simulated records only).
     pub drift_decomposition: Option<thermal::DriftDecomposition>,
@@ -538,6 +563,7 @@ where
         validate_records: validate.len(),
         scored_samples: scored,
         diverged_at_sample: diverged_at,
+        final_weights: id.weights().to_vec(),
         drift_decomposition: decomposition,
         temperature_regressions: regressions,
         definitions: DEFINITIONS,
@@ -720,6 +746,15 @@ fn with_trainer<const L: usize, const B: usize>(
                             t.set_neuron(0, 0.9999, 1.0);
                         }
                     }
+                    if o.preset == Preset::LevelBank {
+                        // The 1000-s level's link stays the identity.
+                        t.set_neuron(presets::LB_LEVEL, 1.0, FROZEN_U);
+                        if !o.known_inputs {
+                            for a in presets::LB_KNOWN..L {
+                                t.set_neuron(a, 1.0, FROZEN_U);
+                            }
+                        }
+                    }
                     run_generic::<_, _, _, L, B>(
                         o,
                         train,
@@ -780,6 +815,11 @@ fn with_trainer<const L: usize, const B: usize>(
             },
             presets::LEVEL_TREND_SCALING,
             |s, t, dt| presets::level_trend_with::<_, B, L>(s, t, den, dt)
+        ),
+        Preset::LevelBank => go!(
+            |dt: f32| LevelBank::new(1.0 / dt),
+            InputScaling::IDENTITY,
+            |s, t, dt| presets::level_bank_with::<_, B, L>(s, t, den, dt, o.bank_from)
         ),
         Preset::TimeTemp => {
             if train.get(0)?.temp_c.is_none() {
