@@ -11,6 +11,13 @@ pub trait FeatureMap<const N: usize> {
         let _ = temp_c;
         self.next(rate_dps, t_s)
     }
+    /// Inputs to store for the training step of the current sample, when they differ from
+    /// what [`FeatureMap::next`] returned for its output (e.g. [`LevelBank`] with an
+    /// undelayed output); `None` (the default): the same.
+    #[inline]
+    fn train_inputs(&self) -> Option<[f32; N]> {
+        None
+    }
     /// Forgets the history.
     fn reset(&mut self);
 }
@@ -321,6 +328,10 @@ pub struct LevelBank {
     known: TimeTemp,
     delay: [f32; BANK_DELAY],
     seen: usize,
+    /// With [`LevelBank::undelayed_output`]: levels on the current samples (for the
+    /// output) and the inputs of the delayed levels (for training).
+    now: Option<[crate::baseline::RandomWalkKalman; BANK_MEMORIES_S.len()]>,
+    train: [f32; BANK_INPUTS],
 }
 
 impl LevelBank {
@@ -339,7 +350,30 @@ impl LevelBank {
             known: TimeTemp::new(samples_per_s),
             delay: [0.0; BANK_DELAY],
             seen: 0,
+            now: None,
+            train: [0.0; BANK_INPUTS],
         }
+    }
+
+    /// Output from levels on the current samples (no delay), training inputs from the
+    /// delayed ones: the weights are learned on inputs that share no noise with their
+    /// targets (a predictor 64 samples ahead), and applied to the freshest levels (for
+    /// drift on time scales of seconds and more, the two predictors are the same). Costs
+    /// six more filters.
+    pub fn undelayed_output(mut self) -> Self {
+        self.now = Some(self.levels.clone());
+        self
+    }
+
+    fn assemble(k: &[f32; BANK_MEMORIES_S.len()], known: &[f32; 3]) -> [f32; BANK_INPUTS] {
+        let mut out = [0.0f32; BANK_INPUTS];
+        let last = BANK_MEMORIES_S.len() - 1;
+        out[0] = k[last];
+        for i in 0..last {
+            out[1 + i] = k[i] - k[i + 1];
+        }
+        out[BANK_T..].copy_from_slice(known);
+        out
     }
 }
 
@@ -362,14 +396,22 @@ impl FeatureMap<BANK_INPUTS> for LevelBank {
             *ki = if delayed { f.push(old) } else { f.push(f32::NAN) };
         }
         let known = self.known.next_with_temp(rate_dps, t_s, temp_c);
-        let mut out = [0.0f32; BANK_INPUTS];
-        let last = BANK_MEMORIES_S.len() - 1;
-        out[0] = k[last];
-        for i in 0..last {
-            out[1 + i] = k[i] - k[i + 1];
+        let delayed_inputs = Self::assemble(&k, &known);
+        match self.now.as_mut() {
+            None => delayed_inputs,
+            Some(now) => {
+                self.train = delayed_inputs;
+                let mut kn = [0.0f32; BANK_MEMORIES_S.len()];
+                for (ki, f) in kn.iter_mut().zip(now.iter_mut()) {
+                    *ki = f.push(rate_dps);
+                }
+                Self::assemble(&kn, &known)
+            }
         }
-        out[BANK_T..].copy_from_slice(&known);
-        out
+    }
+
+    fn train_inputs(&self) -> Option<[f32; BANK_INPUTS]> {
+        self.now.is_some().then_some(self.train)
     }
 
     fn reset(&mut self) {
@@ -379,6 +421,11 @@ impl FeatureMap<BANK_INPUTS> for LevelBank {
         self.known.reset();
         self.delay = [0.0; BANK_DELAY];
         self.seen = 0;
+        if let Some(now) = self.now.as_mut() {
+            for f in now.iter_mut() {
+                *f = crate::baseline::RandomWalkKalman::new(f.q(), f.r());
+            }
+        }
     }
 }
 

@@ -166,7 +166,10 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
             train_error_dps = self.trainer.step(&mut self.w, &h, self.targets[slot]);
             self.stats.trained = self.stats.trained.wrapping_add(1);
         }
-        self.ring[slot] = x;
+        self.ring[slot] = match self.features.train_inputs() {
+            None => x,
+            Some(t) => self.scaling.apply(&t),
+        };
 
         let mut block_done = false;
         if let Push::Block(d, _) = self.denoiser.push(rate_dps)? {

@@ -54,6 +54,9 @@ pub struct IdentifierArgs {
     /// level-bank preset: train the neurons on T, temperature and its rate (default true).
     #[arg(long)]
     pub known_inputs: Option<bool>,
+    /// level-bank preset: output from undelayed levels, training inputs delayed.
+    #[arg(long)]
+    pub undelayed_output: bool,
 }
 
 fn parse_level(s: &str) -> Result<LevelInput, String> {
@@ -97,6 +100,7 @@ pub fn options(a: &IdentifierArgs) -> Options {
         Preset::TimeTemp => Options::time_temp(),
         Preset::LevelBank => Options::level_bank(),
     };
+    o.undelayed_output = a.undelayed_output;
     if let Some(k) = a.known_inputs {
         o.known_inputs = k;
     }

@@ -114,6 +114,8 @@ pub struct Options {
     /// level-bank preset: train the neurons on T, temperature and its rate (false: they
     /// stay at 0, the network is a learned mixture of levels only).
     pub known_inputs: bool,
+    /// level-bank preset: output from undelayed levels (training inputs stay delayed).
+    pub undelayed_output: bool,
 }
 
 /// Where the level-trend preset's level input comes from.
@@ -151,6 +153,7 @@ impl Options {
             warmup_u0: presets::TT_WARMUP_U0,
             bank_from: 2,
             known_inputs: true,
+            undelayed_output: false,
         }
     }
 
@@ -192,6 +195,7 @@ impl Options {
             warmup_u0: presets::TT_WARMUP_U0,
             bank_from: 2,
             known_inputs: true,
+            undelayed_output: false,
         }
     }
 }
@@ -817,7 +821,11 @@ fn with_trainer<const L: usize, const B: usize>(
             |s, t, dt| presets::level_trend_with::<_, B, L>(s, t, den, dt)
         ),
         Preset::LevelBank => go!(
-            |dt: f32| LevelBank::new(1.0 / dt),
+            |dt: f32| if o.undelayed_output {
+                LevelBank::new(1.0 / dt).undelayed_output()
+            } else {
+                LevelBank::new(1.0 / dt)
+            },
             InputScaling::IDENTITY,
             |s, t, dt| presets::level_bank_with::<_, B, L>(s, t, den, dt, o.bank_from)
         ),
