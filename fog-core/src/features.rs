@@ -393,7 +393,11 @@ impl FeatureMap<BANK_INPUTS> for LevelBank {
         let mut k = [0.0f32; BANK_MEMORIES_S.len()];
         for (ki, f) in k.iter_mut().zip(self.levels.iter_mut()) {
             // Before the delay line is full the levels wait (0 until their first sample).
-            *ki = if delayed { f.push(old) } else { f.push(f32::NAN) };
+            *ki = if delayed {
+                f.push(old)
+            } else {
+                f.push(f32::NAN)
+            };
         }
         let known = self.known.next_with_temp(rate_dps, t_s, temp_c);
         let delayed_inputs = Self::assemble(&k, &known);

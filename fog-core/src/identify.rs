@@ -140,7 +140,11 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
     /// [`Identifier::push`] with the sensor temperature of the sample, deg C (NaN: none),
     /// for feature maps that use it (e.g. [`crate::features::TimeTemp`]); the others ignore
     /// it. A non-finite temperature is not a refusal: the feature map holds its last value.
-    pub fn push_with_temp(&mut self, rate_dps: f32, temp_c: f32) -> Result<Estimate, IdentifyError> {
+    pub fn push_with_temp(
+        &mut self,
+        rate_dps: f32,
+        temp_c: f32,
+    ) -> Result<Estimate, IdentifyError> {
         if !rate_dps.is_finite() || libm::fabsf(rate_dps) > crate::denoise::MAX_ABS_INPUT {
             self.stats.rejected = self.stats.rejected.wrapping_add(1);
             return Err(if rate_dps.is_finite() {
@@ -577,8 +581,7 @@ pub mod presets {
     /// (the identity: kept, not trained), 1 a bias, 2..=6 linear links to the five level
     /// differences, 7, 8 linear links to `temp_c` and `dtemp_c_per_s`; the rest Gaussians,
     /// 2/3 along `T` (the average warm-up shape the levels lag behind), 1/3 along `temp_c`.
-    pub fn level_bank_shape<const NL: usize>() -> Result<WnnShape<BANK_INPUTS, NL>, ShapeError>
-    {
+    pub fn level_bank_shape<const NL: usize>() -> Result<WnnShape<BANK_INPUTS, NL>, ShapeError> {
         let k = NL.saturating_sub(9);
         let k_temp = k / 3;
         WnnShape::from_groups(

@@ -603,8 +603,7 @@ impl TempBaselines {
         if train.get(0)?.temp_c.is_none() || validate.get(0)?.temp_c.is_none() {
             return Ok(None);
         }
-        let scaling =
-            training_scaling::<TimeTemp, 3>(train, &|dt| TimeTemp::new(1.0 / dt))?;
+        let scaling = training_scaling::<TimeTemp, 3>(train, &|dt| TimeTemp::new(1.0 / dt))?;
         let shape = presets::time_temp_shape::<{ presets::L }>().map_err(|e| anyhow!("{e}"))?;
         let mut me = Self {
             scaling,
@@ -666,10 +665,7 @@ impl TempBaselines {
         self.shape.hidden(&self.scaling.apply(x), &mut h);
         h.iter()
             .enumerate()
-            .filter(|(l, _)| {
-                *l != presets::TT_BIAS
-                    && (which == 1 || self.shape.a[*l][0] != 0.0)
-            })
+            .filter(|(l, _)| *l != presets::TT_BIAS && (which == 1 || self.shape.a[*l][0] != 0.0))
             .map(|(_, &v)| f64::from(v))
             .collect()
     }

@@ -29,7 +29,10 @@ pub type Basis<'a> = &'a dyn Fn(&[f32; 3]) -> Vec<f64>;
 /// The raw known inputs of every sample of a record (the [`TimeTemp`] feature map).
 pub fn known_inputs(s: &Series) -> Result<Vec<[f32; 3]>> {
     let Some(temp) = s.temp_c.as_ref() else {
-        bail!("{}: no temp_c column (needed for the temperature inputs)", s.name);
+        bail!(
+            "{}: no temp_c column (needed for the temperature inputs)",
+            s.name
+        );
     };
     let dt = s.sample_period_s() as f32;
     let mut f = TimeTemp::new(1.0 / dt);
