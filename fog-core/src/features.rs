@@ -361,7 +361,7 @@ impl LevelBank {
     /// drift on time scales of seconds and more, the two predictors are the same). Costs
     /// six more filters.
     pub fn undelayed_output(mut self) -> Self {
-        self.now = Some(self.levels.clone());
+        self.now = Some(self.levels);
         self
     }
 

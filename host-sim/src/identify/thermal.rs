@@ -175,11 +175,15 @@ fn truth_rows(s: &Series) -> Result<Vec<f64>> {
         .ok_or_else(|| anyhow!("{}: no drift_dps column", s.name))
 }
 
+/// Per basis (SSE, SST) of the centred truth; RMS of the drift and of its record means,
+/// deg/h; samples.
+type R2Sums = (Vec<(f64, f64)>, f64, f64, f64);
+
 fn r2_on(
     records: &dyn Records,
     bases: &[(&'static str, Basis<'_>)],
     coefs: &[Vec<f64>],
-) -> Result<(Vec<(f64, f64)>, f64, f64, f64)> {
+) -> Result<R2Sums> {
     // (SSE, SST) per basis; and sums for the RMS figures.
     let mut out = vec![(0.0, 0.0); bases.len()];
     let (mut sum_d2, mut sum_m2, mut n_all) = (0.0, 0.0, 0.0);
@@ -225,7 +229,7 @@ pub fn decompose(
         let x = known_inputs(&s)?;
         let d = truth_rows(&s)?;
         for (bi, (_, basis)) in bases.iter().enumerate() {
-            let rows: Vec<Vec<f64>> = x.iter().map(|r| basis(r)).collect();
+            let rows: Vec<Vec<f64>> = x.iter().map(basis).collect();
             if normals.len() <= bi {
                 normals.push(Normal::new(rows.first().map_or(0, Vec::len)));
             }
@@ -276,7 +280,7 @@ pub fn fit_rate(
     for i in 0..train.len() {
         let s = train.get(i)?;
         let x = known_inputs(&s)?;
-        let rows: Vec<Vec<f64>> = x.iter().map(|r| basis(r)).collect();
+        let rows: Vec<Vec<f64>> = x.iter().map(basis).collect();
         let y: Vec<f64> = s.rate_dps.iter().map(|&v| f64::from(v)).collect();
         normal
             .get_or_insert_with(|| Normal::new(rows.first().map_or(0, Vec::len)))
