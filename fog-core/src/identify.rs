@@ -151,6 +151,17 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
     /// Processes one sample (see the module docs). A refused sample (non-finite, or above
     /// the denoiser's range) returns an error, is counted, and changes nothing.
     pub fn push(&mut self, rate_dps: f32) -> Result<Estimate, IdentifyError> {
+        self.push_with_temp(rate_dps, f32::NAN)
+    }
+
+    /// [`Identifier::push`] with the sensor temperature of the sample, deg C (NaN: none),
+    /// for feature maps that use it (e.g. [`crate::features::TimeTemp`]); the others ignore
+    /// it. A non-finite temperature is not a refusal: the feature map holds its last value.
+    pub fn push_with_temp(
+        &mut self,
+        rate_dps: f32,
+        temp_c: f32,
+    ) -> Result<Estimate, IdentifyError> {
         if !rate_dps.is_finite() || libm::fabsf(rate_dps) > crate::denoise::MAX_ABS_INPUT {
             self.stats.rejected = self.stats.rejected.wrapping_add(1);
             return Err(if rate_dps.is_finite() {
@@ -162,7 +173,9 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
         }
         let k = self.stats.samples;
         let t_s = k as f32 * self.sample_period_s;
-        let x = self.scaling.apply(&self.features.next(rate_dps, t_s));
+        let x = self
+            .scaling
+            .apply(&self.features.next_with_temp(rate_dps, t_s, temp_c));
         let mut h = [0.0f32; L];
         self.shape.hidden(&x, &mut h);
         let y = dot(&self.w, &h);
@@ -174,7 +187,10 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
             train_error_dps = self.trainer.step(&mut self.w, &h, self.block[slot]);
             self.stats.trained = self.stats.trained.wrapping_add(1);
         }
-        self.ring[slot] = x;
+        self.ring[slot] = match self.features.train_inputs() {
+            None => x,
+            Some(t) => self.scaling.apply(&t),
+        };
         // The target d(k - B) has been used: the slot takes this sample.
         self.block[slot] = rate_dps;
 
@@ -257,7 +273,9 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
 pub mod presets {
     use super::IdentifyError;
     use crate::denoise::DenoiseConfig;
-    use crate::features::{LevelTrendTime, RateTime};
+    use crate::features::{
+        LevelBank, LevelTrendTime, RateTime, TimeTemp, BANK_INPUTS, BANK_MEMORIES_S, BANK_T,
+    };
     use crate::train::{Drls, DrlsConfig, DrlsMode, Trainer};
     use crate::wnn::{Activation, Group, InputScaling, ShapeError, WnnShape};
 
@@ -421,6 +439,232 @@ pub mod presets {
         let shape = level_trend_shape::<NL>().map_err(IdentifyError::Shape)?;
         let w0 = level_identity_weights::<NL>(&scaling);
         let f = LevelTrendTime::new(1.0 / sample_period_s);
+        super::Identifier::new(f, scaling, shape, w0, trainer, denoise, sample_period_s)
+    }
+
+    /// The drift model on known inputs: inputs `[T, temp_c, dtemp_c_per_s]`
+    /// ([`TimeTemp`]), a per-power-on bias and warm-up neuron, shared links and Gaussians,
+    /// sequential DRLS (see [`time_temp_shape`]).
+    pub type TimeTempNet<const B: usize, const NL: usize = L> =
+        super::Identifier<TimeTemp, Drls<NL>, 3, NL, B>;
+
+    /// Default scaling of `[T, temp_c, dtemp_c_per_s]` (assumed: T 0..1800 s, temperature
+    /// 15..35 C, rate +-0.005 C/s); `host-sim identify` replaces it with percentiles of the
+    /// training records.
+    pub const TIME_TEMP_SCALING: InputScaling<3> = InputScaling {
+        offset: [900.0, 25.0, 0.0],
+        gain: [1.0 / 900.0, 1.0 / 10.0, 1.0 / 0.005],
+    };
+
+    /// Index of the per-power-on bias neuron of [`time_temp_shape`].
+    pub const TT_BIAS: usize = 0;
+    /// Index of the per-power-on warm-up neuron of [`time_temp_shape`].
+    pub const TT_WARMUP: usize = 1;
+    /// Width of the warm-up neuron in units of the scaled `T` range: a Gaussian centred at
+    /// switch-on (scaled `T` = -1) with sigma = 2/3 of the half range (600 s for records
+    /// scaled over 0..1800 s).
+    pub const TT_WARMUP_DILATION: f32 = 1.5;
+
+    /// The network of the drift model on known inputs, for `NL >= 8` neurons:
+    /// - neuron 0: bias, **per power-on** (restarted at each record: the turn-on bias and
+    ///   the slow bias instability, an exponentially weighted mean of the targets);
+    /// - neuron 1: a Gaussian on `T` centred at switch-on, **per power-on** (restarted at 0
+    ///   at each record: this record's deviation of the warm-up from the learned shape);
+    /// - neurons 2, 3: linear links to `temp_c` and `dtemp_c_per_s` (temperature
+    ///   sensitivity, Shupe effect), **shared** by all records;
+    /// - the rest, shared: 3/4 Gaussians along `T` (the warm-up shape as a function of time
+    ///   since switch-on), 1/4 along `temp_c` (a non-linear temperature sensitivity);
+    ///   centres evenly on [-1, 1], neighbours one sigma apart.
+    pub fn time_temp_shape<const NL: usize>() -> Result<WnnShape<3, NL>, ShapeError> {
+        let k = NL.saturating_sub(4);
+        let k_temp = k / 4;
+        let mut s = WnnShape::from_groups(
+            &[
+                Group::Bias,
+                Group::Along {
+                    input: 0,
+                    count: 1,
+                    overlap: TT_WARMUP_DILATION,
+                },
+                Group::Linear(1),
+                Group::Linear(2),
+                Group::Along {
+                    input: 0,
+                    count: k - k_temp,
+                    overlap: 1.0,
+                },
+                Group::Along {
+                    input: 1,
+                    count: k_temp,
+                    overlap: 1.0,
+                },
+            ],
+            Activation::Gaussian,
+        )?;
+        // The warm-up neuron sits at scaled T = -1 (switch-on): b = a * c with c = -1.
+        if let Some(b) = s.b.get_mut(TT_WARMUP) {
+            *b = -TT_WARMUP_DILATION;
+        }
+        Ok(s)
+    }
+
+    /// Trainer of the drift model on known inputs: sequential DRLS, lambda 1 for the shared
+    /// neurons (their weights are averages over every record seen), `U(0)` 1e-4, guard
+    /// `U <= 1`, `|w| <= 1e4`. The per-power-on neurons get their own settings at each
+    /// record start from [`time_temp_power_on`].
+    pub const TIME_TEMP_DRLS: DrlsConfig = DrlsConfig {
+        lambda: 1.0,
+        u0: 1.0e-4,
+        u_max: 1.0,
+        w_max: 1.0e4,
+        mode: DrlsMode::Sequential,
+    };
+
+    /// Default memory of the per-power-on bias neuron, s (after its growing-window start).
+    pub const TT_BIAS_MEMORY_S: f32 = 600.0;
+    /// `U(0)` of the per-power-on warm-up neuron: its prior variance over the targets' noise
+    /// variance, in scaled units (about (2 deg/h / 60 deg/h)^2).
+    pub const TT_WARMUP_U0: f32 = 1.0e-3;
+
+    /// What a power-on does to the drift model on known inputs: the bias neuron restarts as
+    /// a growing-window mean (`U = 1`) that turns into an exponential one with memory
+    /// `bias_memory_s` (lambda = `1 - dt/memory`), the warm-up neuron restarts at weight 0
+    /// with `U = warmup_u0`; the shared neurons keep their weights and `U`.
+    pub fn time_temp_power_on<const NL: usize>(
+        w: &mut [f32; NL],
+        trainer: &mut Drls<NL>,
+        sample_period_s: f32,
+        bias_memory_s: f32,
+        warmup_u0: f32,
+    ) {
+        let lambda_b = if bias_memory_s > sample_period_s && bias_memory_s.is_finite() {
+            1.0 - sample_period_s / bias_memory_s
+        } else {
+            1.0
+        };
+        trainer.set_neuron(TT_BIAS, lambda_b, 1.0);
+        trainer.set_neuron(TT_WARMUP, 1.0, warmup_u0);
+        if let Some(v) = w.get_mut(TT_WARMUP) {
+            *v = 0.0;
+        }
+    }
+
+    /// The drift model on known inputs with any trainer, zero initial weights.
+    pub fn time_temp_with<T: Trainer<NL>, const B: usize, const NL: usize>(
+        scaling: InputScaling<3>,
+        trainer: T,
+        denoise: DenoiseConfig,
+        sample_period_s: f32,
+    ) -> Result<super::Identifier<TimeTemp, T, 3, NL, B>, IdentifyError> {
+        let shape = time_temp_shape::<NL>().map_err(IdentifyError::Shape)?;
+        let f = TimeTemp::new(1.0 / sample_period_s);
+        super::Identifier::new(
+            f,
+            scaling,
+            shape,
+            [0.0; NL],
+            trainer,
+            denoise,
+            sample_period_s,
+        )
+    }
+
+    /// The drift model on known inputs as configured by default (30 neurons, its DRLS, the
+    /// first power-on applied).
+    pub fn time_temp<const B: usize>(
+        scaling: InputScaling<3>,
+        sample_period_s: f32,
+    ) -> Result<TimeTempNet<B>, IdentifyError> {
+        let t = Drls::new(TIME_TEMP_DRLS).ok_or(IdentifyError::BadTrainer)?;
+        let mut id = time_temp_with(scaling, t, DenoiseConfig::PAPER, sample_period_s)?;
+        let mut w = *id.weights();
+        time_temp_power_on(
+            &mut w,
+            id.trainer_mut(),
+            sample_period_s,
+            TT_BIAS_MEMORY_S,
+            TT_WARMUP_U0,
+        );
+        id.set_weights(w);
+        Ok(id)
+    }
+
+    /// The multi-scale identifier: inputs of [`LevelBank`] (levels at 3..1000 s and
+    /// known inputs), see [`level_bank_shape`].
+    pub type LevelBankNet<const B: usize, const NL: usize = L> =
+        super::Identifier<LevelBank, Drls<NL>, BANK_INPUTS, NL, B>;
+
+    /// Index of the `K_1000` link of [`level_bank_shape`] (kept at the identity).
+    pub const LB_LEVEL: usize = 0;
+    /// First neuron of [`level_bank_shape`] on the known inputs (T, temperature, its
+    /// rate): the links at 7, 8, then the Gaussians.
+    pub const LB_KNOWN: usize = 7;
+
+    /// The multi-scale network, `NL >= 12`: neuron 0 a linear link to the 1000-s level
+    /// (the identity: kept, not trained), 1 a bias, 2..=6 linear links to the five level
+    /// differences, 7, 8 linear links to `temp_c` and `dtemp_c_per_s`; the rest Gaussians,
+    /// 2/3 along `T` (the average warm-up shape the levels lag behind), 1/3 along `temp_c`.
+    pub fn level_bank_shape<const NL: usize>() -> Result<WnnShape<BANK_INPUTS, NL>, ShapeError> {
+        let k = NL.saturating_sub(9);
+        let k_temp = k / 3;
+        WnnShape::from_groups(
+            &[
+                Group::Linear(0),
+                Group::Bias,
+                Group::Linear(1),
+                Group::Linear(2),
+                Group::Linear(3),
+                Group::Linear(4),
+                Group::Linear(5),
+                Group::Linear(BANK_T + 1),
+                Group::Linear(BANK_T + 2),
+                Group::Along {
+                    input: BANK_T,
+                    count: k - k_temp,
+                    overlap: 1.0,
+                },
+                Group::Along {
+                    input: BANK_T + 1,
+                    count: k_temp,
+                    overlap: 1.0,
+                },
+            ],
+            Activation::Gaussian,
+        )
+    }
+
+    /// Initial weights "from measured data": the output starts as the level of memory
+    /// `BANK_MEMORIES_S[from]` (identity on `K_1000` and on every difference from `from`
+    /// up, the offsets into the bias), i.e. as a random-walk Kalman filter of that memory.
+    pub fn level_bank_identity_weights<const NL: usize>(
+        scaling: &InputScaling<BANK_INPUTS>,
+        from: usize,
+    ) -> [f32; NL] {
+        let mut w0 = [0.0; NL];
+        let inv = |g: f32| if g != 0.0 { 1.0 / g } else { 1.0 };
+        if NL >= 7 {
+            w0[LB_LEVEL] = inv(scaling.gain[0]);
+            w0[1] = scaling.offset[0];
+            for i in from..BANK_MEMORIES_S.len() - 1 {
+                w0[2 + i] = inv(scaling.gain[1 + i]);
+                w0[1] += scaling.offset[1 + i];
+            }
+        }
+        w0
+    }
+
+    /// The multi-scale identifier with any trainer, starting as the level of memory
+    /// `BANK_MEMORIES_S[from]`.
+    pub fn level_bank_with<T: Trainer<NL>, const B: usize, const NL: usize>(
+        scaling: InputScaling<BANK_INPUTS>,
+        trainer: T,
+        denoise: DenoiseConfig,
+        sample_period_s: f32,
+        from: usize,
+    ) -> Result<super::Identifier<LevelBank, T, BANK_INPUTS, NL, B>, IdentifyError> {
+        let shape = level_bank_shape::<NL>().map_err(IdentifyError::Shape)?;
+        let w0 = level_bank_identity_weights::<NL>(&scaling, from);
+        let f = LevelBank::new(1.0 / sample_period_s);
         super::Identifier::new(f, scaling, shape, w0, trainer, denoise, sample_period_s)
     }
 

@@ -152,3 +152,81 @@ mod finite {
         }
     }
 }
+
+/// The level bank's levels see the rate 64 samples late: a step is invisible to them for
+/// exactly `BANK_DELAY` samples (so training inputs share no sample with their targets),
+/// while the undelayed variant's output sees it at once and its training inputs do not.
+#[test]
+fn level_bank_delay_keeps_training_inputs_apart_from_targets() {
+    use fog_core::features::{FeatureMap, LevelBank, BANK_DELAY};
+    let mut delayed = LevelBank::new(100.0);
+    let mut fresh = LevelBank::new(100.0).undelayed_output();
+    for k in 0..1000 {
+        let t = k as f32 * 0.01;
+        delayed.next_with_temp(0.0, t, 25.0);
+        fresh.next_with_temp(0.0, t, 25.0);
+    }
+    // The levels output their estimate before the sample's update: the step shows one
+    // sample after it entered them.
+    for k in 0..=BANK_DELAY + 1 {
+        let t = (1000 + k) as f32 * 0.01;
+        let d = delayed.next_with_temp(1.0, t, 25.0);
+        let f = fresh.next_with_temp(1.0, t, 25.0);
+        let train = fresh
+            .train_inputs()
+            .expect("undelayed variant stores training inputs");
+        if k < BANK_DELAY {
+            assert_eq!(d[0], 0.0, "sample {k}: the delayed level moved early");
+            assert_eq!(d[1], 0.0);
+            assert_eq!(train, d, "training inputs are the delayed ones");
+        } else if k > BANK_DELAY {
+            assert!(
+                d[1] > 0.0,
+                "the 3-s level moves once the step leaves the delay"
+            );
+        }
+        if k > 0 {
+            assert!(f[1] > 0.0, "undelayed output sees the step at once");
+        }
+    }
+    assert!(delayed.train_inputs().is_none());
+}
+
+/// Before any training the level bank network is the Kalman level it starts as.
+#[test]
+fn level_bank_starts_as_its_kalman_level() {
+    use fog_core::baseline::RandomWalkKalman;
+    use fog_core::features::{BANK_DELAY, BANK_INPUTS, BANK_MEMORIES_S};
+    use fog_core::train::Drls;
+    use fog_core::wnn::InputScaling;
+    let mut lo = [-0.05f32; BANK_INPUTS];
+    let mut hi = [0.05f32; BANK_INPUTS];
+    for j in 1..6 {
+        lo[j] = -0.002;
+        hi[j] = 0.003;
+    }
+    (lo[6], hi[6]) = (0.0, 1800.0);
+    (lo[7], hi[7]) = (15.0, 35.0);
+    (lo[8], hi[8]) = (-0.005, 0.005);
+    let scaling = InputScaling::from_ranges(lo, hi);
+    let t = Drls::<{ presets::L }>::new(presets::TIME_TEMP_DRLS).expect("valid");
+    let from = 2;
+    let mut id = presets::level_bank_with::<_, 512, { presets::L }>(
+        scaling,
+        t,
+        fog_core::denoise::DenoiseConfig::PAPER,
+        0.01,
+        from,
+    )
+    .expect("valid");
+    let r = 0.01 / BANK_MEMORIES_S[from];
+    let mut kf = RandomWalkKalman::new(r * r, 1.0);
+    let x = ecore_like(500, 3);
+    for (k, &v) in x.iter().enumerate() {
+        let y = id.push_with_temp(v, 25.0).expect("finite").drift_dps;
+        if k >= BANK_DELAY {
+            let want = kf.push(x[k - BANK_DELAY]);
+            assert!((y - want).abs() < 2e-5, "sample {k}: {y} vs {want}");
+        }
+    }
+}

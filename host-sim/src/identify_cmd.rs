@@ -41,6 +41,22 @@ pub struct IdentifierArgs {
     /// network's linear part), or a q/r value per sample for that filter.
     #[arg(long, value_parser = parse_level)]
     pub level: Option<LevelInput>,
+    /// time-temp preset: memory of the per-power-on bias neuron, s.
+    #[arg(long)]
+    pub bias_memory_s: Option<f32>,
+    /// time-temp preset: `U(0)` of the per-power-on warm-up neuron.
+    #[arg(long)]
+    pub warmup_u0: Option<f32>,
+    /// level-bank preset: the level the network starts as (0..=5: memory 3, 10, 30, 100,
+    /// 300, 1000 s).
+    #[arg(long)]
+    pub bank_from: Option<usize>,
+    /// level-bank preset: train the neurons on T, temperature and its rate (default true).
+    #[arg(long)]
+    pub known_inputs: Option<bool>,
+    /// level-bank preset: output from undelayed levels, training inputs delayed.
+    #[arg(long)]
+    pub undelayed_output: bool,
 }
 
 fn parse_level(s: &str) -> Result<LevelInput, String> {
@@ -81,7 +97,22 @@ pub fn options(a: &IdentifierArgs) -> Options {
     let mut o = match a.preset {
         Preset::Paper => Options::paper(),
         Preset::LevelTrend => Options::level_trend(),
+        Preset::TimeTemp => Options::time_temp(),
+        Preset::LevelBank => Options::level_bank(),
     };
+    o.undelayed_output = a.undelayed_output;
+    if let Some(k) = a.known_inputs {
+        o.known_inputs = k;
+    }
+    if let Some(b) = a.bank_from {
+        o.bank_from = b.min(fog_core::features::BANK_MEMORIES_S.len() - 1);
+    }
+    if let Some(m) = a.bias_memory_s {
+        o.bias_memory_s = m;
+    }
+    if let Some(u) = a.warmup_u0 {
+        o.warmup_u0 = u;
+    }
     if let Some(t) = a.trainer {
         o.trainer = t;
     }

@@ -1,6 +1,7 @@
 //! `host-sim identify` and `reproduce` end to end.
 
 use assert_cmd::Command;
+use predicates::prelude::PredicateBooleanExt;
 use std::fs;
 use std::path::Path;
 
@@ -175,4 +176,55 @@ fn reproduce_runs_a_small_set() {
         .arg(&out)
         .assert()
         .failure();
+}
+
+/// The temperature-aware presets and baselines: simulated CSVs carry `temp_c`; the
+/// level-bank identifier reports the temperature-aware baselines and the drift
+/// decomposition; time-temp refuses records without a temperature column, naming the file.
+#[test]
+fn temperature_inputs_and_baselines() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (tr, va) = (dir.path().join("train"), dir.path().join("val"));
+    fs::create_dir_all(&tr).expect("mkdir");
+    fs::create_dir_all(&va).expect("mkdir");
+    for s in 1..=2 {
+        simulate(&tr, s, 120);
+    }
+    simulate(&va, 9, 120);
+    let out = dir.path().join("lb.json");
+    host_sim()
+        .args(["identify", "--preset", "level-bank", "--train"])
+        .arg(&tr)
+        .arg("--validate")
+        .arg(&va)
+        .arg("--json")
+        .arg(&out)
+        .assert()
+        .success();
+    let r = json(&out);
+    assert!(r["e_truth"].as_f64().expect("finite").is_finite());
+    let names: Vec<&str> = r["baselines"]
+        .as_array()
+        .expect("list")
+        .iter()
+        .filter_map(|b| b["name"].as_str())
+        .collect();
+    assert!(names.contains(&"kalman_on_rate_minus_temperature_regression"));
+    assert!(names.contains(&"kalman_on_rate_minus_batch_ls_of_network_basis"));
+    let dec = &r["drift_decomposition"];
+    assert_eq!(dec["explained"].as_array().expect("list").len(), 3);
+    assert!(dec["rms_time_varying_dph"].as_f64().expect("number") > 0.0);
+    // A CSV without temp_c: time-temp refuses it and names the file.
+    let bare = dir.path().join("bare.csv");
+    fs::write(&bare, "t_s,rate_dps\n0,0.001\n0.01,0.002\n").expect("write");
+    host_sim()
+        .args(["identify", "--preset", "time-temp", "--train"])
+        .arg(&bare)
+        .arg("--validate")
+        .arg(&bare)
+        .arg("--json")
+        .arg(dir.path().join("tt.json"))
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("bare.csv").and(predicates::str::contains("temp_c")));
 }

@@ -850,6 +850,7 @@ fn series(name: &str, t: &[f64], y: &[f64]) -> Series {
         t_s: t.to_vec(),
         rate_dps: y.iter().map(|&v| v as f32).collect(),
         drift_dps: None,
+        temp_c: None,
     }
 }
 

@@ -23,12 +23,13 @@
 pub mod metrics;
 pub mod repro;
 pub mod series;
+pub mod thermal;
 
 use crate::denoise_cmd;
 use anyhow::{anyhow, bail, Result};
 use fog_core::baseline::RandomWalkKalman;
 use fog_core::denoise::DenoiseConfig;
-use fog_core::features::{FeatureMap, LevelTrendTime, RateTime};
+use fog_core::features::{FeatureMap, LevelBank, LevelTrendTime, RateTime, TimeTemp};
 use fog_core::identify::{presets, Identifier};
 use fog_core::train::{Drls, DrlsConfig, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer};
 use fog_core::wnn::{Activation, InputScaling};
@@ -46,6 +47,12 @@ pub enum Preset {
     Paper,
     /// Inputs 10-s level, trend, T; bias + linear link + Gaussians.
     LevelTrend,
+    /// Inputs T, temperature, temperature rate (known inputs, none from the gyro): a
+    /// per-power-on bias and warm-up neuron, shared links and Gaussians (needs `temp_c`).
+    TimeTemp,
+    /// Levels of the rate at 3..1000 s (as differences) and T, temperature, its rate: a
+    /// learned mixture of causal filters plus what known inputs predict.
+    LevelBank,
 }
 
 /// Output-weight trainer.
@@ -97,6 +104,18 @@ pub struct Options {
     pub scale_from_training: bool,
     /// Level input of the level-trend preset.
     pub level: LevelInput,
+    /// time-temp preset: memory of the per-power-on bias neuron, s.
+    pub bias_memory_s: f32,
+    /// time-temp preset: `U(0)` of the per-power-on warm-up neuron.
+    pub warmup_u0: f32,
+    /// level-bank preset: index of the level (memory 3, 10, 30, 100, 300, 1000 s) the
+    /// network starts as.
+    pub bank_from: usize,
+    /// level-bank preset: train the neurons on T, temperature and its rate (false: they
+    /// stay at 0, the network is a learned mixture of levels only).
+    pub known_inputs: bool,
+    /// level-bank preset: output from undelayed levels (training inputs stay delayed).
+    pub undelayed_output: bool,
 }
 
 /// Where the level-trend preset's level input comes from.
@@ -130,6 +149,31 @@ impl Options {
             activation: Act::MexicanHat,
             scale_from_training: true,
             level: LevelInput::Mean10s,
+            bias_memory_s: presets::TT_BIAS_MEMORY_S,
+            warmup_u0: presets::TT_WARMUP_U0,
+            bank_from: 2,
+            known_inputs: true,
+            undelayed_output: false,
+        }
+    }
+
+    /// The drift model on known inputs (T, temperature, its rate).
+    pub fn time_temp() -> Self {
+        Self {
+            preset: Preset::TimeTemp,
+            lambda: presets::TIME_TEMP_DRLS.lambda,
+            u0: presets::TIME_TEMP_DRLS.u0,
+            ..Self::level_trend()
+        }
+    }
+
+    /// The multi-scale configuration (levels at 3..1000 s, T, temperature, its rate).
+    pub fn level_bank() -> Self {
+        Self {
+            preset: Preset::LevelBank,
+            lambda: 1.0,
+            u0: 1.0e-4,
+            ..Self::level_trend()
         }
     }
 
@@ -147,6 +191,11 @@ impl Options {
             activation: Act::Gaussian,
             scale_from_training: true,
             level: LevelInput::Mean10s,
+            bias_memory_s: presets::TT_BIAS_MEMORY_S,
+            warmup_u0: presets::TT_WARMUP_U0,
+            bank_from: 2,
+            known_inputs: true,
+            undelayed_output: false,
         }
     }
 }
@@ -201,6 +250,14 @@ pub struct Report {
     pub scored_samples: u64,
     /// Validation samples at which the identifier's output was first not finite, if ever.
     pub diverged_at_sample: Option<u64>,
+    /// The output weights at the end of the validation records (network units).
+    pub final_weights: Vec<f32>,
+    /// Records with a temperature channel: the share of the drift explained by known
+    /// inputs (batch least squares, against the truth; simulated records only).
+    pub drift_decomposition: Option<thermal::DriftDecomposition>,
+    /// Records with a temperature channel: the regressions of the rate on known inputs
+    /// behind the temperature-aware baselines.
+    pub temperature_regressions: Vec<thermal::RateRegression>,
     /// Definitions of the figures, in words.
     pub definitions: &'static str,
 }
@@ -250,6 +307,14 @@ fn denoised(s: &Series, block: usize, levels: u32) -> Result<Vec<f32>> {
         .map_err(|(i, e)| anyhow!("{}: sample {i}: {e}", s.name))
 }
 
+/// The sample's temperature, deg C, or NaN when the record has none.
+fn temp_at(s: &Series, k: usize) -> f32 {
+    s.temp_c
+        .as_ref()
+        .and_then(|t| t.get(k).copied())
+        .unwrap_or(f32::NAN)
+}
+
 /// 1st/99th percentile scaling of the feature map's outputs over the training records.
 fn training_scaling<F: FeatureMap<N>, const N: usize>(
     train: &dyn Records,
@@ -261,7 +326,7 @@ fn training_scaling<F: FeatureMap<N>, const N: usize>(
         let dt = s.sample_period_s() as f32;
         let mut f = make(dt);
         for (k, &x) in s.rate_dps.iter().enumerate() {
-            let v = f.next(x, k as f32 * dt);
+            let v = f.next_with_temp(x, k as f32 * dt, temp_at(&s, k));
             if k % 10 == 0 {
                 for j in 0..N {
                     vals[j].push(v[j]);
@@ -296,6 +361,7 @@ fn run_generic<F, T, const N: usize, const L: usize, const B: usize>(
         InputScaling<N>,
         f32,
     ) -> Result<Identifier<F, T, N, L, B>, fog_core::identify::IdentifyError>,
+    power_on: &dyn Fn(&mut Identifier<F, T, N, L, B>, f32),
 ) -> Result<Report>
 where
     F: FeatureMap<N>,
@@ -321,10 +387,13 @@ where
         let dt = s.sample_period_s() as f32;
         id.restart(make_features(dt), dt)
             .map_err(|e| anyhow!("{}: {e}", s.name))?;
+        power_on(&mut id, dt);
         let t0 = Instant::now();
         let mut train_err = Vec::with_capacity(s.rate_dps.len());
-        for &x in &s.rate_dps {
-            let e = id.push(x).map_err(|e| anyhow!("{}: {e}", s.name))?;
+        for (k, &x) in s.rate_dps.iter().enumerate() {
+            let e = id
+                .push_with_temp(x, temp_at(&s, k))
+                .map_err(|e| anyhow!("{}: {e}", s.name))?;
             train_err.push(e.train_error_dps);
         }
         busy_s += t0.elapsed().as_secs_f64();
@@ -377,6 +446,7 @@ where
     };
     let best_ma_s = MA_WINDOWS_S[argmin(&ma_sq)];
     let best_q = tune_kalman(train, B, opts.levels)?;
+    let temp = TempBaselines::new(train, validate, B, opts.levels)?;
 
     // Validation.
     let mut acc_id = ErrorAcc::default();
@@ -384,6 +454,7 @@ where
     let mut acc_ma_best = ErrorAcc::default();
     let mut acc_kf = ErrorAcc::default();
     let mut acc_lag = ErrorAcc::default();
+    let mut acc_temp = vec![ErrorAcc::default(); temp.as_ref().map_or(0, |t| t.regs.len())];
     let mut diverged_at = None;
     let mut scored = 0u64;
     let mut val_index = 0u64;
@@ -392,16 +463,18 @@ where
         let dt = s.sample_period_s() as f32;
         id.restart(make_features(dt), dt)
             .map_err(|e| anyhow!("{}: {e}", s.name))?;
+        power_on(&mut id, dt);
         let d = denoised(&s, B, opts.levels)?;
+        let temp_ys = temp.as_ref().map(|t| t.track(&s)).transpose()?;
         let mut ma10 = MovingAverage::new((10.0 / f64::from(dt)).round() as usize);
         let mut ma_best = MovingAverage::new((best_ma_s / f64::from(dt)).round() as usize);
         let mut kf = RandomWalkKalman::new(best_q as f32, 1.0);
         let mut lag = MovingAverage::new(B);
         let t0 = Instant::now();
         let mut ys = Vec::with_capacity(s.rate_dps.len());
-        for &x in &s.rate_dps {
+        for (k, &x) in s.rate_dps.iter().enumerate() {
             ys.push(
-                id.push(x)
+                id.push_with_temp(x, temp_at(&s, k))
                     .map_err(|e| anyhow!("{}: {e}", s.name))?
                     .drift_dps,
             );
@@ -432,11 +505,50 @@ where
             acc_ma_best.add(yb, dk, truth);
             acc_kf.add(yk, dk, truth);
             acc_lag.add(ylag, dk, truth);
+            if let Some(tys) = &temp_ys {
+                for (acc, y) in acc_temp.iter_mut().zip(tys) {
+                    acc.add(y[k], dk, truth);
+                }
+            }
             scored += 1;
         }
         val_index += s.rate_dps.len() as u64;
     }
     let fig = acc_id.figures();
+    let mut baselines = vec![
+        Baseline {
+            name: "moving_average_10s",
+            parameter: 10.0,
+            figures: acc_ma10.figures(),
+        },
+        Baseline {
+            name: "moving_average_best_window_s",
+            parameter: best_ma_s,
+            figures: acc_ma_best.figures(),
+        },
+        Baseline {
+            name: "kalman_random_walk_q_over_r",
+            parameter: best_q,
+            figures: acc_kf.figures(),
+        },
+        Baseline {
+            name: "moving_average_of_target_lagged_one_block",
+            parameter: B as f64,
+            figures: acc_lag.figures(),
+        },
+    ];
+    let (mut decomposition, mut regressions) = (None, Vec::new());
+    if let Some(t) = temp {
+        for ((reg, q), acc) in t.regs.iter().zip(&t.q).zip(&acc_temp) {
+            baselines.push(Baseline {
+                name: reg.0,
+                parameter: *q,
+                figures: acc.figures(),
+            });
+        }
+        regressions = t.regs.into_iter().map(|r| r.1).collect();
+        decomposition = t.decomposition;
+    }
     Ok(Report {
         config: opts.clone(),
         e_rel: fig.e_rel,
@@ -445,28 +557,7 @@ where
         e_truth: fig.e_truth,
         rms_err_truth_dph: fig.rms_err_truth_dph,
         identifier: fig,
-        baselines: vec![
-            Baseline {
-                name: "moving_average_10s",
-                parameter: 10.0,
-                figures: acc_ma10.figures(),
-            },
-            Baseline {
-                name: "moving_average_best_window_s",
-                parameter: best_ma_s,
-                figures: acc_ma_best.figures(),
-            },
-            Baseline {
-                name: "kalman_random_walk_q_over_r",
-                parameter: best_q,
-                figures: acc_kf.figures(),
-            },
-            Baseline {
-                name: "moving_average_of_target_lagged_one_block",
-                parameter: B as f64,
-                figures: acc_lag.figures(),
-            },
-        ],
+        baselines,
         samples_per_s: pushed as f64 / busy_s.max(1e-9),
         samples_to_goal: goal_at,
         samples_to_goal_abs: goal_abs_at,
@@ -476,8 +567,118 @@ where
         validate_records: validate.len(),
         scored_samples: scored,
         diverged_at_sample: diverged_at,
+        final_weights: id.weights().to_vec(),
+        drift_decomposition: decomposition,
+        temperature_regressions: regressions,
         definitions: DEFINITIONS,
     })
+}
+
+/// The temperature-aware baselines and the drift decomposition (records with `temp_c`).
+struct TempBaselines {
+    scaling: InputScaling<3>,
+    shape: fog_core::wnn::WnnShape<3, { presets::L }>,
+    /// (baseline name, regression); basis `i` of [`TempBaselines::basis`] for entry `i`.
+    regs: Vec<(&'static str, thermal::RateRegression)>,
+    /// Tuned q/r of each regression's Kalman filter.
+    q: Vec<f64>,
+    decomposition: Option<thermal::DriftDecomposition>,
+}
+
+/// Bases of known inputs: 0 = linear temperature and rate; 1 = the time-temp network's
+/// neurons (all but the bias); 2 = its neurons on `T` alone.
+const BASIS_NAMES: [&str; 3] = [
+    "linear in temp_c and dtemp_c_per_s",
+    "time-temp network neurons (T, temp_c, dtemp_c_per_s; no bias)",
+    "time-temp network neurons on T alone (warm-up shape)",
+];
+
+impl TempBaselines {
+    fn new(
+        train: &dyn Records,
+        validate: &dyn Records,
+        block: usize,
+        levels: u32,
+    ) -> Result<Option<Self>> {
+        if train.get(0)?.temp_c.is_none() || validate.get(0)?.temp_c.is_none() {
+            return Ok(None);
+        }
+        let scaling = training_scaling::<TimeTemp, 3>(train, &|dt| TimeTemp::new(1.0 / dt))?;
+        let shape = presets::time_temp_shape::<{ presets::L }>().map_err(|e| anyhow!("{e}"))?;
+        let mut me = Self {
+            scaling,
+            shape,
+            regs: Vec::new(),
+            q: Vec::new(),
+            decomposition: None,
+        };
+        let reference = |s: &Series| -> Result<Vec<f64>> {
+            Ok(denoised(s, block, levels)?
+                .iter()
+                .map(|&v| f64::from(v))
+                .collect())
+        };
+        for (i, name) in [
+            "kalman_on_rate_minus_temperature_regression",
+            "kalman_on_rate_minus_batch_ls_of_network_basis",
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let basis = |x: &[f32; 3]| me.basis(i, x);
+            let reg = thermal::fit_rate(train, BASIS_NAMES[i], &basis)?;
+            let q = thermal::tune_q(
+                train,
+                TUNE_RECORDS,
+                &KALMAN_Q_OVER_R,
+                &reg,
+                &basis,
+                2 * block,
+                &reference,
+            )?;
+            me.regs.push((name, reg));
+            me.q.push(q);
+        }
+        if train.get(0)?.drift_dps.is_some() && validate.get(0)?.drift_dps.is_some() {
+            let b0 = |x: &[f32; 3]| me.basis(0, x);
+            let b2 = |x: &[f32; 3]| me.basis(2, x);
+            let b1 = |x: &[f32; 3]| me.basis(1, x);
+            me.decomposition = Some(thermal::decompose(
+                train,
+                validate,
+                &[
+                    (BASIS_NAMES[0], &b0),
+                    (BASIS_NAMES[2], &b2),
+                    (BASIS_NAMES[1], &b1),
+                ],
+            )?);
+        }
+        Ok(Some(me))
+    }
+
+    /// Regressors of basis `which` (see [`BASIS_NAMES`]) for raw known inputs `x`.
+    fn basis(&self, which: usize, x: &[f32; 3]) -> Vec<f64> {
+        if which == 0 {
+            return vec![f64::from(x[1]), f64::from(x[2])];
+        }
+        let mut h = [0.0f32; presets::L];
+        self.shape.hidden(&self.scaling.apply(x), &mut h);
+        h.iter()
+            .enumerate()
+            .filter(|(l, _)| *l != presets::TT_BIAS && (which == 1 || self.shape.a[*l][0] != 0.0))
+            .map(|(_, &v)| f64::from(v))
+            .collect()
+    }
+
+    /// Each baseline's estimates for record `s`.
+    fn track(&self, s: &Series) -> Result<Vec<Vec<f64>>> {
+        self.regs
+            .iter()
+            .zip(&self.q)
+            .enumerate()
+            .map(|(i, ((_, reg), q))| reg.track(&|x: &[f32; 3]| self.basis(i, x), s, *q))
+            .collect()
+    }
 }
 
 /// The guard's ceiling on every DRLS `U_a`: 1, the largest `U(0)` of the presets (the
@@ -545,6 +746,15 @@ fn with_trainer<const L: usize, const B: usize>(
                             t.set_neuron(0, 0.9999, 1.0);
                         }
                     }
+                    if o.preset == Preset::LevelBank {
+                        // The 1000-s level's link stays the identity.
+                        t.set_neuron(presets::LB_LEVEL, 1.0, FROZEN_U);
+                        if !o.known_inputs {
+                            for a in presets::LB_KNOWN..L {
+                                t.set_neuron(a, 1.0, FROZEN_U);
+                            }
+                        }
+                    }
                     run_generic::<_, _, _, L, B>(
                         o,
                         train,
@@ -552,6 +762,19 @@ fn with_trainer<const L: usize, const B: usize>(
                         $default,
                         &$features,
                         &|s, dt| $mk(s, t.clone(), dt),
+                        &|id, dt| {
+                            if o.preset == Preset::TimeTemp {
+                                let mut w = *id.weights();
+                                presets::time_temp_power_on(
+                                    &mut w,
+                                    id.trainer_mut(),
+                                    dt,
+                                    o.bias_memory_s,
+                                    o.warmup_u0,
+                                );
+                                id.set_weights(w);
+                            }
+                        },
                     )
                 }
                 TrainerKind::Rls => {
@@ -563,6 +786,7 @@ fn with_trainer<const L: usize, const B: usize>(
                         $default,
                         &$features,
                         &|s, dt| $mk(s, t.clone(), dt),
+                        &|_, _| {},
                     )
                 }
                 TrainerKind::Nlms => {
@@ -574,6 +798,7 @@ fn with_trainer<const L: usize, const B: usize>(
                         $default,
                         &$features,
                         &|s, dt| $mk(s, t.clone(), dt),
+                        &|_, _| {},
                     )
                 }
             }
@@ -591,6 +816,28 @@ fn with_trainer<const L: usize, const B: usize>(
             presets::LEVEL_TREND_SCALING,
             |s, t, dt| presets::level_trend_with::<_, B, L>(s, t, den, dt)
         ),
+        Preset::LevelBank => go!(
+            |dt: f32| if o.undelayed_output {
+                LevelBank::new(1.0 / dt).undelayed_output()
+            } else {
+                LevelBank::new(1.0 / dt)
+            },
+            InputScaling::IDENTITY,
+            |s, t, dt| presets::level_bank_with::<_, B, L>(s, t, den, dt, o.bank_from)
+        ),
+        Preset::TimeTemp => {
+            if train.get(0)?.temp_c.is_none() {
+                bail!(
+                    "{}: preset time-temp needs a temp_c column",
+                    train.get(0)?.name
+                );
+            }
+            go!(
+                |dt: f32| TimeTemp::new(1.0 / dt),
+                presets::TIME_TEMP_SCALING,
+                |s, t, dt| presets::time_temp_with::<_, B, L>(s, t, den, dt)
+            )
+        }
     }
 }
 

@@ -118,6 +118,7 @@ impl Records for SimRecords {
             t_s: Vec::with_capacity(n),
             rate_dps: Vec::with_capacity(n),
             drift_dps: Some(Vec::with_capacity(n)),
+            temp_c: Some(Vec::with_capacity(n)),
         };
         for _ in 0..n {
             let x = sim.next_sample();
@@ -125,6 +126,9 @@ impl Records for SimRecords {
             s.rate_dps.push(x.rate_dps as f32);
             if let Some(d) = s.drift_dps.as_mut() {
                 d.push(x.drift_dps as f32);
+            }
+            if let Some(c) = s.temp_c.as_mut() {
+                c.push(x.temp_c as f32);
             }
         }
         Ok(s)

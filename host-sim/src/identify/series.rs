@@ -15,6 +15,8 @@ pub struct Series {
     pub rate_dps: Vec<f32>,
     /// True drift, deg/s, when the record carries it.
     pub drift_dps: Option<Vec<f32>>,
+    /// Sensor temperature, deg C, when the record carries it (column `temp_c`, optional).
+    pub temp_c: Option<Vec<f32>>,
 }
 
 impl Series {
@@ -31,7 +33,7 @@ impl Series {
         }
     }
 
-    /// Reads an interchange CSV (`t_s`, `rate_dps`, optional `drift_dps`), with the same
+    /// Reads an interchange CSV (`t_s`, `rate_dps`, optional `drift_dps` and `temp_c`), with the same
     /// checks and messages as every host-sim reader.
     pub fn read_csv(path: &Path) -> Result<Self> {
         Self::read_csv_column(path, "rate_dps")
@@ -54,11 +56,13 @@ impl Series {
             bail!("{name}:1: needs columns `t_s` and `{rate_column}`");
         };
         let dc = col("drift_dps");
+        let tc_c = col("temp_c");
         let mut s = Series {
             name: name.clone(),
             t_s: Vec::new(),
             rate_dps: Vec::new(),
             drift_dps: dc.map(|_| Vec::new()),
+            temp_c: tc_c.map(|_| Vec::new()),
         };
         for rec in rdr.records() {
             let rec = rec.map_err(|e| {
@@ -74,6 +78,9 @@ impl Series {
                 .push(parse_field(&rec, rc, "rate_dps", path, line)?);
             if let (Some(c), Some(v)) = (dc, s.drift_dps.as_mut()) {
                 v.push(parse_field(&rec, c, "drift_dps", path, line)?);
+            }
+            if let (Some(c), Some(v)) = (tc_c, s.temp_c.as_mut()) {
+                v.push(parse_field(&rec, c, "temp_c", path, line)?);
             }
         }
         if s.t_s.is_empty() {
