@@ -376,17 +376,22 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
         ) else {
             return;
         };
+        // An empty run has no neuron to evaluate (and no `br[0]`): nothing to do.
+        let Some(&b_first) = br.first() else {
+            return;
+        };
         let xj = x.get(usize::from(run.input)).copied().unwrap_or(0.0);
         let p = run.a * xj;
         // The neuron nearest the input (NaN and below the run: 0; above: the last).
-        let v = (p - br[0]) * run.inv_step + 0.5;
+        let v = (p - b_first) * run.inv_step + 0.5;
         let near = if v > 0.0 {
             (v as usize).min(count - 1)
         } else {
             0
         };
         // Its t exactly as eq. (5) computes it, so the anchor is the direct value.
-        let tn = p - br[near];
+        // `near <= count - 1 = br.len() - 1`: `get` always finds it (no panic path).
+        let tn = p - br.get(near).copied().unwrap_or(b_first);
         let t2 = tn * tn;
         #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must take this branch
         let beyond = !(t2 < T_CUTOFF * T_CUTOFF);
@@ -405,8 +410,14 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
         // gets exp(-84.5) instead of 0).
         let reach_up = ((tn + T_CUTOFF) * run.inv_step) as usize;
         let reach_down = ((T_CUTOFF - tn) * run.inv_step) as usize;
-        let (below, from_near) = hr.split_at_mut(near);
-        let (at, above) = from_near.split_at_mut(1);
+        // `_checked`: near < hr.len() always (near <= count - 1), so these never return; they
+        // keep the panic path out of the firmware.
+        let Some((below, from_near)) = hr.split_at_mut_checked(near) else {
+            return;
+        };
+        let Some((at, above)) = from_near.split_at_mut_checked(1) else {
+            return;
+        };
         if let Some(a) = at.first_mut() {
             *a = g;
         }

@@ -36,16 +36,16 @@ const REMAINING: &[(&str, &str)] = &[
         "as forward_level: indices bounded by the lengths db4::check validated",
     ),
     (
+        "fog_core::db4::inverse_interior_fused",
+        "the inverse's fused lifting sweep (one-at-a-time form kept on the Cortex-M4F): \
+         indices i - 5 .. i for lo..hi, with lo >= 5 and hi <= the extended lengths that \
+         db4::check validated; the compiler cannot prove the offsets in range",
+    ),
+    (
         "fog_core::threshold::median",
         "select_nth_unstable(mid) with mid = len / 2 < len on a non-empty block (callers \
          pass B/2^j >= 2 values); core's median-of-medians selection keeps its own internal \
          bounds checks",
-    ),
-    (
-        "fog_core::denoise::denoise_in_place",
-        "db4::forward_level's `x[..16]` (copy of the first 16 samples) inlined here, the \
-         debug info naming only the outer function: every level has >= 16 samples, as \
-         db4::check validated at construction",
     ),
 ];
 
