@@ -368,6 +368,8 @@ mod tests {
             n.add_record(&rows, &y);
         }
         let w = n.solve().expect("regular");
-        assert!((w[0] - 2.0).abs() < 1e-9, "{w:?}");
+        // The solver adds a ridge of 1e-9 x the mean diagonal, which shrinks the slope by
+        // about 1e-9 relative: the tolerance allows ten times that, no more.
+        assert!((w[0] - 2.0).abs() < 2e-8, "{w:?}");
     }
 }
