@@ -83,9 +83,13 @@ fuzz_target!(|data: &[u8]| {
         (Ok(_), Err(e)) => panic!("Series read what Record refused: {e:#}"),
         (Err(e), Ok(r)) => {
             check_error(e);
+            // Series (identify) also parses the optional numeric columns that Record
+            // (denoise) passes through unchanged: drift_dps and temp_c.
             assert!(
-                r.header.iter().any(|h| h.trim() == "drift_dps"),
-                "Series refused what Record read, without a drift_dps column: {e:#}"
+                r.header
+                    .iter()
+                    .any(|h| matches!(h.trim(), "drift_dps" | "temp_c")),
+                "Series refused what Record read, without a drift_dps or temp_c column: {e:#}"
             );
         }
         (Err(e), Err(_)) => check_error(e),
