@@ -129,6 +129,26 @@ fn peak_and_mean(x: &[f32]) -> Result<(f32, f32), DenoiseError> {
     Ok((peak, ((a + b) + (c + d)) + ((e + f) + (g + h))))
 }
 
+/// Whether `cfg` fits blocks of `len` samples with `scratch_len` of scratch: the checks
+/// [`denoise_in_place`] makes on every call, for owners of a block buffer (such as
+/// [`BlockDenoiser`] and the identifier) to make once, at construction.
+pub fn check_config(
+    len: usize,
+    scratch_len: usize,
+    cfg: &DenoiseConfig,
+) -> Result<(), DenoiseError> {
+    db4::check(len, scratch_len, cfg.levels)?;
+    if cfg.levels > MAX_LEVELS {
+        return Err(TransformError::BadLevels.into());
+    }
+    if let Sigma::Fixed(s) = cfg.sigma {
+        if !(s.is_finite() && s >= 0.0) {
+            return Err(DenoiseError::BadSigma);
+        }
+    }
+    Ok(())
+}
+
 /// Denoises `x` in place: forward db4 transform, shrink every detail coefficient, inverse.
 ///
 /// `scratch` must be at least `x.len()` long. The approximation coefficients are kept as
@@ -144,15 +164,7 @@ pub fn denoise_in_place(
     scratch: &mut [f32],
     cfg: &DenoiseConfig,
 ) -> Result<Thresholds, DenoiseError> {
-    db4::check(x.len(), scratch.len(), cfg.levels)?;
-    if cfg.levels > MAX_LEVELS {
-        return Err(TransformError::BadLevels.into());
-    }
-    if let Sigma::Fixed(s) = cfg.sigma {
-        if !(s.is_finite() && s >= 0.0) {
-            return Err(DenoiseError::BadSigma);
-        }
-    }
+    check_config(x.len(), scratch.len(), cfg)?;
     let n = x.len();
     let (peak, mean) = peak_and_mean(x)?;
     db4::forward_offset(x, scratch, cfg.levels, mean)?;
@@ -234,12 +246,7 @@ impl<const N: usize> BlockDenoiser<N> {
     /// A denoiser for blocks of `N` samples. Fails if `cfg` does not fit `N`.
     pub fn new(cfg: DenoiseConfig) -> Result<Self, DenoiseError> {
         let () = Self::SIZE_OK;
-        db4::check(N, N, cfg.levels)?;
-        if let Sigma::Fixed(s) = cfg.sigma {
-            if !(s.is_finite() && s >= 0.0) {
-                return Err(DenoiseError::BadSigma);
-            }
-        }
+        check_config(N, N, &cfg)?;
         Ok(Self {
             cfg,
             block: [0.0; N],

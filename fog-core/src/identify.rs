@@ -18,7 +18,7 @@
 //! trained on it and then stored in its place (the same as
 //! [`crate::denoise::BlockDenoiser`] plus a copy of each denoised block, without the copy).
 
-use crate::denoise::{denoise_in_place, DenoiseConfig, DenoiseError};
+use crate::denoise::{check_config, denoise_in_place, DenoiseConfig, DenoiseError};
 use crate::features::FeatureMap;
 use crate::train::Trainer;
 use crate::wnn::{dot, InputScaling, WnnShape};
@@ -122,16 +122,8 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
         if !(sample_period_s > 0.0 && sample_period_s.is_finite()) {
             return Err(IdentifyError::BadSamplePeriod);
         }
-        // The checks of `BlockDenoiser::new`: length, levels and sigma against `B`.
-        crate::db4::check(B, B, denoise.levels).map_err(DenoiseError::from)?;
-        if denoise.levels > crate::denoise::MAX_LEVELS {
-            return Err(DenoiseError::Transform(crate::db4::TransformError::BadLevels).into());
-        }
-        if let crate::threshold::Sigma::Fixed(v) = denoise.sigma {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(DenoiseError::BadSigma.into());
-            }
-        }
+        // The configuration against `B`, once (as `BlockDenoiser::new` does).
+        check_config(B, B, &denoise)?;
         Ok(Self {
             features,
             scaling,
