@@ -21,7 +21,7 @@
 use crate::denoise::{check_config, denoise_in_place, DenoiseConfig, DenoiseError};
 use crate::features::FeatureMap;
 use crate::train::Trainer;
-use crate::wnn::{dot, InputScaling, WnnShape};
+use crate::wnn::{dot, HiddenCache, InputScaling, WnnShape};
 
 /// Why an identifier could not be built or a sample was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -101,7 +101,12 @@ pub struct Identifier<F, T, const N: usize, const L: usize, const B: usize> {
     block: [f32; B],
     scratch: [f32; B],
     ring: [[f32; N]; B],
+    /// Hidden values of the output and of the training step, each kept for the next
+    /// sample (runs whose input did not change are not evaluated again).
+    out_h: HiddenCache<L>,
+    train_h: HiddenCache<L>,
     have_targets: bool,
+    block_time: bool,
     sample_period_s: f32,
     stats: IdentifierStats,
 }
@@ -134,10 +139,29 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
             block: [0.0; B],
             scratch: [0.0; B],
             ring: [[0.0; N]; B],
+            out_h: HiddenCache::new(),
+            train_h: HiddenCache::new(),
             have_targets: false,
+            block_time: false,
             sample_period_s,
             stats: IdentifierStats::default(),
         })
+    }
+
+    /// The time handed to the feature map becomes that of the first sample of the current
+    /// denoising block, `(k - k mod B) dt`, instead of `k dt`: the time input steps by
+    /// `B dt` (5.12 s for `B` = 512 at 100 Hz) and is the same for the `B` samples of a
+    /// block, both when the output is computed and when those samples are trained on.
+    ///
+    /// Why: a network whose neurons along `T` are far wider than a block (the level-trend
+    /// network's are 138 s apart over 1800 s) barely changes within a block, and with a
+    /// held `T` its Gaussians along `T` are evaluated once per block instead of twice per
+    /// sample ([`HiddenCache`]). It is a change of the model's input (a step function of
+    /// time), not an approximation of the evaluation: the output and the training see the
+    /// same held value. Effect on the identification error: `docs/identify.md`.
+    pub fn with_block_time(mut self) -> Self {
+        self.block_time = true;
+        self
     }
 
     /// Processes one sample (see the module docs). A refused sample (non-finite, or above
@@ -164,19 +188,18 @@ impl<F: FeatureMap<N>, T: Trainer<L>, const N: usize, const L: usize, const B: u
             .into());
         }
         let k = self.stats.samples;
-        let t_s = k as f32 * self.sample_period_s;
+        let slot = k as usize % B;
+        let t_index = if self.block_time { k - slot as u32 } else { k };
+        let t_s = t_index as f32 * self.sample_period_s;
         let x = self
             .scaling
             .apply(&self.features.next_with_temp(rate_dps, t_s, temp_c));
-        let mut h = [0.0f32; L];
-        self.shape.hidden(&x, &mut h);
-        let y = dot(&self.w, &h);
+        let y = dot(&self.w, self.out_h.eval(&self.shape, &x));
 
-        let slot = k as usize % B;
         let mut train_error_dps = f32::NAN;
         if self.have_targets {
-            self.shape.hidden(&self.ring[slot], &mut h);
-            train_error_dps = self.trainer.step(&mut self.w, &h, self.block[slot]);
+            let h = self.train_h.eval(&self.shape, &self.ring[slot]);
+            train_error_dps = self.trainer.step(&mut self.w, h, self.block[slot]);
             self.stats.trained = self.stats.trained.wrapping_add(1);
         }
         self.ring[slot] = match self.features.train_inputs() {
@@ -278,8 +301,9 @@ pub mod presets {
     pub type Paper<const B: usize, const NL: usize = L> =
         super::Identifier<RateTime, Drls<NL>, 2, NL, B>;
 
-    /// The improved identifier: inputs `[level, trend, T]`, bias + linear link + Gaussians,
-    /// sequential guarded DRLS.
+    /// The improved identifier: inputs `[level, trend, T]` (`T` held per denoising block,
+    /// [`super::Identifier::with_block_time`]), bias + linear link + Gaussians, sequential
+    /// guarded DRLS.
     pub type LevelTrend<const B: usize, const NL: usize = L> =
         super::Identifier<LevelTrendTime, Drls<NL>, 3, NL, B>;
 
@@ -432,6 +456,7 @@ pub mod presets {
         let w0 = level_identity_weights::<NL>(&scaling);
         let f = LevelTrendTime::new(1.0 / sample_period_s);
         super::Identifier::new(f, scaling, shape, w0, trainer, denoise, sample_period_s)
+            .map(super::Identifier::with_block_time)
     }
 
     /// The drift model on known inputs: inputs `[T, temp_c, dtemp_c_per_s]`

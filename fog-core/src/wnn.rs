@@ -304,14 +304,26 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
     /// [`WnnShape::evaluation`] says.
     #[inline]
     pub fn hidden(&self, x: &[f32; N], h: &mut [f32; L]) {
+        self.hidden_memo(x, h, &mut [None; MAX_RUNS]);
+    }
+
+    /// [`WnnShape::hidden`], except that a run of [`Evaluation::Recurrence`] whose input has
+    /// the bits `memo` holds for it is not evaluated: `h` is taken to hold its values for
+    /// that input already. `memo` is updated to what `h` holds on return.
+    #[inline]
+    fn hidden_memo(&self, x: &[f32; N], h: &mut [f32; L], memo: &mut [Option<u32>; MAX_RUNS]) {
         match &self.evaluation {
             Evaluation::Direct => self.hidden_direct(x, h, 0, L),
             Evaluation::Recurrence { runs, n } => {
                 let mut next = 0usize;
-                for run in runs.iter().take(usize::from(*n)) {
+                for (run, seen) in runs.iter().zip(memo.iter_mut()).take(usize::from(*n)) {
                     let start = usize::from(run.start);
                     self.hidden_each(x, h, next, start);
-                    self.hidden_run(run, x, h);
+                    let bits = x.get(usize::from(run.input)).map(|v| v.to_bits());
+                    if *seen != bits || bits.is_none() {
+                        self.hidden_run(run, x, h);
+                        *seen = bits;
+                    }
                     next = start + usize::from(run.count);
                 }
                 self.hidden_each(x, h, next, L);
@@ -555,6 +567,54 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
     }
 }
 
+/// Hidden values kept from one evaluation to the next, for one [`WnnShape`].
+///
+/// A run of [`Evaluation::Recurrence`] is a function of its one input alone, so when that
+/// input has exactly the same bits as at this buffer's previous evaluation, its values are
+/// kept instead of evaluated again: the results are the same bits as
+/// [`WnnShape::hidden`]'s. It pays where an input changes rarely, such as the time input
+/// held for a denoising block ([`crate::identify::Identifier::with_block_time`]): the
+/// level-trend network's 14 Gaussians along `T` are then evaluated once per block instead
+/// of once per sample. The neurons outside the runs (bias, links, direct neurons) are
+/// evaluated every time.
+///
+/// A buffer must be used with one shape only: it does not know which shape filled it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HiddenCache<const L: usize> {
+    h: [f32; L],
+    /// Bits of each run's input at the last evaluation; `None`: not evaluated yet.
+    memo: [Option<u32>; MAX_RUNS],
+}
+
+impl<const L: usize> Default for HiddenCache<L> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const L: usize> HiddenCache<L> {
+    /// An empty buffer (the first evaluation computes every neuron).
+    pub const fn new() -> Self {
+        Self {
+            h: [0.0; L],
+            memo: [None; MAX_RUNS],
+        }
+    }
+
+    /// The hidden values of `shape` for the scaled inputs `x`: the same bits as
+    /// [`WnnShape::hidden`].
+    #[inline]
+    pub fn eval<const N: usize>(&mut self, shape: &WnnShape<N, L>, x: &[f32; N]) -> &[f32; L] {
+        shape.hidden_memo(x, &mut self.h, &mut self.memo);
+        &self.h
+    }
+
+    /// The values of the last evaluation (all 0 before the first).
+    pub fn values(&self) -> &[f32; L] {
+        &self.h
+    }
+}
+
 /// Output weights of an `m`-output network (eq. 4).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OutputWeights<const L: usize, const M: usize> {
@@ -655,6 +715,49 @@ mod tests {
         );
         let s = InputScaling::from_ranges([0.0, 10.0], [2.0, 10.0]);
         assert_eq!(s.apply(&[2.0, 11.0]), [1.0, 1.0]);
+    }
+
+    /// [`HiddenCache`] gives the bits of [`WnnShape::hidden`] on every call, whichever
+    /// inputs repeat: each input of the level-trend and paper layouts is held for a random
+    /// number of calls (1 to 6) and sometimes NaN or infinite, and the cache is also fed
+    /// the two alternating input streams the identifier gives its two buffers.
+    #[test]
+    fn hidden_cache_matches_hidden() {
+        fn check<const N: usize, const L: usize>(shape: WnnShape<N, L>) {
+            for shape in [shape, shape.with_recurrence()] {
+                let mut state = 7u32;
+                let mut next = move || {
+                    state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    state >> 8
+                };
+                let mut cache = HiddenCache::<L>::new();
+                let mut x = [0.0f32; N];
+                let mut hold = [0u32; N];
+                let mut evaluated = 0;
+                for i in 0..5_000 {
+                    for j in 0..N {
+                        if hold[j] == 0 {
+                            hold[j] = 1 + next() % 6;
+                            x[j] = match next() % 50 {
+                                0 => f32::NAN,
+                                1 => f32::INFINITY,
+                                _ => 8.0 * (next() as f32 / (1u32 << 24) as f32) - 4.0,
+                            };
+                        }
+                        hold[j] -= 1;
+                    }
+                    let mut want = [0.0f32; L];
+                    shape.hidden(&x, &mut want);
+                    let got = cache.eval(&shape, &x);
+                    assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits), "call {i}");
+                    evaluated += 1;
+                }
+                assert_eq!(evaluated, 5_000);
+            }
+        }
+        check(crate::identify::presets::level_trend_shape::<30>().expect("shape"));
+        check(crate::identify::presets::paper_shape::<30>(Activation::Gaussian).expect("shape"));
+        check(crate::identify::presets::paper_shape::<30>(Activation::MexicanHat).expect("shape"));
     }
 
     #[allow(clippy::needless_range_loop)]

@@ -230,3 +230,57 @@ fn level_bank_starts_as_its_kalman_level() {
         }
     }
 }
+
+/// `with_block_time`: the feature map receives the time of the block's first sample,
+/// `(k - k mod B) dt`, for every sample of the block (and `k dt` without it); the
+/// level-trend preset uses it.
+#[test]
+fn block_time_holds_the_time_input_for_a_block() {
+    use fog_core::denoise::DenoiseConfig;
+    use fog_core::features::FeatureMap;
+    use fog_core::identify::Identifier;
+    use fog_core::train::Drls;
+    use fog_core::wnn::InputScaling;
+    use std::cell::RefCell;
+    use std::rc::Rc;
+
+    struct Recorder(Rc<RefCell<Vec<f32>>>);
+    impl FeatureMap<2> for Recorder {
+        fn next(&mut self, rate_dps: f32, t_s: f32) -> [f32; 2] {
+            self.0.borrow_mut().push(t_s);
+            [rate_dps, t_s]
+        }
+        fn reset(&mut self) {}
+    }
+    const B: usize = 64;
+    let dt = 0.01f32;
+    for held in [false, true] {
+        let seen = Rc::new(RefCell::new(Vec::new()));
+        let shape = presets::paper_shape::<30>(Activation::Gaussian).expect("shape");
+        let trainer = Drls::new(DrlsConfig::PAPER_GUARDED).expect("valid");
+        let id = Identifier::<_, _, 2, 30, B>::new(
+            Recorder(Rc::clone(&seen)),
+            InputScaling::IDENTITY,
+            shape,
+            [0.0; 30],
+            trainer,
+            DenoiseConfig::PAPER,
+            dt,
+        )
+        .expect("valid");
+        let mut id = if held { id.with_block_time() } else { id };
+        for &r in &ecore_like(5 * B + 17, 3) {
+            id.push(r).expect("finite");
+        }
+        let seen = seen.borrow();
+        assert_eq!(seen.len(), 5 * B + 17);
+        for (k, &t) in seen.iter().enumerate() {
+            let index = if held { k - k % B } else { k };
+            assert_eq!(
+                t.to_bits(),
+                (index as f32 * dt).to_bits(),
+                "k = {k}, held {held}"
+            );
+        }
+    }
+}
