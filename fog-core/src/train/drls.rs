@@ -21,6 +21,7 @@
 //!   `u_max = INFINITY` and `w_max = INFINITY` the trainer is eq. (15) exactly.
 
 use super::{bound_weights, Trainer};
+use crate::wnn::dot;
 
 /// How the error is shared among the weights within one sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -79,6 +80,33 @@ impl DrlsConfig {
     }
 }
 
+/// Steps for which [`Drls`] proves at once that the guard `U_a <= u_max` cannot bind (a
+/// power of two: the growth bound is computed by squaring).
+const GUARD_WINDOW: u32 = 128;
+
+/// `GUARD_WINDOW = 2^GUARD_WINDOW_LOG2`.
+const GUARD_WINDOW_LOG2: u32 = 7;
+
+/// An upper bound of how much `U_a` can grow in [`GUARD_WINDOW`] steps, as computed in
+/// f32: each step gives `U_a(k) = fl(fl(U_a(k-1) inv_lambda) / fl(1 + ...))` with a
+/// denominator `>= 1`, so at most `U_a(k-1) inv_lambda (1 + 2^-24)^2`. The bound is that
+/// factor to the power of the window, times 1.001 (which also covers the rounding of the
+/// product `U_a * bound` in the check), rounded up into f32; infinite when it overflows.
+fn guard_growth(inv_lambda: f32) -> f32 {
+    // (1 + 2^-24)^2 < 1 + 2^-22 = 1 + 2 f32::EPSILON.
+    let mut g = f64::from(inv_lambda) * (1.0 + 2.0 * f64::from(f32::EPSILON));
+    for _ in 0..GUARD_WINDOW_LOG2 {
+        g *= g;
+    }
+    let g = g * 1.001;
+    if g.is_finite() && g < f64::from(f32::MAX) {
+        // Round up: the nearest f32 may be below `g`.
+        (g * (1.0 + 1.0e-6)) as f32
+    } else {
+        f32::INFINITY
+    }
+}
+
 /// DRLS trainer state for `L` weights of one output.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Drls<const L: usize> {
@@ -86,6 +114,12 @@ pub struct Drls<const L: usize> {
     inv_lambda: [f32; L],
     u0: [f32; L],
     u: [f32; L],
+    /// [`guard_growth`] of each `inv_lambda`.
+    growth: [f32; L],
+    /// Steps left before the guard is checked again; 0: check at the next step.
+    guard_steps_left: u32,
+    /// The guard was proven not to bind for the current window.
+    guard_idle: bool,
     /// Steps at which a weight hit `w_max` (diagnostic).
     pub weight_saturations: u32,
 }
@@ -100,6 +134,9 @@ impl<const L: usize> Drls<L> {
         Some(Self {
             cfg,
             inv_lambda: [1.0 / cfg.lambda; L],
+            growth: [guard_growth(1.0 / cfg.lambda); L],
+            guard_steps_left: 0,
+            guard_idle: false,
             u0: [u0; L],
             u: [u0; L],
             weight_saturations: 0,
@@ -112,6 +149,8 @@ impl<const L: usize> Drls<L> {
     pub fn set_neuron(&mut self, a: usize, lambda: f32, u0: f32) {
         if a < L && lambda > 0.0 && lambda <= 1.0 && u0 > 0.0 {
             self.inv_lambda[a] = 1.0 / lambda;
+            self.growth[a] = guard_growth(1.0 / lambda);
+            self.guard_steps_left = 0;
             self.u0[a] = u0.min(self.cfg.u_max);
             self.u[a] = self.u0[a];
         }
@@ -136,7 +175,7 @@ impl<const L: usize> Drls<L> {
     /// the same, in the same order, as in a single pass. Returns the sum of the new
     /// weights' squares (in any order: it is only compared with a bound).
     #[inline(always)]
-    pub(crate) fn sweep_two_pass<const SEQ: bool>(
+    pub(crate) fn sweep_two_pass<const SEQ: bool, const CLAMP: bool>(
         &mut self,
         w: &mut [f32; L],
         h: &[f32; L],
@@ -146,7 +185,7 @@ impl<const L: usize> Drls<L> {
         for ((ua, il), &ha) in self.u.iter_mut().zip(&self.inv_lambda).zip(h) {
             let up = *ua * il;
             let un = up / (1.0 + up * ha * ha);
-            *ua = if un > u_max { u_max } else { un };
+            *ua = if CLAMP && un > u_max { u_max } else { un };
         }
         let mut e = e0;
         let (mut sq0, mut sq1) = (0.0f32, 0.0f32);
@@ -181,7 +220,7 @@ impl<const L: usize> Drls<L> {
     /// [`Self::sweep_two_pass`], so the same bits (test `sweeps_agree`), with fewer
     /// instructions on a core without SIMD (no second load of `U_a` and `h_a`).
     #[inline(always)]
-    pub(crate) fn sweep_fused<const SEQ: bool>(
+    pub(crate) fn sweep_fused<const SEQ: bool, const CLAMP: bool>(
         &mut self,
         w: &mut [f32; L],
         h: &[f32; L],
@@ -197,7 +236,7 @@ impl<const L: usize> Drls<L> {
             let ha = h[a];
             let up = u[a] * il[a];
             let un = up / (1.0 + up * ha * ha);
-            let un = if un > u_max { u_max } else { un };
+            let un = if CLAMP && un > u_max { u_max } else { un };
             u[a] = un;
             let dw = un * ha * *e;
             if SEQ {
@@ -223,12 +262,39 @@ impl<const L: usize> Drls<L> {
     /// fewest instructions), two passes elsewhere (a host vectorises the `U_a` pass);
     /// bit-identical either way.
     #[inline(always)]
-    fn sweep<const SEQ: bool>(&mut self, w: &mut [f32; L], h: &[f32; L], e0: f32) -> f32 {
+    fn sweep<const SEQ: bool, const CLAMP: bool>(
+        &mut self,
+        w: &mut [f32; L],
+        h: &[f32; L],
+        e0: f32,
+    ) -> f32 {
         if cfg!(target_arch = "arm") {
-            self.sweep_fused::<SEQ>(w, h, e0)
+            self.sweep_fused::<SEQ, CLAMP>(w, h, e0)
         } else {
-            self.sweep_two_pass::<SEQ>(w, h, e0)
+            self.sweep_two_pass::<SEQ, CLAMP>(w, h, e0)
         }
+    }
+
+    /// Whether the guard `U_a <= u_max` can bind during the current window of
+    /// [`GUARD_WINDOW`] steps: checked once per window. When every `U_a` times its growth
+    /// bound ([`guard_growth`]) stays within `u_max`, no `U_a` can exceed `u_max` within
+    /// the window, so the sweep leaves the comparison out and gives the same bits. An
+    /// infinite `u_max` never binds. [`Drls::set_neuron`] and [`Trainer::reset`] start a
+    /// new window.
+    #[inline(always)]
+    fn guard_may_bind(&mut self) -> bool {
+        if self.guard_steps_left == 0 {
+            let u_max = self.cfg.u_max;
+            self.guard_idle = u_max == f32::INFINITY
+                || self
+                    .u
+                    .iter()
+                    .zip(&self.growth)
+                    .all(|(&u, &g)| u * g <= u_max);
+            self.guard_steps_left = GUARD_WINDOW;
+        }
+        self.guard_steps_left -= 1;
+        !self.guard_idle
     }
 }
 
@@ -237,31 +303,20 @@ impl<const L: usize> Trainer<L> for Drls<L> {
         // One pass for the a-priori output (left to right, as `wnn::dot`) and a finiteness
         // probe: `h * 0` is NaN exactly when `h` is infinite or NaN, and a sum of signed
         // zeros stays 0.
-        let mut y = 0.0f32;
-        let (mut probe0, mut probe1) = (0.0f32, 0.0f32);
-        let mut cw = w.chunks_exact(4);
-        let mut ch = h.chunks_exact(4);
-        for (x, g) in (&mut cw).zip(&mut ch) {
-            y += x[0] * g[0];
-            y += x[1] * g[1];
-            y += x[2] * g[2];
-            y += x[3] * g[3];
-            probe0 += g[0] * 0.0;
-            probe1 += g[1] * 0.0;
-            probe0 += g[2] * 0.0;
-            probe1 += g[3] * 0.0;
-        }
-        for (x, g) in cw.remainder().iter().zip(ch.remainder()) {
-            y += x * g;
-            probe0 += g * 0.0;
-        }
-        if !d.is_finite() || probe0 + probe1 != 0.0 {
+        // The a-priori output, left to right as `wnn::dot`. It is finite only if every `h`
+        // is (a non-finite `h_a` makes `w_a h_a` NaN or infinite, and a sum never returns
+        // from NaN or infinity to a finite value), so `h` is probed only when it is not.
+        let y = dot(w, h);
+        if !d.is_finite() || (!y.is_finite() && !h.iter().all(|v| v.is_finite())) {
             return f32::NAN;
         }
         let e0 = d - y;
-        let sq = match self.cfg.mode {
-            DrlsMode::Sequential => self.sweep::<true>(w, h, e0),
-            DrlsMode::Parallel => self.sweep::<false>(w, h, e0),
+        let clamp = self.guard_may_bind();
+        let sq = match (self.cfg.mode, clamp) {
+            (DrlsMode::Sequential, true) => self.sweep::<true, true>(w, h, e0),
+            (DrlsMode::Sequential, false) => self.sweep::<true, false>(w, h, e0),
+            (DrlsMode::Parallel, true) => self.sweep::<false, true>(w, h, e0),
+            (DrlsMode::Parallel, false) => self.sweep::<false, false>(w, h, e0),
         };
         // The guard on the weights: no weight can exceed `w_max` (or be NaN) unless the sum
         // of squares does (or is NaN), so the per-weight pass runs only then. `w_max^2` is
@@ -281,6 +336,7 @@ impl<const L: usize> Trainer<L> for Drls<L> {
 
     fn reset(&mut self) {
         self.u = self.u0;
+        self.guard_steps_left = 0;
         self.weight_saturations = 0;
     }
 }
@@ -308,12 +364,12 @@ mod tests {
                 let e0 = next() - 0.5;
                 let (sa, sb) = match cfg.mode {
                     DrlsMode::Sequential => (
-                        a.sweep_fused::<true>(&mut wa, &h, e0),
-                        b.sweep_two_pass::<true>(&mut wb, &h, e0),
+                        a.sweep_fused::<true, true>(&mut wa, &h, e0),
+                        b.sweep_two_pass::<true, true>(&mut wb, &h, e0),
                     ),
                     DrlsMode::Parallel => (
-                        a.sweep_fused::<false>(&mut wa, &h, e0),
-                        b.sweep_two_pass::<false>(&mut wb, &h, e0),
+                        a.sweep_fused::<false, true>(&mut wa, &h, e0),
+                        b.sweep_two_pass::<false, true>(&mut wb, &h, e0),
                     ),
                 };
                 assert_eq!(sa.to_bits(), sb.to_bits());
@@ -321,5 +377,109 @@ mod tests {
                 assert_eq!(a.u().map(f32::to_bits), b.u().map(f32::to_bits));
             }
         }
+    }
+
+    /// Eq. (15) with the guard applied at every step, weight by weight, as the module docs
+    /// write it: the reference for the trainer, which checks the guard once per window.
+    fn reference_step<const L: usize>(
+        cfg: &DrlsConfig,
+        il: &[f32; L],
+        u: &mut [f32; L],
+        w: &mut [f32; L],
+        h: &[f32; L],
+        d: f32,
+    ) -> f32 {
+        if !d.is_finite() || !h.iter().all(|v| v.is_finite()) {
+            return f32::NAN;
+        }
+        let mut y = 0.0f32;
+        for a in 0..L {
+            y += w[a] * h[a];
+        }
+        let e0 = d - y;
+        let mut e = e0;
+        for a in 0..L {
+            let up = u[a] * il[a];
+            let un = up / (1.0 + up * h[a] * h[a]);
+            u[a] = if un > cfg.u_max { cfg.u_max } else { un };
+            let dw = u[a] * h[a] * e;
+            if cfg.mode == DrlsMode::Sequential {
+                e -= dw * h[a];
+            }
+            w[a] += dw;
+        }
+        if cfg.w_max.is_finite() {
+            super::bound_weights(w, cfg.w_max);
+        }
+        e0
+    }
+
+    /// The trainer equals the every-step guard bit for bit, for forgetting factors where the
+    /// guard never binds (0.99999), binds now and then (silent neurons at 0.99, a neuron
+    /// restarted at `U = u_max`) and binds often (0.63), and with no guard at all.
+    #[test]
+    fn guard_window_changes_no_bit() {
+        let mut state = 11u32;
+        let mut next = move || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let mut bound_hits = 0u32;
+        for (lambda, u0, u_max) in [
+            (0.99999f32, 1.0e-4f32, 1.0f32),
+            (0.99, 1.0e-2, 1.0),
+            (0.63, 1.0, 1.0),
+            (0.99, 1.0, f32::INFINITY),
+        ] {
+            for mode in [DrlsMode::Sequential, DrlsMode::Parallel] {
+                let cfg = DrlsConfig {
+                    lambda,
+                    u0,
+                    u_max,
+                    w_max: 1.0e4,
+                    mode,
+                };
+                let mut t = Drls::<13>::new(cfg).expect("valid");
+                let mut il = [1.0 / lambda; 13];
+                let mut u = [u0.min(u_max); 13];
+                let (mut wt, mut wr) = ([0.0f32; 13], [0.0f32; 13]);
+                for k in 0..20_000 {
+                    if k == 7_000 {
+                        // A neuron restarted at the bound, with its own forgetting factor.
+                        t.set_neuron(3, 0.995, u_max.min(1.0));
+                        il[3] = 1.0 / 0.995;
+                        u[3] = u_max.min(1.0);
+                    }
+                    // Neurons 0..6 are silent for stretches of different lengths and
+                    // phases: their U grows towards the bound, reaching it at every point
+                    // of a window.
+                    let h: [f32; 13] = core::array::from_fn(|a| {
+                        let silent = a < 6 && ((k + 397 * a) / (700 + 130 * a)) % 2 == 1;
+                        if silent {
+                            0.0
+                        } else {
+                            2.0 * next() - 1.0
+                        }
+                    });
+                    let d = next() - 0.5;
+                    let et = t.step(&mut wt, &h, d);
+                    let er = reference_step(&cfg, &il, &mut u, &mut wr, &h, d);
+                    assert_eq!(et.to_bits(), er.to_bits(), "lambda {lambda}, step {k}");
+                    assert_eq!(
+                        wt.map(f32::to_bits),
+                        wr.map(f32::to_bits),
+                        "lambda {lambda}, step {k}"
+                    );
+                    assert_eq!(
+                        t.u().map(f32::to_bits),
+                        u.map(f32::to_bits),
+                        "lambda {lambda}, step {k}"
+                    );
+                    bound_hits += u.iter().filter(|&&v| v == u_max).count() as u32;
+                }
+            }
+        }
+        // The bound did bind in these runs (the comparison was not vacuous).
+        assert!(bound_hits > 10_000, "{bound_hits}");
     }
 }
