@@ -117,6 +117,14 @@ impl<const BINS: usize> BinnedMean<BINS> {
 /// that follows the drift *now*; the raw rate carries the full white noise (the paper's `X`
 /// input makes the network pass it through), the 10-s level carries a tenth of it. Memory:
 /// 64 floats.
+///
+/// With [`LevelTrendTime::with_trend_per_bin`] the trend is computed only when a bin
+/// completes (the level then minus the mean of the last 50 bin-end levels, the newest
+/// included) and held until the next bin end: a function of complete 1-s bins, which
+/// changes once per second instead of every sample (the level itself still changes every
+/// sample). The network's Gaussians along the trend are then evaluated once per bin
+/// ([`crate::wnn::HiddenCache`]); the effect on the identification error is measured in
+/// `docs/identify.md`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LevelTrendTime {
     level: BinnedMean<10>,
@@ -124,6 +132,8 @@ pub struct LevelTrendTime {
     levels: BinnedMean<50>,
     per_bin: u32,
     in_bin: u32,
+    /// `Some(trend at the last bin end)` when the trend is held per bin.
+    held_trend: Option<f32>,
 }
 
 impl LevelTrendTime {
@@ -140,7 +150,14 @@ impl LevelTrendTime {
             levels: BinnedMean::new(1),
             per_bin,
             in_bin: 0,
+            held_trend: None,
         }
+    }
+
+    /// The trend computed at bin ends and held in between (see the type's docs).
+    pub fn with_trend_per_bin(mut self) -> Self {
+        self.held_trend = Some(0.0);
+        self
     }
 
     /// Level from a random-walk Kalman filter with process-to-measurement noise ratio
@@ -170,10 +187,15 @@ impl FeatureMap<3> for LevelTrendTime {
         if bin_done {
             self.levels.push(level);
         }
-        let trend = if self.levels.filled_bins == 0 {
-            0.0
-        } else {
-            level - self.levels.mean()
+        let trend = match self.held_trend.as_mut() {
+            Some(held) => {
+                if bin_done {
+                    *held = level - self.levels.mean();
+                }
+                *held
+            }
+            None if self.levels.filled_bins == 0 => 0.0,
+            None => level - self.levels.mean(),
         };
         [level, trend, t_s]
     }
@@ -182,6 +204,9 @@ impl FeatureMap<3> for LevelTrendTime {
         self.level.reset();
         self.levels.reset();
         self.in_bin = 0;
+        if let Some(held) = self.held_trend.as_mut() {
+            *held = 0.0;
+        }
         if let Some(k) = self.kalman.as_mut() {
             *k = crate::baseline::RandomWalkKalman::new(k.q(), k.r());
         }
@@ -485,5 +510,30 @@ mod tests {
         assert_eq!(out[0], 2.0);
         assert_eq!(out[1], 0.0);
         assert!((out[2] - 99.9).abs() < 1e-3);
+    }
+
+    /// `with_trend_per_bin`: at every bin end the held trend equals the per-sample trend
+    /// (same bits); in between it keeps that value; before the first bin end it is 0.
+    #[test]
+    fn trend_held_per_bin() {
+        let mut live = LevelTrendTime::new(10.0);
+        let mut held = LevelTrendTime::new(10.0).with_trend_per_bin();
+        let mut last = 0.0f32;
+        for k in 0..2_000u32 {
+            let x = 0.01 * (k as f32 * 0.013).sin() + 1e-4 * (k % 7) as f32;
+            let a = live.next(x, k as f32 * 0.1);
+            let b = held.next(x, k as f32 * 0.1);
+            assert_eq!(a[0].to_bits(), b[0].to_bits());
+            assert_eq!(a[2].to_bits(), b[2].to_bits());
+            if (k + 1) % 10 == 0 {
+                assert_eq!(a[1].to_bits(), b[1].to_bits(), "bin end at sample {k}");
+                last = b[1];
+            } else {
+                assert_eq!(b[1].to_bits(), last.to_bits(), "sample {k}");
+            }
+        }
+        assert_ne!(last, 0.0);
+        held.reset();
+        assert_eq!(held.next(1.0, 0.0)[1], 0.0);
     }
 }

@@ -301,7 +301,8 @@ pub mod presets {
     pub type Paper<const B: usize, const NL: usize = L> =
         super::Identifier<RateTime, Drls<NL>, 2, NL, B>;
 
-    /// The improved identifier: inputs `[level, trend, T]` (`T` held per denoising block,
+    /// The improved identifier: inputs `[level, trend, T]` (the trend held per 1-s bin,
+    /// [`LevelTrendTime::with_trend_per_bin`]; `T` held per denoising block,
     /// [`super::Identifier::with_block_time`]), bias + linear link + Gaussians, sequential
     /// guarded DRLS.
     pub type LevelTrend<const B: usize, const NL: usize = L> =
@@ -454,7 +455,7 @@ pub mod presets {
     ) -> Result<super::Identifier<LevelTrendTime, T, 3, NL, B>, IdentifyError> {
         let shape = level_trend_shape::<NL>().map_err(IdentifyError::Shape)?;
         let w0 = level_identity_weights::<NL>(&scaling);
-        let f = LevelTrendTime::new(1.0 / sample_period_s);
+        let f = LevelTrendTime::new(1.0 / sample_period_s).with_trend_per_bin();
         super::Identifier::new(f, scaling, shape, w0, trainer, denoise, sample_period_s)
             .map(super::Identifier::with_block_time)
     }

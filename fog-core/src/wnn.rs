@@ -180,6 +180,8 @@ pub struct Run {
     pub inv_step: f32,
     /// `exp(-step^2)`: ratio of two successive neighbour ratios.
     pub q: f32,
+    /// `0.5 * step * step`.
+    pub half_step2: f32,
 }
 
 /// How the hidden layer is evaluated.
@@ -195,8 +197,21 @@ pub enum Evaluation {
         runs: [Run; MAX_RUNS],
         /// Runs in use.
         n: u8,
+        /// The neurons outside the runs when they are all biases and links (at most
+        /// [`MAX_LISTED`]): `(neuron, source)`, source [`LISTED_BIAS`] for a bias, else the
+        /// input of the link. `None`: some are not (they are then evaluated neuron by
+        /// neuron, as [`Evaluation::Direct`] does).
+        listed: Option<[(u8, u8); MAX_LISTED]>,
+        /// Entries of `listed` in use.
+        n_listed: u8,
     },
 }
+
+/// Most neurons outside the runs that [`Evaluation::Recurrence`] keeps in its list.
+pub const MAX_LISTED: usize = 8;
+
+/// `source` of a bias neuron in [`Evaluation::Recurrence`]'s list.
+pub const LISTED_BIAS: u8 = u8::MAX;
 
 /// Why a network shape could not be built.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -314,7 +329,31 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
     fn hidden_memo(&self, x: &[f32; N], h: &mut [f32; L], memo: &mut [Option<u32>; MAX_RUNS]) {
         match &self.evaluation {
             Evaluation::Direct => self.hidden_direct(x, h, 0, L),
-            Evaluation::Recurrence { runs, n } => {
+            Evaluation::Recurrence {
+                runs,
+                n,
+                listed: Some(listed),
+                n_listed,
+            } => {
+                // Biases and links from the list, then the runs: no per-neuron dispatch.
+                for &(l, src) in listed.iter().take(usize::from(*n_listed)) {
+                    if let Some(v) = h.get_mut(usize::from(l)) {
+                        *v = if src == LISTED_BIAS {
+                            1.0
+                        } else {
+                            x.get(usize::from(src)).copied().unwrap_or(0.0)
+                        };
+                    }
+                }
+                for (run, seen) in runs.iter().zip(memo.iter_mut()).take(usize::from(*n)) {
+                    let bits = x.get(usize::from(run.input)).map(|v| v.to_bits());
+                    if *seen != bits || bits.is_none() {
+                        self.hidden_run(run, x, h);
+                        *seen = bits;
+                    }
+                }
+            }
+            Evaluation::Recurrence { runs, n, .. } => {
                 let mut next = 0usize;
                 for (run, seen) in runs.iter().zip(memo.iter_mut()).take(usize::from(*n)) {
                     let start = usize::from(run.start);
@@ -416,31 +455,35 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
         // <= 4): inside exp_anchor's domain.
         let g = exp_anchor(-0.5 * t2);
         // g_{i+1} / g_i = exp(step t_i - step^2/2); each step further multiplies it by q.
-        let up = exp_anchor(run.step * tn - 0.5 * run.step * run.step);
+        let up = exp_anchor(run.step * tn - run.half_step2);
         let down = run.q / up;
         // Neurons with |t| < T_CUTOFF on each side (floor; a neuron exactly on the border
-        // gets exp(-84.5) instead of 0).
+        // gets exp(-84.5) instead of 0): `near + 1 .. hi` above, `lo .. near` below.
         let reach_up = ((tn + T_CUTOFF) * run.inv_step) as usize;
         let reach_down = ((T_CUTOFF - tn) * run.inv_step) as usize;
-        // `_checked`: near < hr.len() always (near <= count - 1), so these never return; they
-        // keep the panic path out of the firmware.
-        let Some((below, from_near)) = hr.split_at_mut_checked(near) else {
-            return;
-        };
-        let Some((at, above)) = from_near.split_at_mut_checked(1) else {
-            return;
-        };
-        if let Some(a) = at.first_mut() {
+        let hi = (near + 1).saturating_add(reach_up).min(count);
+        let lo = near.saturating_sub(reach_down);
+        // `get_mut`: every range lies in `0..count = 0..hr.len()` (near <= count - 1), so
+        // these always succeed; they keep the panic path out of the firmware.
+        if let Some(a) = hr.get_mut(near) {
             *a = g;
         }
-        let live = reach_up.min(above.len());
-        let (live_up, dead_up) = above.split_at_mut(live);
-        walk(live_up.iter_mut(), g, up, run.q);
-        dead_up.fill(0.0);
-        let live = reach_down.min(below.len());
-        let (dead_down, live_down) = below.split_at_mut(below.len() - live);
-        walk(live_down.iter_mut().rev(), g, down, run.q);
-        dead_down.fill(0.0);
+        if let Some(live) = hr.get_mut(near + 1..hi) {
+            walk(live.iter_mut(), g, up, run.q);
+        }
+        if let Some(live) = hr.get_mut(lo..near) {
+            walk(live.iter_mut().rev(), g, down, run.q);
+        }
+        if hi < count {
+            if let Some(dead) = hr.get_mut(hi..) {
+                dead.fill(0.0);
+            }
+        }
+        if lo > 0 {
+            if let Some(dead) = hr.get_mut(..lo) {
+                dead.fill(0.0);
+            }
+        }
         if self.activation == Activation::MexicanHat {
             // (1 - t^2) g with t exactly as eq. (5) computes it (no cancellation error near
             // the zero crossings |t| = 1).
@@ -486,6 +529,7 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
             step: 0.0,
             inv_step: 0.0,
             q: 0.0,
+            half_step2: 0.0,
         }; MAX_RUNS];
         let mut n = 0usize;
         let mut l = 0usize;
@@ -501,7 +545,36 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
                 l += 1;
             }
         }
-        self.evaluation = Evaluation::Recurrence { runs, n: n as u8 };
+        // The neurons outside the runs, listed when they are all biases and links.
+        let mut listed = [(0u8, 0u8); MAX_LISTED];
+        let mut n_listed = 0usize;
+        let mut all_listed = true;
+        for l in 0..L {
+            let in_run = runs[..n].iter().any(|r| {
+                (usize::from(r.start)..usize::from(r.start) + usize::from(r.count)).contains(&l)
+            });
+            if in_run {
+                continue;
+            }
+            let source = match self.kind[l] {
+                Neuron::Bias => Some(LISTED_BIAS),
+                Neuron::Linear(j) if j != LISTED_BIAS => Some(j),
+                _ => None,
+            };
+            match (source, listed.get_mut(n_listed), u8::try_from(l)) {
+                (Some(src), Some(slot), Ok(l8)) => {
+                    *slot = (l8, src);
+                    n_listed += 1;
+                }
+                _ => all_listed = false,
+            }
+        }
+        self.evaluation = Evaluation::Recurrence {
+            runs,
+            n: n as u8,
+            listed: all_listed.then_some(listed),
+            n_listed: n_listed as u8,
+        };
         self
     }
 
@@ -563,6 +636,7 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
             step,
             inv_step: 1.0 / step,
             q: libm::expf(-step * step),
+            half_step2: 0.5 * step * step,
         })
     }
 }
@@ -902,6 +976,23 @@ mod tests {
             .expect("valid");
             check(s, "1 input, 5+5 neurons, other overlaps");
         }
+        // A wavelet neuron outside the runs (the warm-up neuron): no list, neuron by neuron.
+        let tt = crate::identify::presets::time_temp_shape::<30>().expect("valid");
+        assert!(matches!(
+            tt.with_recurrence().evaluation,
+            Evaluation::Recurrence { listed: None, .. }
+        ));
+        check(tt, "time-temp: warm-up neuron outside the runs");
+        // Biases and links only outside the runs: listed.
+        let lt = crate::identify::presets::level_trend_shape::<30>().expect("valid");
+        assert!(matches!(
+            lt.evaluation,
+            Evaluation::Recurrence {
+                listed: Some(_),
+                n_listed: 2,
+                ..
+            }
+        ));
     }
 
     /// `exp_anchor` against f64 over its whole domain [-87, 88].

@@ -810,8 +810,13 @@ fn with_trainer<const L: usize, const B: usize>(
         }),
         Preset::LevelTrend => go!(
             |dt: f32| match o.level {
-                LevelInput::Kalman { q_over_r } => LevelTrendTime::with_kalman(1.0 / dt, q_over_r),
-                LevelInput::Mean10s | LevelInput::KalmanTuned => LevelTrendTime::new(1.0 / dt),
+                // As `presets::level_trend_with` makes them: the trend held per bin.
+                LevelInput::Kalman { q_over_r } => {
+                    LevelTrendTime::with_kalman(1.0 / dt, q_over_r).with_trend_per_bin()
+                }
+                LevelInput::Mean10s | LevelInput::KalmanTuned => {
+                    LevelTrendTime::new(1.0 / dt).with_trend_per_bin()
+                }
             },
             presets::LEVEL_TREND_SCALING,
             |s, t, dt| presets::level_trend_with::<_, B, L>(s, t, den, dt)
