@@ -3,7 +3,9 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use fog_core::identify::presets;
-use fog_core::train::{Drls, DrlsConfig, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer};
+use fog_core::train::{
+    Drls, DrlsConfig, DrlsForm, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer,
+};
 use std::hint::black_box;
 
 const L: usize = 30;
@@ -41,6 +43,7 @@ fn trainers(c: &mut Criterion) {
         u_max: 1.0,
         w_max: 1e4,
         mode: DrlsMode::Sequential,
+        form: DrlsForm::Gain,
     };
     bench_step(
         c,
@@ -52,6 +55,15 @@ fn trainers(c: &mut Criterion) {
         .expect("valid"),
     );
     bench_step(c, "drls_sequential", Drls::<L>::new(seq).expect("valid"));
+    bench_step(
+        c,
+        "drls_sequential_energy",
+        Drls::<L>::new(DrlsConfig {
+            form: DrlsForm::Energy,
+            ..seq
+        })
+        .expect("valid"),
+    );
     bench_step(
         c,
         "rls",

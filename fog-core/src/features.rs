@@ -118,11 +118,9 @@ impl<const BINS: usize> BinnedMean<BINS> {
 /// input makes the network pass it through), the 10-s level carries a tenth of it. Memory:
 /// 64 floats.
 ///
-/// With [`LevelTrendTime::with_trend_per_bin`] the trend is computed only when a bin
-/// completes (the level then minus the mean of the last 50 bin-end levels, the newest
-/// included) and held until the next bin end: a function of complete 1-s bins, which
-/// changes once per second instead of every sample (the level itself still changes every
-/// sample). The network's Gaussians along the trend are then evaluated once per bin
+/// With [`LevelTrendTime::with_trend_every`] the trend is computed only every `m` samples
+/// and held in between (the level itself still changes every sample), so the network's
+/// Gaussians along the trend are evaluated once per `m` samples
 /// ([`crate::wnn::HiddenCache`]); the effect on the identification error is measured in
 /// `docs/identify.md`.
 #[derive(Debug, Clone, PartialEq)]
@@ -132,8 +130,12 @@ pub struct LevelTrendTime {
     levels: BinnedMean<50>,
     per_bin: u32,
     in_bin: u32,
-    /// `Some(trend at the last bin end)` when the trend is held per bin.
-    held_trend: Option<f32>,
+    /// Samples between two trend computations (1: every sample).
+    trend_every: u32,
+    /// Samples since the last trend computation.
+    trend_age: u32,
+    /// The trend of the last computation.
+    trend: f32,
 }
 
 impl LevelTrendTime {
@@ -150,13 +152,22 @@ impl LevelTrendTime {
             levels: BinnedMean::new(1),
             per_bin,
             in_bin: 0,
-            held_trend: None,
+            trend_every: 1,
+            trend_age: 0,
+            trend: 0.0,
         }
     }
 
-    /// The trend computed at bin ends and held in between (see the type's docs).
-    pub fn with_trend_per_bin(mut self) -> Self {
-        self.held_trend = Some(0.0);
+    /// Samples between two trend computations (see [`Self::with_trend_every`]).
+    pub fn trend_every(&self) -> u32 {
+        self.trend_every
+    }
+
+    /// The trend computed at samples `m - 1, 2m - 1, ...` (the same value as every sample
+    /// would give there) and held for the `m - 1` samples after each (0 before the first);
+    /// `m` at least 1.
+    pub fn with_trend_every(mut self, m: u32) -> Self {
+        self.trend_every = m.max(1);
         self
     }
 
@@ -187,26 +198,24 @@ impl FeatureMap<3> for LevelTrendTime {
         if bin_done {
             self.levels.push(level);
         }
-        let trend = match self.held_trend.as_mut() {
-            Some(held) => {
-                if bin_done {
-                    *held = level - self.levels.mean();
-                }
-                *held
-            }
-            None if self.levels.filled_bins == 0 => 0.0,
-            None => level - self.levels.mean(),
-        };
-        [level, trend, t_s]
+        self.trend_age += 1;
+        if self.trend_age >= self.trend_every {
+            self.trend_age = 0;
+            self.trend = if self.levels.filled_bins == 0 {
+                0.0
+            } else {
+                level - self.levels.mean()
+            };
+        }
+        [level, self.trend, t_s]
     }
 
     fn reset(&mut self) {
         self.level.reset();
         self.levels.reset();
         self.in_bin = 0;
-        if let Some(held) = self.held_trend.as_mut() {
-            *held = 0.0;
-        }
+        self.trend_age = 0;
+        self.trend = 0.0;
         if let Some(k) = self.kalman.as_mut() {
             *k = crate::baseline::RandomWalkKalman::new(k.q(), k.r());
         }
@@ -512,12 +521,12 @@ mod tests {
         assert!((out[2] - 99.9).abs() < 1e-3);
     }
 
-    /// `with_trend_per_bin`: at every bin end the held trend equals the per-sample trend
-    /// (same bits); in between it keeps that value; before the first bin end it is 0.
+    /// `with_trend_every(m)`: at samples m-1, 2m-1, ... the held trend equals the
+    /// per-sample trend (same bits); in between it keeps that value; 0 before.
     #[test]
     fn trend_held_per_bin() {
         let mut live = LevelTrendTime::new(10.0);
-        let mut held = LevelTrendTime::new(10.0).with_trend_per_bin();
+        let mut held = LevelTrendTime::new(10.0).with_trend_every(10);
         let mut last = 0.0f32;
         for k in 0..2_000u32 {
             let x = 0.01 * (k as f32 * 0.013).sin() + 1e-4 * (k % 7) as f32;

@@ -291,7 +291,7 @@ pub mod presets {
     use crate::features::{
         LevelBank, LevelTrendTime, RateTime, TimeTemp, BANK_INPUTS, BANK_MEMORIES_S, BANK_T,
     };
-    use crate::train::{Drls, DrlsConfig, DrlsMode, Trainer};
+    use crate::train::{Drls, DrlsConfig, DrlsForm, DrlsMode, Trainer};
     use crate::wnn::{Activation, Group, InputScaling, ShapeError, WnnShape};
 
     /// The paper's number of hidden neurons.
@@ -302,7 +302,7 @@ pub mod presets {
         super::Identifier<RateTime, Drls<NL>, 2, NL, B>;
 
     /// The improved identifier: inputs `[level, trend, T]` (the trend held per 1-s bin,
-    /// [`LevelTrendTime::with_trend_per_bin`]; `T` held per denoising block,
+    /// [`level_trend_features`]; `T` held per denoising block,
     /// [`super::Identifier::with_block_time`]), bias + linear link + Gaussians, sequential
     /// guarded DRLS.
     pub type LevelTrend<const B: usize, const NL: usize = L> =
@@ -315,6 +315,22 @@ pub mod presets {
         offset: [0.0, 900.0],
         gain: [1.0 / 0.05, 1.0 / 900.0],
     };
+
+    /// How long the level-trend preset holds its trend input, s ([`level_trend_features`]).
+    pub const TREND_HOLD_S: f32 = 0.1;
+
+    /// The level-trend preset's inputs for `samples_per_s` samples per second: the 10-s
+    /// level every sample, the trend computed every [`TREND_HOLD_S`] (rounded to samples,
+    /// at least 1) and held in between ([`LevelTrendTime::with_trend_every`]).
+    pub fn level_trend_features(samples_per_s: f32) -> LevelTrendTime {
+        let m = libm::roundf(samples_per_s * TREND_HOLD_S);
+        let m = if (1.0..1.0e6).contains(&m) {
+            m as u32
+        } else {
+            1
+        };
+        LevelTrendTime::new(samples_per_s).with_trend_every(m)
+    }
 
     /// Default scaling of `[level, trend, T]` (assumed: level +-0.02 deg/s, trend
     /// +-0.003 deg/s, T 0..1800 s).
@@ -421,6 +437,7 @@ pub mod presets {
         u_max: 1.0,
         w_max: 1.0e4,
         mode: DrlsMode::Sequential,
+        form: DrlsForm::Energy,
     };
 
     /// The improved identifier's DRLS trainer for `NL` neurons.
@@ -455,7 +472,7 @@ pub mod presets {
     ) -> Result<super::Identifier<LevelTrendTime, T, 3, NL, B>, IdentifyError> {
         let shape = level_trend_shape::<NL>().map_err(IdentifyError::Shape)?;
         let w0 = level_identity_weights::<NL>(&scaling);
-        let f = LevelTrendTime::new(1.0 / sample_period_s).with_trend_per_bin();
+        let f = level_trend_features(1.0 / sample_period_s);
         super::Identifier::new(f, scaling, shape, w0, trainer, denoise, sample_period_s)
             .map(super::Identifier::with_block_time)
     }
@@ -536,6 +553,7 @@ pub mod presets {
         u_max: 1.0,
         w_max: 1.0e4,
         mode: DrlsMode::Sequential,
+        form: DrlsForm::Gain,
     };
 
     /// Default memory of the per-power-on bias neuron, s (after its growing-window start).

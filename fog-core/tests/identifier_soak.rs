@@ -129,7 +129,7 @@ where
             ex.max_abs_w = ex.max_abs_w.max(w.abs());
         }
         let mut any_zero = false;
-        for &u in id.trainer().u() {
+        for u in id.trainer().u() {
             assert!(
                 u.is_finite() && (0.0..=cfg.u_max).contains(&u),
                 "{name}: sample {k}: U {u:e}"
@@ -179,6 +179,7 @@ fn soak(n: usize) -> (Extremes, Extremes) {
             u_max: 1.0,
             w_max: 1.0e4,
             mode: DrlsMode::Sequential,
+            form: presets::LEVEL_TREND_DRLS.form,
         };
         let t = Drls::new(cfg).expect("valid DRLS");
         let id = presets::level_trend_with::<_, 512, { presets::L }>(

@@ -1,7 +1,9 @@
 //! Trainers against closed-form least squares, the eq. (15) overflow, the guard, and
 //! "no NaN or infinity for any finite input" (proptest).
 
-use fog_core::train::{Drls, DrlsConfig, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer};
+use fog_core::train::{
+    Drls, DrlsConfig, DrlsForm, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer,
+};
 use fog_core::wnn::{Activation, Evaluation, Neuron, WnnShape};
 use proptest::prelude::*;
 
@@ -132,6 +134,7 @@ fn drls_sequential_converges_to_least_squares() {
             u_max: 1e3,
             w_max: 1e6,
             mode: DrlsMode::Sequential,
+            form: DrlsForm::Gain,
         };
         let mut t = Drls::<L>::new(cfg).expect("valid");
         max_rel_diff(&train_all(&mut t, &hs, &ds, 20), &ls)
@@ -166,6 +169,7 @@ fn drls_parallel_equals_least_squares_for_orthogonal_neurons() {
         u_max: 1e4,
         w_max: 1e6,
         mode: DrlsMode::Parallel,
+        form: DrlsForm::Gain,
     };
     let mut t = Drls::<L>::new(cfg).expect("valid");
     let w = train_all(&mut t, &hs, &ds, 1);
@@ -211,6 +215,7 @@ fn guard_keeps_u_and_w_bounded_over_ten_million_samples() {
     for mode in [DrlsMode::Parallel, DrlsMode::Sequential] {
         let cfg = DrlsConfig {
             mode,
+            form: DrlsForm::Gain,
             ..DrlsConfig::PAPER_GUARDED
         };
         let mut t = Drls::<L>::new(cfg).expect("valid");
@@ -289,7 +294,7 @@ proptest! {
                     prop_assert!(e.is_finite(), "trainer {i}: error {e}");
                     prop_assert!(w[i].iter().all(|v| v.is_finite() && v.abs() <= 1e4), "trainer {i}: {:?}", w[i]);
                 }
-                prop_assert!(drls_p.u().iter().chain(drls_s.u()).all(|u| u.is_finite() && *u <= 1.0));
+                prop_assert!(drls_p.u().into_iter().chain(drls_s.u()).all(|u| u.is_finite() && u <= 1.0));
                 prop_assert!(rls.trace().is_finite() && rls.trace() <= 1e6);
             }
         }

@@ -11,7 +11,8 @@ use core::fmt::Write as _;
 
 use embedded_hal_nb::serial::Write;
 use fog_core::denoise::{BlockDenoiser, DenoiseConfig, Push};
-use fog_core::features::{FeatureMap, LevelTrendTime};
+use fog_core::features::FeatureMap;
+use fog_core::identify::presets;
 use fog_core::frame::{ecore, Decoder, EcoreDecoder};
 use fog_core::train::Trainer;
 use fog_core::wnn::{dot, HiddenCache};
@@ -155,8 +156,8 @@ where
     let Ok(probe) = pipeline::new_stage() else {
         return false;
     };
-    // As the stage's preset makes them: the trend held per 1-s bin, the time per block.
-    let mut features = LevelTrendTime::new(1.0 / pipeline::SAMPLE_PERIOD_S).with_trend_per_bin();
+    // As the stage's preset makes them: the trend held for a while, the time per block.
+    let mut features = presets::level_trend_features(1.0 / pipeline::SAMPLE_PERIOD_S);
     let (mut out_h, mut probe_h) = (HiddenCache::new(), HiddenCache::new());
     let mut trainer = probe.trainer().clone();
     let mut w = *probe.weights();

@@ -51,7 +51,7 @@ fn run<F: FeatureMap<N>, const N: usize, const L: usize, const B: usize>(
     let cfg = *id.trainer().config();
     for (k, &x) in xs.iter().enumerate() {
         let w_before = *id.weights();
-        let u_before = *id.trainer().u();
+        let u_before = id.trainer().u();
         let stats_before = *id.stats();
         let r = id.push(x);
         let st = *id.stats();
@@ -85,7 +85,7 @@ fn run<F: FeatureMap<N>, const N: usize, const L: usize, const B: usize>(
                     &w_before,
                     "refused sample changed the weights"
                 );
-                assert_eq!(id.trainer().u(), &u_before, "refused sample changed U");
+                assert_eq!(id.trainer().u(), u_before, "refused sample changed U");
             }
         }
         for (a, w) in id.weights().iter().enumerate() {

@@ -1,7 +1,7 @@
 //! `host-sim identify`: see [`crate::identify`].
 
 use crate::identify::series::CsvFiles;
-use crate::identify::{self, Act, LevelInput, Options, Preset, TrainerKind};
+use crate::identify::{self, Act, DrlsFormArg, LevelInput, Options, Preset, TrainerKind};
 use crate::record;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
@@ -27,6 +27,10 @@ pub struct IdentifierArgs {
     /// DRLS `U(0)` (default: the preset's).
     #[arg(long)]
     pub u0: Option<f32>,
+    /// DRLS gain recursion: `gain` (eq. 15, `U` kept) or `energy` (eqs. 10-11, `S = 1/U`
+    /// kept) (default: the preset's: energy for level-trend, as the firmware; gain otherwise).
+    #[arg(long, value_enum)]
+    pub drls_form: Option<DrlsFormArg>,
     /// Denoising levels.
     #[arg(long, default_value_t = 3)]
     pub levels: u32,
@@ -124,6 +128,9 @@ pub fn options(a: &IdentifierArgs) -> Options {
     }
     if let Some(u) = a.u0 {
         o.u0 = u;
+    }
+    if let Some(f) = a.drls_form {
+        o.drls_form = f;
     }
     if let Some(act) = a.activation {
         o.activation = act;

@@ -15,7 +15,7 @@ mod drls;
 mod nlms;
 mod rls;
 
-pub use drls::{Drls, DrlsConfig, DrlsMode};
+pub use drls::{Drls, DrlsConfig, DrlsForm, DrlsMode};
 pub use nlms::{Nlms, NlmsConfig};
 pub use rls::{Rls, RlsConfig};
 

@@ -31,7 +31,9 @@ use fog_core::baseline::RandomWalkKalman;
 use fog_core::denoise::DenoiseConfig;
 use fog_core::features::{FeatureMap, LevelBank, LevelTrendTime, RateTime, TimeTemp};
 use fog_core::identify::{presets, Identifier};
-use fog_core::train::{Drls, DrlsConfig, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer};
+use fog_core::train::{
+    Drls, DrlsConfig, DrlsForm, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer,
+};
 use fog_core::wnn::{Activation, InputScaling};
 use metrics::{ErrorAcc, Figures};
 use serde::Serialize;
@@ -69,6 +71,16 @@ pub enum TrainerKind {
     Nlms,
 }
 
+/// DRLS gain recursion (`fog_core::train::DrlsForm`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum DrlsFormArg {
+    /// Eq. (15): `U` kept.
+    Gain,
+    /// Eqs. (10)-(11): the energy `S = 1/U` kept (the level-trend preset's, as the firmware).
+    Energy,
+}
+
 /// Wavelet neuron.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, Serialize, PartialEq, Eq)]
 #[serde(rename_all = "kebab-case")]
@@ -92,6 +104,8 @@ pub struct Options {
     pub lambda: f32,
     /// DRLS guard: `U <= u_max`, `|w| <= w_max` (off = eq. 15 exactly).
     pub guard: bool,
+    /// DRLS gain recursion.
+    pub drls_form: DrlsFormArg,
     /// `U(0)` of DRLS (bias neuron of level-trend excepted: 1).
     pub u0: f32,
     /// Denoising levels.
@@ -143,6 +157,7 @@ impl Options {
             hidden: 30,
             lambda: 0.63,
             guard: false,
+            drls_form: DrlsFormArg::Gain,
             u0: 1.0,
             levels: 3,
             block: 512,
@@ -163,6 +178,7 @@ impl Options {
             preset: Preset::TimeTemp,
             lambda: presets::TIME_TEMP_DRLS.lambda,
             u0: presets::TIME_TEMP_DRLS.u0,
+            drls_form: DrlsFormArg::Gain,
             ..Self::level_trend()
         }
     }
@@ -173,6 +189,7 @@ impl Options {
             preset: Preset::LevelBank,
             lambda: 1.0,
             u0: 1.0e-4,
+            drls_form: DrlsFormArg::Gain,
             ..Self::level_trend()
         }
     }
@@ -185,6 +202,7 @@ impl Options {
             hidden: 30,
             lambda: presets::LEVEL_TREND_DRLS.lambda,
             guard: true,
+            drls_form: DrlsFormArg::Energy,
             u0: presets::LEVEL_TREND_DRLS.u0,
             levels: 3,
             block: 512,
@@ -699,6 +717,10 @@ fn drls_config(o: &Options) -> DrlsConfig {
         } else {
             DrlsMode::Sequential
         },
+        form: match o.drls_form {
+            DrlsFormArg::Gain => DrlsForm::Gain,
+            DrlsFormArg::Energy => DrlsForm::Energy,
+        },
     }
 }
 
@@ -810,12 +832,13 @@ fn with_trainer<const L: usize, const B: usize>(
         }),
         Preset::LevelTrend => go!(
             |dt: f32| match o.level {
-                // As `presets::level_trend_with` makes them: the trend held per bin.
+                // As `presets::level_trend_with` makes them: the trend held for a while.
                 LevelInput::Kalman { q_over_r } => {
-                    LevelTrendTime::with_kalman(1.0 / dt, q_over_r).with_trend_per_bin()
+                    let every = presets::level_trend_features(1.0 / dt).trend_every();
+                    LevelTrendTime::with_kalman(1.0 / dt, q_over_r).with_trend_every(every)
                 }
                 LevelInput::Mean10s | LevelInput::KalmanTuned => {
-                    LevelTrendTime::new(1.0 / dt).with_trend_per_bin()
+                    presets::level_trend_features(1.0 / dt)
                 }
             },
             presets::LEVEL_TREND_SCALING,
