@@ -13,7 +13,9 @@
 //!    denoised values become the targets of the next `B` training steps.
 //!
 //! Memory, fixed at compile time: denoising block and its scratch `8 B` bytes, input ring
-//! `4 N B`, network `4 L (N + 3)`, plus the trainer and the feature map. The block buffer
+//! `4 N B`, network `4 L (N + 3)`, the hidden values of the output and of the training step
+//! kept from the previous sample (`2 (4 L + 16)`: [`HiddenCache`]), plus the trainer and
+//! the feature map. The block buffer
 //! doubles as the store of targets: slot `k mod B` holds `d(k - B)` until sample `k` is
 //! trained on it and then stored in its place (the same as
 //! [`crate::denoise::BlockDenoiser`] plus a copy of each denoised block, without the copy).
@@ -317,7 +319,7 @@ pub mod presets {
     };
 
     /// How long the level-trend preset holds its trend input, s ([`level_trend_features`]).
-    pub const TREND_HOLD_S: f32 = 0.1;
+    pub const TREND_HOLD_S: f32 = 0.05;
 
     /// The level-trend preset's inputs for `samples_per_s` samples per second: the 10-s
     /// level every sample, the trend computed every [`TREND_HOLD_S`] (rounded to samples,

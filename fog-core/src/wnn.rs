@@ -346,11 +346,7 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
                     }
                 }
                 for (run, seen) in runs.iter().zip(memo.iter_mut()).take(usize::from(*n)) {
-                    let bits = x.get(usize::from(run.input)).map(|v| v.to_bits());
-                    if *seen != bits || bits.is_none() {
-                        self.hidden_run(run, x, h);
-                        *seen = bits;
-                    }
+                    self.hidden_run_memo(run, seen, x, h);
                 }
             }
             Evaluation::Recurrence { runs, n, .. } => {
@@ -358,11 +354,7 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
                 for (run, seen) in runs.iter().zip(memo.iter_mut()).take(usize::from(*n)) {
                     let start = usize::from(run.start);
                     self.hidden_each(x, h, next, start);
-                    let bits = x.get(usize::from(run.input)).map(|v| v.to_bits());
-                    if *seen != bits || bits.is_none() {
-                        self.hidden_run(run, x, h);
-                        *seen = bits;
-                    }
+                    self.hidden_run_memo(run, seen, x, h);
                     next = start + usize::from(run.count);
                 }
                 self.hidden_each(x, h, next, L);
@@ -413,6 +405,17 @@ impl<const N: usize, const L: usize> WnnShape<N, L> {
                 Neuron::Bias => 1.0,
                 Neuron::Linear(j) => x.get(usize::from(j)).copied().unwrap_or(0.0),
             };
+        }
+    }
+
+    /// [`Self::hidden_run`] unless `seen` holds the bits of the run's input (its values in
+    /// `h` are then those already); `seen` then holds them.
+    #[inline(always)]
+    fn hidden_run_memo(&self, run: &Run, seen: &mut Option<u32>, x: &[f32; N], h: &mut [f32; L]) {
+        let bits = x.get(usize::from(run.input)).map(|v| v.to_bits());
+        if *seen != bits || bits.is_none() {
+            self.hidden_run(run, x, h);
+            *seen = bits;
         }
     }
 
