@@ -2,8 +2,16 @@
 # Firmware budget: instructions per sample (QEMU mps2-an386 under -icount, SysTick calibrated
 # with a counted loop), flash and RAM of the production ELF, stack high-water mark from the
 # hardware-in-the-loop run. Prints the table and each goal's distance.
-#   bash scripts/fw-budget.sh
+#   bash scripts/fw-budget.sh [CLOCK_MHZ SAMPLE_RATE_HZ]
+# The firmware prints the budget at 168 MHz and 1 kHz; with CLOCK_MHZ and SAMPLE_RATE_HZ the
+# script adds the same line for that clock and rate (from the measured mean and worst sample).
 set -euo pipefail
+clock_mhz=${1:-}
+rate_hz=${2:-}
+if [ -n "$clock_mhz" ] && ! [[ "$clock_mhz" =~ ^[0-9]+$ && "${rate_hz:-x}" =~ ^[0-9]+$ && "$rate_hz" -gt 0 ]]; then
+  echo "usage: bash scripts/fw-budget.sh [CLOCK_MHZ SAMPLE_RATE_HZ] (positive integers)" >&2
+  exit 2
+fi
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 fw=fog-firmware
@@ -15,9 +23,17 @@ echo "==> building the production firmware and the budget variant (feature budge
 (cd $fw && env -u RUSTFLAGS cargo build -q --release --features budget --target-dir target/budget)
 
 echo "==> instructions per sample: qemu-system-arm -icount shift=6,align=off,sleep=off" >&2
-timeout 120 qemu-system-arm -machine mps2-an386 -nographic -monitor none -serial stdio \
+table=$(timeout 120 qemu-system-arm -machine mps2-an386 -nographic -monitor none -serial stdio \
   -semihosting-config enable=on,target=native -icount shift=6,align=off,sleep=off \
-  -kernel "$budget_elf" < /dev/null 2>/dev/null
+  -kernel "$budget_elf" < /dev/null 2>/dev/null)
+echo "$table"
+if [ -n "$clock_mhz" ]; then
+  # The whole-pipeline row: "| whole pipeline (decode+identify+record) | sample | MEAN | MAX |".
+  read -r mean worst < <(awk -F'|' '/whole pipeline \(decode/ {gsub(/ /, "", $4); gsub(/ /, "", $5); print $4, $5}' <<<"$table")
+  awk -v m="$mean" -v w="$worst" -v c="$clock_mhz" -v r="$rate_hz" 'BEGIN {
+    avail = c * 1e6 / r;
+    printf "budget at %d MHz, %d Hz: %d instructions per sample available; pipeline mean %.1f (%.2f %%), worst sample %.1f (%.2f sample periods); instructions, not cycles\n", c, r, avail, m, 100 * m / avail, w, w / avail }'
+fi
 
 echo
 echo "==> memory of the production ELF ($elf), from size -A"
