@@ -524,7 +524,7 @@ mod tests {
     /// `with_trend_every(m)`: at samples m-1, 2m-1, ... the held trend equals the
     /// per-sample trend (same bits); in between it keeps that value; 0 before.
     #[test]
-    fn trend_held_per_bin() {
+    fn trend_held_every_m_samples() {
         let mut live = LevelTrendTime::new(10.0);
         let mut held = LevelTrendTime::new(10.0).with_trend_every(10);
         let mut last = 0.0f32;
@@ -535,7 +535,7 @@ mod tests {
             assert_eq!(a[0].to_bits(), b[0].to_bits());
             assert_eq!(a[2].to_bits(), b[2].to_bits());
             if (k + 1) % 10 == 0 {
-                assert_eq!(a[1].to_bits(), b[1].to_bits(), "bin end at sample {k}");
+                assert_eq!(a[1].to_bits(), b[1].to_bits(), "computation at sample {k}");
                 last = b[1];
             } else {
                 assert_eq!(b[1].to_bits(), last.to_bits(), "sample {k}");
