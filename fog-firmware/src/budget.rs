@@ -12,8 +12,8 @@ use core::fmt::Write as _;
 use embedded_hal_nb::serial::Write;
 use fog_core::denoise::{BlockDenoiser, DenoiseConfig, Push};
 use fog_core::features::FeatureMap;
-use fog_core::identify::presets;
 use fog_core::frame::{ecore, Decoder, EcoreDecoder};
+use fog_core::identify::presets;
 use fog_core::train::Trainer;
 use fog_core::wnn::{dot, HiddenCache};
 
