@@ -522,27 +522,30 @@ mod tests {
     }
 
     /// `with_trend_every(m)`: at samples m-1, 2m-1, ... the held trend equals the
-    /// per-sample trend (same bits); in between it keeps that value; 0 before.
+    /// per-sample trend (same bits); in between it keeps that value; 0 before. `m` = 1 is
+    /// the per-sample trend; 7 does not divide the 10-sample bins, 10 does.
     #[test]
     fn trend_held_every_m_samples() {
-        let mut live = LevelTrendTime::new(10.0);
-        let mut held = LevelTrendTime::new(10.0).with_trend_every(10);
-        let mut last = 0.0f32;
-        for k in 0..2_000u32 {
-            let x = 0.01 * (k as f32 * 0.013).sin() + 1e-4 * (k % 7) as f32;
-            let a = live.next(x, k as f32 * 0.1);
-            let b = held.next(x, k as f32 * 0.1);
-            assert_eq!(a[0].to_bits(), b[0].to_bits());
-            assert_eq!(a[2].to_bits(), b[2].to_bits());
-            if (k + 1) % 10 == 0 {
-                assert_eq!(a[1].to_bits(), b[1].to_bits(), "computation at sample {k}");
-                last = b[1];
-            } else {
-                assert_eq!(b[1].to_bits(), last.to_bits(), "sample {k}");
+        for m in [1u32, 7, 10] {
+            let mut live = LevelTrendTime::new(10.0);
+            let mut held = LevelTrendTime::new(10.0).with_trend_every(m);
+            let mut last = 0.0f32;
+            for k in 0..2_000u32 {
+                let x = 0.01 * (k as f32 * 0.013).sin() + 1e-4 * (k % 7) as f32;
+                let a = live.next(x, k as f32 * 0.1);
+                let b = held.next(x, k as f32 * 0.1);
+                assert_eq!(a[0].to_bits(), b[0].to_bits());
+                assert_eq!(a[2].to_bits(), b[2].to_bits());
+                if (k + 1) % m == 0 {
+                    assert_eq!(a[1].to_bits(), b[1].to_bits(), "m {m}, sample {k}");
+                    last = b[1];
+                } else {
+                    assert_eq!(b[1].to_bits(), last.to_bits(), "m {m}, sample {k}");
+                }
             }
+            assert_ne!(last, 0.0);
+            held.reset();
+            assert_eq!(held.next(1.0, 0.0)[1], 0.0);
         }
-        assert_ne!(last, 0.0);
-        held.reset();
-        assert_eq!(held.next(1.0, 0.0)[1], 0.0);
     }
 }

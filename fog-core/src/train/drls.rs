@@ -18,7 +18,12 @@
 //!   lambda = 0.63 a silent neuron's `U_a` overflows f32 after about 190 samples (from 1),
 //!   then `inf/inf` gives NaN. The guard caps `U_a <= u_max` (equivalently `S_a >= 1/u_max`:
 //!   the forgotten energy never drops below a floor), and caps `|w_a| <= w_max`. With
-//!   `u_max = INFINITY` and `w_max = INFINITY` the trainer is eq. (15) exactly.
+//!   `u_max = INFINITY` and `w_max = INFINITY` the trainer is eq. (15) exactly. The `U`
+//!   bound is checked once per window of steps in which a growth bound proves it cannot
+//!   bind (the same bits as checking it at every weight; see `guard_may_bind`).
+//! - **Form.** [`DrlsForm::Gain`] keeps `U_a` (eq. 15 as above); [`DrlsForm::Energy`] keeps
+//!   `S_a = 1/U_a` as eqs. (10)-(11) write it (`S_a(k) = lambda S_a(k-1) + h_a^2`,
+//!   `w_a += h_a e / S_a`): the same recursion, fewer operations per weight.
 
 use super::{bound_weights, Trainer};
 use crate::wnn::dot;
