@@ -158,11 +158,6 @@ impl LevelTrendTime {
         }
     }
 
-    /// Samples between two trend computations (see [`Self::with_trend_every`]).
-    pub fn trend_every(&self) -> u32 {
-        self.trend_every
-    }
-
     /// The trend computed at samples `m - 1, 2m - 1, ...` (the same value as every sample
     /// would give there) and held for the `m - 1` samples after each (0 before the first);
     /// `m` at least 1.

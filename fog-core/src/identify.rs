@@ -303,8 +303,8 @@ pub mod presets {
     pub type Paper<const B: usize, const NL: usize = L> =
         super::Identifier<RateTime, Drls<NL>, 2, NL, B>;
 
-    /// The improved identifier: inputs `[level, trend, T]` (the trend held per 1-s bin,
-    /// [`level_trend_features`]; `T` held per denoising block,
+    /// The improved identifier: inputs `[level, trend, T]` (the trend held for
+    /// [`TREND_HOLD_S`], [`level_trend_features`]; `T` held per denoising block,
     /// [`super::Identifier::with_block_time`]), bias + linear link + Gaussians, sequential
     /// guarded DRLS.
     pub type LevelTrend<const B: usize, const NL: usize = L> =
@@ -325,13 +325,17 @@ pub mod presets {
     /// level every sample, the trend computed every [`TREND_HOLD_S`] (rounded to samples,
     /// at least 1) and held in between ([`LevelTrendTime::with_trend_every`]).
     pub fn level_trend_features(samples_per_s: f32) -> LevelTrendTime {
+        LevelTrendTime::new(samples_per_s).with_trend_every(trend_hold_samples(samples_per_s))
+    }
+
+    /// [`TREND_HOLD_S`] in samples at `samples_per_s` (rounded, at least 1).
+    pub fn trend_hold_samples(samples_per_s: f32) -> u32 {
         let m = libm::roundf(samples_per_s * TREND_HOLD_S);
-        let m = if (1.0..1.0e6).contains(&m) {
+        if (1.0..1.0e6).contains(&m) {
             m as u32
         } else {
             1
-        };
-        LevelTrendTime::new(samples_per_s).with_trend_every(m)
+        }
     }
 
     /// Default scaling of `[level, trend, T]` (assumed: level +-0.02 deg/s, trend

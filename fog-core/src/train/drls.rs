@@ -385,11 +385,11 @@ impl<const L: usize> Drls<L> {
         if self.guard_steps_left == 0 {
             let u_max = self.cfg.u_max;
             let bound = self.state_bound();
-            let states = self.state.iter().zip(&self.growth);
+            let mut states = self.state.iter().zip(&self.growth);
             self.guard_idle = u_max == f32::INFINITY
                 || match self.cfg.form {
-                    DrlsForm::Gain => states.into_iter().all(|(&u, &g)| u * g <= bound),
-                    DrlsForm::Energy => states.into_iter().all(|(&s, &g)| bound * g <= s),
+                    DrlsForm::Gain => states.all(|(&u, &g)| u * g <= bound),
+                    DrlsForm::Energy => states.all(|(&s, &g)| bound * g <= s),
                 };
             self.guard_steps_left = GUARD_WINDOW;
         }

@@ -834,8 +834,8 @@ fn with_trainer<const L: usize, const B: usize>(
             |dt: f32| match o.level {
                 // As `presets::level_trend_with` makes them: the trend held for a while.
                 LevelInput::Kalman { q_over_r } => {
-                    let every = presets::level_trend_features(1.0 / dt).trend_every();
-                    LevelTrendTime::with_kalman(1.0 / dt, q_over_r).with_trend_every(every)
+                    LevelTrendTime::with_kalman(1.0 / dt, q_over_r)
+                        .with_trend_every(presets::trend_hold_samples(1.0 / dt))
                 }
                 LevelInput::Mean10s | LevelInput::KalmanTuned => {
                     presets::level_trend_features(1.0 / dt)
