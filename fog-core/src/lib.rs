@@ -9,7 +9,8 @@
 //! - [`train`]: DRLS (paper section 4.2) and the RLS / NLMS baselines;
 //! - [`features`]: causal network inputs; [`identify`]: the on-line identifier;
 //! - [`baseline`]: causal estimators to compare with;
-//! - [`frame`], [`driver`]: gyro serial frames and the serial reader.
+//! - [`frame`], [`driver`]: gyro serial frames and the serial reader;
+//! - [`tmp117`]: driver for the TI TMP117 I2C temperature sensor.
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -22,6 +23,7 @@ pub mod features;
 pub mod frame;
 pub mod identify;
 pub mod threshold;
+pub mod tmp117;
 pub mod train;
 pub mod wnn;
 
