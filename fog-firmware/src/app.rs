@@ -8,6 +8,7 @@ use fog_core::driver::GyroReader;
 use fog_core::frame::{ByteStats, Decoder, EcoreDecoder};
 
 use crate::pipeline::{self, EndDetector, RunTotals};
+use crate::temperature::TemperatureSource;
 
 /// Periodic statistics on defmt every this many samples.
 pub const STATS_EVERY_SAMPLES: u32 = 1000;
@@ -105,12 +106,20 @@ fn log_stats<C: TickCounter>(s: &ByteStats, t: &RunTotals, p: &Period) {
 /// Runs until the end marker: decodes E-Core frames from `rx`, writes one record per good
 /// frame to `tx`, then flushes the decoder and writes the statistics record.
 ///
-/// `stack_bytes` is called once at the end for the final record.
-pub fn run<R, W, C>(rx: R, tx: &mut W, counter: &C, stack_bytes: fn() -> u32) -> Stop
+/// `stack_bytes` is called once at the end for the final record. `temperature` gives each
+/// sample's `temp_c` (`None` without a sensor).
+pub fn run<R, W, C, I>(
+    rx: R,
+    tx: &mut W,
+    counter: &C,
+    stack_bytes: fn() -> u32,
+    mut temperature: TemperatureSource<I>,
+) -> Stop
 where
     R: Read<u8>,
     W: Write<u8>,
     C: TickCounter,
+    I: embedded_hal::i2c::I2c,
 {
     let Ok(decoder) = EcoreDecoder::new(pipeline::FULL_SCALE_DPS) else {
         defmt::error!("decoder configuration refused");
@@ -142,8 +151,9 @@ where
     loop {
         match reader.read() {
             Ok(frame) => {
+                let temp_c = temperature.sample();
                 let t0 = counter.stamp();
-                let (est, status) = pipeline::process(&mut stage, frame.rate_dps);
+                let (est, status) = pipeline::process(&mut stage, frame.rate_dps, temp_c);
                 let record = pipeline::sample_record(totals.samples, frame.rate_dps, &est, status);
                 let ticks = counter.ticks_since(t0);
                 write_all(tx, &record);
@@ -179,6 +189,11 @@ where
         totals.samples,
         totals.stack_bytes,
         stats.is_consistent()
+    );
+    defmt::info!(
+        "temperature: sensor present {=bool}, failed reads {=u32}",
+        temperature.present(),
+        temperature.failures()
     );
     write_all(tx, &pipeline::stats_record(&stats, &totals));
     // A transmit error at this point has nowhere to be reported.

@@ -191,7 +191,8 @@ where
         let (_, ticks) = time(c, || {
             for &b in &wire {
                 if let Some(f) = decoder.push(b) {
-                    let ((est, status), t) = time(c, || pipeline::process(&mut stage, f.rate_dps));
+                    let ((est, status), t) =
+                        time(c, || pipeline::process(&mut stage, f.rate_dps, None));
                     stage_ticks = t;
                     let r = pipeline::sample_record(frames, f.rate_dps, &est, status);
                     frames += 1;

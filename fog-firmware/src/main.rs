@@ -10,3 +10,5 @@ mod board;
 #[cfg(feature = "budget")]
 mod budget;
 mod pipeline;
+#[cfg_attr(feature = "budget", allow(dead_code))]
+mod temperature;

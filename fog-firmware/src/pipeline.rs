@@ -73,7 +73,13 @@ pub fn new_stage() -> Result<Stage, IdentifyError> {
 
 /// One sample through the stage: its estimate and the record's status byte. A refused
 /// sample gives NaN estimates and [`STATUS_REJECTED`].
-pub fn process(stage: &mut Stage, rate_dps: f32) -> (Estimate, u8) {
+///
+/// `temp_c` is the board temperature, °C (`None` without a sensor or while its reading is
+/// stale; see `temperature.rs`). The level-trend stage has no temperature input and does not
+/// use it yet: this argument is the one place where the temperature enters the sample
+/// processing, for the identifier with a temperature input.
+pub fn process(stage: &mut Stage, rate_dps: f32, temp_c: Option<f32>) -> (Estimate, u8) {
+    let _ = temp_c;
     match stage.push(rate_dps) {
         Ok(est) => {
             let mut status = 0;

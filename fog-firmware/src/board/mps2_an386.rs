@@ -135,8 +135,20 @@ fn main() -> ! {
     let mut tx = UartTx(());
 
     #[cfg(not(feature = "budget"))]
-    let ok = crate::app::run(rx, &mut tx, &SysTickCounter, super::stack_used_bytes)
-        == crate::app::Stop::EndOfInput;
+    let ok = {
+        // No I2C bus is driven on this board: the firmware runs without a temperature sensor.
+        let temperature = crate::temperature::TemperatureSource::<crate::temperature::NoBus>::probe(
+            None,
+            fog_core::tmp117::Address::Gnd,
+        );
+        crate::app::run(
+            rx,
+            &mut tx,
+            &SysTickCounter,
+            super::stack_used_bytes,
+            temperature,
+        ) == crate::app::Stop::EndOfInput
+    };
     #[cfg(feature = "budget")]
     let ok = {
         let _ = rx;

@@ -1,6 +1,7 @@
 //! STM32F407 (e.g. STM32F4-Discovery, 8 MHz crystal) at 168 MHz: the gyro on USART2
 //! (PA2 TX, PA3 RX, 115 200 bps 8N1 here: set the gyro's rate), DWT CYCCNT as the counter
-//! (core cycles), defmt over RTT. Builds in CI; it has not run on a board.
+//! (core cycles), defmt over RTT, an optional TMP117 temperature sensor on I2C1 (PB8 SCL,
+//! PB9 SDA, 100 kHz, address 0x48; external pull-ups). Builds in CI; it has not run on a board.
 //!
 //! At the end marker the final record is written and the core sleeps (no semihosting on a
 //! board without a debugger).
@@ -8,7 +9,10 @@
 use cortex_m::peripheral::DWT;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use defmt_rtt as _;
-use stm32f4xx_hal::{pac, prelude::*, rcc, serial::config::Config};
+use fog_core::tmp117::Address;
+use stm32f4xx_hal::{i2c::Mode, pac, prelude::*, rcc, serial::config::Config};
+
+use crate::temperature::TemperatureSource;
 
 use crate::app::TickCounter;
 
@@ -18,6 +22,10 @@ const HSE_MHZ: u32 = 8;
 const SYSCLK_MHZ: u32 = 168;
 /// Gyro link baud rate.
 const BAUD: u32 = 115_200;
+/// I2C1 clock (standard mode), kHz.
+const I2C_KHZ: u32 = 100;
+/// TMP117 address (ADD0 to ground).
+const TMP117_ADDRESS: Address = Address::Gnd;
 
 /// DWT cycle counter, 32 bits, counting up at the core clock.
 pub struct CycleCounter;
@@ -68,7 +76,20 @@ fn main() -> ! {
 
     #[cfg(not(feature = "budget"))]
     {
-        let stop = crate::app::run(rx, &mut tx, &CycleCounter, super::stack_used_bytes);
+        let gpiob = dp.GPIOB.split(&mut rcc);
+        let i2c = dp.I2C1.i2c(
+            (gpiob.pb8, gpiob.pb9),
+            Mode::standard(I2C_KHZ.kHz()),
+            &mut rcc,
+        );
+        let temperature = TemperatureSource::probe(Some(i2c), TMP117_ADDRESS);
+        let stop = crate::app::run(
+            rx,
+            &mut tx,
+            &CycleCounter,
+            super::stack_used_bytes,
+            temperature,
+        );
         defmt::info!("stopped: {}", stop);
     }
     #[cfg(feature = "budget")]

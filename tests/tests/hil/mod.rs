@@ -56,7 +56,7 @@ pub fn host_reference(stream: &[u8]) -> Expected {
     let mut frames = Vec::new();
     for &b in stream {
         if let Some(frame) = decoder.push(b) {
-            let (est, status) = pipeline::process(&mut stage, frame.rate_dps);
+            let (est, status) = pipeline::process(&mut stage, frame.rate_dps, None);
             samples.push((frame.rate_dps, est, status));
             frames.push(frame);
         }

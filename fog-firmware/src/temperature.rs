@@ -1,0 +1,181 @@
+//! Board temperature for the sample processing: an optional TMP117 (`fog_core::tmp117`) on
+//! the board's I2C bus, read at most once per second of gyro samples.
+//!
+//! The firmware runs with or without the sensor. A board without an I2C bus passes `None`
+//! (bus type [`NoBus`]); a board with one passes it, and [`TemperatureSource::probe`] checks
+//! the device id at boot and logs on defmt whether a TMP117 answered. [`sample`] is called once
+//! per gyro sample and gives `temp_c: Option<f32>`:
+//!
+//! - the last good reading, refreshed every [`REFRESH_SAMPLES`] samples (1 s at the gyro's
+//!   100 Hz; the sensor is configured for one result per second, 8 averages);
+//! - after a failed read, the previous reading is kept for at most [`HOLD_SAMPLES`] samples
+//!   (5 s) since the last good one, then `None` until a read succeeds again; every failed read
+//!   is counted ([`failures`]) and the transitions (lost, back) are logged;
+//! - `None` when no sensor was found, and before the first good reading.
+//!
+//! A read is two I2C transactions of 3 bytes each on the bus (about 0.6 ms at 100 kHz), made
+//! in the main loop on the sample that is due; the other samples cost a counter decrement.
+//!
+//! [`sample`]: TemperatureSource::sample
+//! [`failures`]: TemperatureSource::failures
+#![forbid(unsafe_code)]
+
+use embedded_hal::i2c::{self, ErrorKind, ErrorType, I2c, Operation};
+use fog_core::tmp117::{self, Address, Config, Tmp117};
+
+use crate::pipeline;
+
+/// Samples between two reads: 1 s of gyro samples (100 at 0.01 s per sample).
+pub const REFRESH_SAMPLES: u32 = (1.0 / pipeline::SAMPLE_PERIOD_S + 0.5) as u32;
+
+/// Samples a reading stays valid after the last good read: 5 s (five missed refreshes).
+pub const HOLD_SAMPLES: u32 = 5 * REFRESH_SAMPLES;
+
+/// Sensor configuration written at boot: continuous, one result per second, 8 averages (the
+/// TMP117's power-on setting, written anyway so that an EEPROM changed by someone else does
+/// not change what the firmware reads).
+pub const SENSOR_CONFIG: Config = Config {
+    mode: tmp117::Mode::Continuous,
+    averaging: tmp117::Averaging::Avg8,
+    cycle: tmp117::ConversionCycle::S1,
+};
+
+/// The bus of a board without I2C: no value of this type exists, so a
+/// `TemperatureSource<NoBus>` can only be built without a sensor.
+#[cfg_attr(not(feature = "board-mps2-an386"), allow(dead_code))]
+#[derive(Debug)]
+pub enum NoBus {}
+
+impl ErrorType for NoBus {
+    type Error = ErrorKind;
+}
+
+impl I2c for NoBus {
+    fn transaction(&mut self, _: u8, _: &mut [Operation<'_>]) -> Result<(), ErrorKind> {
+        match *self {}
+    }
+}
+
+/// The optional sensor and the reading handed to the sample processing.
+#[derive(Debug)]
+pub struct TemperatureSource<I2C> {
+    sensor: Option<Tmp117<I2C>>,
+    last_c: Option<f32>,
+    /// Samples until the next read (0: read at the next sample).
+    until_read: u32,
+    /// Samples since the last good read (saturating).
+    age_samples: u32,
+    /// Failed reads since boot (saturating).
+    failures: u32,
+}
+
+/// One-word description of a driver error, for defmt (the bus error types of the HALs do
+/// not all implement `defmt::Format`).
+fn describe<E: i2c::Error>(e: &tmp117::Error<E>) -> &'static str {
+    match e {
+        tmp117::Error::I2c(bus) => match bus.kind() {
+            ErrorKind::NoAcknowledge(_) => "no acknowledge",
+            ErrorKind::ArbitrationLoss => "arbitration loss",
+            ErrorKind::Bus => "bus error",
+            ErrorKind::Overrun => "overrun",
+            _ => "other bus error",
+        },
+        tmp117::Error::WrongDevice { .. } => "wrong device id",
+        tmp117::Error::NotReady => "no conversion yet",
+    }
+}
+
+impl<I2C: I2c> TemperatureSource<I2C> {
+    /// Probes for a TMP117 at `address` on `bus` (none when `bus` is `None`) and configures
+    /// it with [`SENSOR_CONFIG`]; logs the outcome. Without a sensor every
+    /// [`sample`](Self::sample) is `None`.
+    pub fn probe(bus: Option<I2C>, address: Address) -> Self {
+        let sensor = bus.and_then(|bus| {
+            let mut sensor = Tmp117::new(bus, address);
+            match sensor.init(SENSOR_CONFIG) {
+                Ok(id) => {
+                    defmt::info!(
+                        "temperature: TMP117 at {=u8:#x}, id {=u16:#x}",
+                        address as u8,
+                        id
+                    );
+                    Some(sensor)
+                }
+                Err(e) => {
+                    match e {
+                        tmp117::Error::WrongDevice { id } => defmt::warn!(
+                            "temperature: no TMP117 at {=u8:#x} (device id {=u16:#x}); running without temperature",
+                            address as u8,
+                            id
+                        ),
+                        _ => defmt::info!(
+                            "temperature: no TMP117 at {=u8:#x} ({=str}); running without temperature",
+                            address as u8,
+                            describe(&e)
+                        ),
+                    }
+                    None
+                }
+            }
+        });
+        if sensor.is_none() {
+            defmt::info!("temperature: no sensor, temp_c is None");
+        }
+        Self {
+            sensor,
+            last_c: None,
+            until_read: 0,
+            age_samples: 0,
+            failures: 0,
+        }
+    }
+
+    /// Whether a TMP117 was found at boot.
+    pub fn present(&self) -> bool {
+        self.sensor.is_some()
+    }
+
+    /// Failed reads since boot.
+    pub fn failures(&self) -> u32 {
+        self.failures
+    }
+
+    /// Temperature for the current gyro sample, °C; call once per sample. Reads the sensor
+    /// when a refresh is due (every [`REFRESH_SAMPLES`] calls), otherwise returns the held
+    /// value (see the module documentation).
+    pub fn sample(&mut self) -> Option<f32> {
+        let sensor = self.sensor.as_mut()?;
+        self.age_samples = self.age_samples.saturating_add(1);
+        if self.until_read > 0 {
+            self.until_read -= 1;
+        } else {
+            self.until_read = REFRESH_SAMPLES.saturating_sub(1);
+            match sensor.read_temp_c() {
+                Ok(t) => {
+                    if self.last_c.is_none() && self.failures > 0 {
+                        defmt::info!("temperature: reading again, {=f32} C", t);
+                    }
+                    self.last_c = Some(t);
+                    self.age_samples = 0;
+                }
+                Err(e) => {
+                    self.failures = self.failures.saturating_add(1);
+                    defmt::debug!(
+                        "temperature: read failed ({=str}), {=u32} failures",
+                        describe(&e),
+                        self.failures
+                    );
+                }
+            }
+        }
+        if self.age_samples > HOLD_SAMPLES && self.last_c.is_some() {
+            self.last_c = None;
+            defmt::warn!(
+                "temperature: no good read for {=u32} samples, temp_c is None ({=u32} failures)",
+                self.age_samples,
+                self.failures
+            );
+        }
+        self.last_c
+    }
+}
