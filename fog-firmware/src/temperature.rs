@@ -1,8 +1,8 @@
 //! Board temperature for the sample processing: an optional TMP117 (`fog_core::tmp117`) on
 //! the board's I2C bus, read at most once per second of gyro samples.
 //!
-//! The firmware runs with or without the sensor. A board without an I2C bus passes `None`
-//! (bus type [`NoBus`]); a board with one passes it, and [`TemperatureSource::probe`] checks
+//! The firmware runs with or without the sensor. A board without an I2C bus passes `None`;
+//! a board with one passes it, and [`TemperatureSource::probe`] checks
 //! the device id at boot and logs on defmt whether a TMP117 answered. [`sample`] is called once
 //! per gyro sample and gives `temp_c: Option<f32>`:
 //!
@@ -20,7 +20,7 @@
 //! [`failures`]: TemperatureSource::failures
 #![forbid(unsafe_code)]
 
-use embedded_hal::i2c::{self, ErrorKind, ErrorType, I2c, Operation};
+use embedded_hal::i2c::{self, ErrorKind, I2c};
 use fog_core::tmp117::{self, Address, Config, Tmp117};
 
 use crate::pipeline;
@@ -39,22 +39,6 @@ pub const SENSOR_CONFIG: Config = Config {
     averaging: tmp117::Averaging::Avg8,
     cycle: tmp117::ConversionCycle::S1,
 };
-
-/// The bus of a board without I2C: no value of this type exists, so a
-/// `TemperatureSource<NoBus>` can only be built without a sensor.
-#[cfg_attr(not(feature = "board-mps2-an386"), allow(dead_code))]
-#[derive(Debug)]
-pub enum NoBus {}
-
-impl ErrorType for NoBus {
-    type Error = ErrorKind;
-}
-
-impl I2c for NoBus {
-    fn transaction(&mut self, _: u8, _: &mut [Operation<'_>]) -> Result<(), ErrorKind> {
-        match *self {}
-    }
-}
 
 /// The optional sensor and the reading handed to the sample processing.
 #[derive(Debug)]

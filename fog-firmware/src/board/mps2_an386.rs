@@ -1,5 +1,7 @@
 //! QEMU `-machine mps2-an386` (Cortex-M4 with FPU): CMSDK APB UART0, SysTick as the
-//! instruction counter, exit through semihosting.
+//! instruction counter, exit through semihosting, a TMP117 probed at 0x48 on the Shield1
+//! SBCon I2C port (bit-banged, `sbcon_i2c.rs`; QEMU attaches nothing there by default: the
+//! firmware then reports "no sensor").
 //!
 //! Under `-icount shift=6,align=off,sleep=off` each instruction takes 64 ns of virtual time
 //! and SysTick runs on the 25 MHz core clock, so it advances 1.6 ticks per instruction,
@@ -11,7 +13,11 @@ use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::debug;
 use embedded_hal_nb::serial::{ErrorKind, ErrorType, Read, Write};
 
+use fog_core::tmp117::Address;
+
+use super::sbcon_i2c::{self, SbconI2c};
 use crate::app::TickCounter;
+use crate::temperature::TemperatureSource;
 
 /// CMSDK APB UART0 base address.
 const UART0_BASE: usize = 0x4000_4000;
@@ -136,11 +142,9 @@ fn main() -> ! {
 
     #[cfg(not(feature = "budget"))]
     let ok = {
-        // No I2C bus is driven on this board: the firmware runs without a temperature sensor.
-        let temperature = crate::temperature::TemperatureSource::<crate::temperature::NoBus>::probe(
-            None,
-            fog_core::tmp117::Address::Gnd,
-        );
+        // SAFETY: SHIELD1_BASE is an SBCon port of this machine, and only this driver uses it.
+        let i2c = unsafe { SbconI2c::new(sbcon_i2c::SHIELD1_BASE) };
+        let temperature = TemperatureSource::probe(Some(i2c), Address::Gnd);
         crate::app::run(
             rx,
             &mut tx,
