@@ -1,0 +1,109 @@
+//! The firmware's TMP117 probe under QEMU (`-machine mps2-an386`): the bit-banged SBCon I2C
+//! master on the Shield1 port (`fog-firmware/src/board/sbcon_i2c.rs`) talks to what QEMU
+//! models on that bus.
+//!
+//! - Nothing on the bus (the default): the address byte is not acknowledged, the firmware logs
+//!   "no TMP117 ... (no acknowledge)" and runs without temperature.
+//! - QEMU's TMP105 model at 0x48 (`-device tmp105,address=0x48`, which QEMU puts on the
+//!   Shield1 port, the first free I2C bus): the address is acknowledged and two register
+//!   bytes come back (the TMP105 has no register 0x0F, so the id check fails: "wrong device
+//!   id" path, no "no acknowledge" in the log).
+//!
+//! Either way the firmware must run to the end marker and exit 0 with its statistics record.
+//! The defmt log is not decoded (no decoder here): a `{=str}` argument is written verbatim in
+//! defmt's frames, so the test looks for the probe's reason string in the raw bytes.
+
+use std::io::{Read, Write};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use fog_system_tests::{firmware_elf, qemu_system_arm};
+
+/// The firmware's end-of-input marker (`pipeline::END_MARKER`).
+const END_MARKER: [u8; 8] = [0xC6, 0xCF, 0xC7, 0xAD, 0xC5, 0xCE, 0xC4, 0xA1];
+
+/// Statistics record: sync, kind 0x02, len 152, payload, checksum.
+const STATS_RECORD_LEN: usize = 3 + 152 + 2;
+
+/// Runs the firmware with only the end marker on its UART and `extra` QEMU arguments;
+/// returns (UART output, defmt bytes, exit code).
+fn run(name: &str, extra: &[&str]) -> Option<(Vec<u8>, Vec<u8>, Option<i32>)> {
+    let qemu = qemu_system_arm()?;
+    let elf = firmware_elf(&[]);
+    // To a file, as in the HIL test (through a pipe, the first frames got lost).
+    let log_path = elf.with_file_name(format!("temperature-{name}-defmt.bin"));
+    let log_file = std::fs::File::create(&log_path).expect("defmt log file");
+    let mut child = Command::new(qemu)
+        .args(["-machine", "mps2-an386", "-nographic", "-monitor", "none"])
+        .args(["-serial", "stdio"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(extra)
+        .env_clear()
+        .arg("-kernel")
+        .arg(&elf)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::from(log_file))
+        .spawn()
+        .expect("qemu-system-arm starts");
+    let mut stdin = child.stdin.take().expect("piped stdin");
+    let mut stdout = child.stdout.take().expect("piped stdout");
+    stdin.write_all(&END_MARKER).expect("write the end marker");
+    stdin.flush().expect("flush");
+    let out = std::thread::spawn(move || {
+        let mut v = Vec::new();
+        let _ = stdout.read_to_end(&mut v);
+        v
+    });
+    let start = Instant::now();
+    let code = loop {
+        if let Some(status) = child.try_wait().expect("wait for QEMU") {
+            break status.code();
+        }
+        if start.elapsed() > Duration::from_secs(30) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("QEMU did not exit within 30 s");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    drop(stdin);
+    Some((
+        out.join().expect("reader"),
+        std::fs::read(&log_path).expect("defmt log"),
+        code,
+    ))
+}
+
+fn contains(haystack: &[u8], needle: &[u8]) -> bool {
+    haystack.windows(needle.len()).any(|w| w == needle)
+}
+
+#[test]
+fn no_sensor_on_the_bus_is_reported_and_the_firmware_runs() {
+    let Some((out, log, code)) = run("none", &[]) else {
+        return;
+    };
+    assert_eq!(code, Some(0), "QEMU's exit code (semihosting)");
+    assert_eq!(out.len(), STATS_RECORD_LEN, "only the statistics record");
+    assert_eq!(&out[..3], &[0xA5, 0x02, 152]);
+    assert!(
+        contains(&log, b"no acknowledge"),
+        "the probe's NACK reason in the defmt log: {}",
+        log.escape_ascii()
+    );
+}
+
+#[test]
+fn a_device_that_answers_is_not_taken_for_a_tmp117() {
+    let Some((out, log, code)) = run("tmp105", &["-device", "tmp105,address=0x48"]) else {
+        return;
+    };
+    assert_eq!(code, Some(0), "QEMU's exit code (semihosting)");
+    assert_eq!(out.len(), STATS_RECORD_LEN, "only the statistics record");
+    assert!(
+        !contains(&log, b"no acknowledge"),
+        "the TMP105 acknowledged its address"
+    );
+    assert!(!log.is_empty());
+}
