@@ -12,3 +12,5 @@ mod budget;
 mod pipeline;
 #[cfg_attr(feature = "budget", allow(dead_code))]
 mod temperature;
+#[cfg_attr(feature = "budget", allow(dead_code))]
+mod temperature_hold;

@@ -16,6 +16,8 @@
 //! A read is two I2C transactions of 3 bytes each on the bus (about 0.6 ms at 100 kHz), made
 //! in the main loop on the sample that is due; the other samples cost a counter decrement.
 //!
+//! The refresh and hold policy is `temperature_hold.rs` (tested on the host).
+//!
 //! [`sample`]: TemperatureSource::sample
 //! [`failures`]: TemperatureSource::failures
 #![forbid(unsafe_code)]
@@ -24,6 +26,7 @@ use embedded_hal::i2c::{self, ErrorKind, I2c};
 use fog_core::tmp117::{self, Address, Config, Tmp117};
 
 use crate::pipeline;
+use crate::temperature_hold::Hold;
 
 /// Samples between two reads: 1 s of gyro samples (100 at 0.01 s per sample).
 pub const REFRESH_SAMPLES: u32 = (1.0 / pipeline::SAMPLE_PERIOD_S + 0.5) as u32;
@@ -44,13 +47,7 @@ pub const SENSOR_CONFIG: Config = Config {
 #[derive(Debug)]
 pub struct TemperatureSource<I2C> {
     sensor: Option<Tmp117<I2C>>,
-    last_c: Option<f32>,
-    /// Samples until the next read (0: read at the next sample).
-    until_read: u32,
-    /// Samples since the last good read (saturating).
-    age_samples: u32,
-    /// Failed reads since boot (saturating).
-    failures: u32,
+    hold: Hold,
 }
 
 /// One-word description of a driver error, for defmt (the bus error types of the HALs do
@@ -107,10 +104,7 @@ impl<I2C: I2c> TemperatureSource<I2C> {
         }
         Self {
             sensor,
-            last_c: None,
-            until_read: 0,
-            age_samples: 0,
-            failures: 0,
+            hold: Hold::new(REFRESH_SAMPLES, HOLD_SAMPLES),
         }
     }
 
@@ -121,7 +115,7 @@ impl<I2C: I2c> TemperatureSource<I2C> {
 
     /// Failed reads since boot.
     pub fn failures(&self) -> u32 {
-        self.failures
+        self.hold.failures()
     }
 
     /// Temperature for the current gyro sample, °C; call once per sample. Reads the sensor
@@ -129,37 +123,30 @@ impl<I2C: I2c> TemperatureSource<I2C> {
     /// value (see the module documentation).
     pub fn sample(&mut self) -> Option<f32> {
         let sensor = self.sensor.as_mut()?;
-        self.age_samples = self.age_samples.saturating_add(1);
-        if self.until_read > 0 {
-            self.until_read -= 1;
-        } else {
-            self.until_read = REFRESH_SAMPLES.saturating_sub(1);
+        if self.hold.tick() {
             match sensor.read_temp_c() {
                 Ok(t) => {
-                    if self.last_c.is_none() && self.failures > 0 {
+                    if self.hold.good(t) {
                         defmt::info!("temperature: reading again, {=f32} C", t);
                     }
-                    self.last_c = Some(t);
-                    self.age_samples = 0;
                 }
                 Err(e) => {
-                    self.failures = self.failures.saturating_add(1);
+                    self.hold.failed();
                     defmt::debug!(
                         "temperature: read failed ({=str}), {=u32} failures",
                         describe(&e),
-                        self.failures
+                        self.hold.failures()
                     );
                 }
             }
         }
-        if self.age_samples > HOLD_SAMPLES && self.last_c.is_some() {
-            self.last_c = None;
+        if self.hold.expire() {
             defmt::warn!(
                 "temperature: no good read for {=u32} samples, temp_c is None ({=u32} failures)",
-                self.age_samples,
-                self.failures
+                self.hold.age_samples(),
+                self.hold.failures()
             );
         }
-        self.last_c
+        self.hold.value()
     }
 }

@@ -10,6 +10,8 @@
 //!   id" path, no "no acknowledge" in the log).
 //!
 //! Either way the firmware must run to the end marker and exit 0 with its statistics record.
+//! The refresh and hold policy (`fog-firmware/src/temperature_hold.rs`, compiled here) is
+//! tested on the host.
 //! The defmt log is not decoded (no decoder here): a `{=str}` argument is written verbatim in
 //! defmt's frames, so the test looks for the probe's reason string in the raw bytes.
 
@@ -18,6 +20,10 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use fog_system_tests::{firmware_elf, qemu_system_arm};
+
+#[path = "../../fog-firmware/src/temperature_hold.rs"]
+mod temperature_hold;
+use temperature_hold::Hold;
 
 /// The firmware's end-of-input marker (`pipeline::END_MARKER`).
 const END_MARKER: [u8; 8] = [0xC6, 0xCF, 0xC7, 0xAD, 0xC5, 0xCE, 0xC4, 0xA1];
@@ -106,4 +112,90 @@ fn a_device_that_answers_is_not_taken_for_a_tmp117() {
         "the TMP105 acknowledged its address"
     );
     assert!(!log.is_empty());
+}
+
+/// Drives a `Hold` as the firmware does; `read(k)` is the sensor at sample `k`.
+fn drive(hold: &mut Hold, n: usize, read: impl Fn(usize) -> Option<f32>) -> Vec<Option<f32>> {
+    (0..n)
+        .map(|k| {
+            if hold.tick() {
+                match read(k) {
+                    Some(t) => {
+                        hold.good(t);
+                    }
+                    None => hold.failed(),
+                }
+            }
+            hold.expire();
+            hold.value()
+        })
+        .collect()
+}
+
+#[test]
+fn hold_reads_once_per_refresh_period() {
+    let mut hold = Hold::new(100, 500);
+    let reads = std::cell::Cell::new(Vec::new());
+    let got = drive(&mut hold, 350, |k| {
+        let mut v = reads.take();
+        v.push(k);
+        reads.set(v);
+        Some(k as f32)
+    });
+    assert_eq!(reads.take(), [0, 100, 200, 300]);
+    assert_eq!(got[0], Some(0.0));
+    assert_eq!(got[99], Some(0.0));
+    assert_eq!(got[100], Some(100.0));
+    assert_eq!(got[349], Some(300.0));
+    assert_eq!(hold.failures(), 0);
+}
+
+#[test]
+fn hold_keeps_a_reading_for_a_bounded_time_after_failures() {
+    // Good reads at samples 0 and 100, then the sensor fails from sample 200 to 1099.
+    let mut hold = Hold::new(100, 500);
+    let sensor = |k: usize| (k < 200 || k >= 1100).then_some(20.0 + k as f32 / 1000.0);
+    let got = drive(&mut hold, 1200, sensor);
+    // Held while the last good read (sample 100) is at most 500 samples old.
+    assert!(
+        got[100..=600].iter().all(|v| *v == Some(20.1)),
+        "{:?}",
+        &got[590..610]
+    );
+    assert!(got[601..1100].iter().all(Option::is_none));
+    // Back at the first good read.
+    assert_eq!(got[1100], Some(21.1));
+    assert_eq!(got[1199], Some(21.1));
+    // Reads at 200, 300, ..., 1000 failed.
+    assert_eq!(hold.failures(), 9);
+}
+
+#[test]
+fn hold_without_a_good_read_gives_none() {
+    let mut hold = Hold::new(100, 500);
+    let got = drive(&mut hold, 1000, |_| None);
+    assert!(got.iter().all(Option::is_none));
+    assert_eq!(hold.failures(), 10);
+    // A refresh period of 0 reads every sample.
+    let mut every = Hold::new(0, 0);
+    assert!((0..5).all(|_| every.tick()));
+}
+
+#[test]
+fn hold_reports_the_transitions() {
+    let mut hold = Hold::new(1, 2);
+    assert!(hold.tick());
+    assert!(!hold.good(25.0), "first reading is not a return");
+    hold.failed();
+    for _ in 0..2 {
+        hold.tick();
+        hold.failed();
+        assert!(!hold.expire());
+    }
+    hold.tick();
+    assert!(hold.expire(), "dropped at age 3 > 2");
+    assert_eq!(hold.value(), None);
+    hold.tick();
+    assert!(hold.good(24.0), "back after a drop");
+    assert_eq!(hold.value(), Some(24.0));
 }
