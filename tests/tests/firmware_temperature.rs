@@ -154,7 +154,7 @@ fn hold_reads_once_per_refresh_period() {
 fn hold_keeps_a_reading_for_a_bounded_time_after_failures() {
     // Good reads at samples 0 and 100, then the sensor fails from sample 200 to 1099.
     let mut hold = Hold::new(100, 500);
-    let sensor = |k: usize| (k < 200 || k >= 1100).then_some(20.0 + k as f32 / 1000.0);
+    let sensor = |k: usize| (!(200..1100).contains(&k)).then_some(20.0 + k as f32 / 1000.0);
     let got = drive(&mut hold, 1200, sensor);
     // Held while the last good read (sample 100) is at most 500 samples old.
     assert!(
@@ -168,6 +168,8 @@ fn hold_keeps_a_reading_for_a_bounded_time_after_failures() {
     assert_eq!(got[1199], Some(21.1));
     // Reads at 200, 300, ..., 1000 failed.
     assert_eq!(hold.failures(), 9);
+    // The last good read was at sample 1100, 99 samples before the last one.
+    assert_eq!(hold.age_samples(), 99);
 }
 
 #[test]
