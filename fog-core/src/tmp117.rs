@@ -413,22 +413,21 @@ mod tests {
         bus.done();
     }
 
+    /// Any revision of a TMP117 passes; a TMP116 (0x1116) and a bus that floats high do not.
     #[test]
-    fn probe_accepts_tmp117_of_any_revision() {
-        let mut bus = Mock::new(&[read(0x0F, 0x0117), read(0x0F, 0x1117)]);
+    fn probe_checks_the_id_field() {
+        let cases = [
+            (0x0117, Ok(0x0117)),
+            (0x1117, Ok(0x1117)),
+            (0x1116, Err(Error::WrongDevice { id: 0x1116 })),
+            (0xFFFF, Err(Error::WrongDevice { id: 0xFFFF })),
+        ];
+        let script: std::vec::Vec<_> = cases.iter().map(|&(id, _)| read(0x0F, id)).collect();
+        let mut bus = Mock::new(&script);
         let mut s = Tmp117::new(&mut bus, Address::Gnd);
-        assert_eq!(s.probe(), Ok(0x0117));
-        assert_eq!(s.probe(), Ok(0x1117));
-        bus.done();
-    }
-
-    #[test]
-    fn probe_refuses_other_devices() {
-        // A TMP116 (0x1116) and a bus that floats high.
-        let mut bus = Mock::new(&[read(0x0F, 0x1116), read(0x0F, 0xFFFF)]);
-        let mut s = Tmp117::new(&mut bus, Address::Gnd);
-        assert_eq!(s.probe(), Err(Error::WrongDevice { id: 0x1116 }));
-        assert_eq!(s.probe(), Err(Error::WrongDevice { id: 0xFFFF }));
+        for (id, want) in cases {
+            assert_eq!(s.probe(), want, "id register 0x{id:04X}");
+        }
         bus.done();
     }
 
