@@ -13,8 +13,9 @@
 //!   is counted ([`failures`]) and the transitions (lost, back) are logged;
 //! - `None` when no sensor was found, and before the first good reading.
 //!
-//! A read is two I2C transactions of 3 bytes each on the bus (about 0.6 ms at 100 kHz), made
-//! in the main loop on the sample that is due; the other samples cost a counter decrement.
+//! A read is one write-read on the bus (address, register, address, 2 bytes: about 47 bit
+//! times, 0.5 ms at 100 kHz), blocking, made in the main loop on the sample that is due; the
+//! other samples cost a counter update.
 //!
 //! The refresh and hold policy is `temperature_hold.rs` (tested on the host).
 //!
