@@ -29,12 +29,12 @@ mod markov;
 mod model;
 pub mod motion;
 
+pub use family::{realize, Family};
 pub use markov::{flicker_adev, gm_avar, GaussMarkov, FLICKER_FLOOR, FLICKER_PER_DECADE};
 pub use model::{
     check_rate_hz, Bias, Faults, Model, Motion, Noise, QuantMode, Quantization, ScaleFactor,
     Temperature, Timing, EARTH_RATE_DPS, KEYS,
 };
-pub use family::{realize, Family};
 pub use motion::{Platform, PlatformState, Profile, RateTable, Turntable, TurntableStep, Vehicle};
 
 use anyhow::{bail, Result};

@@ -316,10 +316,14 @@ impl Model {
         model.motion.turntable.check().map_err(|(i, key, why)| {
             let at = find_line_nth(text, "motion.turntable.step", i, key)
                 .map_or(String::new(), |l| format!(":{l}"));
-            anyhow::anyhow!("{name}{at}: [[motion.turntable.step]] #{} {key}: {why}", i + 1)
+            anyhow::anyhow!(
+                "{name}{at}: [[motion.turntable.step]] #{} {key}: {why}",
+                i + 1
+            )
         })?;
         if model.motion.profile == Profile::File && model.motion.file.is_none() {
-            let at = find_line(text, "motion", "profile").map_or(String::new(), |l| format!(":{l}"));
+            let at =
+                find_line(text, "motion", "profile").map_or(String::new(), |l| format!(":{l}"));
             bail!("{name}{at}: [motion] profile = \"file\" needs `file = \"PATH.csv\"`");
         }
         model.family.check().map_err(|(key, why)| {
@@ -467,13 +471,48 @@ impl Model {
                 v.curvature_sigma_per_m,
                 NonNegative(SIZE),
             ),
-            ("motion.vehicle", "curvature_length_m", v.curvature_length_m, Positive),
-            ("motion.vehicle", "road_rate_max_dps", v.road_rate_max_dps, NonNegative(SIZE)),
-            ("motion.vehicle", "turn_interval_s", v.turn_interval_s, Positive),
-            ("motion.vehicle", "turn_rate_min_dps", v.turn_rate_min_dps, Positive),
-            ("motion.vehicle", "turn_rate_max_dps", v.turn_rate_max_dps, Positive),
-            ("motion.vehicle", "turn_angle_min_deg", v.turn_angle_min_deg, Positive),
-            ("motion.vehicle", "turn_angle_max_deg", v.turn_angle_max_deg, Positive),
+            (
+                "motion.vehicle",
+                "curvature_length_m",
+                v.curvature_length_m,
+                Positive,
+            ),
+            (
+                "motion.vehicle",
+                "road_rate_max_dps",
+                v.road_rate_max_dps,
+                NonNegative(SIZE),
+            ),
+            (
+                "motion.vehicle",
+                "turn_interval_s",
+                v.turn_interval_s,
+                Positive,
+            ),
+            (
+                "motion.vehicle",
+                "turn_rate_min_dps",
+                v.turn_rate_min_dps,
+                Positive,
+            ),
+            (
+                "motion.vehicle",
+                "turn_rate_max_dps",
+                v.turn_rate_max_dps,
+                Positive,
+            ),
+            (
+                "motion.vehicle",
+                "turn_angle_min_deg",
+                v.turn_angle_min_deg,
+                Positive,
+            ),
+            (
+                "motion.vehicle",
+                "turn_angle_max_deg",
+                v.turn_angle_max_deg,
+                Positive,
+            ),
             (
                 "timing",
                 "rate_error_ppm",
@@ -525,7 +564,12 @@ impl Model {
         for (lo, hi, lo_key, hi_key) in [
             (v.stop_min_s, v.stop_max_s, "stop_min_s", "stop_max_s"),
             (v.drive_min_s, v.drive_max_s, "drive_min_s", "drive_max_s"),
-            (v.turn_rate_min_dps, v.turn_rate_max_dps, "turn_rate_min_dps", "turn_rate_max_dps"),
+            (
+                v.turn_rate_min_dps,
+                v.turn_rate_max_dps,
+                "turn_rate_min_dps",
+                "turn_rate_max_dps",
+            ),
             (
                 v.turn_angle_min_deg,
                 v.turn_angle_max_deg,
@@ -534,7 +578,12 @@ impl Model {
             ),
         ] {
             if hi < lo {
-                return Err(("motion.vehicle", hi_key, hi, format!("must be >= {lo_key} ({lo})")));
+                return Err((
+                    "motion.vehicle",
+                    hi_key,
+                    hi,
+                    format!("must be >= {lo_key} ({lo})"),
+                ));
             }
         }
         if n.flicker_tau_max_s <= n.flicker_tau_min_s {
@@ -625,7 +674,10 @@ pub const KEYS: &[(&str, &[&str])] = &[
         ],
     ),
     ("motion.turntable", &["repeat"]),
-    ("motion.turntable.step", &["rate_dps", "duration_s", "angle_deg"]),
+    (
+        "motion.turntable.step",
+        &["rate_dps", "duration_s", "angle_deg"],
+    ),
     (
         "family",
         &[

@@ -184,7 +184,11 @@ impl Turntable {
             }
         }
         if self.repeat && self.step.iter().all(|s| s.rate_and_duration().1 <= 0.0) {
-            return Err((0, "duration_s", "a repeated schedule needs a length > 0".into()));
+            return Err((
+                0,
+                "duration_s",
+                "a repeated schedule needs a length > 0".into(),
+            ));
         }
         Ok(())
     }
@@ -252,14 +256,13 @@ impl RateTable {
             .has_headers(true)
             .flexible(false)
             .from_reader(std::io::BufReader::new(file));
-        let header = rdr
-            .headers()
-            .map_err(|e| anyhow!("{name}:1: {e}"))?
-            .clone();
+        let header = rdr.headers().map_err(|e| anyhow!("{name}:1: {e}"))?.clone();
         let col = |w: &str| header.iter().position(|h| h.trim() == w);
         let (Some(tc), Some(rc)) = (col("t_s"), col("true_rate_dps")) else {
-            bail!("{name}:1: needs columns `t_s` and `true_rate_dps` (header: {})",
-                header.iter().collect::<Vec<_>>().join(","));
+            bail!(
+                "{name}:1: needs columns `t_s` and `true_rate_dps` (header: {})",
+                header.iter().collect::<Vec<_>>().join(",")
+            );
         };
         let mut t_s: Vec<f64> = Vec::new();
         let mut rate_dps = Vec::new();
