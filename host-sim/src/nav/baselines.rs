@@ -275,12 +275,12 @@ impl DriftEstimator for ThermalKalman {
         let ph: [f64; 3] = std::array::from_fn(|i| (0..3).map(|j| self.p[i][j] * h[j]).sum());
         let s = (0..3).map(|i| h[i] * ph[i]).sum::<f64>() + self.cfg.r_dps2;
         let innov = rate_dps - est;
-        for i in 0..3 {
-            self.x[i] += ph[i] / s * innov;
+        for (x, g) in self.x.iter_mut().zip(ph) {
+            *x += g / s * innov;
         }
-        for i in 0..3 {
-            for j in 0..3 {
-                self.p[i][j] -= ph[i] * ph[j] / s;
+        for (row, gi) in self.p.iter_mut().zip(ph) {
+            for (p, gj) in row.iter_mut().zip(ph) {
+                *p -= gi * gj / s;
             }
         }
         est
