@@ -50,8 +50,14 @@ fn theirs(dir: &Path, kind: &str, unit: u64, seed: u64, ood: bool) -> Result<(Na
     let out = dir.join(format!("{kind}_{unit}_{seed}_{ood}.csv"));
     let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scripts/gen_nav_records.py");
     let mut c = Command::new("python3");
-    c.arg(script).args(["--kind", kind, "--seed", &seed.to_string()]);
-    c.args(["--duration-s", &DURATION_S.to_string(), "--unit-seed", &unit.to_string()]);
+    c.arg(script)
+        .args(["--kind", kind, "--seed", &seed.to_string()]);
+    c.args([
+        "--duration-s",
+        &DURATION_S.to_string(),
+        "--unit-seed",
+        &unit.to_string(),
+    ]);
     c.args(["--unit-spread", "0.2", "--out"]).arg(&out);
     if ood {
         c.arg("--ood");
@@ -72,7 +78,12 @@ fn thermal_rows(r: &NavRecord) -> Vec<(f64, f64, f64, bool)> {
     (0..r.len())
         .map(|k| {
             let z = r.rate_dps[k] - r.true_rate_dps[k];
-            (r.t_s[k], z, temp.get(k).copied().unwrap_or(f64::NAN), !r.moving[k])
+            (
+                r.t_s[k],
+                z,
+                temp.get(k).copied().unwrap_or(f64::NAN),
+                !r.moving[k],
+            )
         })
         .collect()
 }
@@ -108,12 +119,18 @@ fn evaluate(set: &Set, svg_dir: Option<&Path>) -> Result<()> {
     type Make = Box<dyn Fn() -> Box<dyn DriftEstimator>>;
     let mut makers: Vec<(&str, Make)> = vec![
         ("none", Box::new(|| Box::new(NoCompensation))),
-        ("alignment bias", Box::new(|| Box::new(AlignmentBias::default()))),
+        (
+            "alignment bias",
+            Box::new(|| Box::new(AlignmentBias::default())),
+        ),
         (
             "gated Kalman (tuned q)",
             Box::new(move || Box::new(GatedKalman::new(tuned.q_dps2, cfg.r_dps2))),
         ),
-        ("gated Kalman + thermal RLS", Box::new(move || Box::new(ThermalKalman::new(cfg)))),
+        (
+            "gated Kalman + thermal RLS",
+            Box::new(move || Box::new(ThermalKalman::new(cfg))),
+        ),
     ];
     if let Some(fit) = fit {
         makers.push((
@@ -171,9 +188,15 @@ fn main() -> Result<()> {
     let r_dps2 = 0.001_111_11f64.powi(2) * 100.0 + (60.0f64 / 32768.0).powi(2) / 12.0;
     let set = Set {
         name: "host-sim family".into(),
-        train: (1..=12).map(|u| ours(false, u, 1000 + u)).collect::<Result<_>>()?,
-        valid: (21..=23).map(|u| ours(true, u, 2000 + u)).collect::<Result<_>>()?,
-        test: (31..=34).map(|u| ours(true, u, 3000 + u)).collect::<Result<_>>()?,
+        train: (1..=12)
+            .map(|u| ours(false, u, 1000 + u))
+            .collect::<Result<_>>()?,
+        valid: (21..=23)
+            .map(|u| ours(true, u, 2000 + u))
+            .collect::<Result<_>>()?,
+        test: (31..=34)
+            .map(|u| ours(true, u, 3000 + u))
+            .collect::<Result<_>>()?,
         r_dps2,
     };
     evaluate(&set, svg_dir.as_deref())?;
@@ -189,9 +212,15 @@ fn main() -> Result<()> {
     let tmp = tempfile::tempdir()?;
     for ood in [false, true] {
         let get = |kind: &str, u: u64, s: u64| theirs(tmp.path(), kind, u, s, ood);
-        let train: Vec<_> = (1..=12).map(|u| get("static", u, 1000 + u)).collect::<Result<_>>()?;
-        let valid: Vec<_> = (21..=23).map(|u| get("vehicle", u, 2000 + u)).collect::<Result<_>>()?;
-        let test: Vec<_> = (31..=34).map(|u| get("vehicle", u, 3000 + u)).collect::<Result<_>>()?;
+        let train: Vec<_> = (1..=12)
+            .map(|u| get("static", u, 1000 + u))
+            .collect::<Result<_>>()?;
+        let valid: Vec<_> = (21..=23)
+            .map(|u| get("vehicle", u, 2000 + u))
+            .collect::<Result<_>>()?;
+        let test: Vec<_> = (31..=34)
+            .map(|u| get("vehicle", u, 3000 + u))
+            .collect::<Result<_>>()?;
         // OOD records differ in rate and noise: r from the first test record's sensor (the
         // nominal-family sets share it).
         let r_dps2 = test[0].1;
