@@ -45,6 +45,13 @@ pub struct Args {
     /// Nominal sample rate, Hz (default: the model's `sample_rate_hz`).
     #[arg(long)]
     pub rate_hz: Option<f64>,
+    /// Unit of the gyro family to simulate (overrides `[family] unit_seed`): its thermal
+    /// and warm-up coefficients are the model's times `(1 + spread N(0,1))`.
+    #[arg(long)]
+    pub unit_seed: Option<u64>,
+    /// Relative 1-sigma per-unit spread (overrides `[family] unit_spread`), e.g. 0.2.
+    #[arg(long)]
+    pub unit_spread: Option<f64>,
 }
 
 /// Built-in models.
@@ -57,14 +64,19 @@ pub enum Preset {
 /// Output formats.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
-    /// Interchange CSV: `t_s,rate_dps,temp_c,drift_dps,true_rate_dps`.
+    /// Interchange CSV: `t_s,rate_dps,temp_c,drift_dps,true_rate_dps` (+ `moving` when the
+    /// model's `[motion]` is not static).
     Csv,
     /// E-Core 2000 binary frames, 8 bytes per sample (spec section 1), raw bytes 0.
     EcoreBin,
 }
 
-/// Header of the CSV output.
+/// Header of the CSV output of a static model (`[motion]` at its default).
 pub const CSV_HEADER: &str = "t_s,rate_dps,temp_c,drift_dps,true_rate_dps";
+
+/// Header of the CSV output when the platform moves: `moving` is the ground truth (1 when
+/// the platform moves, 0 when it is still; see [`sim::motion`]).
+pub const CSV_HEADER_MOVING: &str = "t_s,rate_dps,temp_c,drift_dps,true_rate_dps,moving";
 
 /// E-Core counts of `rate_dps` for a unit of `full_scale_dps`: rounded, saturated.
 pub fn counts(rate_dps: f64, full_scale_dps: f64) -> i16 {
@@ -74,7 +86,7 @@ pub fn counts(rate_dps: f64, full_scale_dps: f64) -> i16 {
 
 /// Runs the command.
 pub fn run(args: &Args) -> Result<()> {
-    let model = match (&args.model, args.preset) {
+    let mut model = match (&args.model, args.preset) {
         (Some(p), _) => Model::load(p)?,
         (None, Some(Preset::Ecore2000)) => sim::preset("ecore2000")?,
         (None, None) => bail!("give --model FILE or --preset NAME"),
@@ -96,7 +108,25 @@ pub fn run(args: &Args) -> Result<()> {
         }
         (_, fs) => fs.unwrap_or(0.0),
     };
+    if let Some(u) = args.unit_seed {
+        model.family.unit_seed = Some(u);
+    }
+    if let Some(s) = args.unit_spread {
+        if !(s.is_finite() && s >= 0.0) {
+            bail!("--unit-spread {s}: must be finite and >= 0");
+        }
+        model.family.unit_spread = s;
+    }
+    let moving_column = !model.motion.is_static();
     let mut simulator = Simulator::new(&model, args.seed, rate_hz).context(source.clone())?;
+    if let Some(end_s) = simulator.motion_file_end_s() {
+        if end_s < args.duration_s {
+            eprintln!(
+                "{source}: warning: the motion file ends at {end_s} s; its last rate is held to {} s",
+                args.duration_s
+            );
+        }
+    }
     let expected = (args.duration_s / simulator.dt_s()).ceil() as u64;
     let bar = if std::io::stderr().is_terminal() {
         let b = ProgressBar::with_draw_target(Some(expected), ProgressDrawTarget::stderr());
@@ -115,7 +145,12 @@ pub fn run(args: &Args) -> Result<()> {
     record::write_atomic(out, |w| {
         let io = |e: std::io::Error| anyhow::anyhow!("{}: write failed: {e}", out.display());
         if args.format == Format::Csv {
-            writeln!(w, "{CSV_HEADER}").map_err(io)?;
+            let header = if moving_column {
+                CSV_HEADER_MOVING
+            } else {
+                CSV_HEADER
+            };
+            writeln!(w, "{header}").map_err(io)?;
         }
         loop {
             let s = simulator.next_sample();
@@ -123,6 +158,17 @@ pub fn run(args: &Args) -> Result<()> {
                 break;
             }
             match args.format {
+                Format::Csv if moving_column => writeln!(
+                    w,
+                    "{},{},{},{},{},{}",
+                    s.t_s,
+                    s.rate_dps,
+                    s.temp_c,
+                    s.drift_dps,
+                    s.true_rate_dps,
+                    u8::from(s.moving)
+                )
+                .map_err(io)?,
                 Format::Csv => writeln!(
                     w,
                     "{},{},{},{},{}",

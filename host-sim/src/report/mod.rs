@@ -21,8 +21,11 @@
 //! `allan.truncated`). The sample period of the analysis is the identifier's, `1 / rate_hz`.
 
 pub mod decimate;
+mod heading;
 mod html;
 mod plots;
+
+pub use heading::{heading_error_svg, still_spans, tick_label, HeadingSeries};
 
 use crate::allan::{self, edf, Taus};
 use crate::record;

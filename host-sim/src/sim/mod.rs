@@ -24,14 +24,18 @@
 //! error. A dropped sample consumes its slot (the noise processes advance) and is not
 //! returned: its absence is a gap in `t_s`.
 
+pub mod family;
 mod markov;
 mod model;
+pub mod motion;
 
+pub use family::{realize, Family};
 pub use markov::{flicker_adev, gm_avar, GaussMarkov, FLICKER_FLOOR, FLICKER_PER_DECADE};
 pub use model::{
     check_rate_hz, Bias, Faults, Model, Motion, Noise, QuantMode, Quantization, ScaleFactor,
     Temperature, Timing, EARTH_RATE_DPS, KEYS,
 };
+pub use motion::{Platform, PlatformState, Profile, RateTable, Turntable, TurntableStep, Vehicle};
 
 use anyhow::{bail, Result};
 use markov::Flicker;
@@ -68,6 +72,8 @@ pub struct Sample {
     pub drift_dps: f64,
     /// True inertial rate about the sensitive axis, deg/s.
     pub true_rate_dps: f64,
+    /// Ground truth: the platform moves (see [`motion`]); always false for a static model.
+    pub moving: bool,
 }
 
 /// Stream identifiers: one RNG per term.
@@ -81,6 +87,7 @@ enum Stream {
     Jitter,
     Drop,
     Spike,
+    Motion,
 }
 
 fn stream(seed: u64, s: Stream) -> Pcg64Mcg {
@@ -113,13 +120,18 @@ pub struct Simulator {
     rng_jitter: Pcg64Mcg,
     rng_drop: Pcg64Mcg,
     rng_spike: Pcg64Mcg,
+    platform: Platform,
 }
 
 impl Simulator {
     /// Simulator of `model` (already validated by [`Model::load`] or
-    /// [`Model::from_toml_str`]) at `rate_hz` nominal samples per second.
+    /// [`Model::from_toml_str`]) at `rate_hz` nominal samples per second. The model's
+    /// `[family]` section is applied first ([`realize`]: unit coefficients, this record's
+    /// temperature conditions); [`Simulator::model`] returns the realized model.
     pub fn new(model: &Model, seed: u64, rate_hz: f64) -> Result<Self> {
         let rate_hz = check_rate_hz(rate_hz)?;
+        let model = &realize(model, seed);
+        let platform = Platform::new(&model.motion, stream(seed, Stream::Motion))?;
         let n = &model.noise;
         let dt_s = 1.0 / (rate_hz * (1.0 + 1e-6 * model.timing.rate_error_ppm));
         if n.bias_instability_dps > 0.0 && n.flicker_tau_min_s < 2.0 * dt_s {
@@ -169,10 +181,16 @@ impl Simulator {
             rng_jitter: stream(seed, Stream::Jitter),
             rng_drop: stream(seed, Stream::Drop),
             rng_spike: stream(seed, Stream::Spike),
+            platform,
         })
     }
 
-    /// The model being simulated.
+    /// End of the `file` motion profile's time span, s (None for other profiles).
+    pub fn motion_file_end_s(&self) -> Option<f64> {
+        self.platform.file_end_s()
+    }
+
+    /// The model being simulated (after [`realize`]).
     pub fn model(&self) -> &Model {
         &self.model
     }
@@ -213,10 +231,8 @@ impl Simulator {
         let t_s = k as f64 * self.dt_s + jitter_s;
 
         // True rate and scale factor.
-        let mo = &m.motion;
-        let true_rate_dps = mo.rate_dps
-            + mo.sine_amplitude_dps * (std::f64::consts::TAU * mo.sine_freq_hz * t_s).sin()
-            + self.earth_dps;
+        let platform = self.platform.at(t_s);
+        let true_rate_dps = platform.rate_dps + self.earth_dps;
         let sf = &m.scale_factor;
         let sf_error_dps =
             true_rate_dps * 1e-6 * (sf.error_ppm + sf.quadratic_ppm_per_dps * true_rate_dps.abs());
@@ -288,6 +304,7 @@ impl Simulator {
             temp_c,
             drift_dps,
             true_rate_dps,
+            moving: platform.moving,
         }
     }
 }

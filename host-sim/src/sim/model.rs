@@ -7,7 +7,10 @@
 
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+use super::family::Family;
+use super::motion::{Profile, Turntable, Vehicle};
 
 /// Earth's rotation rate, deg/s (sidereal: 360 deg / 86164.0905 s).
 pub const EARTH_RATE_DPS: f64 = 360.0 / 86_164.090_5;
@@ -45,6 +48,10 @@ pub struct Model {
     /// Dropped samples and spikes.
     #[serde(default)]
     pub faults: Faults,
+    /// A gyro family: per-unit spread of the coefficients and per-record temperature
+    /// conditions (all off by default).
+    #[serde(default)]
+    pub family: Family,
 }
 
 /// How the rate output is quantized.
@@ -210,19 +217,35 @@ pub struct ScaleFactor {
     pub quadratic_ppm_per_dps: f64,
 }
 
-/// `[motion]`: the true inertial rate about the sensitive axis.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize, Serialize)]
+/// `[motion]`: the true inertial rate about the sensitive axis (profiles: see
+/// [`super::motion`]).
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Motion {
-    /// Constant platform rate, deg/s.
+    /// `constant` (default; also `sine`), `vehicle`, `turntable` or `file`.
+    pub profile: Profile,
+    /// Constant platform rate, deg/s (added to every profile).
     pub rate_dps: f64,
-    /// Sinusoidal platform rate: amplitude, deg/s.
+    /// Sinusoidal platform rate: amplitude, deg/s (added to every profile).
     pub sine_amplitude_dps: f64,
     /// Its frequency, Hz.
     pub sine_freq_hz: f64,
     /// Latitude, deg: adds Earth rate `EARTH_RATE_DPS sin(latitude)` (sensitive axis
     /// vertical). 0 (the default) adds nothing.
     pub latitude_deg: f64,
+    /// `[motion.vehicle]`: statistics of the `vehicle` profile.
+    pub vehicle: Vehicle,
+    /// `[motion.turntable]`: the schedule of the `turntable` profile.
+    pub turntable: Turntable,
+    /// CSV of the `file` profile (`t_s,true_rate_dps`); relative to the model file.
+    pub file: Option<PathBuf>,
+}
+
+impl Motion {
+    /// True when the platform never moves (the default: records keep their 5 columns).
+    pub fn is_static(&self) -> bool {
+        self.profile == Profile::Constant && self.rate_dps == 0.0 && self.sine_amplitude_dps == 0.0
+    }
 }
 
 /// `[timing]`
@@ -262,7 +285,13 @@ impl Model {
     pub fn load(path: &Path) -> Result<Self> {
         let name = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-        Self::from_toml_str(&text, &name)
+        let mut model = Self::from_toml_str(&text, &name)?;
+        if let (Some(f), Some(dir)) = (&model.motion.file, path.parent()) {
+            if f.is_relative() {
+                model.motion.file = Some(dir.join(f));
+            }
+        }
+        Ok(model)
     }
 
     /// Parses and validates model TOML; `name` (a file name) starts every error message.
@@ -284,6 +313,23 @@ impl Model {
             };
             anyhow::anyhow!("{name}{at}: {sec}{key} = {v}: {why}")
         })?;
+        model.motion.turntable.check().map_err(|(i, key, why)| {
+            let at = find_line_nth(text, "motion.turntable.step", i, key)
+                .map_or(String::new(), |l| format!(":{l}"));
+            anyhow::anyhow!(
+                "{name}{at}: [[motion.turntable.step]] #{} {key}: {why}",
+                i + 1
+            )
+        })?;
+        if model.motion.profile == Profile::File && model.motion.file.is_none() {
+            let at =
+                find_line(text, "motion", "profile").map_or(String::new(), |l| format!(":{l}"));
+            bail!("{name}{at}: [motion] profile = \"file\" needs `file = \"PATH.csv\"`");
+        }
+        model.family.check().map_err(|(key, why)| {
+            let at = find_line(text, "family", key).map_or(String::new(), |l| format!(":{l}"));
+            anyhow::anyhow!("{name}{at}: [family] {key}: {why}")
+        })?;
         Ok(model)
     }
 
@@ -297,6 +343,7 @@ impl Model {
         let b = &self.bias;
         let t = &self.temperature;
         let m = &self.motion;
+        let v = &m.vehicle;
         let checks: Vec<(&str, &str, f64, Rule)> = vec![
             (
                 "",
@@ -411,6 +458,61 @@ impl Model {
             ),
             ("motion", "sine_freq_hz", m.sine_freq_hz, NonNegative(SIZE)),
             ("motion", "latitude_deg", m.latitude_deg, Range(-90.0, 90.0)),
+            ("motion.vehicle", "align_s", v.align_s, NonNegative(SIZE)),
+            ("motion.vehicle", "stop_min_s", v.stop_min_s, Positive),
+            ("motion.vehicle", "stop_max_s", v.stop_max_s, Positive),
+            ("motion.vehicle", "drive_min_s", v.drive_min_s, Positive),
+            ("motion.vehicle", "drive_max_s", v.drive_max_s, Positive),
+            ("motion.vehicle", "ramp_s", v.ramp_s, NonNegative(SIZE)),
+            ("motion.vehicle", "speed_mps", v.speed_mps, Positive),
+            (
+                "motion.vehicle",
+                "curvature_sigma_per_m",
+                v.curvature_sigma_per_m,
+                NonNegative(SIZE),
+            ),
+            (
+                "motion.vehicle",
+                "curvature_length_m",
+                v.curvature_length_m,
+                Positive,
+            ),
+            (
+                "motion.vehicle",
+                "road_rate_max_dps",
+                v.road_rate_max_dps,
+                NonNegative(SIZE),
+            ),
+            (
+                "motion.vehicle",
+                "turn_interval_s",
+                v.turn_interval_s,
+                Positive,
+            ),
+            (
+                "motion.vehicle",
+                "turn_rate_min_dps",
+                v.turn_rate_min_dps,
+                Positive,
+            ),
+            (
+                "motion.vehicle",
+                "turn_rate_max_dps",
+                v.turn_rate_max_dps,
+                Positive,
+            ),
+            (
+                "motion.vehicle",
+                "turn_angle_min_deg",
+                v.turn_angle_min_deg,
+                Positive,
+            ),
+            (
+                "motion.vehicle",
+                "turn_angle_max_deg",
+                v.turn_angle_max_deg,
+                Positive,
+            ),
             (
                 "timing",
                 "rate_error_ppm",
@@ -457,6 +559,31 @@ impl Model {
             };
             if let Some(why) = why {
                 return Err((section, key, v, why));
+            }
+        }
+        for (lo, hi, lo_key, hi_key) in [
+            (v.stop_min_s, v.stop_max_s, "stop_min_s", "stop_max_s"),
+            (v.drive_min_s, v.drive_max_s, "drive_min_s", "drive_max_s"),
+            (
+                v.turn_rate_min_dps,
+                v.turn_rate_max_dps,
+                "turn_rate_min_dps",
+                "turn_rate_max_dps",
+            ),
+            (
+                v.turn_angle_min_deg,
+                v.turn_angle_max_deg,
+                "turn_angle_min_deg",
+                "turn_angle_max_deg",
+            ),
+        ] {
+            if hi < lo {
+                return Err((
+                    "motion.vehicle",
+                    hi_key,
+                    hi,
+                    format!("must be >= {lo_key} ({lo})"),
+                ));
             }
         }
         if n.flicker_tau_max_s <= n.flicker_tau_min_s {
@@ -518,10 +645,47 @@ pub const KEYS: &[(&str, &[&str])] = &[
     (
         "motion",
         &[
+            "profile",
             "rate_dps",
             "sine_amplitude_dps",
             "sine_freq_hz",
             "latitude_deg",
+            "file",
+        ],
+    ),
+    (
+        "motion.vehicle",
+        &[
+            "align_s",
+            "stop_min_s",
+            "stop_max_s",
+            "drive_min_s",
+            "drive_max_s",
+            "ramp_s",
+            "speed_mps",
+            "curvature_sigma_per_m",
+            "curvature_length_m",
+            "road_rate_max_dps",
+            "turn_interval_s",
+            "turn_rate_min_dps",
+            "turn_rate_max_dps",
+            "turn_angle_min_deg",
+            "turn_angle_max_deg",
+        ],
+    ),
+    ("motion.turntable", &["repeat"]),
+    (
+        "motion.turntable.step",
+        &["rate_dps", "duration_s", "angle_deg"],
+    ),
+    (
+        "family",
+        &[
+            "unit_seed",
+            "unit_spread",
+            "initial_c_range",
+            "warmup_rise_c_range",
+            "ramp_c_per_s_range",
         ],
     ),
     ("timing", &["rate_error_ppm", "jitter_rms_s"]),
@@ -602,6 +766,33 @@ fn find_line(text: &str, section: &str, key: &str) -> Option<usize> {
         }
     }
     None
+}
+
+/// Line (1-based) of `key = ...` in the `n`-th (from 0) `[[section]]` table, or of that
+/// table's header when the key is absent.
+fn find_line_nth(text: &str, section: &str, n: usize, key: &str) -> Option<usize> {
+    let header = format!("[[{section}]]");
+    let mut seen: Option<usize> = None;
+    let mut header_line = None;
+    for (i, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if l.starts_with('[') {
+            if l.replace(' ', "") == header {
+                seen = Some(seen.map_or(0, |s| s + 1));
+                if seen == Some(n) {
+                    header_line = Some(i + 1);
+                }
+            } else if seen == Some(n) {
+                break;
+            }
+            continue;
+        }
+        let k = l.split('=').next().unwrap_or("").trim();
+        if seen == Some(n) && k == key && l.contains('=') {
+            return Some(i + 1);
+        }
+    }
+    header_line
 }
 
 /// Refuses a rate that is not a finite positive number.
