@@ -11,6 +11,7 @@ compile_error!("select a board feature: board-mps2-an386 (default) or board-stm3
 mod defmt_stderr;
 #[cfg(feature = "board-mps2-an386")]
 mod mps2_an386;
+mod rx;
 #[cfg(feature = "board-stm32f407")]
 mod stm32f4;
 

@@ -93,6 +93,8 @@ pub struct StatsRecord {
     pub rejected: u32,
     pub serial_errors: u32,
     pub stack_bytes: u32,
+    pub rx_overrun: u32,
+    pub rx_queue_full: u32,
 }
 
 pub fn le_u32(b: &[u8]) -> u32 {
@@ -129,7 +131,7 @@ pub fn parse_records(out: &[u8]) -> (Vec<SampleRecord>, Option<StatsRecord>) {
                 ],
                 status: p[20],
             }),
-            (0x02, 152) => {
+            (0x02, 160) => {
                 let mut counters = [0u64; 17];
                 for (c, chunk) in counters.iter_mut().zip(p[..136].chunks_exact(8)) {
                     *c = u64::from_le_bytes(chunk.try_into().expect("8 bytes"));
@@ -140,6 +142,8 @@ pub fn parse_records(out: &[u8]) -> (Vec<SampleRecord>, Option<StatsRecord>) {
                     rejected: le_u32(&p[140..144]),
                     serial_errors: le_u32(&p[144..148]),
                     stack_bytes: le_u32(&p[148..152]),
+                    rx_overrun: le_u32(&p[152..156]),
+                    rx_queue_full: le_u32(&p[156..160]),
                 });
             }
             other => panic!("unknown record (kind, len) {other:?} at {i}"),
