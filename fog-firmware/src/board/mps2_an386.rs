@@ -35,6 +35,7 @@ const CTRL_TX_EN: u32 = 1 << 0;
 const CTRL_RX_EN: u32 = 1 << 1;
 const CTRL_RX_INT_EN: u32 = 1 << 3;
 const INT_RX: u32 = 1 << 1;
+#[cfg(not(feature = "rt-feed"))]
 const INT_RX_OVERRUN: u32 = 1 << 3;
 
 /// External interrupt numbers of the AN385/AN386 image (QEMU `hw/arm/mps2.c`).

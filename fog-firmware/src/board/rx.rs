@@ -91,6 +91,7 @@ impl RxIsr {
     }
 
     /// An overrun flagged without a byte to go with it (the register was read empty).
+    #[cfg_attr(feature = "rt-feed", allow(dead_code))]
     pub fn overrun_only(&mut self) {
         if self.pending.is_none() {
             self.pending = Some(MARK_OVERRUN);

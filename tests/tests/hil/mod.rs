@@ -154,7 +154,7 @@ pub fn parse_records(out: &[u8]) -> (Vec<SampleRecord>, Option<StatsRecord>) {
 }
 
 /// Kills QEMU whatever happens to the test.
-pub struct KillOnDrop(Child);
+pub struct KillOnDrop(pub Child);
 
 impl Drop for KillOnDrop {
     fn drop(&mut self) {

@@ -1,0 +1,205 @@
+//! Bytes that arrive in real time: the firmware under QEMU `-icount` (deterministic virtual
+//! time, one instruction = one cycle of a modelled 168 MHz core) with its input delivered at
+//! 115,200 baud into a one-byte receive register, whether or not the firmware is ready
+//! (`fog-firmware` feature `rt-feed`; model and limits in `fog-firmware/src/board/rt_feed.rs`).
+//!
+//! - With the receive interrupt and the queue (the production receive path): **no byte is
+//!   lost** across the heaviest samples (every block end), and every record equals the
+//!   host's bit for bit, counters included.
+//! - With the receive interrupt disabled (`rt-feed-poll`: the main loop polls the register,
+//!   as the firmware did before the queue), the same capture **loses bytes**: the test can
+//!   fail, and this half shows it would.
+//!
+//! The capture is generated here (seeded), written next to the builds and compiled into the
+//! two test images (`FOG_RT_CAPTURE`).
+
+use std::io::Read;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use fog_core::frame::ecore;
+use fog_system_tests::{firmware_dir, firmware_elf_in, qemu_system_arm};
+
+mod hil;
+use hil::{host_reference, parse_records, pipeline, KillOnDrop, Rng, StatsRecord};
+
+/// Samples in the capture: three completed denoising blocks (the heaviest samples) and
+/// training from the second block on.
+const SAMPLES: usize = 1600;
+/// Line rate of the test, bit/s (8N1: 10 bits per byte).
+const BAUD: &str = "115200";
+
+/// Bias, a slow sine and white noise, quantized to E-Core counts; clean frames, then the end
+/// marker.
+fn capture(seed: u64) -> Vec<u8> {
+    let mut rng = Rng(seed);
+    let lsb_dps = 60.0 / 32768.0;
+    let mut s = Vec::new();
+    for k in 0..SAMPLES {
+        let t_s = k as f64 * 0.01;
+        let rate_dps =
+            0.01 + 0.004 * (2.0 * std::f64::consts::PI * t_s / 7.0).sin() + 0.015 * rng.normal();
+        let counts = (rate_dps / lsb_dps).round() as i16;
+        s.extend(ecore::encode(counts, [0x20, (k >> 8) as u8, k as u8, 0x33]));
+    }
+    s.extend(pipeline::END_MARKER);
+    s
+}
+
+/// Runs `elf` under `-icount shift=6,align=off,sleep=off` with no UART input; returns UART0's
+/// output and QEMU's exit code.
+fn run_icount(qemu: &Path, elf: &Path, defmt_log: &Path) -> (Vec<u8>, Option<i32>) {
+    let log = std::fs::File::create(defmt_log).expect("defmt log file");
+    let child = Command::new(qemu)
+        .args(["-machine", "mps2-an386", "-nographic", "-monitor", "none"])
+        .args(["-serial", "stdio"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(["-icount", "shift=6,align=off,sleep=off"])
+        .arg("-kernel")
+        .arg(elf)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::from(log))
+        .spawn()
+        .expect("qemu-system-arm starts");
+    let mut proc = KillOnDrop(child);
+    let mut stdout = proc.0.stdout.take().expect("piped stdout");
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mut out = Vec::new();
+        let r = stdout.read_to_end(&mut out);
+        let _ = tx.send((out, r));
+    });
+    let (out, r) = rx
+        .recv_timeout(hil::DEADLINE)
+        .unwrap_or_else(|_| panic!("QEMU did not finish within {:?}", hil::DEADLINE));
+    r.expect("reading QEMU's stdout");
+    let until = Instant::now() + Duration::from_secs(5);
+    let mut code = None;
+    while Instant::now() < until {
+        if let Ok(Some(status)) = proc.0.try_wait() {
+            code = status.code();
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    (out, code)
+}
+
+/// Builds the test image with `feature` (into `fog-firmware/target/rt`) and keeps a copy
+/// of it under `name`, since the next build replaces the ELF.
+fn build(feature: &str, capture_path: &Path, name: &str) -> std::path::PathBuf {
+    let elf = firmware_elf_in(
+        "target/rt",
+        &["--features", feature],
+        &[
+            ("FOG_RT_CAPTURE", capture_path.as_os_str()),
+            ("FOG_RT_BAUD", BAUD.as_ref()),
+        ],
+    );
+    let kept = elf.with_file_name(name);
+    std::fs::copy(&elf, &kept).expect("copy of the test image");
+    kept
+}
+
+#[test]
+fn bytes_arriving_at_115200_baud_none_lost_with_the_receive_interrupt() {
+    let t0 = Instant::now();
+    let Some(qemu) = qemu_system_arm() else {
+        return;
+    };
+    let stream = capture(0x0A11_7E57);
+    let dir = firmware_dir().join("target/rt");
+    std::fs::create_dir_all(&dir).expect("target/rt");
+    let capture_path = dir.join("rt-capture.bin");
+    // Rewritten only when it changed, so that cargo's fingerprint stays fresh.
+    if std::fs::read(&capture_path).ok().as_deref() != Some(&stream[..]) {
+        std::fs::write(&capture_path, &stream).expect("capture written");
+    }
+    let isr_elf = build("rt-feed", &capture_path, "fog-firmware-rt-isr");
+    let poll_elf = build("rt-feed-poll", &capture_path, "fog-firmware-rt-poll");
+    let built = t0.elapsed();
+    let expected = host_reference(&stream);
+    assert_eq!(expected.samples.len(), SAMPLES);
+
+    // The production receive path: interrupt + queue.
+    let t_run = Instant::now();
+    let (out, code) = run_icount(&qemu, &isr_elf, &dir.join("rt-isr-defmt.bin"));
+    let ran_isr = t_run.elapsed();
+    assert_eq!(code, Some(0), "QEMU's exit code (semihosting)");
+    let (records, stats) = parse_records(&out);
+    let stats: StatsRecord = stats.expect("final statistics record");
+    assert_eq!(
+        (stats.rx_overrun, stats.rx_queue_full),
+        (0, 0),
+        "bytes lost (overrun, queue full) with the receive interrupt"
+    );
+    assert_eq!(
+        records.len(),
+        expected.samples.len(),
+        "one record per frame"
+    );
+    let mismatches = records
+        .iter()
+        .zip(&expected.samples)
+        .enumerate()
+        .filter(|(k, (r, (rate_dps, est, status)))| {
+            let want = [
+                rate_dps.to_bits(),
+                est.drift_dps.to_bits(),
+                est.compensated_dps.to_bits(),
+                est.train_error_dps.to_bits(),
+            ];
+            r.index as usize != *k || r.bits != want || r.status != *status
+        })
+        .count();
+    assert_eq!(mismatches, 0, "records differ from the host's");
+    assert_eq!(stats.counters, expected.stats.counters(), "byte counters");
+    assert_eq!(expected.stats.bytes_total, stream.len() as u64);
+    let block_ends = records
+        .iter()
+        .filter(|r| r.status & pipeline::STATUS_BLOCK_DONE != 0)
+        .count();
+    assert_eq!(
+        block_ends,
+        SAMPLES / pipeline::BLOCK,
+        "heaviest samples covered"
+    );
+
+    // The same line without the receive interrupt: the main loop polls the register between
+    // samples, and bytes that arrive during a long sample are overwritten.
+    let t_run = Instant::now();
+    let (out, code) = run_icount(&qemu, &poll_elf, &dir.join("rt-poll-defmt.bin"));
+    let ran_poll = t_run.elapsed();
+    assert_eq!(code, Some(0), "QEMU's exit code (semihosting), polling");
+    let (poll_records, poll_stats) = parse_records(&out);
+    let poll_stats = poll_stats.expect("final statistics record, polling");
+    assert!(
+        poll_stats.rx_overrun > 0,
+        "polling must lose bytes at {BAUD} baud (else this test could not fail)"
+    );
+    assert!(poll_records.len() < SAMPLES, "frames lost when polling");
+    let uart_overrun = poll_stats.counters[6];
+    assert!(
+        uart_overrun > 0,
+        "overruns reach the decoder as receive errors"
+    );
+
+    eprintln!(
+        "RT: {} bytes at {BAUD} baud (8N1; byte period 14,583 instructions = cycles of a 168 MHz \
+         core); interrupt + queue: {} records bit-identical, {} block ends, 0 bytes lost; \
+         polling: {} bytes overwritten, {} of {} frames decoded; build {:.1} s, QEMU {:.2} s + \
+         {:.2} s",
+        stream.len(),
+        records.len(),
+        block_ends,
+        poll_stats.rx_overrun,
+        poll_records.len(),
+        SAMPLES,
+        built.as_secs_f64(),
+        ran_isr.as_secs_f64(),
+        ran_poll.as_secs_f64()
+    );
+}
