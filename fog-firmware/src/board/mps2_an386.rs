@@ -5,6 +5,8 @@
 //! and SysTick runs on the 25 MHz core clock, so it advances 1.6 ticks per instruction,
 //! deterministically. Without `-icount` SysTick follows host time and its counts mean
 //! nothing.
+// The test feed (`rt-feed`) replaces UART0's receive side: its registers go unused there.
+#![cfg_attr(feature = "rt-feed", allow(dead_code))]
 
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
@@ -35,7 +37,6 @@ const CTRL_TX_EN: u32 = 1 << 0;
 const CTRL_RX_EN: u32 = 1 << 1;
 const CTRL_RX_INT_EN: u32 = 1 << 3;
 const INT_RX: u32 = 1 << 1;
-#[cfg(not(feature = "rt-feed"))]
 const INT_RX_OVERRUN: u32 = 1 << 3;
 
 /// External interrupt numbers of the AN385/AN386 image (QEMU `hw/arm/mps2.c`).
@@ -104,7 +105,7 @@ fn uart0_rx_isr() {
         }
         if state & STATE_RX_FULL == 0 {
             if overrun {
-                isr.overrun_only();
+                isr.error(ErrorKind::Overrun);
             }
             break;
         }

@@ -33,6 +33,11 @@ pub const QUEUE_LEN: usize = 128;
 const MARK_OVERRUN: u16 = 0x100;
 /// Queue entry of bytes dropped because the queue was full before this point.
 const MARK_QUEUE_FULL: u16 = 0x101;
+/// Queue entries of other receive errors reported by the UART (framing, parity, noise).
+const MARK_FRAMING: u16 = 0x102;
+const MARK_PARITY: u16 = 0x103;
+const MARK_NOISE: u16 = 0x104;
+const MARK_OTHER: u16 = 0x105;
 
 /// The receive interrupt masked itself: the queue was full.
 static PAUSED: AtomicBool = AtomicBool::new(false);
@@ -46,6 +51,7 @@ pub fn count_overrun(n: u32) {
 }
 
 /// The bytes lost so far.
+#[cfg_attr(feature = "budget", allow(dead_code))]
 pub fn loss() -> RxLoss {
     RxLoss {
         overrun: OVERRUN_BYTES.load(Ordering::Relaxed),
@@ -90,11 +96,19 @@ impl RxIsr {
         }
     }
 
-    /// An overrun flagged without a byte to go with it (the register was read empty).
+    /// A receive error without a byte to go with it (an overrun flagged on an empty
+    /// register, or a byte the UART refused: framing, parity, noise). An overrun's lost
+    /// bytes are counted by the caller ([`count_overrun`]).
     #[cfg_attr(feature = "rt-feed", allow(dead_code))]
-    pub fn overrun_only(&mut self) {
+    pub fn error(&mut self, kind: ErrorKind) {
         if self.pending.is_none() {
-            self.pending = Some(MARK_OVERRUN);
+            self.pending = Some(match kind {
+                ErrorKind::Overrun => MARK_OVERRUN,
+                ErrorKind::FrameFormat => MARK_FRAMING,
+                ErrorKind::Parity => MARK_PARITY,
+                ErrorKind::Noise => MARK_NOISE,
+                _ => MARK_OTHER,
+            });
         }
         if let Some(mark) = self.pending {
             if self.producer.enqueue(mark).is_ok() {
@@ -123,7 +137,10 @@ impl Read<u8> for QueueRx {
         match self.consumer.dequeue() {
             None => Err(nb::Error::WouldBlock),
             Some(MARK_OVERRUN) => Err(nb::Error::Other(ErrorKind::Overrun)),
-            Some(MARK_QUEUE_FULL) => Err(nb::Error::Other(ErrorKind::Other)),
+            Some(MARK_FRAMING) => Err(nb::Error::Other(ErrorKind::FrameFormat)),
+            Some(MARK_PARITY) => Err(nb::Error::Other(ErrorKind::Parity)),
+            Some(MARK_NOISE) => Err(nb::Error::Other(ErrorKind::Noise)),
+            Some(v) if v > 0xFF => Err(nb::Error::Other(ErrorKind::Other)),
             Some(v) => Ok(v as u8),
         }
     }
