@@ -240,32 +240,120 @@ pub fn median_abs_bracketed(x: &[f32], work: &mut [f32], zero_tol: f32) -> Optio
     Some(0.5 * (lower + upper))
 }
 
-/// Median of `v` (reordered in place); 0 for an empty slice.
+/// Unsigned key that sorts like `f32::total_cmp` (the IEEE bits, with the negative values'
+/// magnitude bits flipped and the sign bit inverted).
+#[inline(always)]
+fn total_key(x: f32) -> u32 {
+    let b = x.to_bits();
+    let flip = (((b as i32) >> 31) as u32) >> 1;
+    (b ^ flip) ^ 0x8000_0000
+}
+
+/// The `k`-th smallest (0-based) of `key(x)` over `v`, by radix selection: 8 passes of 4
+/// bits, each counting the values that share the digits found so far. `v` is only read,
+/// nothing is indexed out of range (the histogram index is a 4-bit digit), so there is no
+/// panic path; for `k >= v.len()` the result is meaningless but defined.
+///
+/// Cost: 8 passes over `v` (no data movement). For the firmware's 256 finest details this
+/// replaces `select_nth_unstable`, whose median-of-medians fallback links core's bounds
+/// checks; the value is the same (keys equal only for identical bit patterns).
+fn select_key(v: &[f32], k: usize, key: impl Fn(f32) -> u32) -> u32 {
+    let mut prefix = 0u32;
+    let mut rank = k;
+    for pass in 0..8u32 {
+        let shift = 28 - 4 * pass;
+        // Bits above this digit (none on the first pass).
+        let high = (!0u32).checked_shl(shift + 4).unwrap_or(0);
+        let mut hist = [0usize; 16];
+        for &x in v {
+            let q = key(x);
+            if q & high == prefix {
+                hist[((q >> shift) & 15) as usize] += 1;
+            }
+        }
+        let mut digit = 0u32;
+        for (d, &c) in (0u32..).zip(&hist) {
+            if rank < c {
+                digit = d;
+                break;
+            }
+            rank -= c;
+        }
+        prefix |= digit << shift;
+    }
+    prefix
+}
+
+/// Median of `v`; 0 for an empty slice. The median of an even count is the mean of the two
+/// middle values. `v` is not reordered (it was, with `select_nth_unstable`, which the
+/// firmware no longer links: see [`select_key`]).
+///
+/// The values are ranked with `f32::total_cmp` (for non-negative values that is the order of
+/// their bit patterns).
 pub fn median(v: &mut [f32]) -> f32 {
     let n = v.len();
     if n == 0 {
         return 0.0;
     }
-    // For non-negative floats the IEEE bit patterns sort like the values, and comparing
-    // integers is cheaper than `total_cmp`; negative values keep the general order.
-    let all_non_negative = v.iter().all(|x| x.is_sign_positive());
-    let (lower, upper_mid, _) = if all_non_negative {
-        v.select_nth_unstable_by_key(n / 2, |x| x.to_bits())
-    } else {
-        v.select_nth_unstable_by(n / 2, f32::total_cmp)
-    };
-    let upper = *upper_mid;
+    let upper_key = select_key(v, n / 2, total_key);
+    // The value with that key (keys are equal only for identical bits).
+    let upper = v
+        .iter()
+        .copied()
+        .find(|&x| total_key(x) == upper_key)
+        .unwrap_or(0.0);
     if n % 2 == 1 {
         return upper;
     }
-    // The lower middle value is the largest of the elements left of the upper one.
-    let lower_mid = lower.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    // The lower middle value: the largest value ranked below `upper`, or `upper` itself when
+    // fewer than n / 2 values rank below it (ties).
+    let (mut below, mut lower_mid) = (0usize, f32::NEG_INFINITY);
+    for &x in v.iter() {
+        if total_key(x) < upper_key {
+            below += 1;
+            lower_mid = lower_mid.max(x);
+        }
+    }
+    if below < n / 2 {
+        lower_mid = upper;
+    }
     0.5 * (lower_mid + upper)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn radix_median_equals_sorted_median_bit_for_bit() {
+        let mut state = 11u32;
+        for case in 0..6 {
+            for n in [1usize, 2, 3, 4, 7, 8, 64, 255, 256, 257, 1000] {
+                let mut v = [0.0f32; 1000];
+                for x in v[..n].iter_mut() {
+                    state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    let u = (state >> 8) as f32 / (1u32 << 24) as f32;
+                    *x = match case {
+                        0 => u,
+                        1 => u - 0.5,
+                        2 => (u * 8.0).floor() * 0.25,
+                        3 => (u * 4.0).floor() - 2.0,
+                        4 => u * 1e-30,
+                        _ => -u,
+                    };
+                }
+                let mut sorted = v[..n].to_vec();
+                sorted.sort_by(f32::total_cmp);
+                let want = if n % 2 == 1 {
+                    sorted[n / 2]
+                } else {
+                    0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+                };
+                let got = median(&mut v[..n]);
+                assert_eq!(got.to_bits(), want.to_bits(), "case {case}, n {n}");
+            }
+        }
+    }
 
     #[test]
     fn median_odd_even_empty() {

@@ -11,7 +11,6 @@
 
 use cortex_m::peripheral::{DWT, NVIC};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use defmt_rtt as _;
 use embedded_hal_nb::serial::{Error as _, ErrorKind, Read};
 use stm32f4xx_hal::pac::{interrupt, Interrupt};
 use stm32f4xx_hal::serial::{Rx, RxListen};
