@@ -438,10 +438,10 @@ fn inverse_level(x: &mut [f32], scratch: &mut [f32], offset: f32, blocked: bool)
     for v in x.iter_mut().take(h) {
         *v *= K_D;
     }
-    // x[..h] moved up by GHOST - 1, descending (each read is below every later write).
-    for e in (GHOST - 1..h + GHOST - 1).rev() {
-        let v = ld(x, e - (GHOST - 1));
-        st(x, e, v);
+    // x[..h] moved up by GHOST - 1 (a memmove), on a sub-slice of exactly the length it
+    // needs, so the compiler proves copy_within's range check.
+    if let Some(part) = x.get_mut(..h + GHOST - 1) {
+        part.copy_within(..h, GHOST - 1);
     }
     for e in 0..GHOST - 1 {
         st(x, e, K_D * ld(&ca_tail, 8 - (GHOST - 1) + e));

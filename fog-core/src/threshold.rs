@@ -249,27 +249,39 @@ fn total_key(x: f32) -> u32 {
     (b ^ flip) ^ 0x8000_0000
 }
 
-/// The `k`-th smallest (0-based) of `key(x)` over `v`, by radix selection: 8 passes of 4
-/// bits, each counting the values that share the digits found so far. `v` is only read,
-/// nothing is indexed out of range (the histogram index is a 4-bit digit), so there is no
-/// panic path; for `k >= v.len()` the result is meaningless but defined.
+/// The value whose [`total_key`] is `k`.
+#[inline(always)]
+fn from_total_key(k: u32) -> f32 {
+    let b = k ^ 0x8000_0000;
+    let flip = (((b as i32) >> 31) as u32) >> 1;
+    f32::from_bits(b ^ flip)
+}
+
+/// Median of `v` (reordered in place); 0 for an empty slice. The median of an even count is
+/// the mean of the two middle values; values are ranked by `f32::total_cmp` (for
+/// non-negative values, the order of their bit patterns).
 ///
-/// Cost: 8 passes over `v` (no data movement). For the firmware's 256 finest details this
-/// replaces `select_nth_unstable`, whose median-of-medians fallback links core's bounds
-/// checks; the value is the same (keys equal only for identical bit patterns).
-fn select_key(v: &[f32], k: usize, key: impl Fn(f32) -> u32) -> u32 {
-    let mut prefix = 0u32;
-    let mut rank = k;
+/// Radix selection on [`total_key`], 4 bits per pass from the top: each pass counts the
+/// remaining candidates per digit, keeps (compacted to the front of `v`) those with the
+/// digit that holds the middle rank, and records how many fall below it and the largest of
+/// them (for the lower middle value). The candidates shrink quickly once the exponent bits
+/// are passed (about 2.3 n reads for the denoiser's detail magnitudes). Nothing is indexed
+/// out of range (the histogram index is a 4-bit digit; `v` through `get`), so, unlike
+/// `select_nth_unstable` (whose median-of-medians fallback links core's bounds checks),
+/// this has no panic path. Same result: keys are equal only for identical bit patterns.
+pub fn median(v: &mut [f32]) -> f32 {
+    let n = v.len();
+    if n == 0 {
+        return 0.0;
+    }
+    let k = n / 2;
+    let (mut len, mut rank) = (n, k);
+    let (mut below, mut below_max) = (0usize, 0u32);
     for pass in 0..8u32 {
         let shift = 28 - 4 * pass;
-        // Bits above this digit (none on the first pass).
-        let high = (!0u32).checked_shl(shift + 4).unwrap_or(0);
         let mut hist = [0usize; 16];
-        for &x in v {
-            let q = key(x);
-            if q & high == prefix {
-                hist[((q >> shift) & 15) as usize] += 1;
-            }
+        for &x in v.iter().take(len) {
+            hist[((total_key(x) >> shift) & 15) as usize] += 1;
         }
         let mut digit = 0u32;
         for (d, &c) in (0u32..).zip(&hist) {
@@ -279,44 +291,35 @@ fn select_key(v: &[f32], k: usize, key: impl Fn(f32) -> u32) -> u32 {
             }
             rank -= c;
         }
-        prefix |= digit << shift;
+        let mut m = 0;
+        for i in 0..len {
+            let Some(&x) = v.get(i) else { break };
+            let q = total_key(x);
+            let dq = (q >> shift) & 15;
+            if dq < digit {
+                below += 1;
+                below_max = below_max.max(q);
+            } else if dq == digit {
+                if let Some(slot) = v.get_mut(m) {
+                    *slot = x;
+                }
+                m += 1;
+            }
+        }
+        len = m;
     }
-    prefix
-}
-
-/// Median of `v`; 0 for an empty slice. The median of an even count is the mean of the two
-/// middle values. `v` is not reordered (it was, with `select_nth_unstable`, which the
-/// firmware no longer links: see [`select_key`]).
-///
-/// The values are ranked with `f32::total_cmp` (for non-negative values that is the order of
-/// their bit patterns).
-pub fn median(v: &mut [f32]) -> f32 {
-    let n = v.len();
-    if n == 0 {
-        return 0.0;
-    }
-    let upper_key = select_key(v, n / 2, total_key);
-    // The value with that key (keys are equal only for identical bits).
-    let upper = v
-        .iter()
-        .copied()
-        .find(|&x| total_key(x) == upper_key)
-        .unwrap_or(0.0);
+    // Every remaining candidate has the middle key: identical bits.
+    let upper = v.first().copied().unwrap_or(0.0);
     if n % 2 == 1 {
         return upper;
     }
     // The lower middle value: the largest value ranked below `upper`, or `upper` itself when
     // fewer than n / 2 values rank below it (ties).
-    let (mut below, mut lower_mid) = (0usize, f32::NEG_INFINITY);
-    for &x in v.iter() {
-        if total_key(x) < upper_key {
-            below += 1;
-            lower_mid = lower_mid.max(x);
-        }
-    }
-    if below < n / 2 {
-        lower_mid = upper;
-    }
+    let lower_mid = if below < k {
+        upper
+    } else {
+        from_total_key(below_max)
+    };
     0.5 * (lower_mid + upper)
 }
 
@@ -327,7 +330,7 @@ mod tests {
     #[test]
     fn radix_median_equals_sorted_median_bit_for_bit() {
         let mut state = 11u32;
-        for case in 0..6 {
+        for case in 0..7 {
             for n in [1usize, 2, 3, 4, 7, 8, 64, 255, 256, 257, 1000] {
                 let mut v = [0.0f32; 1000];
                 for x in v[..n].iter_mut() {
@@ -339,7 +342,15 @@ mod tests {
                         2 => (u * 8.0).floor() * 0.25,
                         3 => (u * 4.0).floor() - 2.0,
                         4 => u * 1e-30,
-                        _ => -u,
+                        5 => -u,
+                        // Signed zeros: ranked -0 < +0 as total_cmp does.
+                        _ => {
+                            if u < 0.5 {
+                                -0.0
+                            } else {
+                                0.0
+                            }
+                        }
                     };
                 }
                 let mut sorted = v[..n].to_vec();
