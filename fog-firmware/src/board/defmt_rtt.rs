@@ -3,12 +3,14 @@
 //!
 //! Written here instead of using the `defmt-rtt` crate because that one panics when the
 //! logger is re-entered (`panic!("defmt logger taken reentrantly")`), which links the panic
-//! machinery into the release ELF; here a re-entered frame is dropped. Non-blocking: bytes
+//! machinery into the release ELF; here a re-entered frame is dropped (`defmt_frames`). Non-blocking: bytes
 //! that do not fit in the buffer (host not reading) are dropped, like `defmt-rtt`'s default
 //! mode.
 
 use core::cell::UnsafeCell;
-use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use super::defmt_frames::{Frames, Sink};
 
 /// Bytes of the up-channel's ring buffer.
 const BUF_SIZE: usize = 1024;
@@ -79,75 +81,36 @@ fn emit(bytes: &[u8]) {
     ch.write.store(write as u32, Ordering::Release);
 }
 
+/// The RTT up-channel as a defmt sink.
+struct Rtt;
+
+impl Sink for Rtt {
+    fn emit(&mut self, bytes: &[u8]) {
+        emit(bytes);
+    }
+}
+
+static FRAMES: Frames<Rtt> = Frames::new(Rtt);
+
 #[defmt::global_logger]
 struct Logger;
 
-struct State {
-    encoder: defmt::Encoder,
-    restore: critical_section::RestoreState,
-}
-
-struct Shared {
-    taken: AtomicBool,
-    /// A frame started inside another (a log inside a log) is being dropped.
-    nested: AtomicBool,
-    state: UnsafeCell<State>,
-}
-
-// SAFETY: `state` is only touched between `acquire` and `release`, inside a critical section
-// on a single core, and `taken` refuses re-entry.
-unsafe impl Sync for Shared {}
-
-static SHARED: Shared = Shared {
-    taken: AtomicBool::new(false),
-    nested: AtomicBool::new(false),
-    state: UnsafeCell::new(State {
-        encoder: defmt::Encoder::new(),
-        restore: critical_section::RestoreState::invalid(),
-    }),
-};
-
-// SAFETY: the contract of `defmt::Logger`, kept as in `defmt_stderr`: `acquire` takes a
-// critical section and marks the logger taken; `write`/`flush`/`release` are only called
-// between `acquire` and `release`.
+// SAFETY: the contract of `defmt::Logger` is kept by `Frames` (one frame at a time, inside a
+// critical section; a re-entered frame dropped).
 unsafe impl defmt::Logger for Logger {
     fn acquire() {
-        // SAFETY: paired with exactly one `critical_section::release`.
-        let restore = unsafe { critical_section::acquire() };
-        if SHARED.taken.swap(true, Ordering::Relaxed) {
-            // Re-entered: this frame is dropped (no state touched).
-            SHARED.nested.store(true, Ordering::Relaxed);
-            // SAFETY: releases the section just taken.
-            unsafe { critical_section::release(restore) };
-            return;
-        }
-        // SAFETY: inside the critical section with `taken` set: exclusive access.
-        let state = unsafe { &mut *SHARED.state.get() };
-        state.restore = restore;
-        state.encoder.start_frame(emit);
+        FRAMES.acquire();
     }
 
     unsafe fn flush() {}
 
     unsafe fn release() {
-        if SHARED.nested.swap(false, Ordering::Relaxed) {
-            return;
-        }
-        // SAFETY: called after `acquire` (defmt's contract): exclusive access.
-        let state = unsafe { &mut *SHARED.state.get() };
-        state.encoder.end_frame(emit);
-        let restore = state.restore;
-        SHARED.taken.store(false, Ordering::Relaxed);
-        // SAFETY: paired with the `acquire` of this frame.
-        unsafe { critical_section::release(restore) };
+        // SAFETY: defmt calls it after `acquire`.
+        unsafe { FRAMES.release() };
     }
 
     unsafe fn write(bytes: &[u8]) {
-        if SHARED.nested.load(Ordering::Relaxed) {
-            return;
-        }
-        // SAFETY: called between `acquire` and `release` (defmt's contract).
-        let state = unsafe { &mut *SHARED.state.get() };
-        state.encoder.write(bytes, emit);
+        // SAFETY: defmt calls it between `acquire` and `release`.
+        unsafe { FRAMES.write(bytes) };
     }
 }

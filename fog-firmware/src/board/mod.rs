@@ -7,6 +7,7 @@ compile_error!("select one board feature: board-mps2-an386 (default) or board-st
 #[cfg(not(any(feature = "board-mps2-an386", feature = "board-stm32f407")))]
 compile_error!("select a board feature: board-mps2-an386 (default) or board-stm32f407");
 
+mod defmt_frames;
 #[cfg(feature = "board-stm32f407")]
 mod defmt_rtt;
 #[cfg(feature = "board-mps2-an386")]
