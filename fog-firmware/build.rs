@@ -40,7 +40,8 @@ fn rt_feed(out: &std::path::Path) {
         "cargo:rerun-if-changed={}",
         PathBuf::from(&capture).display()
     );
-    fs::copy(&capture, out.join("rt_capture.bin")).expect("FOG_RT_CAPTURE readable");
+    let bytes = fs::read(&capture).expect("FOG_RT_CAPTURE readable");
+    fs::write(out.join("rt_capture.bin"), bytes).expect("OUT_DIR writable");
     let baud: u64 = env::var("FOG_RT_BAUD")
         .map(|b| b.parse().expect("FOG_RT_BAUD: a positive integer"))
         .unwrap_or(115_200);
