@@ -166,6 +166,9 @@ fn exp_row<C: TickCounter>(c: &C, cal: &Calibration, f: fn(f32) -> f32) -> (u64,
     (per_call_x10, worst)
 }
 
+/// An `exp` implementation under test, with its name.
+type ExpImpl = (&'static str, fn(f32) -> f32);
+
 /// Prints the exp comparison.
 fn exp_table<C: TickCounter, W: core::fmt::Write>(
     c: &C,
@@ -176,7 +179,7 @@ fn exp_table<C: TickCounter, W: core::fmt::Write>(
         out,
         "exp on {EXP_POINTS} points of [{EXP_LO}, 0] (instructions per call incl. loop; max relative error vs libm::exp f64):"
     )?;
-    let rows: [(&str, fn(f32) -> f32); 3] = [
+    let rows: [ExpImpl; 3] = [
         ("fog_core::wnn::exp_anchor", fog_core::wnn::exp_anchor),
         ("micromath F32Ext::exp", micromath::F32Ext::exp),
         ("libm::expf", libm::expf),
