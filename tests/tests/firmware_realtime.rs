@@ -135,7 +135,7 @@ fn bytes_arriving_at_115200_baud_none_lost_with_the_receive_interrupt() {
     let dir = firmware_dir().join("target/rt");
     std::fs::create_dir_all(&dir).expect("target/rt");
     let capture_path = dir.join("rt-capture.bin");
-    let ramp = ramp_capture(0x5EED_0F_F457);
+    let ramp = ramp_capture(0x005E_ED0F_F457);
     let ramp_path = dir.join("rt-capture-ramp.bin");
     // Rewritten only when they changed, so that cargo's fingerprint stays fresh.
     for (path, bytes) in [(&capture_path, &stream), (&ramp_path, &ramp)] {
