@@ -20,7 +20,7 @@
 
 use std::io::Read;
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -28,7 +28,7 @@ use fog_core::frame::ecore;
 use fog_system_tests::{firmware_dir, firmware_elf_in, qemu_system_arm};
 
 mod hil;
-use hil::{host_reference, parse_records, pipeline, KillOnDrop, Rng, StatsRecord};
+use hil::{host_reference, parse_records, pipeline, spawn_qemu, Rng, StatsRecord};
 
 /// Samples in the capture: three completed denoising blocks (the heaviest samples) and
 /// training from the second block on.
@@ -72,20 +72,13 @@ fn capture(seed: u64) -> Vec<u8> {
 /// Runs `elf` under `-icount shift=6,align=off,sleep=off` with no UART input; returns UART0's
 /// output and QEMU's exit code.
 fn run_icount(qemu: &Path, elf: &Path, defmt_log: &Path) -> (Vec<u8>, Option<i32>) {
-    let log = std::fs::File::create(defmt_log).expect("defmt log file");
-    let child = Command::new(qemu)
-        .args(["-machine", "mps2-an386", "-nographic", "-monitor", "none"])
-        .args(["-serial", "stdio"])
-        .args(["-semihosting-config", "enable=on,target=native"])
-        .args(["-icount", "shift=6,align=off,sleep=off"])
-        .arg("-kernel")
-        .arg(elf)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::from(log))
-        .spawn()
-        .expect("qemu-system-arm starts");
-    let mut proc = KillOnDrop(child);
+    let mut proc = spawn_qemu(
+        qemu,
+        elf,
+        &["-icount", "shift=6,align=off,sleep=off"],
+        Stdio::null(),
+        defmt_log,
+    );
     let mut stdout = proc.0.stdout.take().expect("piped stdout");
     let (tx, rx) = mpsc::channel();
     std::thread::spawn(move || {

@@ -185,6 +185,32 @@ impl QemuRun {
     }
 }
 
+/// Starts `qemu-system-arm -machine mps2-an386` with `elf`: UART0 on stdin/stdout (stdout
+/// piped), semihosting on, defmt (semihosting stderr) into `defmt_log`, `extra` arguments
+/// (e.g. `-icount`) before the kernel.
+pub fn spawn_qemu(
+    qemu: &Path,
+    elf: &Path,
+    extra: &[&str],
+    stdin: Stdio,
+    defmt_log: &Path,
+) -> KillOnDrop {
+    let log = std::fs::File::create(defmt_log).expect("defmt log file");
+    let child = Command::new(qemu)
+        .args(["-machine", "mps2-an386", "-nographic", "-monitor", "none"])
+        .args(["-serial", "stdio"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(extra)
+        .arg("-kernel")
+        .arg(elf)
+        .stdin(stdin)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::from(log))
+        .spawn()
+        .expect("qemu-system-arm starts");
+    KillOnDrop(child)
+}
+
 /// Runs the firmware under QEMU with `input` on UART0; returns (UART0 output, exit code).
 /// defmt's frames (semihosting stderr) go to `defmt_log`.
 pub fn run_qemu(
@@ -214,19 +240,7 @@ pub struct Piece {
 /// stalls: the firmware sees no byte meanwhile).
 pub fn run_qemu_paced(qemu: &Path, elf: &Path, pieces: Vec<Piece>, defmt_log: &Path) -> QemuRun {
     let start = Instant::now();
-    let log = std::fs::File::create(defmt_log).expect("defmt log file");
-    let child = Command::new(qemu)
-        .args(["-machine", "mps2-an386", "-nographic", "-monitor", "none"])
-        .args(["-serial", "stdio"])
-        .args(["-semihosting-config", "enable=on,target=native"])
-        .arg("-kernel")
-        .arg(elf)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::from(log))
-        .spawn()
-        .expect("qemu-system-arm starts");
-    let mut qemu_proc = KillOnDrop(child);
+    let mut qemu_proc = spawn_qemu(qemu, elf, &[], Stdio::piped(), defmt_log);
     let mut stdin = qemu_proc.0.stdin.take().expect("piped stdin");
     let mut stdout = qemu_proc.0.stdout.take().expect("piped stdout");
 
