@@ -27,6 +27,10 @@ step "fog-firmware: rustfmt, clippy -D warnings, build (QEMU mps2-an386 and STM3
   cargo fmt -- --check
   cargo clippy -q --release -- -D warnings
   cargo clippy -q --release --features budget -- -D warnings
+  # The real-time arrival test images (tests/tests/firmware_realtime.rs builds and runs them
+  # with a capture; an empty one is enough to lint them).
+  FOG_RT_CAPTURE=/dev/null cargo clippy -q --release --features rt-feed --target-dir target/rt -- -D warnings
+  FOG_RT_CAPTURE=/dev/null cargo clippy -q --release --features rt-feed-poll --target-dir target/rt -- -D warnings
   cargo build -q --release
   cargo clippy -q --release --no-default-features --features board-stm32f407 --target-dir target/stm32 -- -D warnings
   cargo build -q --release --no-default-features --features board-stm32f407 --target-dir target/stm32

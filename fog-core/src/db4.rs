@@ -117,6 +117,46 @@ pub fn check(len: usize, scratch_len: usize, levels: u32) -> Result<(), Transfor
 /// modular indexing.
 const GHOST: usize = 4;
 
+/// `v[i]`, or 0 out of range. The lifting code only reads in range (the lengths were
+/// validated by [`check`]); `get` instead of indexing keeps the firmware free of
+/// bounds-check panics where the compiler cannot prove the range itself.
+#[inline(always)]
+fn ld(v: &[f32], i: usize) -> f32 {
+    v.get(i).copied().unwrap_or(0.0)
+}
+
+/// `v[i] = x` when `i` is in range (see [`ld`]).
+#[inline(always)]
+fn st(v: &mut [f32], i: usize, x: f32) {
+    if let Some(o) = v.get_mut(i) {
+        *o = x;
+    }
+}
+
+/// `v[i] += x` when `i` is in range (see [`ld`]): the same f32 operation as `v[i] += x`.
+#[inline(always)]
+fn add(v: &mut [f32], i: usize, x: f32) {
+    if let Some(o) = v.get_mut(i) {
+        *o += x;
+    }
+}
+
+/// `v[i] -= x` when `i` is in range (see [`ld`]).
+#[inline(always)]
+fn sub(v: &mut [f32], i: usize, x: f32) {
+    if let Some(o) = v.get_mut(i) {
+        *o -= x;
+    }
+}
+
+/// Copies `src` into the start of `dst` (as many values as both have).
+#[inline(always)]
+fn copy(dst: &mut [f32], src: &[f32]) {
+    for (o, v) in dst.iter_mut().zip(src) {
+        *o = *v;
+    }
+}
+
 /// `a * x + b * y`, in this order (the same f32 operations everywhere).
 #[inline(always)]
 fn two(c: &[f32; 2], a: f32, b: f32) -> f32 {
@@ -256,7 +296,10 @@ fn forward_interior_fused(s: &mut [f32], d: &mut [f32], lo: usize, hi: usize) {
 
 /// Iterations `lo..hi` of the inverse sweep, one at a time (see [`inverse_interior_blocked`]).
 fn inverse_interior_fused(s: &mut [f32], d: &mut [f32], lo: usize, hi: usize) {
-    for i in lo..hi {
+    let (Some(s), Some(d)) = (s.get_mut(..hi), d.get_mut(..hi)) else {
+        return;
+    };
+    for i in lo.max(5)..hi {
         d[i] -= three(&P4, s[i], s[i - 1], s[i - 2]);
         let e = i - 2;
         s[e] -= two(&U3, d[e], d[e - 1]);
@@ -279,11 +322,13 @@ fn forward_level(x: &mut [f32], scratch: &mut [f32], offset: f32, blocked: bool)
     let n2 = x.len();
     let h = n2 / 2;
     let e_len = h + 2 * GHOST;
-    let d = &mut scratch[..e_len];
+    let Some(d) = scratch.get_mut(..e_len) else {
+        return;
+    };
     // Odd samples first (x is still intact): d[e] = x[2(e - 4) + 1 mod 2H].
     for e in 0..GHOST {
-        d[e] = x[n2 - 2 * GHOST + 2 * e + 1] - offset;
-        d[h + GHOST + e] = x[2 * e + 1] - offset;
+        st(d, e, ld(x, n2 - 2 * GHOST + 2 * e + 1) - offset);
+        st(d, h + GHOST + e, ld(x, 2 * e + 1) - offset);
     }
     for (v, pair) in d[GHOST..h + GHOST].iter_mut().zip(x.chunks_exact(2)) {
         *v = pair[1] - offset;
@@ -291,42 +336,53 @@ fn forward_level(x: &mut [f32], scratch: &mut [f32], offset: f32, blocked: bool)
     // Even samples compacted into x itself: s[e] = x[2(e - 4) mod 2H], ascending e. Read
     // positions below 16 may already be overwritten, so those come from a copy.
     let mut head = [0.0f32; 16];
-    head.copy_from_slice(&x[..16]);
+    copy(&mut head, x);
     let mut tail = [0.0f32; GHOST];
     for (e, t) in tail.iter_mut().enumerate() {
-        *t = x[n2 - 2 * GHOST + 2 * e] - offset;
+        *t = ld(x, n2 - 2 * GHOST + 2 * e) - offset;
     }
-    x[..GHOST].copy_from_slice(&tail);
+    copy(x, &tail);
     for e in GHOST..GHOST + 8 {
-        x[e] = head[2 * (e - GHOST)] - offset;
+        st(x, e, ld(&head, 2 * (e - GHOST)) - offset);
     }
-    for e in GHOST + 8..h + GHOST {
-        x[e] = x[2 * (e - GHOST)] - offset;
+    // x[e] = x[2 (e - 4)] - offset for e in 12..H + 4, ascending (each read is ahead of
+    // every write so far). Through cells: reads and writes of the same slice by iterators,
+    // with no index to check.
+    let cells = core::cell::Cell::from_mut(&mut *x).as_slice_of_cells();
+    for (dst, src) in cells
+        .iter()
+        .skip(GHOST + 8)
+        .zip(cells.iter().skip(16).step_by(2))
+        .take(h.saturating_sub(8))
+    {
+        dst.set(src.get() - offset);
     }
     for e in 0..GHOST {
-        x[h + GHOST + e] = head[2 * e] - offset;
+        st(x, h + GHOST + e, ld(&head, 2 * e) - offset);
     }
-    let s = &mut x[..e_len];
+    let Some(s) = x.get_mut(..e_len) else {
+        return;
+    };
     // Sweep: steps 1 and 2 at e = i, steps 3 and 4 at i - 2, step 5 at i - 3. Each step
     // overwrites only values that no later step still needs in their previous form. The
     // first and last iterations check which steps are in range; the interior does not.
     let edge = |s: &mut [f32], d: &mut [f32], i: usize| {
         if i + 1 < e_len {
-            d[i] += P0[0] * s[i + 1];
+            add(d, i, P0[0] * ld(s, i + 1));
             if i >= 1 {
-                s[i] += two(&U1, d[i], d[i - 1]);
+                add(s, i, two(&U1, ld(d, i), ld(d, i - 1)));
             }
         }
         if i >= 2 && (1..e_len - 3).contains(&(i - 2)) {
             let e = i - 2;
-            d[e] += two(&P2, s[e + 2], s[e + 1]);
+            add(d, e, two(&P2, ld(s, e + 2), ld(s, e + 1)));
             if e >= 2 {
-                s[e] += two(&U3, d[e], d[e - 1]);
+                add(s, e, two(&U3, ld(d, e), ld(d, e - 1)));
             }
         }
         if i >= 3 && (4..e_len - 3).contains(&(i - 3)) {
             let e = i - 3;
-            d[e] += three(&P4, s[e], s[e - 1], s[e - 2]);
+            add(d, e, three(&P4, ld(s, e), ld(s, e - 1), ld(s, e - 2)));
         }
     };
     for i in 0..7 {
@@ -363,56 +419,64 @@ fn inverse_level(x: &mut [f32], scratch: &mut [f32], offset: f32, blocked: bool)
     let e_len = h + 2 * GHOST;
     // d[e] = cD[n - 1] / K_D = K_S * cD[(e - 5) mod H].
     {
-        let (cd, d) = (&x[h..], &mut scratch[..e_len]);
+        let (Some(cd), Some(d)) = (x.get(h..), scratch.get_mut(..e_len)) else {
+            return;
+        };
         for e in 0..GHOST + 1 {
-            d[e] = K_S * cd[h - GHOST - 1 + e];
+            st(d, e, K_S * ld(cd, h - GHOST - 1 + e));
         }
-        for (v, c) in d[GHOST + 1..h + GHOST + 1].iter_mut().zip(cd) {
+        for (v, c) in d.iter_mut().skip(GHOST + 1).zip(cd) {
             *v = K_S * c;
         }
         for e in h + GHOST + 1..e_len {
-            d[e] = K_S * cd[e - GHOST - 1 - h];
+            st(d, e, K_S * ld(cd, e - GHOST - 1 - h));
         }
     }
     // s[e] = cA[n + 1] / K_S = K_D * cA[(e - 3) mod H], written into x[e] in descending
     // order (reads x[e - 3], below the write position); wrapped reads come from copies.
     let mut ca_head = [0.0f32; 8];
-    ca_head.copy_from_slice(&x[..8]);
+    copy(&mut ca_head, x);
     let mut ca_tail = [0.0f32; 8];
-    ca_tail.copy_from_slice(&x[h - 8..h]);
+    copy(&mut ca_tail, x.get(h - 8..h).unwrap_or(&[]));
     for e in (h + GHOST - 1..e_len).rev() {
-        x[e] = K_D * ca_head[e - (h + GHOST - 1)];
+        st(x, e, K_D * ld(&ca_head, e - (h + GHOST - 1)));
     }
     // The middle, x[e] = K_D * x[e - 3]: scaled in place, then moved up by 3 (memmove); two
     // vectorised passes instead of one descending scalar one. Same products.
-    for v in &mut x[..h] {
+    for v in x.iter_mut().take(h) {
         *v *= K_D;
     }
-    x.copy_within(..h, GHOST - 1);
-    for e in 0..GHOST - 1 {
-        x[e] = K_D * ca_tail[8 - (GHOST - 1) + e];
+    // x[..h] moved up by GHOST - 1 (a memmove), on a sub-slice of exactly the length it
+    // needs, so the compiler proves copy_within's range check.
+    if let Some(part) = x.get_mut(..h + GHOST - 1) {
+        part.copy_within(..h, GHOST - 1);
     }
-    let (s, d) = (&mut x[..e_len], &mut scratch[..e_len]);
+    for e in 0..GHOST - 1 {
+        st(x, e, K_D * ld(&ca_tail, 8 - (GHOST - 1) + e));
+    }
+    let (Some(s), Some(d)) = (x.get_mut(..e_len), scratch.get_mut(..e_len)) else {
+        return;
+    };
     // Undo 5 at e = i, 4 at i - 2, 3 and 2 at i - 4, 1 at i - 5; range checks only at the
     // first and last iterations.
     let edge = |s: &mut [f32], d: &mut [f32], i: usize| {
         if (2..e_len).contains(&i) {
-            d[i] -= three(&P4, s[i], s[i - 1], s[i - 2]);
+            sub(d, i, three(&P4, ld(s, i), ld(s, i - 1), ld(s, i - 2)));
         }
         if i >= 2 && (3..e_len).contains(&(i - 2)) {
             let e = i - 2;
-            s[e] -= two(&U3, d[e], d[e - 1]);
+            sub(s, e, two(&U3, ld(d, e), ld(d, e - 1)));
         }
         if i >= 4 && (3..e_len - 2).contains(&(i - 4)) {
             let e = i - 4;
-            d[e] -= two(&P2, s[e + 2], s[e + 1]);
+            sub(d, e, two(&P2, ld(s, e + 2), ld(s, e + 1)));
             if e >= 4 {
-                s[e] -= two(&U1, d[e], d[e - 1]);
+                sub(s, e, two(&U1, ld(d, e), ld(d, e - 1)));
             }
         }
         if i >= 5 && (4..e_len - 3).contains(&(i - 5)) {
             let e = i - 5;
-            d[e] -= P0[0] * s[e + 1];
+            sub(d, e, P0[0] * ld(s, e + 1));
         }
     };
     for i in 0..9 {
@@ -431,10 +495,20 @@ fn inverse_level(x: &mut [f32], scratch: &mut [f32], offset: f32, blocked: bool)
     // the stack, the rest (n = 8..H, H - 8 values) to scratch[H + 8..2H], which the sweep
     // does not use. The interleaving loop then reads only copies and vectorises.
     let mut s_head = [0.0f32; 8];
-    s_head.copy_from_slice(&x[GHOST..GHOST + 8]);
-    scratch[h + 2 * GHOST..n2].copy_from_slice(&x[GHOST + 8..h + GHOST]);
-    let (d_all, s_rest) = scratch[..n2].split_at(h + 2 * GHOST);
-    let (x_head, x_rest) = x.split_at_mut(16);
+    copy(&mut s_head, x.get(GHOST..).unwrap_or(&[]));
+    copy(
+        scratch.get_mut(h + 2 * GHOST..n2).unwrap_or(&mut []),
+        x.get(GHOST + 8..h + GHOST).unwrap_or(&[]),
+    );
+    let Some((d_all, s_rest)) = scratch
+        .get(..n2)
+        .and_then(|v| v.split_at_checked(h + 2 * GHOST))
+    else {
+        return;
+    };
+    let Some((x_head, x_rest)) = x.split_at_mut_checked(16) else {
+        return;
+    };
     for ((pair, sv), dv) in x_head.chunks_exact_mut(2).zip(&s_head).zip(&d_all[GHOST..]) {
         pair[0] = sv + offset;
         pair[1] = dv + offset;

@@ -49,8 +49,11 @@ impl Activation {
 /// makes it within 2 ulp of `e^x` (checked over the domain against f64 in the test
 /// `exp_recurrence_accuracy`). About 20 instructions on a Cortex-M4F, against about 55
 /// for `libm::expf`, and the same f32 operations on every target (no fused multiply-add).
+///
+/// Public for the firmware's side-by-side measurement against `micromath` and `libm`
+/// (`scripts/fw-budget.sh`); the network uses it internally.
 #[inline(always)]
-fn exp_anchor(x: f32) -> f32 {
+pub fn exp_anchor(x: f32) -> f32 {
     const LOG2E: f32 = core::f32::consts::LOG2_E;
     // Adding 1.5 * 2^23 rounds to an integer (|x log2 e| < 2^22).
     const ROUND: f32 = 12_582_912.0;

@@ -30,6 +30,18 @@ pub trait TickCounter {
     }
 }
 
+/// Bytes the board's receive path lost before the decoder could see them (see
+/// `board::rx`): each loss also reaches the decoder as one receive error at the place in
+/// the stream where it happened, so the frame it cut is dropped and counted.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RxLoss {
+    /// Bytes overwritten in the receive register before the receive interrupt read them
+    /// (a real UART only flags the event: counted 1 per event there).
+    pub overrun: u32,
+    /// Bytes dropped because the receive queue was full.
+    pub queue_full: u32,
+}
+
 /// Why the loop stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum Stop {
@@ -106,13 +118,14 @@ fn log_stats<C: TickCounter>(s: &ByteStats, t: &RunTotals, p: &Period) {
 /// Runs until the end marker: decodes E-Core frames from `rx`, writes one record per good
 /// frame to `tx`, then flushes the decoder and writes the statistics record.
 ///
-/// `stack_bytes` is called once at the end for the final record. `temperature` gives each
-/// sample's `temp_c` (`None` without a sensor).
+/// `stack_bytes` and `rx_loss` are called once at the end for the final record. `temperature`
+/// gives each sample's `temp_c` (`None` without a sensor).
 pub fn run<R, W, C, I>(
     rx: R,
     tx: &mut W,
     counter: &C,
     stack_bytes: fn() -> u32,
+    rx_loss: fn() -> RxLoss,
     mut temperature: TemperatureSource<I>,
 ) -> Stop
 where
@@ -182,12 +195,16 @@ where
     }
     reader.decoder_mut().flush();
     totals.stack_bytes = stack_bytes();
+    let loss = rx_loss();
+    (totals.rx_overrun, totals.rx_queue_full) = (loss.overrun, loss.queue_full);
     let stats = *reader.stats();
     log_stats::<C>(&stats, &totals, &period);
     defmt::info!(
-        "end of input: {=u32} samples, stack high-water {=u32} bytes, accounting consistent {=bool}",
+        "end of input: {=u32} samples, stack high-water {=u32} bytes, receive bytes lost: {=u32} overrun, {=u32} queue full; accounting consistent {=bool}",
         totals.samples,
         totals.stack_bytes,
+        totals.rx_overrun,
+        totals.rx_queue_full,
         stats.is_consistent()
     );
     defmt::info!(

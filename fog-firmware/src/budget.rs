@@ -136,6 +136,67 @@ fn row<W: core::fmt::Write>(
     )
 }
 
+/// Inputs of the exp comparison: the hidden layer's domain, `-t^2 / 2` for `|t| < 13`.
+const EXP_POINTS: usize = 1024;
+const EXP_LO: f32 = -84.5;
+
+/// One `exp` implementation over [`EXP_POINTS`] inputs: instructions per call (x10, loop
+/// included) and the largest relative error against `libm::exp` in f64.
+fn exp_row<C: TickCounter>(c: &C, cal: &Calibration, f: fn(f32) -> f32) -> (u64, f64) {
+    let x = |i: usize| EXP_LO * (i as f32) / ((EXP_POINTS - 1) as f32);
+    let mut worst = 0.0f64;
+    for i in 0..EXP_POINTS {
+        let want = libm::exp(f64::from(x(i)));
+        let got = f64::from(f(x(i)));
+        worst = worst.max(libm::fabs(got - want) / want);
+    }
+    let inputs: [f32; EXP_POINTS] = core::array::from_fn(x);
+    let (sum, ticks) = time(c, || {
+        let mut acc = 0.0f32;
+        for &v in &inputs {
+            acc += f(v);
+        }
+        acc
+    });
+    let per_call_x10 = cal.instr_x10(u64::from(ticks), 1) / EXP_POINTS as u64;
+    // Keeps the loop from being optimised away.
+    if sum.is_nan() {
+        return (0, f64::NAN);
+    }
+    (per_call_x10, worst)
+}
+
+/// An `exp` implementation under test, with its name.
+type ExpImpl = (&'static str, fn(f32) -> f32);
+
+/// Prints the exp comparison.
+fn exp_table<C: TickCounter, W: core::fmt::Write>(
+    c: &C,
+    cal: &Calibration,
+    out: &mut W,
+) -> core::fmt::Result {
+    writeln!(
+        out,
+        "exp on {EXP_POINTS} points of [{EXP_LO}, 0] (instructions per call incl. loop; max relative error vs libm::exp f64):"
+    )?;
+    let rows: [ExpImpl; 3] = [
+        ("fog_core::wnn::exp_anchor", fog_core::wnn::exp_anchor),
+        ("micromath F32Ext::exp", micromath::F32Ext::exp),
+        ("libm::expf", libm::expf),
+    ];
+    for (name, f) in rows {
+        let (instr_x10, err) = exp_row(c, cal, f);
+        writeln!(
+            out,
+            "| {name:<28} | {:>5}.{} instr | max rel err {:.2e} |",
+            instr_x10 / 10,
+            instr_x10 % 10,
+            err
+        )?;
+    }
+    Ok(())
+}
+
 /// Measures and prints; false if something could not be set up.
 pub fn run<W, C>(tx: &mut W, c: &C, spin: fn(u32), stack_bytes: fn() -> u32) -> bool
 where
@@ -392,6 +453,9 @@ where
                 pipe * 10 / GOAL_PIPELINE_INSTR % 10
             )?;
         }
+        writeln!(out)?;
+        exp_table(c, &cal, &mut out)?;
+        writeln!(out)?;
         let worst = cal.instr_x10(u64::from(a_pipe_all.max), 1) / 10;
         writeln!(
             out,

@@ -43,8 +43,8 @@ pub const KIND_STATS: u8 = 0x02;
 pub const SAMPLE_PAYLOAD_LEN: usize = 21;
 /// Bytes of a whole per-sample record.
 pub const SAMPLE_RECORD_LEN: usize = 3 + SAMPLE_PAYLOAD_LEN + 2;
-/// Payload bytes of the statistics record: 17 `u64` counters and 4 `u32`.
-pub const STATS_PAYLOAD_LEN: usize = 17 * 8 + 4 * 4;
+/// Payload bytes of the statistics record: 17 `u64` counters and 6 `u32`.
+pub const STATS_PAYLOAD_LEN: usize = 17 * 8 + 6 * 4;
 /// Bytes of the whole statistics record.
 pub const STATS_RECORD_LEN: usize = 3 + STATS_PAYLOAD_LEN + 2;
 
@@ -165,6 +165,11 @@ pub struct RunTotals {
     pub serial_errors: u32,
     /// Stack high-water mark, bytes (0 when not measured).
     pub stack_bytes: u32,
+    /// Received bytes overwritten in the one-byte receive register before the receive
+    /// interrupt read them (the real UARTs report overrun events, counted as 1 each).
+    pub rx_overrun: u32,
+    /// Received bytes dropped because the receive queue was full.
+    pub rx_queue_full: u32,
 }
 
 /// The final statistics record: every [`ByteStats`] counter, then [`RunTotals`].
@@ -174,7 +179,14 @@ pub fn stats_record(s: &ByteStats, t: &RunTotals) -> [u8; STATS_RECORD_LEN] {
     for (chunk, c) in r[3..3 + 17 * 8].chunks_exact_mut(8).zip(counters) {
         chunk.copy_from_slice(&c.to_le_bytes());
     }
-    let tail = [t.samples, t.rejected, t.serial_errors, t.stack_bytes];
+    let tail = [
+        t.samples,
+        t.rejected,
+        t.serial_errors,
+        t.stack_bytes,
+        t.rx_overrun,
+        t.rx_queue_full,
+    ];
     for (chunk, v) in r[3 + 17 * 8..3 + STATS_PAYLOAD_LEN]
         .chunks_exact_mut(4)
         .zip(tail)

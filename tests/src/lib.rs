@@ -54,13 +54,27 @@ pub fn firmware_dir() -> PathBuf {
 /// # Panics
 /// If the build fails.
 pub fn firmware_elf(extra_args: &[&str]) -> PathBuf {
+    firmware_elf_in("target", extra_args, &[])
+}
+
+/// [`firmware_elf`] into `fog-firmware/TARGET_SUBDIR` (so that a test build with other
+/// features does not replace the ELF other tests use), with `envs` set for the build.
+///
+/// # Panics
+/// If the build fails.
+pub fn firmware_elf_in(
+    target_subdir: &str,
+    extra_args: &[&str],
+    envs: &[(&str, &std::ffi::OsStr)],
+) -> PathBuf {
     let dir = firmware_dir();
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let target_dir = dir.join("target");
+    let target_dir = dir.join(target_subdir);
     let status = Command::new(cargo)
         .current_dir(&dir)
         .args(["build", "-q", "--release"])
         .args(extra_args)
+        .envs(envs.iter().copied())
         .env("CARGO_TARGET_DIR", &target_dir)
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_ENCODED_RUSTFLAGS")

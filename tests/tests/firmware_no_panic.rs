@@ -20,34 +20,11 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use fog_system_tests::firmware_elf;
+use fog_system_tests::{firmware_elf, firmware_elf_in};
 
 /// Functions (innermost fog-core / fog-firmware frame) that still hold a panicking check in
 /// the release ELF, and why none can fire. Keep in step with docs/reliability.md.
-const REMAINING: &[(&str, &str)] = &[
-    (
-        "fog_core::db4::forward_level",
-        "lifting loops index x and scratch with offsets derived from x.len(); db4::check \
-         (called by BlockDenoiser::new) guarantees len >= 16, even at every level and \
-         scratch >= len, but the compiler cannot prove the offsets in range",
-    ),
-    (
-        "fog_core::db4::inverse_level",
-        "as forward_level: indices bounded by the lengths db4::check validated",
-    ),
-    (
-        "fog_core::db4::inverse_interior_fused",
-        "the inverse's fused lifting sweep (one-at-a-time form kept on the Cortex-M4F): \
-         indices i - 5 .. i for lo..hi, with lo >= 5 and hi <= the extended lengths that \
-         db4::check validated; the compiler cannot prove the offsets in range",
-    ),
-    (
-        "fog_core::threshold::median",
-        "select_nth_unstable(mid) with mid = len / 2 < len on a non-empty block (callers \
-         pass B/2^j >= 2 values); core's median-of-medians selection keeps its own internal \
-         bounds checks",
-    ),
-];
+const REMAINING: &[(&str, &str)] = &[];
 
 /// Prefixes of the panic machinery (demangled names).
 const PANIC_ROOTS: &[&str] = &[
@@ -205,8 +182,27 @@ fn release_firmware_has_no_unlisted_panic_path() {
     ) else {
         return;
     };
-    let elf = firmware_elf(&[]);
-    let (functions, branches) = disassemble(&objdump, &elf);
+    // Both boards' release ELFs: QEMU mps2-an386 (default) and STM32F407 (its own target
+    // directory, as scripts/test-all.sh builds it).
+    let boards = [
+        ("mps2-an386", firmware_elf(&[])),
+        (
+            "stm32f407",
+            firmware_elf_in(
+                "target/stm32",
+                &["--no-default-features", "--features", "board-stm32f407"],
+                &[],
+            ),
+        ),
+    ];
+    for (board, elf) in &boards {
+        eprintln!("== {board}: {}", elf.display());
+        check_elf(&objdump, &addr2line, &nm, elf);
+    }
+}
+
+fn check_elf(objdump: &Path, addr2line: &Path, nm: &Path, elf: &Path) {
+    let (functions, branches) = disassemble(objdump, elf);
     assert!(
         functions.len() > 20,
         "disassembly found {} functions",
@@ -248,8 +244,8 @@ fn release_firmware_has_no_unlisted_panic_path() {
         }
     }
     let owner = owners(
-        &addr2line,
-        &elf,
+        addr2line,
+        elf,
         &sites.iter().map(|s| s.0).collect::<Vec<_>>(),
     );
     let mut found: BTreeMap<String, Vec<String>> = BTreeMap::new();
@@ -290,7 +286,7 @@ fn release_firmware_has_no_unlisted_panic_path() {
         "listed functions no longer hold a panic path: remove them from REMAINING: {stale:?}"
     );
 
-    let symbols = run(Command::new(&nm).arg("-C").arg(&elf));
+    let symbols = run(Command::new(nm).arg("-C").arg(elf));
     let present: Vec<&str> = PANIC_SYMBOLS
         .iter()
         .copied()

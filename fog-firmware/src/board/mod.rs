@@ -7,12 +7,16 @@ compile_error!("select one board feature: board-mps2-an386 (default) or board-st
 #[cfg(not(any(feature = "board-mps2-an386", feature = "board-stm32f407")))]
 compile_error!("select a board feature: board-mps2-an386 (default) or board-stm32f407");
 
+mod defmt_frames;
+#[cfg(feature = "board-stm32f407")]
+mod defmt_rtt;
 #[cfg(feature = "board-mps2-an386")]
 mod defmt_stderr;
 #[cfg(feature = "board-mps2-an386")]
 mod mps2_an386;
 #[cfg(feature = "board-mps2-an386")]
 mod sbcon_i2c;
+mod rx;
 #[cfg(feature = "board-stm32f407")]
 mod stm32f4;
 

@@ -7,11 +7,13 @@
 //! and SysTick runs on the 25 MHz core clock, so it advances 1.6 ticks per instruction,
 //! deterministically. Without `-icount` SysTick follows host time and its counts mean
 //! nothing.
+// The test feed (`rt-feed`) replaces UART0's receive side: its registers go unused there.
+#![cfg_attr(feature = "rt-feed", allow(dead_code))]
 
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::debug;
-use embedded_hal_nb::serial::{ErrorKind, ErrorType, Read, Write};
+use embedded_hal_nb::serial::{ErrorKind, ErrorType, Write};
 
 use fog_core::tmp117::Address;
 
@@ -30,11 +32,92 @@ const CTRL: usize = 0x8;
 /// Baud divider (core clock / baud rate, >= 16).
 const BAUDDIV: usize = 0x10;
 
+/// Interrupt status (read) / clear (write 1): bit 0 TX, bit 1 RX, bit 2 TX overrun, bit 3
+/// RX overrun.
+const INTCLEAR: usize = 0xC;
+
 const STATE_TX_FULL: u32 = 1 << 0;
 const STATE_RX_FULL: u32 = 1 << 1;
 const STATE_RX_OVERRUN: u32 = 1 << 3;
 const CTRL_TX_EN: u32 = 1 << 0;
 const CTRL_RX_EN: u32 = 1 << 1;
+const CTRL_RX_INT_EN: u32 = 1 << 3;
+const INT_RX: u32 = 1 << 1;
+const INT_RX_OVERRUN: u32 = 1 << 3;
+
+/// External interrupt numbers of the AN385/AN386 image (QEMU `hw/arm/mps2.c`).
+#[derive(Debug, Clone, Copy)]
+pub struct Irq(u16);
+
+/// UART0 receive interrupt.
+pub const IRQ_UART0_RX: Irq = Irq(0);
+
+// SAFETY: the numbers are external interrupts of this machine (below its 32 lines).
+unsafe impl cortex_m::interrupt::InterruptNumber for Irq {
+    fn number(self) -> u16 {
+        self.0
+    }
+}
+
+/// NVIC priority of the receive interrupt (lower than the test feed's timer, which models
+/// the line and must preempt it).
+const PRIO_RX: u8 = 0x80;
+
+#[cfg(feature = "rt-feed")]
+#[path = "rt_feed.rs"]
+mod rt_feed;
+
+/// The receive interrupt's half of the queue. Written once by `main` before the receive
+/// interrupt is unmasked; afterwards only that interrupt touches it.
+static mut RX_ISR: Option<super::rx::RxIsr> = None;
+
+/// Runs `f` on the receive interrupt's state.
+fn with_rx_isr(f: impl FnOnce(&mut super::rx::RxIsr)) {
+    // SAFETY: called only from the receive interrupt (one priority, so never re-entered),
+    // and `main` wrote `RX_ISR` before unmasking it: no other reference exists meanwhile.
+    if let Some(isr) = unsafe { (*core::ptr::addr_of_mut!(RX_ISR)).as_mut() } {
+        f(isr);
+    }
+}
+
+/// Unmasks the receive interrupt after a pause (the queue was full) and pends it, so that a
+/// byte waiting meanwhile is read at once.
+fn rx_resume() {
+    // SAFETY: the handler's state (`RX_ISR`) was set before the first unmask.
+    unsafe { cortex_m::peripheral::NVIC::unmask(IRQ_UART0_RX) };
+    cortex_m::peripheral::NVIC::pend(IRQ_UART0_RX);
+}
+
+/// Masks the receive interrupt: the queue is full (see `rx`, back-pressure).
+fn rx_pause(isr: &mut super::rx::RxIsr) {
+    cortex_m::peripheral::NVIC::mask(IRQ_UART0_RX);
+    isr.pause();
+}
+
+/// UART0 receive interrupt: drains the receive register into the queue.
+#[cfg(not(feature = "rt-feed"))]
+fn uart0_rx_isr() {
+    uart_write(INTCLEAR, INT_RX | INT_RX_OVERRUN);
+    with_rx_isr(|isr| loop {
+        if !isr.has_room() {
+            rx_pause(isr);
+            break;
+        }
+        let state = uart_read(STATE);
+        let overrun = state & STATE_RX_OVERRUN != 0;
+        if overrun {
+            uart_write(STATE, STATE_RX_OVERRUN);
+            super::rx::count_overrun(1);
+        }
+        if state & STATE_RX_FULL == 0 {
+            if overrun {
+                isr.error(ErrorKind::Overrun);
+            }
+            break;
+        }
+        isr.deliver((uart_read(DATA) & 0xFF) as u8, overrun);
+    });
+}
 
 /// Core clock of the AN386 image, Hz.
 const SYSCLK_HZ: u32 = 25_000_000;
@@ -52,31 +135,11 @@ fn uart_write(offset: usize, value: u32) {
     unsafe { core::ptr::write_volatile((UART0_BASE + offset) as *mut u32, value) }
 }
 
-/// Receive half of UART0.
-pub struct UartRx(());
 /// Transmit half of UART0.
 pub struct UartTx(());
 
-impl ErrorType for UartRx {
-    type Error = ErrorKind;
-}
-
 impl ErrorType for UartTx {
     type Error = ErrorKind;
-}
-
-impl Read<u8> for UartRx {
-    fn read(&mut self) -> nb::Result<u8, ErrorKind> {
-        let state = uart_read(STATE);
-        if state & STATE_RX_OVERRUN != 0 {
-            uart_write(STATE, STATE_RX_OVERRUN);
-            return Err(nb::Error::Other(ErrorKind::Overrun));
-        }
-        if state & STATE_RX_FULL == 0 {
-            return Err(nb::Error::WouldBlock);
-        }
-        Ok((uart_read(DATA) & 0xFF) as u8)
-    }
 }
 
 impl Write<u8> for UartTx {
@@ -126,7 +189,7 @@ fn exit(ok: bool) -> ! {
 
 #[entry]
 fn main() -> ! {
-    let Some(cp) = cortex_m::Peripherals::take() else {
+    let Some(mut cp) = cortex_m::Peripherals::take() else {
         exit(false)
     };
     let mut syst = cp.SYST;
@@ -135,9 +198,36 @@ fn main() -> ! {
     syst.clear_current();
     syst.enable_counter();
 
+    let Some((isr, queue_rx)) = super::rx::split(rx_resume) else {
+        exit(false)
+    };
+    // SAFETY: the receive interrupt is still masked: nothing else refers to `RX_ISR`.
+    unsafe { *core::ptr::addr_of_mut!(RX_ISR) = Some(isr) };
     uart_write(BAUDDIV, SYSCLK_HZ / BAUD);
-    uart_write(CTRL, CTRL_TX_EN | CTRL_RX_EN);
-    let rx = UartRx(());
+    // With the test feed the input comes from its timer, not from UART0's RX line.
+    let ctrl = if cfg!(feature = "rt-feed") {
+        CTRL_TX_EN
+    } else {
+        CTRL_TX_EN | CTRL_RX_EN | CTRL_RX_INT_EN
+    };
+    uart_write(CTRL, ctrl);
+    // SAFETY: priorities are set before the interrupt is unmasked; `RX_ISR` is in place,
+    // which is all the handler needs (it runs at one priority, never re-entered).
+    unsafe {
+        cp.NVIC.set_priority(IRQ_UART0_RX, PRIO_RX);
+        if !cfg!(feature = "rt-feed-poll") {
+            cortex_m::peripheral::NVIC::unmask(IRQ_UART0_RX);
+        }
+    }
+    #[cfg(feature = "rt-feed")]
+    rt_feed::start(&mut cp.NVIC);
+    #[cfg(feature = "rt-feed-poll")]
+    let rx = {
+        let _ = queue_rx;
+        rt_feed::PolledRx
+    };
+    #[cfg(not(feature = "rt-feed-poll"))]
+    let rx = queue_rx;
     let mut tx = UartTx(());
 
     #[cfg(not(feature = "budget"))]
@@ -150,6 +240,7 @@ fn main() -> ! {
             &mut tx,
             &SysTickCounter,
             super::stack_used_bytes,
+            super::rx::loss,
             temperature,
         ) == crate::app::Stop::EndOfInput
     };
@@ -164,6 +255,23 @@ fn main() -> ! {
         )
     };
     exit(ok)
+}
+
+/// External interrupts (cortex-m-rt without a device crate sends them all here): UART0 RX,
+/// and the test feed's timer.
+#[exception]
+unsafe fn DefaultHandler(irqn: i16) {
+    match irqn {
+        0 => {
+            #[cfg(not(feature = "rt-feed"))]
+            uart0_rx_isr();
+            #[cfg(feature = "rt-feed")]
+            rt_feed::rx_isr();
+        }
+        #[cfg(feature = "rt-feed")]
+        8 => rt_feed::timer_isr(),
+        _ => {}
+    }
 }
 
 #[panic_handler]

@@ -3,16 +3,24 @@
 //! (core cycles), defmt over RTT, an optional TMP117 temperature sensor on I2C1 (PB8 SCL,
 //! PB9 SDA, 100 kHz, address 0x48; external pull-ups). Builds in CI; it has not run on a board.
 //!
+//! Receive: the USART2 interrupt (RXNE, through the HAL's `RxListen`) moves each byte into
+//! the queue of `board::rx`; an overrun (ORE) or another receive error becomes a marker at
+//! its place in the stream.
+//!
 //! At the end marker the final record is written and the core sleeps (no semihosting on a
 //! board without a debugger).
 
-use cortex_m::peripheral::DWT;
+use cortex_m::peripheral::{DWT, NVIC};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use defmt_rtt as _;
+use embedded_hal_nb::serial::{Error as _, ErrorKind, Read};
 use fog_core::tmp117::Address;
+use stm32f4xx_hal::pac::{interrupt, Interrupt};
+use stm32f4xx_hal::serial::{Rx, RxListen};
 use stm32f4xx_hal::{i2c::Mode, pac, prelude::*, rcc, serial::config::Config};
 
 use crate::temperature::TemperatureSource;
+
+use super::rx::RxIsr;
 
 use crate::app::TickCounter;
 
@@ -40,6 +48,47 @@ impl TickCounter for CycleCounter {
 
     fn ticks_since(&self, start: u32) -> u32 {
         DWT::cycle_count().wrapping_sub(start)
+    }
+}
+
+/// What the USART2 interrupt owns: the receive half and the queue's producer. Written once
+/// by `main` before the interrupt is unmasked; afterwards only the interrupt touches it.
+static mut USART2_RX: Option<(Rx<pac::USART2>, RxIsr)> = None;
+
+/// NVIC priority of the receive interrupt.
+const PRIO_RX: u8 = 0x80;
+
+/// Unmasks and pends the receive interrupt after a pause (the queue was full).
+fn rx_resume() {
+    // SAFETY: `USART2_RX` was set before the first unmask.
+    unsafe { NVIC::unmask(Interrupt::USART2) };
+    NVIC::pend(Interrupt::USART2);
+}
+
+#[interrupt]
+fn USART2() {
+    // SAFETY: only this interrupt (one priority, never re-entered) uses `USART2_RX` once
+    // `main` has unmasked it, after writing it.
+    let Some((rx, isr)) = (unsafe { (*core::ptr::addr_of_mut!(USART2_RX)).as_mut() }) else {
+        return;
+    };
+    loop {
+        if !isr.has_room() {
+            // Back-pressure: the byte stays in the USART (see `board::rx`).
+            NVIC::mask(Interrupt::USART2);
+            isr.pause();
+            return;
+        }
+        match rx.read() {
+            Ok(byte) => isr.deliver(byte, false),
+            Err(nb::Error::WouldBlock) => return,
+            Err(nb::Error::Other(e)) => {
+                if e.kind() == ErrorKind::Overrun {
+                    super::rx::count_overrun(1);
+                }
+                isr.error(e.kind());
+            }
+        }
     }
 }
 
@@ -72,7 +121,18 @@ fn main() -> ! {
             halt()
         }
     };
-    let (mut tx, rx) = serial.split();
+    let (mut tx, mut rx) = serial.split();
+    let Some((isr, queue_rx)) = super::rx::split(rx_resume) else {
+        halt()
+    };
+    rx.listen();
+    // SAFETY: the interrupt is still masked: nothing else refers to `USART2_RX`; priority
+    // set before the unmask.
+    unsafe {
+        *core::ptr::addr_of_mut!(USART2_RX) = Some((rx, isr));
+        cp.NVIC.set_priority(Interrupt::USART2, PRIO_RX);
+        NVIC::unmask(Interrupt::USART2);
+    }
 
     #[cfg(not(feature = "budget"))]
     {
@@ -84,17 +144,18 @@ fn main() -> ! {
         );
         let temperature = TemperatureSource::probe(Some(i2c), TMP117_ADDRESS);
         let stop = crate::app::run(
-            rx,
+            queue_rx,
             &mut tx,
             &CycleCounter,
             super::stack_used_bytes,
+            super::rx::loss,
             temperature,
         );
         defmt::info!("stopped: {}", stop);
     }
     #[cfg(feature = "budget")]
     {
-        let _ = rx;
+        let _ = queue_rx;
         let ok = crate::budget::run(&mut tx, &CycleCounter, super::spin, super::stack_used_bytes);
         defmt::info!("budget done: {=bool}", ok);
     }

@@ -93,6 +93,8 @@ pub struct StatsRecord {
     pub rejected: u32,
     pub serial_errors: u32,
     pub stack_bytes: u32,
+    pub rx_overrun: u32,
+    pub rx_queue_full: u32,
 }
 
 pub fn le_u32(b: &[u8]) -> u32 {
@@ -129,7 +131,7 @@ pub fn parse_records(out: &[u8]) -> (Vec<SampleRecord>, Option<StatsRecord>) {
                 ],
                 status: p[20],
             }),
-            (0x02, 152) => {
+            (0x02, 160) => {
                 let mut counters = [0u64; 17];
                 for (c, chunk) in counters.iter_mut().zip(p[..136].chunks_exact(8)) {
                     *c = u64::from_le_bytes(chunk.try_into().expect("8 bytes"));
@@ -140,6 +142,8 @@ pub fn parse_records(out: &[u8]) -> (Vec<SampleRecord>, Option<StatsRecord>) {
                     rejected: le_u32(&p[140..144]),
                     serial_errors: le_u32(&p[144..148]),
                     stack_bytes: le_u32(&p[148..152]),
+                    rx_overrun: le_u32(&p[152..156]),
+                    rx_queue_full: le_u32(&p[156..160]),
                 });
             }
             other => panic!("unknown record (kind, len) {other:?} at {i}"),
@@ -150,7 +154,7 @@ pub fn parse_records(out: &[u8]) -> (Vec<SampleRecord>, Option<StatsRecord>) {
 }
 
 /// Kills QEMU whatever happens to the test.
-pub struct KillOnDrop(Child);
+pub struct KillOnDrop(pub Child);
 
 impl Drop for KillOnDrop {
     fn drop(&mut self) {
@@ -179,6 +183,32 @@ impl QemuRun {
             .last()
             .map_or(0, |(_, n)| *n)
     }
+}
+
+/// Starts `qemu-system-arm -machine mps2-an386` with `elf`: UART0 on stdin/stdout (stdout
+/// piped), semihosting on, defmt (semihosting stderr) into `defmt_log`, `extra` arguments
+/// (e.g. `-icount`) before the kernel.
+pub fn spawn_qemu(
+    qemu: &Path,
+    elf: &Path,
+    extra: &[&str],
+    stdin: Stdio,
+    defmt_log: &Path,
+) -> KillOnDrop {
+    let log = std::fs::File::create(defmt_log).expect("defmt log file");
+    let child = Command::new(qemu)
+        .args(["-machine", "mps2-an386", "-nographic", "-monitor", "none"])
+        .args(["-serial", "stdio"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(extra)
+        .arg("-kernel")
+        .arg(elf)
+        .stdin(stdin)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::from(log))
+        .spawn()
+        .expect("qemu-system-arm starts");
+    KillOnDrop(child)
 }
 
 /// Runs the firmware under QEMU with `input` on UART0; returns (UART0 output, exit code).
@@ -210,19 +240,7 @@ pub struct Piece {
 /// stalls: the firmware sees no byte meanwhile).
 pub fn run_qemu_paced(qemu: &Path, elf: &Path, pieces: Vec<Piece>, defmt_log: &Path) -> QemuRun {
     let start = Instant::now();
-    let log = std::fs::File::create(defmt_log).expect("defmt log file");
-    let child = Command::new(qemu)
-        .args(["-machine", "mps2-an386", "-nographic", "-monitor", "none"])
-        .args(["-serial", "stdio"])
-        .args(["-semihosting-config", "enable=on,target=native"])
-        .arg("-kernel")
-        .arg(elf)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::from(log))
-        .spawn()
-        .expect("qemu-system-arm starts");
-    let mut qemu_proc = KillOnDrop(child);
+    let mut qemu_proc = spawn_qemu(qemu, elf, &[], Stdio::piped(), defmt_log);
     let mut stdin = qemu_proc.0.stdin.take().expect("piped stdin");
     let mut stdout = qemu_proc.0.stdout.take().expect("piped stdout");
 
