@@ -616,13 +616,16 @@ mod tests {
         let m = tr.model();
         // Changes of the shape are learned to within 0.6 deg/h (offset removed).
         let x = |t: f32| [t, REFERENCE_TEMP_C, 0.0];
-        let c = m.eval(&x(1500.0)) - shape(1500.0);
-        for t in [30.0f32, 200.0, 600.0, 1200.0, 1700.0] {
-            let err = (m.eval(&x(t)) - shape(t) - c) * 3600.0;
-            // Noise floor: a window mean is 4 deg/h (1 sigma); each neuron sees about
-            // 140 windows per record, 6 records, memory of the trainer about 3 records.
-            assert!(err.abs() < 0.6, "t {t}: {err} deg/h");
-        }
+        let diff: Vec<f32> = (0..36)
+            .map(|i| (m.eval(&x(25.0 + 50.0 * i as f32)) - shape(25.0 + 50.0 * i as f32)) * 3600.0)
+            .collect();
+        let c = diff.iter().sum::<f32>() / diff.len() as f32;
+        let rms = (diff.iter().map(|d| (d - c) * (d - c)).sum::<f32>() / diff.len() as f32).sqrt();
+        // Noise floor: a window mean is 4 deg/h (1 sigma); each neuron sees about 140
+        // windows per record, 6 records, and the trainer's memory is about 3 records.
+        assert!(rms < 0.3, "rms {rms} deg/h: {diff:?}");
+        // The shape itself spans 3 deg/h: it is learned, not ignored.
+        assert!((diff[0] - diff[35]).abs() < 1.0, "{diff:?}");
         // An untrained model predicts nothing.
         assert_eq!(MotionModel::standard(1800.0).unwrap().eval(&x(10.0)), 0.0);
     }
