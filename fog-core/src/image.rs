@@ -97,7 +97,10 @@ impl core::fmt::Display for ImageError {
             Self::BadMagic => f.write_str("not an identifier image (bad magic, expected FOGI)"),
             Self::Truncated { offset } => write!(f, "truncated at byte offset {offset}"),
             Self::UnsupportedVersion(v) => {
-                write!(f, "format version {v} unsupported (this build reads {FORMAT_VERSION})")
+                write!(
+                    f,
+                    "format version {v} unsupported (this build reads {FORMAT_VERSION})"
+                )
             }
             Self::TrailingBytes(n) => write!(f, "{n} bytes after the end of the image"),
             Self::Checksum { stored, computed } => write!(
@@ -279,7 +282,13 @@ impl Image {
         }
         w.f32(self.config.level_q_dps2_per_s);
         w.f32(self.model.time_max_s);
-        for v in self.model.scaling.offset.iter().chain(&self.model.scaling.gain) {
+        for v in self
+            .model
+            .scaling
+            .offset
+            .iter()
+            .chain(&self.model.scaling.gain)
+        {
             w.f32(*v);
         }
         let sh = &self.model.shape;
@@ -322,7 +331,11 @@ impl Image {
 
     /// Reads an image (see the module docs for the order of the checks).
     pub fn parse(bytes: &[u8]) -> Result<Self, ImageError> {
-        let head = |n: usize| bytes.get(..n).ok_or(ImageError::Truncated { offset: bytes.len() });
+        let head = |n: usize| {
+            bytes.get(..n).ok_or(ImageError::Truncated {
+                offset: bytes.len(),
+            })
+        };
         // The magic as far as it goes: a short file that is not ours says so.
         let m = bytes.len().min(4);
         if bytes.get(..m) != MAGIC.get(..m) {
@@ -440,12 +453,20 @@ impl Image {
             mode: match mode {
                 0 => DrlsMode::Parallel,
                 1 => DrlsMode::Sequential,
-                _ => return Err(ImageError::BadValue { offset: drls_at + 16 }),
+                _ => {
+                    return Err(ImageError::BadValue {
+                        offset: drls_at + 16,
+                    })
+                }
             },
             form: match form {
                 0 => DrlsForm::Gain,
                 1 => DrlsForm::Energy,
-                _ => return Err(ImageError::BadValue { offset: drls_at + 17 }),
+                _ => {
+                    return Err(ImageError::BadValue {
+                        offset: drls_at + 17,
+                    })
+                }
             },
         };
         if !drls.is_valid() {
@@ -502,11 +523,11 @@ mod tests {
     use proptest::prelude::*;
 
     fn sample() -> Image {
-        let mut model = MotionModel::standard(1800.0).unwrap();
+        let mut model = MotionModel::standard(1800.0).expect("test");
         for (l, w) in model.weights.iter_mut().enumerate() {
             *w = l as f32 * 1.0e-5 - 3.0e-5;
         }
-        let tr = MotionTrainer::new(model, MOTION_DRLS, 1.0).unwrap();
+        let tr = MotionTrainer::new(model, MOTION_DRLS, 1.0).expect("test");
         Image::new(
             MotionConfig::for_sensor(SensorConfig::ECORE_2000),
             model,
@@ -531,7 +552,7 @@ mod tests {
     fn round_trip() {
         let img = sample();
         let b = bytes(&img);
-        let back = Image::parse(&b).unwrap();
+        let back = Image::parse(&b).expect("test");
         assert_eq!(back, img);
         assert_eq!(bytes(&back), b);
         assert!(back.trainer().is_some());

@@ -26,8 +26,8 @@ pub mod frame;
 pub mod identify;
 pub mod image;
 pub mod motion;
-pub mod threshold;
 pub mod still;
+pub mod threshold;
 pub mod train;
 pub mod wnn;
 

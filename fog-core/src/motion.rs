@@ -322,7 +322,7 @@ impl MotionEstimator {
         let k = self.stats.samples;
         let t_s = k as f32 / self.cfg.sensor.sample_rate_hz;
         let x = self.inputs.next(t_s, temp_c);
-        if k % self.still.window_samples() == 0 {
+        if k.is_multiple_of(self.still.window_samples()) {
             self.model_prev = self.model_now;
             self.model_now = self.model.eval(&x);
             if !self.model_now.is_finite() {
@@ -481,7 +481,11 @@ impl MotionTrainer {
             sum += f64::from(x);
             n += 1;
         }
-        let intercept = if n > 0 { (sum / f64::from(n)) as f32 } else { 0.0 };
+        let intercept = if n > 0 {
+            (sum / f64::from(n)) as f32
+        } else {
+            0.0
+        };
 
         let mut inputs = Inputs::new(sample_rate_hz, self.model.scaling.offset[1]);
         let mut block = [0.0f32; TRAIN_BLOCK];
@@ -515,7 +519,7 @@ impl MotionTrainer {
                 let k = start + i;
                 let temp = temp_c.and_then(|t| t.get(k).copied()).unwrap_or(f32::NAN);
                 let x = inputs.next(k as f32 * dt, temp);
-                if k % w == 0 {
+                if k.is_multiple_of(w) {
                     x_window = x;
                 }
                 acc += block[i];
@@ -604,13 +608,13 @@ mod tests {
 
     #[test]
     fn trainer_learns_the_shared_shape_not_the_offsets() {
-        let model = MotionModel::standard(1800.0).unwrap();
-        let mut tr = MotionTrainer::new(model, MOTION_DRLS, 1.0).unwrap();
+        let model = MotionModel::standard(1800.0).expect("test");
+        let mut tr = MotionTrainer::new(model, MOTION_DRLS, 1.0).expect("test");
         for epoch in 0..2 {
             for r in 0..6u64 {
                 let bias = (r as f32 - 2.5) * 2.0 / 3600.0;
                 let fit = tr.train_record(&record(r + 10 * epoch, bias, 180_000), None, 100.0);
-                assert!(fit.unwrap().steps == 1800);
+                assert!(fit.expect("test").steps == 1800);
             }
         }
         let m = tr.model();
@@ -627,13 +631,16 @@ mod tests {
         // The shape itself spans 3 deg/h: it is learned, not ignored.
         assert!((diff[0] - diff[35]).abs() < 1.0, "{diff:?}");
         // An untrained model predicts nothing.
-        assert_eq!(MotionModel::standard(1800.0).unwrap().eval(&x(10.0)), 0.0);
+        assert_eq!(
+            MotionModel::standard(1800.0).expect("test").eval(&x(10.0)),
+            0.0
+        );
     }
 
     #[test]
     fn estimator_holds_in_motion_and_is_bounded() {
-        let model = MotionModel::standard(1800.0).unwrap();
-        let mut e = MotionEstimator::new(model, MotionConfig::for_sensor(S)).unwrap();
+        let model = MotionModel::standard(1800.0).expect("test");
+        let mut e = MotionEstimator::new(model, MotionConfig::for_sensor(S)).expect("test");
         let mut z = Noise(5);
         let sigma = S.sample_var_dps2().sqrt();
         let bias = 4.0 / 3600.0;
@@ -642,11 +649,17 @@ mod tests {
             // Still 60 s, then turns of 10 deg/s for 30 s and stops of 30 s.
             let moving = k >= 6000 && (k / 3000) % 2 == 0;
             let turn = if moving { 10.0 } else { 0.0 };
-            let o = e.push(bias + turn + sigma * z.normal(), f32::NAN, None).unwrap();
+            let o = e
+                .push(bias + turn + sigma * z.normal(), f32::NAN, None)
+                .expect("test");
             max_drift = max_drift.max(o.drift_dps.abs());
             if k > 5000 && !moving {
                 // Once aligned, the level is the bias within 1 deg/h.
-                assert!((o.level_dps - bias).abs() < 1.0 / 3600.0, "{k}: {}", o.level_dps);
+                assert!(
+                    (o.level_dps - bias).abs() < 1.0 / 3600.0,
+                    "{k}: {}",
+                    o.level_dps
+                );
             }
         }
         assert!(max_drift <= S.drift_bound_dps);
@@ -657,10 +670,10 @@ mod tests {
 
     #[test]
     fn model_term_is_added_and_clamped() {
-        let mut model = MotionModel::standard(1800.0).unwrap();
+        let mut model = MotionModel::standard(1800.0).expect("test");
         model.weights = [1.0; MOTION_L];
-        let mut e = MotionEstimator::new(model, MotionConfig::for_sensor(S)).unwrap();
-        let o = e.push(0.0, 25.0, Some(false)).unwrap();
+        let mut e = MotionEstimator::new(model, MotionConfig::for_sensor(S)).expect("test");
+        let o = e.push(0.0, 25.0, Some(false)).expect("test");
         assert!(o.model_dps > S.drift_bound_dps);
         assert_eq!(o.drift_dps, S.drift_bound_dps);
     }

@@ -203,7 +203,11 @@ impl Stillness {
             return None;
         }
         let w = libm::roundf(cfg.window_s * sensor.sample_rate_hz);
-        let window_n = if w >= 8.0 && w < 1.0e7 { w as u32 } else { 8 };
+        let window_n = if (8.0..1.0e7).contains(&w) {
+            w as u32
+        } else {
+            8
+        };
         let window_period_s = window_n as f32 / sensor.sample_rate_hz;
         let min_windows = libm::ceilf(cfg.min_still_s / window_period_s);
         let min_windows = if min_windows < 1.0e6 {
@@ -370,8 +374,13 @@ mod tests {
 
     /// Runs `rate(k)` for `n` samples against a drift reference `drift` known to
     /// `ref_var`; returns the flags and the confirmed means.
-    fn run(n: usize, drift: f32, ref_var: f32, rate: impl Fn(usize) -> f32) -> (Vec<bool>, Vec<f32>) {
-        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).unwrap();
+    fn run(
+        n: usize,
+        drift: f32,
+        ref_var: f32,
+        rate: impl Fn(usize) -> f32,
+    ) -> (Vec<bool>, Vec<f32>) {
+        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).expect("test");
         let mut noise = Noise(7);
         let mut flags = Vec::new();
         let mut confirmed = Vec::new();
@@ -428,11 +437,15 @@ mod tests {
         // Still for 20 s, then a turn ramping from 0 at 5 deg/s^2, starting mid-window.
         let onset = 2050;
         let drift = 0.0005;
-        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).unwrap();
+        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).expect("test");
         let mut noise = Noise(3);
         let mut released_windows = Vec::new();
         for k in 0..4000usize {
-            let turn = if k >= onset { 5.0 * (k - onset) as f32 * 0.01 } else { 0.0 };
+            let turn = if k >= onset {
+                5.0 * (k - onset) as f32 * 0.01
+            } else {
+                0.0
+            };
             let x = quantize(drift + turn + sigma() * noise.normal());
             let s = d.push(x, drift, 1.0e-8, None);
             if let Some(w) = s.window {
@@ -447,13 +460,16 @@ mod tests {
         }
         assert!(!released_windows.is_empty());
         for start in released_windows {
-            assert!(start + 100 <= onset, "window from {start} contains the onset");
+            assert!(
+                start + 100 <= onset,
+                "window from {start} contains the onset"
+            );
         }
     }
 
     #[test]
     fn external_flag_overrides() {
-        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).unwrap();
+        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).expect("test");
         let mut confirmed = 0;
         for k in 0..1000 {
             // A turn, but the vehicle says still: the flag wins.
@@ -468,7 +484,7 @@ mod tests {
 
     #[test]
     fn bad_input_is_moving_and_no_panic() {
-        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).unwrap();
+        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).expect("test");
         for k in 0..1000 {
             let x = if k % 7 == 0 { f32::NAN } else { 0.0 };
             d.push(x, f32::NAN, -1.0, None);

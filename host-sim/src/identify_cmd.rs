@@ -1,8 +1,8 @@
 //! `host-sim identify`: see [`crate::identify`].
 
 use crate::identify::series::CsvFiles;
-use crate::motion::{self, SensorArg};
 use crate::identify::{self, Act, DrlsFormArg, LevelInput, Options, Preset, TrainerKind};
+use crate::motion::{self, SensorArg};
 use crate::record;
 use anyhow::{Context, Result};
 use std::path::PathBuf;

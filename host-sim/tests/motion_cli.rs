@@ -14,7 +14,13 @@ fn host_sim() -> Command {
 
 fn simulate(seed: u64, duration_s: &str, rate_hz: Option<&str>, out: &Path) {
     let mut c = host_sim();
-    c.args(["simulate", "--preset", "ecore2000", "--duration-s", duration_s]);
+    c.args([
+        "simulate",
+        "--preset",
+        "ecore2000",
+        "--duration-s",
+        duration_s,
+    ]);
     c.args(["--seed", &seed.to_string(), "--output"]).arg(out);
     if let Some(r) = rate_hz {
         c.args(["--rate-hz", r]);
@@ -25,7 +31,7 @@ fn simulate(seed: u64, duration_s: &str, rate_hz: Option<&str>, out: &Path) {
 /// Two short static records, a trained image, and a record to replay.
 fn setup(d: &Path) -> (PathBuf, PathBuf) {
     let train = d.join("train");
-    fs::create_dir(&train).unwrap();
+    fs::create_dir(&train).expect("test");
     simulate(1, "120", None, &train.join("a.csv"));
     simulate(2, "120", None, &train.join("b.csv"));
     let img = d.join("m.fogi");
@@ -44,7 +50,7 @@ fn setup(d: &Path) -> (PathBuf, PathBuf) {
 
 fn rows(p: &Path) -> Vec<Vec<String>> {
     fs::read_to_string(p)
-        .unwrap()
+        .expect("test")
         .lines()
         .map(|l| l.split(',').map(str::to_string).collect())
         .collect()
@@ -52,9 +58,12 @@ fn rows(p: &Path) -> Vec<Vec<String>> {
 
 #[test]
 fn train_save_and_replay() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = tempfile::tempdir().expect("test");
     let (img, rec) = setup(dir.path());
-    assert_eq!(fs::metadata(&img).unwrap().len(), fog_core::image::IMAGE_LEN as u64);
+    assert_eq!(
+        fs::metadata(&img).expect("test").len(),
+        fog_core::image::IMAGE_LEN as u64
+    );
     let out = dir.path().join("out.csv");
     host_sim()
         .args(["replay", "--input"])
@@ -67,13 +76,13 @@ fn train_save_and_replay() {
         .success();
     let r = rows(&out);
     assert_eq!(r[0].join(","), host_sim::motion::OUTPUT_HEADER);
-    let input = fs::read_to_string(&rec).unwrap();
+    let input = fs::read_to_string(&rec).expect("test");
     assert_eq!(r.len(), input.lines().count(), "one row per input row");
     let mut still = 0;
     for row in &r[1..] {
-        let rate: f32 = row[2].parse().unwrap();
-        let drift: f32 = row[4].parse().unwrap();
-        let comp: f32 = row[5].parse().unwrap();
+        let rate: f32 = row[2].parse().expect("test");
+        let drift: f32 = row[4].parse().expect("test");
+        let comp: f32 = row[5].parse().expect("test");
         assert_eq!(comp, rate - drift);
         assert!(drift.abs() <= fog_core::still::SensorConfig::ECORE_2000.drift_bound_dps);
         still += usize::from(row[6] == "1");
@@ -84,16 +93,21 @@ fn train_save_and_replay() {
 
 #[test]
 fn external_still_flag_column() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = tempfile::tempdir().expect("test");
     let (img, _) = setup(dir.path());
     // A constant 1 deg/s turn flagged still from outside: the flag wins (and the bound
     // keeps the drift estimate small).
     let rec = dir.path().join("turn.csv");
     let mut text = String::from("t_s,rate_dps,zupt\n");
     for k in 0..3000 {
-        text += &format!("{},{},{}\n", k as f64 * 0.01, 1.0, if k < 1500 { "0" } else { "1" });
+        text += &format!(
+            "{},{},{}\n",
+            k as f64 * 0.01,
+            1.0,
+            if k < 1500 { "0" } else { "1" }
+        );
     }
-    fs::write(&rec, text).unwrap();
+    fs::write(&rec, text).expect("test");
     let out = dir.path().join("out.csv");
     host_sim()
         .args(["replay", "--input"])
@@ -108,7 +122,9 @@ fn external_still_flag_column() {
     assert!(r[1..1501].iter().all(|row| row[6] == "0"));
     assert!(r[1501..].iter().all(|row| row[6] == "1"));
     let bound = fog_core::still::SensorConfig::ECORE_2000.drift_bound_dps;
-    assert!(r[1..].iter().all(|row| row[4].parse::<f32>().unwrap().abs() <= bound));
+    assert!(r[1..]
+        .iter()
+        .all(|row| row[4].parse::<f32>().expect("test").abs() <= bound));
     // A missing column is refused.
     host_sim()
         .args(["replay", "--input"])
@@ -125,7 +141,7 @@ fn external_still_flag_column() {
 /// Replay with a damaged image: fails with one line naming it, writes nothing.
 fn refused(img_bytes: &[u8], rec: &Path, d: &Path, expect: &str) {
     let img = d.join("bad.fogi");
-    fs::write(&img, img_bytes).unwrap();
+    fs::write(&img, img_bytes).expect("test");
     let out = d.join("never.csv");
     let a = host_sim()
         .args(["replay", "--input"])
@@ -145,10 +161,10 @@ fn refused(img_bytes: &[u8], rec: &Path, d: &Path, expect: &str) {
 
 #[test]
 fn bad_identifiers_are_refused() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = tempfile::tempdir().expect("test");
     let d = dir.path();
     let (img, rec) = setup(d);
-    let good = fs::read(&img).unwrap();
+    let good = fs::read(&img).expect("test");
     let mut flipped = good.clone();
     flipped[300] ^= 0x10;
     refused(&flipped, &rec, d, "checksum mismatch");
@@ -171,7 +187,10 @@ fn bad_identifiers_are_refused() {
         .assert()
         .failure();
     let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
-    assert!(err.contains("m.fogi") && err.contains("100 Hz") && err.contains("50 Hz"), "{err}");
+    assert!(
+        err.contains("m.fogi") && err.contains("100 Hz") && err.contains("50 Hz"),
+        "{err}"
+    );
     assert!(!out.exists());
     // Training refuses a record at another rate, naming it, and writes nothing.
     let img2 = d.join("m2.fogi");
@@ -207,20 +226,27 @@ fn kvh_log_rotation_is_not_drift() {
         eprintln!("skipped: {} absent", src.display());
         return;
     }
-    let dir = tempfile::tempdir().unwrap();
+    let dir = tempfile::tempdir().expect("test");
     let d = dir.path();
-    let mut rdr = csv::Reader::from_path(&src).unwrap();
-    let col = rdr.headers().unwrap().iter().position(|h| h == "dtheta_x_deg").unwrap();
+    let mut rdr = csv::Reader::from_path(&src).expect("test");
+    let col = rdr
+        .headers()
+        .expect("test")
+        .iter()
+        .position(|h| h == "dtheta_x_deg")
+        .expect("test");
     let mut text = String::from("t_s,rate_dps\n");
     for (i, r) in rdr.records().enumerate() {
-        let dtheta: f64 = r.unwrap()[col].parse().unwrap();
+        let dtheta: f64 = r.expect("test")[col].parse().expect("test");
         text += &format!("{},{}\n", i as f64 * 0.001, dtheta / 0.001);
     }
     let rec = d.join("kvh.csv");
-    fs::write(&rec, text).unwrap();
+    fs::write(&rec, text).expect("test");
     let img = d.join("kvh.fogi");
     host_sim()
-        .args(["identify", "--preset", "motion", "--sensor", "kvh1750", "--epochs", "0", "--input"])
+        .args([
+            "identify", "--preset", "motion", "--sensor", "kvh1750", "--epochs", "0", "--input",
+        ])
         .arg(&rec)
         .arg("--save-identifier")
         .arg(&img)
@@ -239,9 +265,9 @@ fn kvh_log_rotation_is_not_drift() {
     let (mut raw, mut comp) = (0.0f64, 0.0f64);
     let (mut raw_max, mut comp_at_max, mut max_drift) = (f64::MIN, 0.0, 0.0f64);
     for row in &rows(&out)[1..] {
-        raw += row[2].parse::<f64>().unwrap() * 0.001;
-        comp += row[5].parse::<f64>().unwrap() * 0.001;
-        max_drift = max_drift.max(row[4].parse::<f64>().unwrap().abs());
+        raw += row[2].parse::<f64>().expect("test") * 0.001;
+        comp += row[5].parse::<f64>().expect("test") * 0.001;
+        max_drift = max_drift.max(row[4].parse::<f64>().expect("test").abs());
         if raw > raw_max {
             (raw_max, comp_at_max) = (raw, comp);
         }

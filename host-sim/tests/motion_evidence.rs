@@ -27,10 +27,16 @@ fn simulate(model: Option<&Path>, seed: u64, out: &Path) {
         Some(m) => c.arg("--model").arg(m),
         None => c.args(["--preset", "ecore2000"]),
     };
-    c.args(["--duration-s", "1800", "--seed", &seed.to_string(), "--output"])
-        .arg(out)
-        .assert()
-        .success();
+    c.args([
+        "--duration-s",
+        "1800",
+        "--seed",
+        &seed.to_string(),
+        "--output",
+    ])
+    .arg(out)
+    .assert()
+    .success();
 }
 
 /// Deterministic uniform numbers in [0, 1).
@@ -59,7 +65,7 @@ pub fn vehicle_profile(seed: u64, n: usize, dt: f64) -> Vec<f32> {
         let drive = (g.range(60.0, 240.0) / dt) as usize;
         let curv = g.range(0.1, 2.0) * if g.next() < 0.5 { -1.0 } else { 1.0 };
         let f = g.range(0.002, 0.02);
-        let phase = g.range(0.0, 6.28);
+        let phase = g.range(0.0, std::f64::consts::TAU);
         let turns: Vec<(usize, usize, f64)> = (0..1 + (g.next() * 3.0) as usize)
             .map(|_| {
                 let at = (g.next() * drive as f64 * 0.8) as usize;
@@ -69,11 +75,14 @@ pub fn vehicle_profile(seed: u64, n: usize, dt: f64) -> Vec<f32> {
             })
             .collect();
         for i in 0..drive {
-            let Some(slot) = out.get_mut(k + i) else { break };
+            let Some(slot) = out.get_mut(k + i) else {
+                break;
+            };
             let t = i as f64 * dt;
             // Curvature ramps in and out over 2 s so that drives start and end smoothly.
             let env = (t / 2.0).min(1.0).min(((drive - i) as f64 * dt) / 2.0);
-            let mut r = env * curv * (0.6 + 0.4 * (2.0 * std::f64::consts::PI * f * t + phase).sin());
+            let mut r =
+                env * curv * (0.6 + 0.4 * (2.0 * std::f64::consts::PI * f * t + phase).sin());
             for &(at, len, rate) in &turns {
                 if i >= at && i < at + len {
                     let u = (i - at) as f64 / len as f64;
@@ -130,14 +139,18 @@ fn heading_rms(img: &Image, recs: &[MotionRecord]) -> (f64, f64) {
     for r in recs {
         let out = motion::run(&mut est, r);
         let comp: Vec<f32> = out.iter().map(|o| o.compensated_dps).collect();
-        let h = eval::heading(&comp, r.true_rate_dps.as_ref().unwrap(), r.series.sample_period_s());
+        let h = eval::heading(
+            &comp,
+            r.true_rate_dps.as_ref().expect("test"),
+            r.series.sample_period_s(),
+        );
         rms += h.rms_deg;
         fin += h.final_deg.abs();
     }
     (rms / recs.len() as f64, fin / recs.len() as f64)
 }
 
-const Q_GRID: [f32; 6] = [0.25, 1.0, 4.0, 16.0, 64.0, 256.0];
+const Q_GRID: [f32; 9] = [0.25, 1.0, 4.0, 16.0, 64.0, 256.0, 1024.0, 4096.0, 16384.0];
 
 /// The level noise with the lowest mean heading RMS on the validation records.
 fn tune(img: &Image, val: &[MotionRecord]) -> f32 {
@@ -157,7 +170,7 @@ fn motion_vs_baselines() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
     let train = d.join("train");
-    std::fs::create_dir(&train).unwrap();
+    std::fs::create_dir(&train).expect("test");
     for seed in 101..113 {
         simulate(None, seed, &train.join(format!("s{seed}.csv")));
     }
@@ -177,8 +190,8 @@ fn motion_vs_baselines() {
         .arg(&untrained)
         .assert()
         .success();
-    let trained = motion::read_image(&fogi).unwrap();
-    let gated = motion::read_image(&untrained).unwrap();
+    let trained = motion::read_image(&fogi).expect("test");
+    let gated = motion::read_image(&untrained).expect("test");
 
     let make = |model: Option<&Path>, seeds: std::ops::Range<u64>| -> Vec<MotionRecord> {
         seeds
@@ -196,12 +209,18 @@ fn motion_vs_baselines() {
 
     let q_gated = tune(&gated, &val);
     let q_motion = tune(&trained, &val);
-    println!("tuned level q (deg/h)^2/h on 4 validation vehicles: gated {q_gated}, motion {q_motion}");
+    println!(
+        "tuned level q (deg/h)^2/h on 4 validation vehicles: gated {q_gated}, motion {q_motion}"
+    );
     for (name, recs) in [("vehicle (in family)", &test), ("vehicle (OOD unit)", &ood)] {
         let none: Vec<f64> = recs
             .iter()
             .map(|r| {
-                let h = eval::heading(&r.series.rate_dps, r.true_rate_dps.as_ref().unwrap(), 0.01);
+                let h = eval::heading(
+                    &r.series.rate_dps,
+                    r.true_rate_dps.as_ref().expect("test"),
+                    0.01,
+                );
                 h.rms_deg
             })
             .collect();
@@ -209,26 +228,32 @@ fn motion_vs_baselines() {
             .iter()
             .map(|r| {
                 let c = eval::alignment_bias(&r.series.rate_dps, 10_000);
-                eval::heading(&c, r.true_rate_dps.as_ref().unwrap(), 0.01).rms_deg
+                eval::heading(&c, r.true_rate_dps.as_ref().expect("test"), 0.01).rms_deg
             })
             .collect();
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
         let g = heading_rms(&image_with_q(&gated, q_gated), recs);
         let m = heading_rms(&image_with_q(&trained, q_motion), recs);
         let m_same_q = heading_rms(&image_with_q(&trained, q_gated), recs);
-        println!("{name}, {} records, heading error RMS deg (mean |final| deg):", recs.len());
+        println!(
+            "{name}, {} records, heading error RMS deg (mean |final| deg):",
+            recs.len()
+        );
         println!("  no compensation        {:.4}", mean(&none));
         println!("  alignment bias (100 s) {:.4}", mean(&align));
         println!("  gated RW Kalman        {:.4} ({:.4})", g.0, g.1);
         println!("  motion (trained m)     {:.4} ({:.4})", m.0, m.1);
-        println!("  motion at gated's q    {:.4} ({:.4})", m_same_q.0, m_same_q.1);
+        println!(
+            "  motion at gated's q    {:.4} ({:.4})",
+            m_same_q.0, m_same_q.1
+        );
         // Detector against the truth.
-        let mut est = trained.estimator().unwrap();
+        let mut est = trained.estimator().expect("test");
         let (mut fs, mut ms) = (0.0, 0.0);
         for r in recs.iter() {
             let out = motion::run(&mut est, r);
             let still: Vec<bool> = out.iter().map(|o| o.still).collect();
-            let s = eval::detector_score(&still, r.true_rate_dps.as_ref().unwrap());
+            let s = eval::detector_score(&still, r.true_rate_dps.as_ref().expect("test"));
             fs += s.false_still;
             ms += s.missed_still;
         }
@@ -245,13 +270,16 @@ fn motion_vs_baselines() {
     for seed in 201..205 {
         let p = d.join(format!("st{seed}.csv"));
         simulate(None, seed, &p);
-        let r = motion::read_record(&p, None).unwrap();
-        let truth = r.series.drift_dps.clone().unwrap();
-        for (i, img) in [image_with_q(&gated, q_gated), image_with_q(&trained, q_motion)]
-            .iter()
-            .enumerate()
+        let r = motion::read_record(&p, None).expect("test");
+        let truth = r.series.drift_dps.clone().expect("test");
+        for (i, img) in [
+            image_with_q(&gated, q_gated),
+            image_with_q(&trained, q_motion),
+        ]
+        .iter()
+        .enumerate()
         {
-            let mut est = img.estimator().unwrap();
+            let mut est = img.estimator().expect("test");
             let out = motion::run(&mut est, &r);
             for (o, t) in out.iter().zip(&truth).skip(1024) {
                 let e = f64::from(o.drift_dps) - f64::from(*t);
@@ -275,32 +303,37 @@ fn static_level_q_sweep() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
     let train = d.join("train");
-    std::fs::create_dir(&train).unwrap();
+    std::fs::create_dir(&train).expect("test");
     for seed in 101..113 {
         simulate(None, seed, &train.join(format!("s{seed}.csv")));
     }
-    let files = host_sim::identify::series::CsvFiles::from_args(&[train], "rate_dps").unwrap();
+    let files =
+        host_sim::identify::series::CsvFiles::from_args(&[train], "rate_dps").expect("test");
     let sensor = fog_core::still::SensorConfig::ECORE_2000;
-    let (trained, _) = motion::train(&files, &motion::TrainOptions::new(sensor)).unwrap();
+    let (trained, _) = motion::train(&files, &motion::TrainOptions::new(sensor)).expect("test");
     let mut o = motion::TrainOptions::new(sensor);
     o.epochs = 0;
-    let (gated, _) = motion::train(&files, &o).unwrap();
+    let (gated, _) = motion::train(&files, &o).expect("test");
     let recs: Vec<MotionRecord> = (201..205)
         .map(|seed| {
             let p = d.join(format!("st{seed}.csv"));
             simulate(None, seed, &p);
-            motion::read_record(&p, None).unwrap()
+            motion::read_record(&p, None).expect("test")
         })
         .collect();
     for q in Q_GRID {
         let mut line = format!("static, 4 records, level q {q:>6} (deg/h)^2/h: e_truth");
         for (name, img) in [("gated", &gated), ("motion", &trained)] {
             let img = image_with_q(img, q);
-            let mut est = img.estimator().unwrap();
+            let mut est = img.estimator().expect("test");
             let (mut se, mut st) = (0.0f64, 0.0f64);
             for r in &recs {
                 let out = motion::run(&mut est, r);
-                for (o, t) in out.iter().zip(r.series.drift_dps.as_ref().unwrap()).skip(1024) {
+                for (o, t) in out
+                    .iter()
+                    .zip(r.series.drift_dps.as_ref().expect("test"))
+                    .skip(1024)
+                {
                     let e = f64::from(o.drift_dps) - f64::from(*t);
                     se += e * e;
                     st += f64::from(*t) * f64::from(*t);

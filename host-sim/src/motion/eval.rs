@@ -87,7 +87,10 @@ pub fn truth_error(estimate_dps: &[f32], truth_dps: &[f32], from: usize) -> (f64
         n += 1;
     }
     let n = n.max(1) as f64;
-    ((se / n).sqrt() * 3600.0, (se / st.max(f64::MIN_POSITIVE)).sqrt())
+    (
+        (se / n).sqrt() * 3600.0,
+        (se / st.max(f64::MIN_POSITIVE)).sqrt(),
+    )
 }
 
 #[cfg(test)]

@@ -17,8 +17,7 @@ use crate::record;
 use anyhow::{anyhow, bail, Context, Result};
 use fog_core::image::{Image, IMAGE_LEN};
 use fog_core::motion::{
-    MotionConfig, MotionEstimator, MotionModel, MotionOutput, MotionTrainer, RecordFit,
-    MOTION_DRLS,
+    MotionConfig, MotionEstimator, MotionModel, MotionOutput, MotionTrainer, RecordFit, MOTION_DRLS,
 };
 use fog_core::still::SensorConfig;
 use serde::Serialize;
@@ -97,7 +96,9 @@ pub fn check_rate(s: &Series, sensor: &SensorConfig) -> Result<f32> {
 /// Trains a model on `records` (each static, from power-on) and returns its image and the
 /// per-record figures of the last pass.
 pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<(Image, Vec<TrainedRecord>)> {
-    o.config.check().map_err(|e| anyhow!("configuration: {e}"))?;
+    o.config
+        .check()
+        .map_err(|e| anyhow!("configuration: {e}"))?;
     let model = MotionModel::standard(o.time_max_s).map_err(|e| anyhow!("model: {e}"))?;
     let mut tr = MotionTrainer::new(model, MOTION_DRLS, o.config.still.window_s)
         .map_err(|e| anyhow!("trainer: {e}"))?;
