@@ -269,6 +269,10 @@ pub struct MotionEstimator {
     // detector may release).
     model_now: f32,
     model_prev: f32,
+    // Inputs of the current and previous windows (for on-line refinement).
+    x_now: [f32; MOTION_N],
+    x_prev: [f32; MOTION_N],
+    refine: Option<Drls<MOTION_L>>,
     stats: MotionStats,
 }
 
@@ -288,6 +292,9 @@ impl MotionEstimator {
             level_var: 0.0,
             model_now: 0.0,
             model_prev: 0.0,
+            x_now: [0.0; MOTION_N],
+            x_prev: [0.0; MOTION_N],
+            refine: None,
             stats: MotionStats::default(),
         };
         e.restart();
@@ -324,6 +331,8 @@ impl MotionEstimator {
         let x = self.inputs.next(t_s, temp_c);
         if k.is_multiple_of(self.still.window_samples()) {
             self.model_prev = self.model_now;
+            self.x_prev = self.x_now;
+            self.x_now = x;
             self.model_now = self.model.eval(&x);
             if !self.model_now.is_finite() {
                 self.model_now = 0.0;
@@ -340,6 +349,13 @@ impl MotionEstimator {
                 // unless this window started a new evaluation after it (always, since
                 // windows and evaluations coincide): residual = mean - m(prev window).
                 let z = mean - self.model_prev;
+                if let Some(t) = self.refine.as_mut() {
+                    // On-line refinement: the released window's residual after the level,
+                    // one DRLS step on the model's weights (still windows only).
+                    let mut h = [0.0; MOTION_L];
+                    self.model.hidden(&self.x_prev, &mut h);
+                    let _ = t.step(&mut self.model.weights, &h, mean - self.level);
+                }
                 let r = self.still.window_mean_var_dps2();
                 let gain = self.level_var / (self.level_var + r);
                 let level = self.level + gain * (z - self.level);
@@ -361,6 +377,16 @@ impl MotionEstimator {
             level_dps: self.level,
             model_dps: self.model_now,
         })
+    }
+
+    /// Turns on on-line refinement of the model's weights: at every window the detector
+    /// releases (still, and the next window still), one DRLS step with the window's mean
+    /// minus the level as target and the window's inputs; never from a moving window.
+    /// `trainer` continues the bench training ([`crate::image::Image::trainer`]). Off by
+    /// default: measured in `docs/motion.md`.
+    pub fn with_online_refinement(mut self, trainer: Drls<MOTION_L>) -> Self {
+        self.refine = Some(trainer);
+        self
     }
 
     /// The configuration.
@@ -666,6 +692,33 @@ mod tests {
         assert!(e.stats().level_updates > 100);
         assert!(e.push(f32::NAN, 0.0, None).is_err());
         assert_eq!(e.stats().rejected, 1);
+    }
+
+    #[test]
+    fn online_refinement_learns_only_at_rest() {
+        let model = MotionModel::standard(1800.0).expect("test");
+        let trainer = || Drls::new(MOTION_DRLS).expect("test");
+        let cfg = MotionConfig::for_sensor(S);
+        let mut z = Noise(9);
+        let sigma = S.sample_var_dps2().sqrt();
+        // Turning all the time: no window is released, the weights never move.
+        let mut e = MotionEstimator::new(model, cfg)
+            .expect("test")
+            .with_online_refinement(trainer());
+        for _ in 0..30_000 {
+            e.push(5.0 + sigma * z.normal(), f32::NAN, None)
+                .expect("test");
+        }
+        assert_eq!(e.model().weights, [0.0; MOTION_L]);
+        // At rest with a warm-up: released windows train the weights.
+        let mut e = MotionEstimator::new(model, cfg)
+            .expect("test")
+            .with_online_refinement(trainer());
+        for k in 0..30_000 {
+            e.push(shape(k as f32 * 0.01) + sigma * z.normal(), f32::NAN, None)
+                .expect("test");
+        }
+        assert_ne!(e.model().weights, [0.0; MOTION_L]);
     }
 
     #[test]
