@@ -259,6 +259,10 @@ fn motion_vs_baselines() {
         println!("  gated RW Kalman        {:.4} ({:.4})", g.0, g.1);
         println!("  motion (trained m)     {:.4} ({:.4})", m.0, m.1);
         println!(
+            "  motion + on-line DRLS  {:.4} ({:.4})",
+            m_refine.0, m_refine.1
+        );
+        println!(
             "  motion at gated's q    {:.4} ({:.4})",
             m_same_q.0, m_same_q.1
         );
