@@ -266,6 +266,9 @@ fn motion_vs_baselines() {
             "  motion at gated's q    {:.4} ({:.4})",
             m_same_q.0, m_same_q.1
         );
+        // What must hold whatever the tuning: gating beats holding the alignment bias,
+        // which beats nothing.
+        assert!(g.0 < mean(&align) && m.0 < mean(&align) && mean(&align) < mean(&none));
         // Detector against the truth.
         let mut est = trained.estimator().expect("test");
         let (mut fs, mut ms) = (0.0, 0.0);
