@@ -567,6 +567,23 @@ mod tests {
     }
 
     #[test]
+    fn loaded_image_runs_bit_for_bit() {
+        let img = sample();
+        let back = Image::parse(&bytes(&img)).expect("test");
+        let mut a = img.estimator().expect("test");
+        let mut b = back.estimator().expect("test");
+        for k in 0..5000u32 {
+            let x = 1.0e-3 * ((k as f32) * 0.37).sin() + if k > 3000 { 2.0 } else { 0.0 };
+            let t = 25.0 + k as f32 * 1.0e-3;
+            let (ya, yb) = (a.push(x, t, None), b.push(x, t, None));
+            assert_eq!(
+                ya.map(|o| o.drift_dps.to_bits()),
+                yb.map(|o| o.drift_dps.to_bits())
+            );
+        }
+    }
+
+    #[test]
     fn every_single_byte_flip_is_rejected() {
         let b = bytes(&sample());
         for i in 0..IMAGE_LEN {
