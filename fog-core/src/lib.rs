@@ -8,6 +8,9 @@
 //! - [`wnn`]: the wavelet neural network (paper section 4.1);
 //! - [`train`]: DRLS (paper section 4.2) and the RLS / NLMS baselines;
 //! - [`features`]: causal network inputs; [`identify`]: the on-line identifier;
+//! - [`still`]: sensor configuration and the causal stillness detector;
+//! - [`motion`]: the motion-safe identifier (learn at rest, compensate in motion);
+//! - [`image`]: the trained identifier as a versioned, checksummed binary image;
 //! - [`baseline`]: causal estimators to compare with;
 //! - [`frame`], [`driver`]: gyro serial frames and the serial reader;
 //! - [`tmp117`]: driver for the TI TMP117 I2C temperature sensor.
@@ -22,6 +25,9 @@ pub mod driver;
 pub mod features;
 pub mod frame;
 pub mod identify;
+pub mod image;
+pub mod motion;
+pub mod still;
 pub mod threshold;
 pub mod tmp117;
 pub mod train;

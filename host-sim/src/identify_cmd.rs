@@ -2,6 +2,7 @@
 
 use crate::identify::series::CsvFiles;
 use crate::identify::{self, Act, DrlsFormArg, LevelInput, Options, Preset, TrainerKind};
+use crate::motion::{self, SensorArg};
 use crate::record;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
@@ -79,11 +80,11 @@ fn parse_level(s: &str) -> Result<LevelInput, String> {
 /// Arguments of `host-sim identify`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Training records: CSV files or folders of them.
-    #[arg(long, num_args = 1.., required = true)]
+    /// Training records: CSV files or folders of them (`--input` is the same).
+    #[arg(long, alias = "input", num_args = 1.., required = true)]
     pub train: Vec<PathBuf>,
-    /// Validation records: CSV files or folders of them.
-    #[arg(long, num_args = 1.., required = true)]
+    /// Validation records: CSV files or folders of them (not with `--preset motion`).
+    #[arg(long, num_args = 1.., required_unless_present = "save_identifier")]
     pub validate: Vec<PathBuf>,
     /// Column holding the rate in deg/s (e.g. `gz_dps` of a multi-axis recording).
     #[arg(long, default_value = "rate_dps")]
@@ -91,9 +92,23 @@ pub struct Args {
     /// Identifier options.
     #[command(flatten)]
     pub id: IdentifierArgs,
-    /// JSON report to write.
+    /// JSON report to write (with `--preset motion`: the per-record training figures).
+    #[arg(long, required_unless_present = "save_identifier")]
+    pub json: Option<PathBuf>,
+    /// `--preset motion`: the identifier image to write (fog_core::image).
     #[arg(long)]
-    pub json: PathBuf,
+    pub save_identifier: Option<PathBuf>,
+    /// `--preset motion`: the sensor configuration.
+    #[arg(long, value_enum, default_value_t = SensorArg::Ecore2000)]
+    pub sensor: SensorArg,
+    /// `--preset motion`: passes over the training records (0: untrained model, the gated
+    /// Kalman filter alone).
+    #[arg(long, default_value_t = 3)]
+    pub epochs: u32,
+    /// `--preset motion`: random-walk density of the level, (deg/h)^2 per hour (default
+    /// 4, i.e. 2 deg/h/sqrt(h)).
+    #[arg(long)]
+    pub level_q_dph2_per_h: Option<f32>,
 }
 
 /// Options from the arguments.
@@ -103,6 +118,8 @@ pub fn options(a: &IdentifierArgs) -> Options {
         Preset::LevelTrend => Options::level_trend(),
         Preset::TimeTemp => Options::time_temp(),
         Preset::LevelBank => Options::level_bank(),
+        // Not an `identify::run` preset: `run` sends it to `crate::motion`.
+        Preset::Motion => Options::level_trend(),
     };
     o.undelayed_output = a.undelayed_output;
     if let Some(k) = a.known_inputs {
@@ -177,11 +194,63 @@ pub fn write_report<T: serde::Serialize>(
 
 /// Runs the command.
 pub fn run(a: &Args) -> Result<()> {
+    if a.id.preset == Preset::Motion {
+        return run_motion(a);
+    }
+    if a.save_identifier.is_some() {
+        anyhow::bail!("--save-identifier needs --preset motion");
+    }
+    let (Some(json), false) = (&a.json, a.validate.is_empty()) else {
+        anyhow::bail!("--validate and --json are required (except with --preset motion)");
+    };
     let train = CsvFiles::from_args(&a.train, &a.rate_column)?;
     let validate = CsvFiles::from_args(&a.validate, &a.rate_column)?;
     for p in train.0.iter().chain(&validate.0) {
-        record::refuse_overwrite(p, &a.json)?;
+        record::refuse_overwrite(p, json)?;
     }
     let report = identify::run(&options(&a.id), &train, &validate)?;
-    write_report(&a.json, &report, &report)
+    write_report(json, &report, &report)
+}
+
+/// `--preset motion`: trains on the static records and writes the identifier image.
+fn run_motion(a: &Args) -> Result<()> {
+    let Some(out) = &a.save_identifier else {
+        anyhow::bail!("--preset motion needs --save-identifier FILE");
+    };
+    let train = CsvFiles::from_args(&a.train, &a.rate_column)?;
+    for p in &train.0 {
+        record::refuse_overwrite(p, out)?;
+        if let Some(j) = &a.json {
+            record::refuse_overwrite(p, j)?;
+        }
+    }
+    let mut o = motion::TrainOptions::new(a.sensor.config());
+    o.epochs = a.epochs;
+    if let Some(q) = a.level_q_dph2_per_h {
+        o.config.level_q_dps2_per_s = q / (3600.0 * 3600.0 * 3600.0);
+    }
+    let (image, rows) = motion::train(&train, &o)?;
+    if let Some(j) = &a.json {
+        let text = serde_json::to_string_pretty(&serde_json::json!({
+            "preset": "motion",
+            "sensor": a.sensor,
+            "epochs": a.epochs,
+            "records": rows,
+            "weights_dps": image.model.weights,
+        }))
+        .context("report to JSON")?;
+        record::write_atomic(j, |w| {
+            use std::io::Write;
+            w.write_all(text.as_bytes())?;
+            Ok(())
+        })?;
+    }
+    motion::write_image(out, &image)?;
+    eprintln!(
+        "motion identifier: {} records x {} passes -> {}",
+        train.0.len(),
+        a.epochs,
+        out.display()
+    );
+    Ok(())
 }

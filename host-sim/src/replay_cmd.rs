@@ -97,6 +97,14 @@ pub struct Args {
     /// index.html).
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Run a trained motion identifier image (`identify --preset motion
+    /// --save-identifier`) instead of `--preset`; interchange CSV input only.
+    #[arg(long, conflicts_with_all = ["report", "preset"])]
+    pub identifier: Option<PathBuf>,
+    /// With `--identifier`: column holding an external still flag (1/0, true/false; empty
+    /// cells leave the detector in charge).
+    #[arg(long, requires = "identifier")]
+    pub still_column: Option<String>,
 }
 
 /// Input formats.
@@ -827,6 +835,22 @@ pub fn print_summary(s: &Summary) -> Result<()> {
 
 /// Runs the command.
 pub fn run(args: &Args) -> Result<()> {
+    if let Some(id) = &args.identifier {
+        let s = crate::motion::replay(&args.input, id, &args.output, args.still_column.as_deref())?;
+        eprintln!(
+            "{}: {} rows, {} still, {} level updates{} -> {}",
+            args.input.display(),
+            s.rows,
+            s.still_rows,
+            s.level_updates,
+            s.heading.map_or(String::new(), |h| format!(
+                ", heading error rms {:.4} deg, final {:.4} deg",
+                h.rms_deg, h.final_deg
+            )),
+            args.output.display()
+        );
+        return Ok(());
+    }
     let opts = Options {
         format: args.format,
         full_scale_dps: args.full_scale_dps,

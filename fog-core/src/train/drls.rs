@@ -206,6 +206,23 @@ impl<const L: usize> Drls<L> {
             DrlsForm::Energy => self.state.map(|s| 1.0 / s),
         }
     }
+
+    /// The per-weight state as kept: `U_a` ([`DrlsForm::Gain`]) or `S_a`
+    /// ([`DrlsForm::Energy`]); with [`Drls::set_state`], what an identifier image stores.
+    pub fn state(&self) -> &[f32; L] {
+        &self.state
+    }
+
+    /// Restores a state saved by [`Drls::state`] (same configuration). Refused (false,
+    /// nothing changed) when a value is not finite and > 0.
+    pub fn set_state(&mut self, state: &[f32; L]) -> bool {
+        if !state.iter().all(|v| v.is_finite() && *v > 0.0) {
+            return false;
+        }
+        self.state = *state;
+        self.guard_steps_left = 0;
+        true
+    }
 }
 
 /// One weight's new gain state: [`DrlsForm::Gain`] `(U/lambda)/(1 + (U/lambda) h^2)` capped

@@ -14,9 +14,9 @@ mod defmt_rtt;
 mod defmt_stderr;
 #[cfg(feature = "board-mps2-an386")]
 mod mps2_an386;
+mod rx;
 #[cfg(feature = "board-mps2-an386")]
 mod sbcon_i2c;
-mod rx;
 #[cfg(feature = "board-stm32f407")]
 mod stm32f4;
 

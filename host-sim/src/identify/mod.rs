@@ -55,6 +55,10 @@ pub enum Preset {
     /// Levels of the rate at 3..1000 s (as differences) and T, temperature, its rate: a
     /// learned mixture of causal filters plus what known inputs predict.
     LevelBank,
+    /// Motion-safe: drift = clamp(level + m(t, temp, dtemp/dt)), the level a stillness-gated
+    /// random-walk Kalman filter, `m` trained across static records (`--save-identifier`;
+    /// [`crate::motion`]).
+    Motion,
 }
 
 /// Output-weight trainer.
@@ -852,6 +856,9 @@ fn with_trainer<const L: usize, const B: usize>(
             },
             InputScaling::IDENTITY,
             |s, t, dt| presets::level_bank_with::<_, B, L>(s, t, den, dt, o.bank_from)
+        ),
+        Preset::Motion => bail!(
+            "preset motion is trained with --save-identifier and scored by replay --identifier"
         ),
         Preset::TimeTemp => {
             if train.get(0)?.temp_c.is_none() {

@@ -1,0 +1,653 @@
+//! The identifier image: a trained [`crate::motion`] identifier as a versioned binary file
+//! (train once on the bench, flash the result).
+//!
+//! Little-endian, fixed layout for format version 1 ([`IMAGE_LEN`] = 560 bytes for
+//! `N` = [`MOTION_N`], `L` = [`MOTION_L`]):
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 4 | magic `FOGI` |
+//! | 4 | 2 | format version (u16, [`FORMAT_VERSION`]) |
+//! | 6 | 2 | preset id (u16, 1 = `motion`) |
+//! | 8 | 1+1+1+1 | inputs `N`, neurons `L`, activation (0 Gaussian, 1 Mexican hat), 0 |
+//! | 12 | 5 x f32 | sensor: full scale dps, quantum dps, sample rate Hz, noise density dps/sqrt(Hz), drift bound dps |
+//! | 32 | 5 x f32 | detector: window s, min still s, var_z, mean_k, noise scale |
+//! | 52 | f32 | level random-walk density, deg^2/s^3 |
+//! | 56 | f32 | model time range, s |
+//! | 60 | 2N x f32 | input scaling: offsets, then gains |
+//! | 84 | L x 20 | neurons: kind (0 wavelet, 1 bias, 2 linear), linear input, 0, 0, `a[N]` f32, `b` f32 |
+//! | 404 | L x f32 | output weights, deg/s |
+//! | 468 | 4 x f32 + 4 | trainer (DRLS): lambda, u0, u_max, w_max, mode (0 parallel, 1 sequential), form (0 gain, 1 energy), 0, 0 |
+//! | 488 | L x f32 | trainer state (`U` or `S` per weight) |
+//! | 552 | u32 | records trained on (passes included) |
+//! | 556 | u32 | CRC-32/ISO-HDLC of bytes 0..556 |
+//!
+//! [`Image::parse`] never panics (fuzzed by a proptest) and returns a typed [`ImageError`]:
+//! the magic and version are checked first (so that another version's layout is named as
+//! such), then the length, the checksum, then the content.
+
+use crate::motion::{MotionConfig, MotionError, MotionEstimator, MotionModel, MOTION_L, MOTION_N};
+use crate::still::{SensorConfig, StillConfig};
+use crate::train::{Drls, DrlsConfig, DrlsForm, DrlsMode};
+use crate::wnn::{Activation, Evaluation, Neuron, WnnShape};
+
+/// `FOGI`.
+pub const MAGIC: [u8; 4] = *b"FOGI";
+/// The format this code writes and reads.
+pub const FORMAT_VERSION: u16 = 1;
+/// Preset id of [`crate::motion`].
+pub const PRESET_MOTION: u16 = 1;
+/// Bytes of a version-1 image.
+pub const IMAGE_LEN: usize = 560;
+/// A stream's rate may differ from the image's by this fraction (timing of a real unit).
+pub const RATE_TOLERANCE: f32 = 0.01;
+
+const CRC_AT: usize = IMAGE_LEN - 4;
+
+/// Why an image was refused.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ImageError {
+    /// The first 4 bytes are not `FOGI`.
+    BadMagic,
+    /// The data ends at this byte offset, before the field that needs it.
+    Truncated {
+        /// Bytes available.
+        offset: usize,
+    },
+    /// A format version this code does not read.
+    UnsupportedVersion(u16),
+    /// Bytes after the end of the image (count of them).
+    TrailingBytes(usize),
+    /// The stored CRC-32 is not that of the content.
+    Checksum {
+        /// Stored in the image.
+        stored: u32,
+        /// Computed over the content.
+        computed: u32,
+    },
+    /// A preset this code does not run.
+    UnknownPreset(u16),
+    /// The layout does not fit this build's network (`N`, `L`, a neuron kind or input,
+    /// activation): byte offset of the field.
+    Layout {
+        /// Byte offset.
+        offset: usize,
+    },
+    /// A value outside its valid range (non-finite, negative, invalid configuration): byte
+    /// offset of the field or of its section.
+    BadValue {
+        /// Byte offset.
+        offset: usize,
+    },
+    /// The image is for another sample rate.
+    RateMismatch {
+        /// The image's rate, Hz.
+        image_hz: f32,
+        /// The stream's rate, Hz.
+        stream_hz: f32,
+    },
+    /// The output buffer is shorter than [`IMAGE_LEN`].
+    BufferTooSmall,
+}
+
+impl core::fmt::Display for ImageError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::BadMagic => f.write_str("not an identifier image (bad magic, expected FOGI)"),
+            Self::Truncated { offset } => write!(f, "truncated at byte offset {offset}"),
+            Self::UnsupportedVersion(v) => {
+                write!(
+                    f,
+                    "format version {v} unsupported (this build reads {FORMAT_VERSION})"
+                )
+            }
+            Self::TrailingBytes(n) => write!(f, "{n} bytes after the end of the image"),
+            Self::Checksum { stored, computed } => write!(
+                f,
+                "checksum mismatch (stored {stored:#010x}, computed {computed:#010x})"
+            ),
+            Self::UnknownPreset(p) => write!(f, "unknown preset id {p}"),
+            Self::Layout { offset } => {
+                write!(f, "network layout does not fit N = {MOTION_N}, L = {MOTION_L} (byte offset {offset})")
+            }
+            Self::BadValue { offset } => write!(f, "invalid value at byte offset {offset}"),
+            Self::RateMismatch {
+                image_hz,
+                stream_hz,
+            } => write!(
+                f,
+                "identifier is for {image_hz} Hz, the record is {stream_hz} Hz"
+            ),
+            Self::BufferTooSmall => write!(f, "output buffer shorter than {IMAGE_LEN} bytes"),
+        }
+    }
+}
+
+impl core::error::Error for ImageError {}
+
+/// CRC-32/ISO-HDLC (the zlib/PNG CRC: reflected polynomial 0xEDB88320, initial and final
+/// XOR 0xFFFFFFFF), from a 256-entry table built at compile time.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &b in bytes {
+        c = CRC_TABLE[((c ^ u32::from(b)) & 0xFF) as usize] ^ (c >> 8);
+    }
+    !c
+}
+
+const CRC_TABLE: [u32; 256] = {
+    let mut t = [0u32; 256];
+    let mut i = 0;
+    while i < 256 {
+        let mut c = i as u32;
+        let mut k = 0;
+        while k < 8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+            k += 1;
+        }
+        t[i] = c;
+        i += 1;
+    }
+    t
+};
+
+/// A trained motion identifier: everything the estimator and further training need.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Image {
+    /// Sensor, detector and level settings.
+    pub config: MotionConfig,
+    /// The trained network.
+    pub model: MotionModel,
+    /// The trainer's configuration.
+    pub drls: DrlsConfig,
+    /// The trainer's per-weight state ([`Drls::state`]).
+    pub drls_state: [f32; MOTION_L],
+    /// Records trained on (passes included).
+    pub records_trained: u32,
+}
+
+struct Writer<'a> {
+    out: &'a mut [u8],
+    at: usize,
+}
+
+impl Writer<'_> {
+    fn bytes(&mut self, b: &[u8]) {
+        if let Some(dst) = self.out.get_mut(self.at..self.at + b.len()) {
+            dst.copy_from_slice(b);
+        }
+        self.at += b.len();
+    }
+    fn f32(&mut self, v: f32) {
+        self.bytes(&v.to_le_bytes());
+    }
+}
+
+struct Reader<'a> {
+    b: &'a [u8],
+    at: usize,
+}
+
+impl Reader<'_> {
+    fn take<const K: usize>(&mut self) -> [u8; K] {
+        // The length was checked before reading: the fallback is never taken.
+        let mut v = [0u8; K];
+        if let Some(src) = self.b.get(self.at..self.at + K) {
+            v.copy_from_slice(src);
+        }
+        self.at += K;
+        v
+    }
+    fn u8(&mut self) -> u8 {
+        self.take::<1>()[0]
+    }
+    fn u16(&mut self) -> u16 {
+        u16::from_le_bytes(self.take())
+    }
+    fn u32(&mut self) -> u32 {
+        u32::from_le_bytes(self.take())
+    }
+    /// A finite f32, or BadValue at its offset.
+    fn f32(&mut self) -> Result<f32, ImageError> {
+        let offset = self.at;
+        let v = f32::from_le_bytes(self.take());
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(ImageError::BadValue { offset })
+        }
+    }
+    /// f32 that may be infinite (DRLS guards), not NaN.
+    fn f32_or_inf(&mut self) -> Result<f32, ImageError> {
+        let offset = self.at;
+        let v = f32::from_le_bytes(self.take());
+        if v.is_nan() {
+            Err(ImageError::BadValue { offset })
+        } else {
+            Ok(v)
+        }
+    }
+}
+
+impl Image {
+    /// An image of `model` trained by `drls` (state included) for `config`.
+    pub fn new(
+        config: MotionConfig,
+        model: MotionModel,
+        drls: &Drls<MOTION_L>,
+        records_trained: u32,
+    ) -> Self {
+        Self {
+            config,
+            model,
+            drls: *drls.config(),
+            drls_state: *drls.state(),
+            records_trained,
+        }
+    }
+
+    /// Writes the image into `out` (at least [`IMAGE_LEN`] bytes); returns the bytes
+    /// written.
+    pub fn to_bytes(&self, out: &mut [u8]) -> Result<usize, ImageError> {
+        if out.len() < IMAGE_LEN {
+            return Err(ImageError::BufferTooSmall);
+        }
+        let mut w = Writer { out, at: 0 };
+        w.bytes(&MAGIC);
+        w.bytes(&FORMAT_VERSION.to_le_bytes());
+        w.bytes(&PRESET_MOTION.to_le_bytes());
+        let act = match self.model.shape.activation {
+            Activation::Gaussian => 0u8,
+            Activation::MexicanHat => 1u8,
+        };
+        w.bytes(&[MOTION_N as u8, MOTION_L as u8, act, 0]);
+        let s = &self.config.sensor;
+        for v in [
+            s.full_scale_dps,
+            s.quantum_dps,
+            s.sample_rate_hz,
+            s.noise_density_dps_rthz,
+            s.drift_bound_dps,
+        ] {
+            w.f32(v);
+        }
+        let d = &self.config.still;
+        for v in [d.window_s, d.min_still_s, d.var_z, d.mean_k, d.noise_scale] {
+            w.f32(v);
+        }
+        w.f32(self.config.level_q_dps2_per_s);
+        w.f32(self.model.time_max_s);
+        for v in self
+            .model
+            .scaling
+            .offset
+            .iter()
+            .chain(&self.model.scaling.gain)
+        {
+            w.f32(*v);
+        }
+        let sh = &self.model.shape;
+        for l in 0..MOTION_L {
+            let (kind, input) = match sh.kind[l] {
+                Neuron::Wavelet => (0u8, 0u8),
+                Neuron::Bias => (1, 0),
+                Neuron::Linear(j) => (2, j),
+            };
+            w.bytes(&[kind, input, 0, 0]);
+            for v in sh.a[l] {
+                w.f32(v);
+            }
+            w.f32(sh.b[l]);
+        }
+        for v in self.model.weights {
+            w.f32(v);
+        }
+        let t = &self.drls;
+        for v in [t.lambda, t.u0, t.u_max, t.w_max] {
+            w.f32(v);
+        }
+        let mode = match t.mode {
+            DrlsMode::Parallel => 0u8,
+            DrlsMode::Sequential => 1,
+        };
+        let form = match t.form {
+            DrlsForm::Gain => 0u8,
+            DrlsForm::Energy => 1,
+        };
+        w.bytes(&[mode, form, 0, 0]);
+        for v in self.drls_state {
+            w.f32(v);
+        }
+        w.bytes(&self.records_trained.to_le_bytes());
+        let crc = crc32(w.out.get(..CRC_AT).unwrap_or(&[]));
+        w.bytes(&crc.to_le_bytes());
+        Ok(w.at)
+    }
+
+    /// Reads an image (see the module docs for the order of the checks).
+    pub fn parse(bytes: &[u8]) -> Result<Self, ImageError> {
+        let head = |n: usize| {
+            bytes.get(..n).ok_or(ImageError::Truncated {
+                offset: bytes.len(),
+            })
+        };
+        // The magic as far as it goes: a short file that is not ours says so.
+        let m = bytes.len().min(4);
+        if bytes.get(..m) != MAGIC.get(..m) {
+            return Err(ImageError::BadMagic);
+        }
+        let v = head(6)?;
+        let version = u16::from_le_bytes([v[4], v[5]]);
+        if version != FORMAT_VERSION {
+            return Err(ImageError::UnsupportedVersion(version));
+        }
+        let body = head(IMAGE_LEN)?;
+        if bytes.len() > IMAGE_LEN {
+            return Err(ImageError::TrailingBytes(bytes.len() - IMAGE_LEN));
+        }
+        let mut r = Reader { b: body, at: 0 };
+        let computed = crc32(body.get(..CRC_AT).unwrap_or(&[]));
+        r.at = CRC_AT;
+        let stored = r.u32();
+        if stored != computed {
+            return Err(ImageError::Checksum { stored, computed });
+        }
+        r.at = 6;
+        let preset = r.u16();
+        if preset != PRESET_MOTION {
+            return Err(ImageError::UnknownPreset(preset));
+        }
+        if usize::from(r.u8()) != MOTION_N {
+            return Err(ImageError::Layout { offset: 8 });
+        }
+        if usize::from(r.u8()) != MOTION_L {
+            return Err(ImageError::Layout { offset: 9 });
+        }
+        let activation = match r.u8() {
+            0 => Activation::Gaussian,
+            1 => Activation::MexicanHat,
+            _ => return Err(ImageError::Layout { offset: 10 }),
+        };
+        r.u8();
+        let sensor = SensorConfig {
+            full_scale_dps: r.f32()?,
+            quantum_dps: r.f32()?,
+            sample_rate_hz: r.f32()?,
+            noise_density_dps_rthz: r.f32()?,
+            drift_bound_dps: r.f32()?,
+        };
+        if !sensor.is_valid() {
+            return Err(ImageError::BadValue { offset: 12 });
+        }
+        let still = StillConfig {
+            window_s: r.f32()?,
+            min_still_s: r.f32()?,
+            var_z: r.f32()?,
+            mean_k: r.f32()?,
+            noise_scale: r.f32()?,
+        };
+        let config = MotionConfig {
+            sensor,
+            still,
+            level_q_dps2_per_s: r.f32()?,
+        };
+        match config.check() {
+            Ok(()) => {}
+            Err(MotionError::BadLevelNoise) => return Err(ImageError::BadValue { offset: 52 }),
+            Err(_) => return Err(ImageError::BadValue { offset: 32 }),
+        }
+        let time_at = r.at;
+        let time_max_s = r.f32()?;
+        if time_max_s <= 0.0 {
+            return Err(ImageError::BadValue { offset: time_at });
+        }
+        let mut model = MotionModel {
+            shape: WnnShape {
+                a: [[0.0; MOTION_N]; MOTION_L],
+                b: [0.0; MOTION_L],
+                activation,
+                kind: [Neuron::Wavelet; MOTION_L],
+                evaluation: Evaluation::Direct,
+            },
+            scaling: crate::wnn::InputScaling::IDENTITY,
+            time_max_s,
+            weights: [0.0; MOTION_L],
+        };
+        for j in 0..MOTION_N {
+            model.scaling.offset[j] = r.f32()?;
+        }
+        for j in 0..MOTION_N {
+            model.scaling.gain[j] = r.f32()?;
+        }
+        for l in 0..MOTION_L {
+            let at = r.at;
+            let [kind, input, _, _] = r.take::<4>();
+            model.shape.kind[l] = match kind {
+                0 => Neuron::Wavelet,
+                1 => Neuron::Bias,
+                2 if usize::from(input) < MOTION_N => Neuron::Linear(input),
+                _ => return Err(ImageError::Layout { offset: at }),
+            };
+            for j in 0..MOTION_N {
+                model.shape.a[l][j] = r.f32()?;
+            }
+            model.shape.b[l] = r.f32()?;
+        }
+        for l in 0..MOTION_L {
+            model.weights[l] = r.f32()?;
+        }
+        let drls_at = r.at;
+        let (lambda, u0) = (r.f32()?, r.f32()?);
+        let (u_max, w_max) = (r.f32_or_inf()?, r.f32_or_inf()?);
+        let [mode, form, _, _] = r.take::<4>();
+        let drls = DrlsConfig {
+            lambda,
+            u0,
+            u_max,
+            w_max,
+            mode: match mode {
+                0 => DrlsMode::Parallel,
+                1 => DrlsMode::Sequential,
+                _ => {
+                    return Err(ImageError::BadValue {
+                        offset: drls_at + 16,
+                    })
+                }
+            },
+            form: match form {
+                0 => DrlsForm::Gain,
+                1 => DrlsForm::Energy,
+                _ => {
+                    return Err(ImageError::BadValue {
+                        offset: drls_at + 17,
+                    })
+                }
+            },
+        };
+        if !drls.is_valid() {
+            return Err(ImageError::BadValue { offset: drls_at });
+        }
+        let mut drls_state = [0.0; MOTION_L];
+        for v in drls_state.iter_mut() {
+            let at = r.at;
+            *v = r.f32()?;
+            if *v <= 0.0 {
+                return Err(ImageError::BadValue { offset: at });
+            }
+        }
+        let records_trained = r.u32();
+        Ok(Self {
+            config,
+            model,
+            drls,
+            drls_state,
+            records_trained,
+        })
+    }
+
+    /// Refuses a stream whose rate differs from the image's by more than
+    /// [`RATE_TOLERANCE`].
+    pub fn check_rate(&self, stream_hz: f32) -> Result<(), ImageError> {
+        let image_hz = self.config.sensor.sample_rate_hz;
+        if (stream_hz - image_hz).abs() <= RATE_TOLERANCE * image_hz {
+            Ok(())
+        } else {
+            Err(ImageError::RateMismatch {
+                image_hz,
+                stream_hz,
+            })
+        }
+    }
+
+    /// The estimator at power-on.
+    pub fn estimator(&self) -> Result<MotionEstimator, MotionError> {
+        MotionEstimator::new(self.model, self.config)
+    }
+
+    /// The trainer's state, to continue training (on line, or on more records).
+    pub fn trainer(&self) -> Option<Drls<MOTION_L>> {
+        let mut d = Drls::new(self.drls)?;
+        d.set_state(&self.drls_state).then_some(d)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::motion::{MotionTrainer, MOTION_DRLS};
+    use proptest::prelude::*;
+
+    fn sample() -> Image {
+        let mut model = MotionModel::standard(1800.0).expect("test");
+        for (l, w) in model.weights.iter_mut().enumerate() {
+            *w = l as f32 * 1.0e-5 - 3.0e-5;
+        }
+        let tr = MotionTrainer::new(model, MOTION_DRLS, 1.0).expect("test");
+        Image::new(
+            MotionConfig::for_sensor(SensorConfig::ECORE_2000),
+            model,
+            tr.drls(),
+            12,
+        )
+    }
+
+    fn bytes(img: &Image) -> [u8; IMAGE_LEN] {
+        let mut b = [0u8; IMAGE_LEN];
+        assert_eq!(img.to_bytes(&mut b), Ok(IMAGE_LEN));
+        b
+    }
+
+    #[test]
+    fn crc32_check_value() {
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+        assert_eq!(crc32(b""), 0);
+    }
+
+    #[test]
+    fn round_trip() {
+        let img = sample();
+        let b = bytes(&img);
+        let back = Image::parse(&b).expect("test");
+        assert_eq!(back, img);
+        assert_eq!(bytes(&back), b);
+        assert!(back.trainer().is_some());
+        assert!(back.estimator().is_ok());
+        assert!(back.check_rate(100.0).is_ok());
+        assert!(matches!(
+            back.check_rate(1000.0),
+            Err(ImageError::RateMismatch { .. })
+        ));
+        let mut small = [0u8; IMAGE_LEN - 1];
+        assert_eq!(img.to_bytes(&mut small), Err(ImageError::BufferTooSmall));
+    }
+
+    #[test]
+    fn loaded_image_runs_bit_for_bit() {
+        let img = sample();
+        let back = Image::parse(&bytes(&img)).expect("test");
+        let mut a = img.estimator().expect("test");
+        let mut b = back.estimator().expect("test");
+        for k in 0..5000u32 {
+            let x = 1.0e-3 * ((k as f32) * 0.37).sin() + if k > 3000 { 2.0 } else { 0.0 };
+            let t = 25.0 + k as f32 * 1.0e-3;
+            let (ya, yb) = (a.push(x, t, None), b.push(x, t, None));
+            assert_eq!(
+                ya.map(|o| o.drift_dps.to_bits()),
+                yb.map(|o| o.drift_dps.to_bits())
+            );
+        }
+    }
+
+    #[test]
+    fn every_single_byte_flip_is_rejected() {
+        let b = bytes(&sample());
+        for i in 0..IMAGE_LEN {
+            for flip in [0x01u8, 0x80, 0xFF] {
+                let mut c = b;
+                c[i] ^= flip;
+                assert!(Image::parse(&c).is_err(), "byte {i} ^ {flip:#x} accepted");
+            }
+        }
+    }
+
+    #[test]
+    fn every_truncation_is_rejected() {
+        let b = bytes(&sample());
+        for n in 0..IMAGE_LEN {
+            match Image::parse(&b[..n]) {
+                Err(ImageError::Truncated { offset }) => assert_eq!(offset, n),
+                other => panic!("{n}: {other:?}"),
+            }
+        }
+        let mut long = [0u8; IMAGE_LEN + 3];
+        long[..IMAGE_LEN].copy_from_slice(&b);
+        assert_eq!(Image::parse(&long), Err(ImageError::TrailingBytes(3)));
+    }
+
+    #[test]
+    fn typed_errors() {
+        let b = bytes(&sample());
+        let mut c = b;
+        c[0] = b'X';
+        assert_eq!(Image::parse(&c), Err(ImageError::BadMagic));
+        let mut c = b;
+        c[4] = 2;
+        assert_eq!(Image::parse(&c), Err(ImageError::UnsupportedVersion(2)));
+        let mut c = b;
+        c[100] ^= 1;
+        assert!(matches!(Image::parse(&c), Err(ImageError::Checksum { .. })));
+        // A layout error behind a valid checksum.
+        let mut c = b;
+        c[9] = 30;
+        let crc = crc32(&c[..CRC_AT]);
+        c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(Image::parse(&c), Err(ImageError::Layout { offset: 9 }));
+        // A NaN weight behind a valid checksum.
+        let mut c = b;
+        c[404..408].copy_from_slice(&f32::NAN.to_le_bytes());
+        let crc = crc32(&c[..CRC_AT]);
+        c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(Image::parse(&c), Err(ImageError::BadValue { offset: 404 }));
+    }
+
+    proptest! {
+        #[test]
+        fn parse_never_panics(data in proptest::collection::vec(any::<u8>(), 0..700)) {
+            let _ = Image::parse(&data);
+        }
+
+        #[test]
+        fn parse_never_panics_near_valid(i in 0usize..IMAGE_LEN, v in any::<u8>(), cut in 0usize..=IMAGE_LEN) {
+            let mut b = bytes(&sample());
+            b[i] = v;
+            let crc = crc32(&b[..CRC_AT]);
+            b[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+            let _ = Image::parse(&b[..cut]);
+        }
+    }
+}

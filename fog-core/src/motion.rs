@@ -1,0 +1,733 @@
+//! The motion-safe identifier (preset `motion`): learn at rest, compensate in motion.
+//!
+//! ```text
+//! drift(k)       = clamp( level(k) + m(x(k)), +-drift_bound_dps )
+//! compensated(k) = rate(k) - drift(k)
+//! ```
+//! - `x = [t_s since power-on, temp_c, dtemp_c_per_s]` ([`TimeTemp`]): inputs that need no
+//!   stillness. Without a temperature channel (NaN until a first value) the temperature is
+//!   held at the model's reference (`scaling.offset[1]`) and its rate at 0: the model then
+//!   uses time alone.
+//! - `m` = a wavelet network ([`MotionModel`]) whose output weights were trained on the
+//!   bench over many static records of the gyro family ([`MotionTrainer`]); it predicts
+//!   the drift's *shape* (warm-up, thermal bias, Shupe term), not its per-unit offset. The
+//!   inputs move slowly: `m` is evaluated once per detector window (1 s by default) and
+//!   held in between (a change of the model's input, the same in training).
+//! - `level` = a scalar random-walk Kalman state on the residual `rate - m`, updated only
+//!   with window means the stillness detector ([`crate::still`]) released (still, and the
+//!   next window still too); in motion it is frozen while its variance keeps growing, so it
+//!   re-converges at the next stop.
+//! - The clamp to the sensor's drift bound ([`SensorConfig::drift_bound_dps`]) means that
+//!   no state can subtract more than the bound from the rate.
+//!
+//! Per sample: the feature map (a sum and a count; once per second a 30-bin loop), the
+//! detector (3 additions, 1 multiplication), a clamp and a subtraction; once per window
+//! the network (`L` Gaussians) and a scalar Kalman step.
+
+use crate::denoise::{denoise_in_place, DenoiseConfig};
+use crate::features::{FeatureMap, TimeTemp};
+use crate::still::{SensorConfig, StillConfig, Stillness};
+use crate::train::{Drls, DrlsConfig, DrlsForm, DrlsMode, Trainer};
+use crate::wnn::{dot, Activation, Group, InputScaling, ShapeError, WnnShape};
+
+/// Inputs of the motion network: `t_s`, `temp_c`, `dtemp_c_per_s`.
+pub const MOTION_N: usize = 3;
+/// Neurons of the motion network ([`MotionModel::standard`]).
+pub const MOTION_L: usize = 16;
+/// Gaussians along time in [`MotionModel::standard`] (the rest: linear links to the
+/// temperature and its rate).
+pub const TIME_NEURONS: usize = MOTION_L - 2;
+
+/// Why the motion identifier could not be built, trained or fed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum MotionError {
+    /// The sensor configuration is invalid ([`SensorConfig::is_valid`]).
+    BadSensor,
+    /// The detector configuration is invalid ([`StillConfig::is_valid`]).
+    BadStillConfig,
+    /// The level's process noise is not finite and >= 0.
+    BadLevelNoise,
+    /// The model's time range is not finite and > 0.
+    BadTimeRange,
+    /// The trainer's configuration is invalid.
+    BadTrainer,
+    /// The network layout does not fit.
+    Shape(ShapeError),
+    /// A non-finite rate: refused, counted, nothing changed.
+    NonFinite,
+    /// A training record shorter than two detector windows.
+    RecordTooShort,
+}
+
+impl core::fmt::Display for MotionError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::BadSensor => f.write_str("invalid sensor configuration"),
+            Self::BadStillConfig => f.write_str("invalid stillness detector configuration"),
+            Self::BadLevelNoise => f.write_str("level process noise must be finite and >= 0"),
+            Self::BadTimeRange => f.write_str("model time range must be finite and > 0"),
+            Self::BadTrainer => f.write_str("invalid trainer configuration"),
+            Self::Shape(e) => write!(f, "{e}"),
+            Self::NonFinite => f.write_str("non-finite rate sample"),
+            Self::RecordTooShort => f.write_str("training record shorter than two windows"),
+        }
+    }
+}
+
+impl core::error::Error for MotionError {}
+
+/// The estimator's settings (apart from the trained model).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MotionConfig {
+    /// The gyro: noise model for the detector, drift bound, sample rate.
+    pub sensor: SensorConfig,
+    /// The stillness detector.
+    pub still: StillConfig,
+    /// Random-walk density of the level, deg^2/s^2 per s (>= 0): how fast the residual
+    /// drift may wander. Its variance grows by `q * window` every window, still or not.
+    pub level_q_dps2_per_s: f32,
+}
+
+impl MotionConfig {
+    /// Default level random walk: 2 deg/h per sqrt(h) = (2/3600)^2 / 3600 deg^2/s^3,
+    /// ASSUMED (four times the simulator's rate random walk, to follow what the model
+    /// misses); `host-sim` tunes it on validation records (docs/motion.md).
+    pub const DEFAULT_LEVEL_Q: f32 = (2.0 / 3600.0) * (2.0 / 3600.0) / 3600.0;
+
+    /// `sensor` with the default detector and level.
+    pub const fn for_sensor(sensor: SensorConfig) -> Self {
+        Self {
+            sensor,
+            still: StillConfig::DEFAULT,
+            level_q_dps2_per_s: Self::DEFAULT_LEVEL_Q,
+        }
+    }
+
+    /// Every part valid.
+    pub fn check(&self) -> Result<(), MotionError> {
+        if !self.sensor.is_valid() {
+            return Err(MotionError::BadSensor);
+        }
+        if !self.still.is_valid() {
+            return Err(MotionError::BadStillConfig);
+        }
+        if !(self.level_q_dps2_per_s >= 0.0 && self.level_q_dps2_per_s.is_finite()) {
+            return Err(MotionError::BadLevelNoise);
+        }
+        Ok(())
+    }
+}
+
+/// The drift-shape network `m(x)`: layout, input scaling, output weights.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionModel {
+    /// Layout (dilations, translations, kinds, activation).
+    pub shape: WnnShape<MOTION_N, MOTION_L>,
+    /// Raw inputs to the network's units.
+    pub scaling: InputScaling<MOTION_N>,
+    /// Time since power-on is clamped to `0..=time_max_s` before scaling (after it the
+    /// warm-up is over and the model holds its last value instead of fading out), s.
+    pub time_max_s: f32,
+    /// Output weights, deg/s.
+    pub weights: [f32; MOTION_L],
+}
+
+/// Reference temperature of [`MotionModel::standard`], deg C (the simulator's and the
+/// lab's; ASSUMED).
+pub const REFERENCE_TEMP_C: f32 = 25.0;
+
+impl MotionModel {
+    /// The standard layout: [`TIME_NEURONS`] Gaussians along time over `0..time_max_s`,
+    /// one sigma apart, then linear links to `(temp - 25 C) / 10 C` and to
+    /// `dtemp / (0.005 C/s)`; no bias (the level carries the offset); zero weights.
+    pub fn standard(time_max_s: f32) -> Result<Self, MotionError> {
+        if !(time_max_s > 0.0 && time_max_s.is_finite()) {
+            return Err(MotionError::BadTimeRange);
+        }
+        let shape = WnnShape::from_groups(
+            &[
+                Group::Along {
+                    input: 0,
+                    count: TIME_NEURONS,
+                    overlap: 1.0,
+                },
+                Group::Linear(1),
+                Group::Linear(2),
+            ],
+            Activation::Gaussian,
+        )
+        .map_err(MotionError::Shape)?;
+        Ok(Self {
+            shape,
+            scaling: InputScaling {
+                offset: [0.5 * time_max_s, REFERENCE_TEMP_C, 0.0],
+                gain: [2.0 / time_max_s, 1.0 / 10.0, 1.0 / 0.005],
+            },
+            time_max_s,
+            weights: [0.0; MOTION_L],
+        })
+    }
+
+    /// Hidden values for raw inputs `x` (time clamped, then scaled).
+    pub fn hidden(&self, x: &[f32; MOTION_N], h: &mut [f32; MOTION_L]) {
+        let mut raw = *x;
+        raw[0] = if raw[0] > 0.0 {
+            raw[0].min(self.time_max_s)
+        } else {
+            0.0
+        };
+        self.shape.hidden(&self.scaling.apply(&raw), h);
+    }
+
+    /// `m(x)`, deg/s.
+    pub fn eval(&self, x: &[f32; MOTION_N]) -> f32 {
+        let mut h = [0.0; MOTION_L];
+        self.hidden(x, &mut h);
+        dot(&self.weights, &h)
+    }
+}
+
+/// The feature map with the "no temperature channel: hold the reference" rule.
+#[derive(Debug, Clone, PartialEq)]
+struct Inputs {
+    map: TimeTemp,
+    samples_per_s: f32,
+    reference_c: f32,
+    seen_temp: bool,
+}
+
+impl Inputs {
+    fn new(samples_per_s: f32, reference_c: f32) -> Self {
+        Self {
+            map: TimeTemp::new(samples_per_s),
+            samples_per_s,
+            reference_c,
+            seen_temp: false,
+        }
+    }
+
+    fn next(&mut self, t_s: f32, temp_c: f32) -> [f32; MOTION_N] {
+        self.seen_temp |= temp_c.is_finite();
+        let temp = if self.seen_temp {
+            temp_c
+        } else {
+            self.reference_c
+        };
+        self.map.next_with_temp(0.0, t_s, temp)
+    }
+
+    fn reset(&mut self) {
+        *self = Self::new(self.samples_per_s, self.reference_c);
+    }
+}
+
+/// What the estimator says about one sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MotionOutput {
+    /// Drift estimate, deg/s, within the sensor's bound.
+    pub drift_dps: f32,
+    /// `rate - drift`, deg/s.
+    pub compensated_dps: f32,
+    /// The sample was taken as still (detector or external flag).
+    pub still: bool,
+    /// The level (residual drift the model does not explain), deg/s.
+    pub level_dps: f32,
+    /// The model term `m(x)`, deg/s.
+    pub model_dps: f32,
+}
+
+/// Counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MotionStats {
+    /// Samples accepted.
+    pub samples: u32,
+    /// Samples refused (non-finite).
+    pub rejected: u32,
+    /// Samples flagged still.
+    pub still_samples: u32,
+    /// Level updates (released still windows).
+    pub level_updates: u32,
+}
+
+/// The per-sample estimator (see the module docs). Build it from a trained model and a
+/// configuration, or from an identifier image ([`crate::image`]).
+#[derive(Debug, Clone)]
+pub struct MotionEstimator {
+    cfg: MotionConfig,
+    model: MotionModel,
+    inputs: Inputs,
+    still: Stillness,
+    window_q: f32,
+    // Level Kalman state.
+    level: f32,
+    level_var: f32,
+    // Model term held for the current window, and for the previous one (the one the
+    // detector may release).
+    model_now: f32,
+    model_prev: f32,
+    // Inputs of the current and previous windows (for on-line refinement).
+    x_now: [f32; MOTION_N],
+    x_prev: [f32; MOTION_N],
+    refine: Option<Drls<MOTION_L>>,
+    stats: MotionStats,
+}
+
+impl MotionEstimator {
+    /// An estimator at power-on.
+    pub fn new(model: MotionModel, cfg: MotionConfig) -> Result<Self, MotionError> {
+        cfg.check()?;
+        let still = Stillness::new(&cfg.sensor, &cfg.still).ok_or(MotionError::BadStillConfig)?;
+        let window_s = still.window_samples() as f32 / cfg.sensor.sample_rate_hz;
+        let mut e = Self {
+            cfg,
+            model,
+            inputs: Inputs::new(cfg.sensor.sample_rate_hz, model.scaling.offset[1]),
+            still,
+            window_q: cfg.level_q_dps2_per_s * window_s,
+            level: 0.0,
+            level_var: 0.0,
+            model_now: 0.0,
+            model_prev: 0.0,
+            x_now: [0.0; MOTION_N],
+            x_prev: [0.0; MOTION_N],
+            refine: None,
+            stats: MotionStats::default(),
+        };
+        e.restart();
+        Ok(e)
+    }
+
+    /// Back to power-on: time 0, level 0 with the variance of the whole bound, detector
+    /// moving. Keeps the model.
+    pub fn restart(&mut self) {
+        self.inputs.reset();
+        self.still.reset();
+        self.level = 0.0;
+        let b = self.cfg.sensor.drift_bound_dps;
+        self.level_var = b * b;
+        self.model_now = 0.0;
+        self.model_prev = 0.0;
+        self.stats = MotionStats::default();
+    }
+
+    /// One sample: `rate_dps`, `temp_c` (NaN: none), `external_still` (overrides the
+    /// detector when `Some`). A non-finite rate is refused and counted.
+    pub fn push(
+        &mut self,
+        rate_dps: f32,
+        temp_c: f32,
+        external_still: Option<bool>,
+    ) -> Result<MotionOutput, MotionError> {
+        if !rate_dps.is_finite() {
+            self.stats.rejected = self.stats.rejected.wrapping_add(1);
+            return Err(MotionError::NonFinite);
+        }
+        let k = self.stats.samples;
+        let t_s = k as f32 / self.cfg.sensor.sample_rate_hz;
+        let x = self.inputs.next(t_s, temp_c);
+        if k.is_multiple_of(self.still.window_samples()) {
+            self.model_prev = self.model_now;
+            self.x_prev = self.x_now;
+            self.x_now = x;
+            self.model_now = self.model.eval(&x);
+            if !self.model_now.is_finite() {
+                self.model_now = 0.0;
+            }
+        }
+        let drift = self.cfg.sensor.clamp_drift(self.level + self.model_now);
+        let s = self
+            .still
+            .push(rate_dps, drift, self.level_var, external_still);
+        if let Some(w) = s.window {
+            self.level_var += self.window_q;
+            if let Some(mean) = w.confirmed_mean_dps {
+                // The released window is the previous one: its model term is model_prev
+                // unless this window started a new evaluation after it (always, since
+                // windows and evaluations coincide): residual = mean - m(prev window).
+                let z = mean - self.model_prev;
+                if let Some(t) = self.refine.as_mut() {
+                    // On-line refinement: the released window's residual after the level,
+                    // one DRLS step on the model's weights (still windows only).
+                    let mut h = [0.0; MOTION_L];
+                    self.model.hidden(&self.x_prev, &mut h);
+                    let _ = t.step(&mut self.model.weights, &h, mean - self.level);
+                }
+                let r = self.still.window_mean_var_dps2();
+                let gain = self.level_var / (self.level_var + r);
+                let level = self.level + gain * (z - self.level);
+                if level.is_finite() {
+                    self.level = level;
+                    self.level_var *= 1.0 - gain;
+                }
+                self.stats.level_updates = self.stats.level_updates.wrapping_add(1);
+            }
+        }
+        self.stats.samples = k.wrapping_add(1);
+        if s.still {
+            self.stats.still_samples = self.stats.still_samples.wrapping_add(1);
+        }
+        Ok(MotionOutput {
+            drift_dps: drift,
+            compensated_dps: rate_dps - drift,
+            still: s.still,
+            level_dps: self.level,
+            model_dps: self.model_now,
+        })
+    }
+
+    /// Turns on on-line refinement of the model's weights: at every window the detector
+    /// releases (still, and the next window still), one DRLS step with the window's mean
+    /// minus the level as target and the window's inputs; never from a moving window.
+    /// `trainer` continues the bench training ([`crate::image::Image::trainer`]). Off by
+    /// default: measured in `docs/motion.md`.
+    pub fn with_online_refinement(mut self, trainer: Drls<MOTION_L>) -> Self {
+        self.refine = Some(trainer);
+        self
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MotionConfig {
+        &self.cfg
+    }
+
+    /// The model.
+    pub fn model(&self) -> &MotionModel {
+        &self.model
+    }
+
+    /// Level estimate and its variance (deg/s, deg^2/s^2).
+    pub fn level(&self) -> (f32, f32) {
+        (self.level, self.level_var)
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> &MotionStats {
+        &self.stats
+    }
+}
+
+/// Denoising block of the trainer, samples (the firmware's).
+pub const TRAIN_BLOCK: usize = 512;
+
+/// The trainer's DRLS: sequential (Gauss-Seidel), energy form, guarded, forgetting factor
+/// 0.9998 (a memory of 5000 windows, about 3 records of 1800 s). Why not 1 (no forgetting):
+/// with `lambda = 1` every `S_a` grows without bound, the steps shrink as `1/k` and the
+/// diagonal sweeps stop before they reach the least-squares weights of overlapping neurons
+/// (measured in `trainer_learns_the_shared_shape_not_the_offsets`: 0.70 deg/h error at
+/// 1200 s with 1, below 0.41 with 0.9998).
+pub const MOTION_DRLS: DrlsConfig = DrlsConfig {
+    lambda: 0.9998,
+    u0: 1.0,
+    u_max: 1.0,
+    w_max: 1.0,
+    mode: DrlsMode::Sequential,
+    form: DrlsForm::Energy,
+};
+
+/// What training on one record did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RecordFit {
+    /// Training steps (one per full detector window).
+    pub steps: u32,
+    /// The record's intercept that was removed (mean rate of its full windows), deg/s.
+    pub intercept_dps: f32,
+    /// RMS of the a-priori errors of this record's steps, deg/s.
+    pub rms_error_dps: f32,
+}
+
+/// Trains the shared output weights of a [`MotionModel`] on static records, one record at
+/// a time, with DRLS.
+///
+/// Per record (all samples still, from power-on, at the sensor's rate):
+/// 1. the rate is denoised in blocks of [`TRAIN_BLOCK`] (the paper's denoiser; a final
+///    partial block stays raw);
+/// 2. targets are the means of the denoised rate over the detector's windows, inputs the
+///    features at each window's first sample (as [`MotionEstimator`] evaluates them);
+/// 3. **the per-record intercept is removed by centring the targets**: each target minus
+///    the mean rate of the record's windows. Why this and not a per-record bias neuron: each
+///    unit's turn-on bias is unknown to the model and is the level's job at run time; a bias
+///    neuron reset between records would compete with the Gaussians along time (whose sum
+///    is itself nearly constant), and diagonal DRLS splits such a shared direction badly,
+///    leaking part of each record's offset into the shared weights. Centring removes the
+///    offset exactly; the model then learns the shape up to a constant, which the level
+///    absorbs at the first stop. Records of equal length and the same power-on time axis
+///    give the same constant; a short record shifts its targets by the mean of its own
+///    part of the shape (a small bias the level absorbs too).
+///
+/// Call [`MotionTrainer::train_record`] for each record, several passes (epochs) if wanted
+/// (DRLS is diagonal: a few Gauss-Seidel passes bring the weights closer to least squares).
+#[derive(Debug, Clone)]
+pub struct MotionTrainer {
+    model: MotionModel,
+    drls: Drls<MOTION_L>,
+    window_s: f32,
+    records: u32,
+}
+
+impl MotionTrainer {
+    /// A trainer starting from `model`'s weights; `window_s` is the detector window of the
+    /// estimator the model is for.
+    pub fn new(model: MotionModel, drls: DrlsConfig, window_s: f32) -> Result<Self, MotionError> {
+        if !(window_s > 0.0 && window_s.is_finite()) {
+            return Err(MotionError::BadStillConfig);
+        }
+        Ok(Self {
+            model,
+            drls: Drls::new(drls).ok_or(MotionError::BadTrainer)?,
+            window_s,
+            records: 0,
+        })
+    }
+
+    /// Trains on one static record: `rate_dps` at `sample_rate_hz`, `temp_c` the same length
+    /// or `None` (the model's reference temperature is used). Non-finite rates are replaced
+    /// by the previous sample (0 at the start) for denoising, and the windows holding them
+    /// are skipped.
+    pub fn train_record(
+        &mut self,
+        rate_dps: &[f32],
+        temp_c: Option<&[f32]>,
+        sample_rate_hz: f32,
+    ) -> Result<RecordFit, MotionError> {
+        if !(sample_rate_hz > 0.0 && sample_rate_hz.is_finite()) {
+            return Err(MotionError::BadSensor);
+        }
+        let w = libm::roundf(self.window_s * sample_rate_hz).max(8.0) as usize;
+        let windows = rate_dps.len() / w;
+        if windows < 2 {
+            return Err(MotionError::RecordTooShort);
+        }
+        // Intercept: mean of the full windows' finite samples (f64 sum: 10^6 samples).
+        let (mut sum, mut n) = (0.0f64, 0u32);
+        for &x in rate_dps.iter().take(windows * w).filter(|x| x.is_finite()) {
+            sum += f64::from(x);
+            n += 1;
+        }
+        let intercept = if n > 0 {
+            (sum / f64::from(n)) as f32
+        } else {
+            0.0
+        };
+
+        let mut inputs = Inputs::new(sample_rate_hz, self.model.scaling.offset[1]);
+        let mut block = [0.0f32; TRAIN_BLOCK];
+        let mut scratch = [0.0f32; TRAIN_BLOCK];
+        let mut h = [0.0f32; MOTION_L];
+        let mut x_window = [0.0f32; MOTION_N];
+        let (mut acc, mut acc_n, mut bad) = (0.0f32, 0usize, false);
+        let (mut steps, mut err2) = (0u32, 0.0f64);
+        let mut last = 0.0f32;
+        let dt = 1.0 / sample_rate_hz;
+        let full = windows * w;
+        let mut start = 0usize;
+        while start < full {
+            let end = (start + TRAIN_BLOCK).min(full);
+            let len = end - start;
+            let mut any_bad = [false; TRAIN_BLOCK];
+            for (i, slot) in block.iter_mut().take(len).enumerate() {
+                let v = rate_dps.get(start + i).copied().unwrap_or(f32::NAN);
+                if v.is_finite() {
+                    last = v;
+                } else {
+                    any_bad[i] = true;
+                }
+                *slot = last;
+            }
+            if len == TRAIN_BLOCK {
+                // A refused block (cannot happen with finite values) stays raw.
+                let _ = denoise_in_place(&mut block, &mut scratch, &DenoiseConfig::PAPER);
+            }
+            for i in 0..len {
+                let k = start + i;
+                let temp = temp_c.and_then(|t| t.get(k).copied()).unwrap_or(f32::NAN);
+                let x = inputs.next(k as f32 * dt, temp);
+                if k.is_multiple_of(w) {
+                    x_window = x;
+                }
+                acc += block[i];
+                acc_n += 1;
+                bad |= any_bad[i];
+                if acc_n == w {
+                    if !bad {
+                        self.model.hidden(&x_window, &mut h);
+                        let d = acc / w as f32 - intercept;
+                        let e = self.drls.step(&mut self.model.weights, &h, d);
+                        if e.is_finite() {
+                            steps += 1;
+                            err2 += f64::from(e) * f64::from(e);
+                        }
+                    }
+                    acc = 0.0;
+                    acc_n = 0;
+                    bad = false;
+                }
+            }
+            start = end;
+        }
+        self.records = self.records.wrapping_add(1);
+        Ok(RecordFit {
+            steps,
+            intercept_dps: intercept,
+            rms_error_dps: if steps > 0 {
+                libm::sqrt(err2 / f64::from(steps)) as f32
+            } else {
+                f32::NAN
+            },
+        })
+    }
+
+    /// The model with the weights trained so far.
+    pub fn model(&self) -> &MotionModel {
+        &self.model
+    }
+
+    /// The DRLS state (saved in the identifier image).
+    pub fn drls(&self) -> &Drls<MOTION_L> {
+        &self.drls
+    }
+
+    /// Records trained on (passes included).
+    pub fn records(&self) -> u32 {
+        self.records
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    extern crate std;
+    use std::vec::Vec;
+
+    struct Noise(u64);
+    impl Noise {
+        fn normal(&mut self) -> f32 {
+            let mut s = 0.0;
+            for _ in 0..4 {
+                self.0 = self
+                    .0
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                s += ((self.0 >> 40) as f32 / (1u64 << 24) as f32) - 0.5;
+            }
+            s * 3.0f32.sqrt()
+        }
+    }
+
+    const S: SensorConfig = SensorConfig::ECORE_2000;
+
+    /// Warm-up shape: 3 deg/h decaying in 600 s.
+    fn shape(t: f32) -> f32 {
+        3.0 / 3600.0 * (-t / 600.0).exp()
+    }
+
+    fn record(seed: u64, bias: f32, n: usize) -> Vec<f32> {
+        let mut z = Noise(seed);
+        let sigma = S.sample_var_dps2().sqrt();
+        (0..n)
+            .map(|k| bias + shape(k as f32 * 0.01) + sigma * z.normal())
+            .collect()
+    }
+
+    #[test]
+    fn trainer_learns_the_shared_shape_not_the_offsets() {
+        let model = MotionModel::standard(1800.0).expect("test");
+        let mut tr = MotionTrainer::new(model, MOTION_DRLS, 1.0).expect("test");
+        for epoch in 0..2 {
+            for r in 0..6u64 {
+                let bias = (r as f32 - 2.5) * 2.0 / 3600.0;
+                let fit = tr.train_record(&record(r + 10 * epoch, bias, 180_000), None, 100.0);
+                assert!(fit.expect("test").steps == 1800);
+            }
+        }
+        let m = tr.model();
+        // Changes of the shape are learned to within 0.6 deg/h (offset removed).
+        let x = |t: f32| [t, REFERENCE_TEMP_C, 0.0];
+        let diff: Vec<f32> = (0..36)
+            .map(|i| (m.eval(&x(25.0 + 50.0 * i as f32)) - shape(25.0 + 50.0 * i as f32)) * 3600.0)
+            .collect();
+        let c = diff.iter().sum::<f32>() / diff.len() as f32;
+        let rms = (diff.iter().map(|d| (d - c) * (d - c)).sum::<f32>() / diff.len() as f32).sqrt();
+        // Noise floor: a window mean is 4 deg/h (1 sigma); each neuron sees about 140
+        // windows per record, 6 records, and the trainer's memory is about 3 records.
+        assert!(rms < 0.3, "rms {rms} deg/h: {diff:?}");
+        // The shape itself spans 3 deg/h: it is learned, not ignored.
+        assert!((diff[0] - diff[35]).abs() < 1.0, "{diff:?}");
+        // An untrained model predicts nothing.
+        assert_eq!(
+            MotionModel::standard(1800.0).expect("test").eval(&x(10.0)),
+            0.0
+        );
+    }
+
+    #[test]
+    fn estimator_holds_in_motion_and_is_bounded() {
+        let model = MotionModel::standard(1800.0).expect("test");
+        let mut e = MotionEstimator::new(model, MotionConfig::for_sensor(S)).expect("test");
+        let mut z = Noise(5);
+        let sigma = S.sample_var_dps2().sqrt();
+        let bias = 4.0 / 3600.0;
+        let mut max_drift = 0.0f32;
+        for k in 0..60_000usize {
+            // Still 60 s, then turns of 10 deg/s for 30 s and stops of 30 s.
+            let moving = k >= 6000 && (k / 3000) % 2 == 0;
+            let turn = if moving { 10.0 } else { 0.0 };
+            let o = e
+                .push(bias + turn + sigma * z.normal(), f32::NAN, None)
+                .expect("test");
+            max_drift = max_drift.max(o.drift_dps.abs());
+            if k > 5000 && !moving {
+                // Once aligned, the level is the bias within 1 deg/h.
+                assert!(
+                    (o.level_dps - bias).abs() < 1.0 / 3600.0,
+                    "{k}: {}",
+                    o.level_dps
+                );
+            }
+        }
+        assert!(max_drift <= S.drift_bound_dps);
+        assert!(e.stats().level_updates > 100);
+        assert!(e.push(f32::NAN, 0.0, None).is_err());
+        assert_eq!(e.stats().rejected, 1);
+    }
+
+    #[test]
+    fn online_refinement_learns_only_at_rest() {
+        let model = MotionModel::standard(1800.0).expect("test");
+        let trainer = || Drls::new(MOTION_DRLS).expect("test");
+        let cfg = MotionConfig::for_sensor(S);
+        let mut z = Noise(9);
+        let sigma = S.sample_var_dps2().sqrt();
+        // Turning all the time: no window is released, the weights never move.
+        let mut e = MotionEstimator::new(model, cfg)
+            .expect("test")
+            .with_online_refinement(trainer());
+        for _ in 0..30_000 {
+            e.push(5.0 + sigma * z.normal(), f32::NAN, None)
+                .expect("test");
+        }
+        assert_eq!(e.model().weights, [0.0; MOTION_L]);
+        // At rest with a warm-up: released windows train the weights.
+        let mut e = MotionEstimator::new(model, cfg)
+            .expect("test")
+            .with_online_refinement(trainer());
+        for k in 0..30_000 {
+            e.push(shape(k as f32 * 0.01) + sigma * z.normal(), f32::NAN, None)
+                .expect("test");
+        }
+        assert_ne!(e.model().weights, [0.0; MOTION_L]);
+    }
+
+    #[test]
+    fn model_term_is_added_and_clamped() {
+        let mut model = MotionModel::standard(1800.0).expect("test");
+        model.weights = [1.0; MOTION_L];
+        let mut e = MotionEstimator::new(model, MotionConfig::for_sensor(S)).expect("test");
+        let o = e.push(0.0, 25.0, Some(false)).expect("test");
+        assert!(o.model_dps > S.drift_bound_dps);
+        assert_eq!(o.drift_dps, S.drift_bound_dps);
+    }
+}

@@ -1,0 +1,520 @@
+//! Stillness from the rate alone: the sensor's noise model and a causal detector.
+//!
+//! No accelerometer: a window of the rate is *still* when it looks like the sensor at rest,
+//! i.e. white noise around the current drift reference:
+//! - **variance test**: the window's sample variance `s^2` is at most
+//!   `sigma^2 (1 + var_z sqrt(2 / (W - 1)))` (a one-sided chi-square bound by its normal
+//!   approximation, `var_z` standard deviations of `s^2 / sigma^2`), where `sigma^2` is the
+//!   white-noise plus quantization variance of one sample ([`SensorConfig`]);
+//! - **mean test**: `|mean - reference| <= mean_k sqrt(sigma^2 / W + reference_var)`, where
+//!   the caller gives the reference (its drift estimate) and that estimate's variance. A
+//!   constant-rate turn has a low variance but a mean far from the drift: it is moving.
+//!
+//! Windows are consecutive and do not overlap (`W` samples, [`StillConfig::window_s`]); the
+//! cost per sample is 3 additions, 1 multiplication and a compare (the tests are made once
+//! per window). The detector enters *still* after `min_still_s` of passing windows and
+//! leaves it at the first failing window. A sample's flag is the state decided at the end
+//! of the previous window (causal: up to one window late at the onset of a turn).
+//!
+//! **What may reach a level estimate** ([`WindowVerdict::confirmed_mean_dps`]): the mean of
+//! a window is released one window later, only when it passed, the window after it passed
+//! too, and the state was still for both. The onset of a turn fails its own window or the
+//! next one, so no window containing it is ever released ("delayed by the window").
+//!
+//! An external still flag (a CSV column on the host, a GPIO or a serial command on the
+//! firmware) overrides the detector: [`Stillness::push`] with `external = Some(flag)`.
+
+/// A gyro's specification as data: what the detector, the bound on the drift estimate and
+/// the image ([`crate::image`]) need. Values marked ASSUMED in the constants' docs are
+/// plausible figures for the class, not datasheet values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SensorConfig {
+    /// Largest rate the sensor reports, deg/s (> 0).
+    pub full_scale_dps: f32,
+    /// One output count, deg/s (0: a floating-point output without quantization).
+    pub quantum_dps: f32,
+    /// Output data rate, Hz (> 0).
+    pub sample_rate_hz: f32,
+    /// White (angle random walk) noise density, deg/s/sqrt(Hz) (> 0); 1 deg/sqrt(h) is
+    /// 1/60 deg/s/sqrt(Hz).
+    pub noise_density_dps_rthz: f32,
+    /// Largest drift the sensor can have, deg/s (> 0): worst-case turn-on bias plus warm-up
+    /// plus thermal terms. No drift estimate ever exceeds it, so no state can subtract a
+    /// rotation larger than it.
+    pub drift_bound_dps: f32,
+}
+
+impl SensorConfig {
+    /// KVH E-Core 2000, 60 deg/s unit. Full scale, quantum (60/32768 deg/s, one i16 count)
+    /// and 100 Hz from `shared/spec/serial-protocols.md` section 1 (a public driver, not a
+    /// datasheet). ASSUMED (as the simulator's preset `host-sim/presets/ecore2000.toml`):
+    /// white noise 4 deg/h/sqrt(Hz) = 0.00111 deg/s/sqrt(Hz); drift bound 30 deg/h = about
+    /// 4 sigma of the assumed 5 deg/h turn-on bias plus 3 deg/h warm-up plus thermal terms.
+    pub const ECORE_2000: Self = Self {
+        full_scale_dps: 60.0,
+        quantum_dps: 60.0 / 32768.0,
+        sample_rate_hz: 100.0,
+        noise_density_dps_rthz: 0.001_111_11,
+        drift_bound_dps: 30.0 / 3600.0,
+    };
+
+    /// KVH DSP-1750-like FOG IMU axis: +-490 deg/s, 1 kHz (the rate of the real log in
+    /// `shared/data/real/kvh1750_fog_yoos`, which peaks at 327 deg/s). ASSUMED (no datasheet
+    /// in the project): angle increments as floating point (quantum 0), white noise
+    /// 0.012 deg/sqrt(h) = 0.0002 deg/s/sqrt(Hz), drift bound 20 deg/h.
+    pub const KVH_DSP_1750: Self = Self {
+        full_scale_dps: 490.0,
+        quantum_dps: 0.0,
+        sample_rate_hz: 1000.0,
+        noise_density_dps_rthz: 0.012 / 60.0,
+        drift_bound_dps: 20.0 / 3600.0,
+    };
+
+    /// All fields finite, rates, noise and bound > 0, quantum >= 0.
+    pub fn is_valid(&self) -> bool {
+        let pos = |v: f32| v > 0.0 && v.is_finite();
+        pos(self.full_scale_dps)
+            && pos(self.sample_rate_hz)
+            && pos(self.noise_density_dps_rthz)
+            && pos(self.drift_bound_dps)
+            && self.quantum_dps >= 0.0
+            && self.quantum_dps.is_finite()
+    }
+
+    /// Sample period, s.
+    pub fn sample_period_s(&self) -> f32 {
+        1.0 / self.sample_rate_hz
+    }
+
+    /// Variance of one sample at rest around its drift, deg^2/s^2: white noise
+    /// `density^2 * rate` plus quantization `quantum^2 / 12`.
+    pub fn sample_var_dps2(&self) -> f32 {
+        self.noise_density_dps_rthz * self.noise_density_dps_rthz * self.sample_rate_hz
+            + self.quantum_dps * self.quantum_dps / 12.0
+    }
+
+    /// `drift` limited to `+-drift_bound_dps` (NaN gives 0).
+    pub fn clamp_drift(&self, drift_dps: f32) -> f32 {
+        if drift_dps.is_nan() {
+            0.0
+        } else {
+            drift_dps.clamp(-self.drift_bound_dps, self.drift_bound_dps)
+        }
+    }
+}
+
+/// The detector's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StillConfig {
+    /// Window length, s (rounded to samples, at least 8).
+    pub window_s: f32,
+    /// Passing windows needed before the state becomes still, s.
+    pub min_still_s: f32,
+    /// Variance test: standard deviations of `s^2 / sigma^2` allowed above 1.
+    pub var_z: f32,
+    /// Mean test: how many standard deviations of the window mean around the reference.
+    pub mean_k: f32,
+    /// Multiplies the noise model's variance (> 0; 1 = trust the specification). A real
+    /// unit noisier than its specification needs more.
+    pub noise_scale: f32,
+}
+
+impl StillConfig {
+    /// 1-s windows, still after 3 s, variance within 4 standard deviations, mean within 4.
+    pub const DEFAULT: Self = Self {
+        window_s: 1.0,
+        min_still_s: 3.0,
+        var_z: 4.0,
+        mean_k: 4.0,
+        noise_scale: 1.0,
+    };
+
+    /// All fields finite and > 0.
+    pub fn is_valid(&self) -> bool {
+        let pos = |v: f32| v > 0.0 && v.is_finite();
+        pos(self.window_s)
+            && self.min_still_s >= 0.0
+            && self.min_still_s.is_finite()
+            && pos(self.var_z)
+            && pos(self.mean_k)
+            && pos(self.noise_scale)
+    }
+}
+
+impl Default for StillConfig {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// What the end of a window decided (returned by [`Stillness::push`] on the window's last
+/// sample).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WindowVerdict {
+    /// This window passed both tests (or the external flag said still for all its samples).
+    pub passed: bool,
+    /// Mean rate of this window, deg/s.
+    pub mean_dps: f32,
+    /// The mean of the *previous* window when it may update a level (see the module docs),
+    /// deg/s; `None` otherwise.
+    pub confirmed_mean_dps: Option<f32>,
+}
+
+/// What one sample gets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StillSample {
+    /// The sample is taken as still (the state at the end of the previous window, or the
+    /// external flag).
+    pub still: bool,
+    /// Set on the last sample of a window.
+    pub window: Option<WindowVerdict>,
+}
+
+/// The causal stillness detector (state; settings in [`StillConfig`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stillness {
+    window_n: u32,
+    min_windows: u32,
+    var_ratio_max: f32,
+    mean_k2: f32,
+    sample_var: f32,
+    // Current window: sums of `x - x0` and its square (x0 = first sample) against
+    // cancellation, count, and whether every sample had an external flag set/unset.
+    x0: f32,
+    sum: f32,
+    sum2: f32,
+    n: u32,
+    ext_all_still: bool,
+    ext_any: bool,
+    // State.
+    passing_windows: u32,
+    still: bool,
+    prev: Option<(f32, bool)>,
+}
+
+impl Stillness {
+    /// A detector for `sensor` with `cfg`; `None` when either is invalid.
+    pub fn new(sensor: &SensorConfig, cfg: &StillConfig) -> Option<Self> {
+        if !sensor.is_valid() || !cfg.is_valid() {
+            return None;
+        }
+        let w = libm::roundf(cfg.window_s * sensor.sample_rate_hz);
+        let window_n = if (8.0..1.0e7).contains(&w) {
+            w as u32
+        } else {
+            8
+        };
+        let window_period_s = window_n as f32 / sensor.sample_rate_hz;
+        let min_windows = libm::ceilf(cfg.min_still_s / window_period_s);
+        let min_windows = if min_windows < 1.0e6 {
+            min_windows as u32
+        } else {
+            1_000_000
+        };
+        Some(Self {
+            window_n,
+            min_windows: min_windows.max(1),
+            var_ratio_max: 1.0 + cfg.var_z * libm::sqrtf(2.0 / (window_n - 1) as f32),
+            mean_k2: cfg.mean_k * cfg.mean_k,
+            sample_var: sensor.sample_var_dps2() * cfg.noise_scale,
+            x0: 0.0,
+            sum: 0.0,
+            sum2: 0.0,
+            n: 0,
+            ext_all_still: true,
+            ext_any: false,
+            passing_windows: 0,
+            still: false,
+            prev: None,
+        })
+    }
+
+    /// Samples per window.
+    pub fn window_samples(&self) -> u32 {
+        self.window_n
+    }
+
+    /// Variance of a window mean of white noise, deg^2/s^2.
+    pub fn window_mean_var_dps2(&self) -> f32 {
+        self.sample_var / self.window_n as f32
+    }
+
+    /// The current state (as the next sample will be flagged without an external flag).
+    pub fn is_still(&self) -> bool {
+        self.still
+    }
+
+    /// One sample `rate_dps` (finite; a non-finite sample is the caller's to refuse: it is
+    /// treated as moving). `reference_dps` and `reference_var_dps2`: the caller's drift
+    /// estimate and its variance, used by the mean test at the window's end. `external`:
+    /// an external still flag for this sample, which overrides the detector.
+    pub fn push(
+        &mut self,
+        rate_dps: f32,
+        reference_dps: f32,
+        reference_var_dps2: f32,
+        external: Option<bool>,
+    ) -> StillSample {
+        let flag = external.unwrap_or(self.still);
+        if self.n == 0 {
+            self.x0 = if rate_dps.is_finite() { rate_dps } else { 0.0 };
+        }
+        let d = rate_dps - self.x0;
+        self.sum += d;
+        self.sum2 += d * d;
+        self.n += 1;
+        if let Some(e) = external {
+            self.ext_any = true;
+            self.ext_all_still &= e;
+        }
+        if self.n < self.window_n {
+            return StillSample {
+                still: flag,
+                window: None,
+            };
+        }
+        let verdict = self.end_window(reference_dps, reference_var_dps2);
+        StillSample {
+            still: flag,
+            window: Some(verdict),
+        }
+    }
+
+    fn end_window(&mut self, reference_dps: f32, reference_var_dps2: f32) -> WindowVerdict {
+        let n = self.n as f32;
+        let mean_d = self.sum / n;
+        let mean_dps = self.x0 + mean_d;
+        let passed = if self.ext_any {
+            self.ext_all_still
+        } else {
+            let var = (self.sum2 - self.sum * mean_d) / (n - 1.0);
+            let dm = mean_dps - reference_dps;
+            let ref_var = if reference_var_dps2 >= 0.0 {
+                reference_var_dps2
+            } else {
+                0.0
+            };
+            let bound = self.mean_k2 * (self.sample_var / n + ref_var);
+            // NaN anywhere fails both comparisons: moving.
+            var <= self.sample_var * self.var_ratio_max && dm * dm <= bound
+        };
+        let was_still = self.still;
+        if passed {
+            self.passing_windows = self.passing_windows.saturating_add(1);
+            if self.passing_windows >= self.min_windows {
+                self.still = true;
+            }
+        } else {
+            self.passing_windows = 0;
+            self.still = false;
+        }
+        // Release the previous window when it and this one passed in the still state.
+        let confirmed_mean_dps = match self.prev {
+            Some((m, true)) if passed && was_still && self.still => Some(m),
+            _ => None,
+        };
+        self.prev = Some((mean_dps, passed && self.still));
+        self.sum = 0.0;
+        self.sum2 = 0.0;
+        self.n = 0;
+        self.ext_any = false;
+        self.ext_all_still = true;
+        WindowVerdict {
+            passed,
+            mean_dps,
+            confirmed_mean_dps,
+        }
+    }
+
+    /// Back to power-on (moving, no window).
+    pub fn reset(&mut self) {
+        self.sum = 0.0;
+        self.sum2 = 0.0;
+        self.n = 0;
+        self.ext_any = false;
+        self.ext_all_still = true;
+        self.passing_windows = 0;
+        self.still = false;
+        self.prev = None;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Deterministic Gaussian-ish noise (sum of 4 uniforms, variance scaled to 1).
+    struct Noise(u64);
+    impl Noise {
+        fn uniform(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((self.0 >> 40) as f32 / (1u64 << 24) as f32) - 0.5
+        }
+        fn normal(&mut self) -> f32 {
+            (self.uniform() + self.uniform() + self.uniform() + self.uniform()) * 3.0f32.sqrt()
+        }
+    }
+
+    const S: SensorConfig = SensorConfig::ECORE_2000;
+
+    fn sigma() -> f32 {
+        S.sample_var_dps2().sqrt()
+    }
+
+    fn quantize(x: f32) -> f32 {
+        (x / S.quantum_dps).round() * S.quantum_dps
+    }
+
+    /// Runs `rate(k)` for `n` samples against a drift reference `drift` known to
+    /// `ref_var`; returns the flags and the confirmed means.
+    fn run(
+        n: usize,
+        drift: f32,
+        ref_var: f32,
+        rate: impl Fn(usize) -> f32,
+    ) -> (Vec<bool>, Vec<f32>) {
+        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).expect("test");
+        let mut noise = Noise(7);
+        let mut flags = Vec::new();
+        let mut confirmed = Vec::new();
+        for k in 0..n {
+            let x = quantize(drift + rate(k) + sigma() * noise.normal());
+            let s = d.push(x, drift, ref_var, None);
+            flags.push(s.still);
+            if let Some(m) = s.window.and_then(|w| w.confirmed_mean_dps) {
+                confirmed.push(m);
+            }
+        }
+        (flags, confirmed)
+    }
+
+    extern crate std;
+    use std::vec::Vec;
+
+    #[test]
+    fn still_white_noise_detected_after_min_still() {
+        let (flags, confirmed) = run(3000, 0.001, 0.0, |_| 0.0);
+        // 3 windows of 100 samples pass, then the state is still from sample 300 on.
+        assert!(flags[..300].iter().all(|f| !f));
+        let after = &flags[300..];
+        let frac = after.iter().filter(|f| **f).count() as f32 / after.len() as f32;
+        assert!(frac > 0.95, "still fraction {frac}");
+        assert!(confirmed.len() > 20, "{}", confirmed.len());
+        for m in confirmed {
+            assert!((m - 0.001).abs() < 5.0 * sigma() / 10.0, "{m}");
+        }
+    }
+
+    #[test]
+    fn constant_rate_turn_is_moving() {
+        // Low variance, nonzero mean: 0.5 deg/s for the whole record.
+        let (flags, confirmed) = run(3000, 0.0, S.drift_bound_dps * S.drift_bound_dps, |_| 0.5);
+        assert!(flags.iter().all(|f| !f));
+        assert!(confirmed.is_empty());
+    }
+
+    #[test]
+    fn slow_road_curvature_is_moving() {
+        for rate in [0.1f32, 0.3, 1.0, 2.0, -0.1] {
+            // A curve whose rate wanders slowly between `rate` and `1.5 rate`.
+            let (flags, confirmed) = run(6000, 0.0002, 1.0e-6, |k| {
+                rate * (1.25 + 0.25 * (k as f32 * 0.001).sin())
+            });
+            assert!(flags.iter().all(|f| !f), "{rate}");
+            assert!(confirmed.is_empty(), "{rate}");
+        }
+    }
+
+    #[test]
+    fn onset_of_a_turn_never_reaches_the_level() {
+        // Still for 20 s, then a turn ramping from 0 at 5 deg/s^2, starting mid-window.
+        let onset = 2050;
+        let drift = 0.0005;
+        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).expect("test");
+        let mut noise = Noise(3);
+        let mut released_windows = Vec::new();
+        for k in 0..4000usize {
+            let turn = if k >= onset {
+                5.0 * (k - onset) as f32 * 0.01
+            } else {
+                0.0
+            };
+            let x = quantize(drift + turn + sigma() * noise.normal());
+            let s = d.push(x, drift, 1.0e-8, None);
+            if let Some(w) = s.window {
+                if w.confirmed_mean_dps.is_some() {
+                    // The released window is the previous one: samples k-199 ..= k-100.
+                    released_windows.push(k + 1 - 200);
+                }
+            }
+            if k >= onset + 100 {
+                assert!(!d.is_still(), "still at {k}");
+            }
+        }
+        assert!(!released_windows.is_empty());
+        for start in released_windows {
+            assert!(
+                start + 100 <= onset,
+                "window from {start} contains the onset"
+            );
+        }
+    }
+
+    #[test]
+    fn external_flag_overrides() {
+        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).expect("test");
+        let mut confirmed = 0;
+        for k in 0..1000 {
+            // A turn, but the vehicle says still: the flag wins.
+            let s = d.push(1.0 + k as f32 * 1e-3, 0.0, 0.0, Some(true));
+            assert!(s.still);
+            confirmed += s.window.and_then(|w| w.confirmed_mean_dps).is_some() as u32;
+        }
+        assert!(confirmed > 0);
+        let s = d.push(0.0, 0.0, 0.0, Some(false));
+        assert!(!s.still);
+    }
+
+    #[test]
+    fn bad_input_is_moving_and_no_panic() {
+        let mut d = Stillness::new(&S, &StillConfig::DEFAULT).expect("test");
+        for k in 0..1000 {
+            let x = if k % 7 == 0 { f32::NAN } else { 0.0 };
+            d.push(x, f32::NAN, -1.0, None);
+        }
+        assert!(!d.is_still());
+        assert!(Stillness::new(
+            &S,
+            &StillConfig {
+                window_s: 0.0,
+                ..StillConfig::DEFAULT
+            }
+        )
+        .is_none());
+        assert!(Stillness::new(
+            &SensorConfig {
+                sample_rate_hz: f32::NAN,
+                ..S
+            },
+            &StillConfig::DEFAULT
+        )
+        .is_none());
+    }
+
+    #[test]
+    fn clamp_and_noise_model() {
+        assert_eq!(S.clamp_drift(1.0), S.drift_bound_dps);
+        assert_eq!(S.clamp_drift(f32::NAN), 0.0);
+        // 4 deg/h/sqrt(Hz) at 100 Hz: 40 deg/h per sample, plus the count's 1/sqrt(12).
+        let expect = (0.001_111_11f32 * 10.0).powi(2) + (60.0f32 / 32768.0).powi(2) / 12.0;
+        assert!((S.sample_var_dps2() - expect).abs() < 1e-9);
+        assert!(SensorConfig::KVH_DSP_1750.is_valid());
+    }
+}

@@ -1,0 +1,300 @@
+//! The motion-safe identifier on the host ([`fog_core::motion`]): training on static
+//! records into an identifier image, reading and writing the image, and running it over a
+//! record (`host-sim identify --preset motion`, `host-sim replay --identifier`).
+//!
+//! Assumptions, stated once:
+//! - every record starts at the gyro's power-on (`t_s` of the first row is time 0 of the
+//!   model's time input);
+//! - the record's rate (mean step of `t_s`) is the sensor's within
+//!   [`fog_core::image::RATE_TOLERANCE`]; otherwise the command refuses it;
+//! - training records are static (the true rate is zero, or constant and then removed with
+//!   the per-record intercept).
+
+pub mod eval;
+
+use crate::identify::series::{Records, Series};
+use crate::record;
+use anyhow::{anyhow, bail, Context, Result};
+use fog_core::image::{Image, IMAGE_LEN};
+use fog_core::motion::{
+    MotionConfig, MotionEstimator, MotionModel, MotionOutput, MotionTrainer, RecordFit, MOTION_DRLS,
+};
+use fog_core::still::SensorConfig;
+use serde::Serialize;
+use std::io::Write;
+use std::path::Path;
+
+/// Sensors with a configuration in fog-core.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SensorArg {
+    /// KVH E-Core 2000, 60 deg/s, 100 Hz ([`SensorConfig::ECORE_2000`]).
+    Ecore2000,
+    /// KVH DSP-1750-like axis, +-490 deg/s, 1 kHz ([`SensorConfig::KVH_DSP_1750`]).
+    Kvh1750,
+}
+
+impl SensorArg {
+    /// The configuration.
+    pub fn config(self) -> SensorConfig {
+        match self {
+            Self::Ecore2000 => SensorConfig::ECORE_2000,
+            Self::Kvh1750 => SensorConfig::KVH_DSP_1750,
+        }
+    }
+}
+
+/// How to train.
+#[derive(Debug, Clone, Copy)]
+pub struct TrainOptions {
+    /// Estimator configuration stored in the image.
+    pub config: MotionConfig,
+    /// Passes over the training records (0: an untrained model, i.e. the gated
+    /// random-walk Kalman filter alone).
+    pub epochs: u32,
+    /// Time range of the model, s.
+    pub time_max_s: f32,
+}
+
+impl TrainOptions {
+    /// Defaults for `sensor`: 3 passes, 1800 s.
+    pub fn new(sensor: SensorConfig) -> Self {
+        Self {
+            config: MotionConfig::for_sensor(sensor),
+            epochs: 3,
+            time_max_s: 1800.0,
+        }
+    }
+}
+
+/// What training did, per record of the last pass.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrainedRecord {
+    /// The record.
+    pub name: String,
+    /// Training steps (windows).
+    pub steps: u32,
+    /// Intercept removed, deg/h.
+    pub intercept_dph: f64,
+    /// RMS a-priori error of the steps, deg/h.
+    pub rms_error_dph: f64,
+}
+
+/// Refuses a record whose rate is not the sensor's.
+pub fn check_rate(s: &Series, sensor: &SensorConfig) -> Result<f32> {
+    let hz = (1.0 / s.sample_period_s()) as f32;
+    let want = sensor.sample_rate_hz;
+    if (hz - want).abs() > fog_core::image::RATE_TOLERANCE * want {
+        bail!(
+            "{}: sample rate {hz:.3} Hz, the sensor configuration says {want} Hz",
+            s.name
+        );
+    }
+    Ok(hz)
+}
+
+/// Trains a model on `records` (each static, from power-on) and returns its image and the
+/// per-record figures of the last pass.
+pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<(Image, Vec<TrainedRecord>)> {
+    o.config
+        .check()
+        .map_err(|e| anyhow!("configuration: {e}"))?;
+    let model = MotionModel::standard(o.time_max_s).map_err(|e| anyhow!("model: {e}"))?;
+    let mut tr = MotionTrainer::new(model, MOTION_DRLS, o.config.still.window_s)
+        .map_err(|e| anyhow!("trainer: {e}"))?;
+    let mut rows = Vec::new();
+    for pass in 0..o.epochs {
+        for i in 0..records.len() {
+            let s = records.get(i)?;
+            check_rate(&s, &o.config.sensor)?;
+            let fit: RecordFit = tr
+                .train_record(
+                    &s.rate_dps,
+                    s.temp_c.as_deref(),
+                    o.config.sensor.sample_rate_hz,
+                )
+                .map_err(|e| anyhow!("{}: {e}", s.name))?;
+            if pass + 1 == o.epochs {
+                rows.push(TrainedRecord {
+                    name: s.name.clone(),
+                    steps: fit.steps,
+                    intercept_dph: f64::from(fit.intercept_dps) * 3600.0,
+                    rms_error_dph: f64::from(fit.rms_error_dps) * 3600.0,
+                });
+            }
+        }
+    }
+    Ok((
+        Image::new(o.config, *tr.model(), tr.drls(), tr.records()),
+        rows,
+    ))
+}
+
+/// Writes `image` to `path` atomically.
+pub fn write_image(path: &Path, image: &Image) -> Result<()> {
+    let mut buf = [0u8; IMAGE_LEN];
+    let n = image
+        .to_bytes(&mut buf)
+        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    record::write_atomic(path, |w| {
+        w.write_all(&buf[..n])
+            .with_context(|| format!("{}: write failed", path.display()))
+    })
+}
+
+/// Reads an identifier image; any problem is one line naming the file.
+pub fn read_image(path: &Path) -> Result<Image> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    Image::parse(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))
+}
+
+/// A record to run: rate, optional temperature, external still flag and truth.
+#[derive(Debug, Clone)]
+pub struct MotionRecord {
+    /// The columns every tool reads (`t_s`, `rate_dps`, `temp_c`, `drift_dps`).
+    pub series: Series,
+    /// External still flag per row (`--still-column`): `None` where the cell is empty.
+    pub still: Option<Vec<Option<bool>>>,
+    /// True rate, deg/s (`true_rate_dps`, simulator records).
+    pub true_rate_dps: Option<Vec<f32>>,
+}
+
+fn parse_flag(raw: &str) -> std::result::Result<Option<bool>, ()> {
+    match raw.trim() {
+        "" => Ok(None),
+        "1" | "true" | "still" => Ok(Some(true)),
+        "0" | "false" | "moving" => Ok(Some(false)),
+        _ => Err(()),
+    }
+}
+
+/// Reads an interchange CSV with the optional columns of [`MotionRecord`].
+pub fn read_record(path: &Path, still_column: Option<&str>) -> Result<MotionRecord> {
+    let series = Series::read_csv(path)?;
+    let name = path.display().to_string();
+    let (mut rdr, header) = record::csv_with_header(&name, record::open_maybe_gz(path)?)?;
+    let col = |want: &str| header.iter().position(|h| h.trim() == want);
+    let sc = match still_column {
+        Some(c) => Some(col(c).ok_or_else(|| anyhow!("{name}:1: no column `{c}`"))?),
+        None => None,
+    };
+    let tc = col("true_rate_dps");
+    let mut still = sc.map(|_| Vec::with_capacity(series.t_s.len()));
+    let mut truth = tc.map(|_| Vec::with_capacity(series.t_s.len()));
+    if sc.is_some() || tc.is_some() {
+        for rec in rdr.records() {
+            let rec = rec.map_err(|e| anyhow!("{name}: {e}"))?;
+            let line = rec.position().map_or(0, |p| p.line());
+            if let (Some(c), Some(v)) = (sc, still.as_mut()) {
+                let raw = rec.get(c).unwrap_or("");
+                let f = parse_flag(raw).map_err(|()| {
+                    anyhow!("{name}:{line}: still flag {raw:?} is not 1/0/true/false/empty")
+                })?;
+                v.push(f);
+            }
+            if let (Some(c), Some(v)) = (tc, truth.as_mut()) {
+                v.push(record::parse_field(&rec, c, "true_rate_dps", path, line)?);
+            }
+        }
+    }
+    Ok(MotionRecord {
+        series,
+        still,
+        true_rate_dps: truth,
+    })
+}
+
+/// Runs `estimator` over a record from power-on: one output per row.
+pub fn run(estimator: &mut MotionEstimator, r: &MotionRecord) -> Vec<MotionOutput> {
+    estimator.restart();
+    let s = &r.series;
+    (0..s.rate_dps.len())
+        .map(|k| {
+            let temp = s
+                .temp_c
+                .as_ref()
+                .and_then(|t| t.get(k).copied())
+                .unwrap_or(f32::NAN);
+            let ext = r.still.as_ref().and_then(|v| v.get(k).copied().flatten());
+            // Rows are validated finite by the reader: a refusal cannot happen; if it did,
+            // the row keeps the previous drift (reported as such by the caller's counts).
+            estimator
+                .push(s.rate_dps[k], temp, ext)
+                .unwrap_or(MotionOutput {
+                    drift_dps: 0.0,
+                    compensated_dps: s.rate_dps[k],
+                    still: false,
+                    level_dps: 0.0,
+                    model_dps: 0.0,
+                })
+        })
+        .collect()
+}
+
+/// Header of `replay --identifier` output: the replay columns (`denoised_dps` empty: the
+/// motion estimator does not denoise at run time), then the still flag (0/1), the level
+/// and the model term.
+pub const OUTPUT_HEADER: &str =
+    "index,t_s,rate_dps,denoised_dps,drift_dps,compensated_dps,still,level_dps,model_dps";
+
+/// What a replay did.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReplaySummary {
+    /// Rows in and out.
+    pub rows: usize,
+    /// Rows flagged still.
+    pub still_rows: usize,
+    /// Level updates.
+    pub level_updates: u32,
+    /// Heading error figures when the record has `true_rate_dps`.
+    pub heading: Option<eval::Heading>,
+}
+
+/// `host-sim replay --identifier`: reads everything, checks the rate, then writes `output`
+/// atomically (nothing written on any error).
+pub fn replay(
+    input: &Path,
+    identifier: &Path,
+    output: &Path,
+    still_column: Option<&str>,
+) -> Result<ReplaySummary> {
+    record::refuse_overwrite_all(&[input, identifier], &[output])?;
+    let image = read_image(identifier)?;
+    let r = read_record(input, still_column)?;
+    let hz = (1.0 / r.series.sample_period_s()) as f32;
+    image
+        .check_rate(hz)
+        .map_err(|e| anyhow!("{}: {e} ({})", identifier.display(), input.display()))?;
+    let mut est = image
+        .estimator()
+        .map_err(|e| anyhow!("{}: {e}", identifier.display()))?;
+    let out = run(&mut est, &r);
+    let s = &r.series;
+    record::write_atomic(output, |w| {
+        writeln!(w, "{OUTPUT_HEADER}")?;
+        for (k, o) in out.iter().enumerate() {
+            writeln!(
+                w,
+                "{k},{},{},,{},{},{},{},{}",
+                s.t_s[k],
+                s.rate_dps[k],
+                o.drift_dps,
+                o.compensated_dps,
+                u8::from(o.still),
+                o.level_dps,
+                o.model_dps
+            )?;
+        }
+        Ok(())
+    })?;
+    let heading = r.true_rate_dps.as_ref().map(|tr| {
+        let comp: Vec<f32> = out.iter().map(|o| o.compensated_dps).collect();
+        eval::heading(&comp, tr, s.sample_period_s())
+    });
+    Ok(ReplaySummary {
+        rows: out.len(),
+        still_rows: out.iter().filter(|o| o.still).count(),
+        level_updates: est.stats().level_updates,
+        heading,
+    })
+}

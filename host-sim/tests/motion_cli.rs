@@ -1,0 +1,282 @@
+//! `host-sim identify --preset motion --save-identifier` and `host-sim replay --identifier`
+//! end to end: output columns, one row per input row, the external still flag, and refusals
+//! of corrupt, truncated, wrong-version and wrong-rate identifiers (one line naming the
+//! file, non-zero exit, nothing written). A run on the real KVH DSP-1750 log (skipped when
+//! `../shared` is absent) checks that rotation is not taken for drift.
+
+use assert_cmd::Command;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+fn host_sim() -> Command {
+    Command::cargo_bin("host-sim").expect("binary built")
+}
+
+fn simulate(seed: u64, duration_s: &str, rate_hz: Option<&str>, out: &Path) {
+    let mut c = host_sim();
+    c.args([
+        "simulate",
+        "--preset",
+        "ecore2000",
+        "--duration-s",
+        duration_s,
+    ]);
+    c.args(["--seed", &seed.to_string(), "--output"]).arg(out);
+    if let Some(r) = rate_hz {
+        c.args(["--rate-hz", r]);
+    }
+    c.assert().success();
+}
+
+/// Two short static records, a trained image, and a record to replay.
+fn setup(d: &Path) -> (PathBuf, PathBuf) {
+    let train = d.join("train");
+    fs::create_dir(&train).expect("test");
+    simulate(1, "120", None, &train.join("a.csv"));
+    simulate(2, "120", None, &train.join("b.csv"));
+    let img = d.join("m.fogi");
+    host_sim()
+        .args(["identify", "--preset", "motion", "--input"])
+        .arg(train.join("a.csv"))
+        .arg(train.join("b.csv"))
+        .arg("--save-identifier")
+        .arg(&img)
+        .assert()
+        .success();
+    let rec = d.join("rec.csv");
+    simulate(3, "60", None, &rec);
+    (img, rec)
+}
+
+fn rows(p: &Path) -> Vec<Vec<String>> {
+    fs::read_to_string(p)
+        .expect("test")
+        .lines()
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect()
+}
+
+#[test]
+fn train_save_and_replay() {
+    let dir = tempfile::tempdir().expect("test");
+    let (img, rec) = setup(dir.path());
+    assert_eq!(
+        fs::metadata(&img).expect("test").len(),
+        fog_core::image::IMAGE_LEN as u64
+    );
+    let out = dir.path().join("out.csv");
+    host_sim()
+        .args(["replay", "--input"])
+        .arg(&rec)
+        .arg("--identifier")
+        .arg(&img)
+        .arg("--output")
+        .arg(&out)
+        .assert()
+        .success();
+    let r = rows(&out);
+    assert_eq!(r[0].join(","), host_sim::motion::OUTPUT_HEADER);
+    let input = fs::read_to_string(&rec).expect("test");
+    assert_eq!(r.len(), input.lines().count(), "one row per input row");
+    let mut still = 0;
+    for row in &r[1..] {
+        let rate: f32 = row[2].parse().expect("test");
+        let drift: f32 = row[4].parse().expect("test");
+        let comp: f32 = row[5].parse().expect("test");
+        assert_eq!(comp, rate - drift);
+        assert!(drift.abs() <= fog_core::still::SensorConfig::ECORE_2000.drift_bound_dps);
+        still += usize::from(row[6] == "1");
+    }
+    // A static record: still after the first few seconds.
+    assert!(still > (r.len() - 1) * 8 / 10, "{still}");
+}
+
+#[test]
+fn external_still_flag_column() {
+    let dir = tempfile::tempdir().expect("test");
+    let (img, _) = setup(dir.path());
+    // A constant 1 deg/s turn flagged still from outside: the flag wins (and the bound
+    // keeps the drift estimate small).
+    let rec = dir.path().join("turn.csv");
+    let mut text = String::from("t_s,rate_dps,zupt\n");
+    for k in 0..3000 {
+        text += &format!(
+            "{},{},{}\n",
+            k as f64 * 0.01,
+            1.0,
+            if k < 1500 { "0" } else { "1" }
+        );
+    }
+    fs::write(&rec, text).expect("test");
+    let out = dir.path().join("out.csv");
+    host_sim()
+        .args(["replay", "--input"])
+        .arg(&rec)
+        .arg("--identifier")
+        .arg(&img)
+        .args(["--still-column", "zupt", "--output"])
+        .arg(&out)
+        .assert()
+        .success();
+    let r = rows(&out);
+    assert!(r[1..1501].iter().all(|row| row[6] == "0"));
+    assert!(r[1501..].iter().all(|row| row[6] == "1"));
+    let bound = fog_core::still::SensorConfig::ECORE_2000.drift_bound_dps;
+    assert!(r[1..]
+        .iter()
+        .all(|row| row[4].parse::<f32>().expect("test").abs() <= bound));
+    // A missing column is refused.
+    host_sim()
+        .args(["replay", "--input"])
+        .arg(&rec)
+        .arg("--identifier")
+        .arg(&img)
+        .args(["--still-column", "nope", "--output"])
+        .arg(dir.path().join("x.csv"))
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("no column `nope`"));
+}
+
+/// Replay with a damaged image: fails with one line naming it, writes nothing.
+fn refused(img_bytes: &[u8], rec: &Path, d: &Path, expect: &str) {
+    let img = d.join("bad.fogi");
+    fs::write(&img, img_bytes).expect("test");
+    let out = d.join("never.csv");
+    let a = host_sim()
+        .args(["replay", "--input"])
+        .arg(rec)
+        .arg("--identifier")
+        .arg(&img)
+        .arg("--output")
+        .arg(&out)
+        .assert()
+        .failure();
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("bad.fogi"), "{err}");
+    assert!(err.contains(expect), "{expect}: {err}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn bad_identifiers_are_refused() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let (img, rec) = setup(d);
+    let good = fs::read(&img).expect("test");
+    let mut flipped = good.clone();
+    flipped[300] ^= 0x10;
+    refused(&flipped, &rec, d, "checksum mismatch");
+    refused(&good[..200], &rec, d, "truncated at byte offset 200");
+    let mut v2 = good.clone();
+    v2[4] = 2;
+    refused(&v2, &rec, d, "format version 2 unsupported");
+    refused(b"hello, world", &rec, d, "bad magic");
+    // The right image, a record at another rate.
+    let slow = d.join("slow.csv");
+    simulate(4, "60", Some("50"), &slow);
+    let out = d.join("never.csv");
+    let a = host_sim()
+        .args(["replay", "--input"])
+        .arg(&slow)
+        .arg("--identifier")
+        .arg(&img)
+        .arg("--output")
+        .arg(&out)
+        .assert()
+        .failure();
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert!(
+        err.contains("m.fogi") && err.contains("100 Hz") && err.contains("50 Hz"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // Training refuses a record at another rate, naming it, and writes nothing.
+    let img2 = d.join("m2.fogi");
+    host_sim()
+        .args(["identify", "--preset", "motion", "--input"])
+        .arg(&slow)
+        .arg("--save-identifier")
+        .arg(&img2)
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("slow.csv"));
+    assert!(!img2.exists());
+    // --preset motion without an output: clap asks for what is missing.
+    host_sim()
+        .args(["identify", "--preset", "motion", "--input"])
+        .arg(&slow)
+        .args(["--json", "x.json"])
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("required"));
+}
+
+/// The real KVH DSP-1750 log (X axis: still, +180 deg, hold, -180 deg, fast back and
+/// forth, back to the start; 1 kHz, peaks at 327 deg/s). With a KVH identifier (no static
+/// KVH training records exist: the gated Kalman filter alone, `--epochs 0`), the
+/// compensated angle stays within 0.5 deg of the raw angle at the 180-deg hold and at the
+/// end. Reads `../shared` (non-commercial data, never copied): skipped when absent.
+#[test]
+fn kvh_log_rotation_is_not_drift() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data/real/kvh1750_fog_yoos/kvh_direct_ext_rate.csv");
+    if !src.exists() {
+        eprintln!("skipped: {} absent", src.display());
+        return;
+    }
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let mut rdr = csv::Reader::from_path(&src).expect("test");
+    let col = rdr
+        .headers()
+        .expect("test")
+        .iter()
+        .position(|h| h == "dtheta_x_deg")
+        .expect("test");
+    let mut text = String::from("t_s,rate_dps\n");
+    for (i, r) in rdr.records().enumerate() {
+        let dtheta: f64 = r.expect("test")[col].parse().expect("test");
+        text += &format!("{},{}\n", i as f64 * 0.001, dtheta / 0.001);
+    }
+    let rec = d.join("kvh.csv");
+    fs::write(&rec, text).expect("test");
+    let img = d.join("kvh.fogi");
+    host_sim()
+        .args([
+            "identify", "--preset", "motion", "--sensor", "kvh1750", "--epochs", "0", "--input",
+        ])
+        .arg(&rec)
+        .arg("--save-identifier")
+        .arg(&img)
+        .assert()
+        .success();
+    let out = d.join("out.csv");
+    host_sim()
+        .args(["replay", "--input"])
+        .arg(&rec)
+        .arg("--identifier")
+        .arg(&img)
+        .arg("--output")
+        .arg(&out)
+        .assert()
+        .success();
+    let (mut raw, mut comp) = (0.0f64, 0.0f64);
+    let (mut raw_max, mut comp_at_max, mut max_drift) = (f64::MIN, 0.0, 0.0f64);
+    for row in &rows(&out)[1..] {
+        raw += row[2].parse::<f64>().expect("test") * 0.001;
+        comp += row[5].parse::<f64>().expect("test") * 0.001;
+        max_drift = max_drift.max(row[4].parse::<f64>().expect("test").abs());
+        if raw > raw_max {
+            (raw_max, comp_at_max) = (raw, comp);
+        }
+    }
+    eprintln!(
+        "KVH: raw {raw_max:.3} deg at the hold, compensated {comp_at_max:.3}; end raw {raw:.3}, compensated {comp:.3}; max |drift| {:.2} deg/h",
+        max_drift * 3600.0
+    );
+    assert!((raw_max - 180.0).abs() < 1.0, "{raw_max}");
+    assert!((comp_at_max - raw_max).abs() < 0.5);
+    assert!((comp - raw).abs() < 0.5);
+}
