@@ -3,8 +3,7 @@
 //! 16..=4096; the work bound (no block ever finished late) and the delays.
 
 use fog_core::denoise::{
-    BlockDenoiser, DenoiseConfig, DenoiseError, Push, ResumableDenoiser, Thresholds,
-    MAX_ABS_INPUT,
+    BlockDenoiser, DenoiseConfig, DenoiseError, Push, ResumableDenoiser, Thresholds, MAX_ABS_INPUT,
 };
 use fog_core::{Sigma, ThresholdRule};
 use proptest::prelude::*;
@@ -94,8 +93,14 @@ fn configs(b: usize) -> Vec<DenoiseConfig> {
 
 fn same_thresholds(a: &Thresholds, b: &Thresholds) -> bool {
     a.levels == b.levels
-        && a.sigma.iter().zip(&b.sigma).all(|(x, y)| x.to_bits() == y.to_bits())
-        && a.mu.iter().zip(&b.mu).all(|(x, y)| x.to_bits() == y.to_bits())
+        && a.sigma
+            .iter()
+            .zip(&b.sigma)
+            .all(|(x, y)| x.to_bits() == y.to_bits())
+        && a.mu
+            .iter()
+            .zip(&b.mu)
+            .all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
 /// Pushes `stream` into both denoisers and checks every output bit: the per-sample output
@@ -133,10 +138,18 @@ fn compare<const B: usize>(cfg: DenoiseConfig, stream: &[f32]) {
             (a, r) => panic!("refusals differ: {a:?} vs {r:?}"),
         }
     }
-    assert_eq!(res.late_finishes(), 0, "{cfg:?} B {B}: a block finished late");
+    assert_eq!(
+        res.late_finishes(),
+        0,
+        "{cfg:?} B {B}: a block finished late"
+    );
     assert_eq!(got_blocks.len(), want.len().saturating_sub(B));
     for (i, (g, w)) in got.iter().zip(&want).enumerate() {
-        assert_eq!(g.to_bits(), w.to_bits(), "{cfg:?} B {B} sample {i}: {g} vs {w}");
+        assert_eq!(
+            g.to_bits(),
+            w.to_bits(),
+            "{cfg:?} B {B} sample {i}: {g} vs {w}"
+        );
     }
     for (i, (g, w)) in got_blocks.iter().zip(&want).enumerate() {
         assert_eq!(g.to_bits(), w.to_bits(), "{cfg:?} B {B} block sample {i}");

@@ -398,12 +398,19 @@ impl Job {
                 let Some((sv, dv)) = s.split_at_mut_checked(h) else {
                     return;
                 };
-                for n in lo..hi {
-                    st(sv, n, ld(w, 2 * n) - offset);
-                    st(dv, n, ld(w, 2 * n + 1) - offset);
+                let (Some(src), Some(so), Some(dout)) = (
+                    w.get(2 * lo..2 * hi),
+                    sv.get_mut(lo..hi),
+                    dv.get_mut(lo..hi),
+                ) else {
+                    return;
+                };
+                for ((pair, e), o) in src.chunks_exact(2).zip(so).zip(dout) {
+                    *e = pair[0] - offset;
+                    *o = pair[1] - offset;
                 }
             }
-            Stage::FwdLift => lift_forward(s, h, self.step, lo, hi),
+            Stage::FwdLift => lift(s, h, self.step, false, lo, hi),
             Stage::FwdMerge => {
                 let Some((sv, dv)) = s.split_at_checked(h) else {
                     return;
@@ -468,14 +475,19 @@ impl Job {
                     st(sv, n, K_D * ld(w, (n + 1) & mask));
                 }
             }
-            Stage::InvLift => lift_inverse(s, h, self.step, lo, hi),
+            Stage::InvLift => lift(s, h, self.step, true, lo, hi),
             Stage::InvMerge => {
                 let Some((sv, dv)) = s.split_at_checked(h) else {
                     return;
                 };
-                for n in lo..hi {
-                    st(w, 2 * n, ld(sv, n) + offset);
-                    st(w, 2 * n + 1, ld(dv, n) + offset);
+                let (Some(dst), Some(se), Some(so)) =
+                    (w.get_mut(2 * lo..2 * hi), sv.get(lo..hi), dv.get(lo..hi))
+                else {
+                    return;
+                };
+                for ((pair, e), o) in dst.chunks_exact_mut(2).zip(se).zip(so) {
+                    pair[0] = e + offset;
+                    pair[1] = o + offset;
                 }
             }
         }
@@ -617,53 +629,101 @@ impl Job {
     }
 }
 
-/// Forward lifting step `step` (0..5 = steps 1..5 of the `db4` module's table) at
-/// `n = lo..hi`, on `s = sc[..h]`, `d = sc[h..2h]` with periodic indices.
-fn lift_forward(sc: &mut [f32], h: usize, step: u8, lo: usize, hi: usize) {
+/// Lifting step `step` at `n = lo..hi` on `s = sc[..h]`, `d = sc[h..2h]` with periodic
+/// indices: forward (`step` 0..5 = steps 1..5 of the `db4` module's table) or inverse
+/// (`step` 0..5 undo steps 5..1). The iterations that reach across the ends (within 2 of
+/// them) use masked indices; the others run on shifted sub-slices, with no index to check.
+fn lift(sc: &mut [f32], h: usize, step: u8, inverse: bool, lo: usize, hi: usize) {
     let Some((s, rest)) = sc.split_at_mut_checked(h) else {
         return;
     };
     let Some(d) = rest.get_mut(..h) else {
         return;
     };
-    let m = h.wrapping_sub(1);
-    let (p1, p2, m1, m2) = (
-        |n: usize| (n + 1) & m,
-        |n: usize| (n + 2) & m,
-        |n: usize| (n + m) & m,
-        |n: usize| (n + m - 1) & m,
-    );
-    match step {
-        0 => (lo..hi).for_each(|n| add(d, n, P0[0] * ld(s, p1(n)))),
-        1 => (lo..hi).for_each(|n| add(s, n, two(&U1, ld(d, n), ld(d, m1(n))))),
-        2 => (lo..hi).for_each(|n| add(d, n, two(&P2, ld(s, p2(n)), ld(s, p1(n))))),
-        3 => (lo..hi).for_each(|n| add(s, n, two(&U3, ld(d, n), ld(d, m1(n))))),
-        _ => (lo..hi).for_each(|n| add(d, n, three(&P4, ld(s, n), ld(s, m1(n)), ld(s, m2(n))))),
+    let (a, b) = (lo.max(2), hi.min(h.saturating_sub(2)));
+    if a >= b {
+        lift_masked(s, d, step, inverse, lo, hi);
+        return;
+    }
+    lift_masked(s, d, step, inverse, lo, a);
+    lift_interior(s, d, step, inverse, a, b);
+    lift_masked(s, d, step, inverse, b, hi);
+}
+
+/// [`lift`] at `n = lo..hi`, every index masked (`h = s.len()` a power of two).
+fn lift_masked(s: &mut [f32], d: &mut [f32], step: u8, inverse: bool, lo: usize, hi: usize) {
+    let m = s.len().wrapping_sub(1);
+    let p1 = |n: usize| (n + 1) & m;
+    let p2 = |n: usize| (n + 2) & m;
+    let m1 = |n: usize| (n + m) & m;
+    let m2 = |n: usize| (n + m - 1) & m;
+    for n in lo..hi {
+        match (inverse, step) {
+            (false, 0) => add(d, n, P0[0] * ld(s, p1(n))),
+            (false, 1) => add(s, n, two(&U1, ld(d, n), ld(d, m1(n)))),
+            (false, 2) => add(d, n, two(&P2, ld(s, p2(n)), ld(s, p1(n)))),
+            (false, 3) => add(s, n, two(&U3, ld(d, n), ld(d, m1(n)))),
+            (false, _) => add(d, n, three(&P4, ld(s, n), ld(s, m1(n)), ld(s, m2(n)))),
+            (true, 0) => sub(d, n, three(&P4, ld(s, n), ld(s, m1(n)), ld(s, m2(n)))),
+            (true, 1) => sub(s, n, two(&U3, ld(d, n), ld(d, m1(n)))),
+            (true, 2) => sub(d, n, two(&P2, ld(s, p2(n)), ld(s, p1(n)))),
+            (true, 3) => sub(s, n, two(&U1, ld(d, n), ld(d, m1(n)))),
+            (true, _) => sub(d, n, P0[0] * ld(s, p1(n))),
+        }
     }
 }
 
-/// Inverse lifting step `step` (0..5 undo steps 5..1) at `n = lo..hi`; see
-/// [`lift_forward`].
-fn lift_inverse(sc: &mut [f32], h: usize, step: u8, lo: usize, hi: usize) {
-    let Some((s, rest)) = sc.split_at_mut_checked(h) else {
-        return;
-    };
-    let Some(d) = rest.get_mut(..h) else {
-        return;
-    };
-    let m = h.wrapping_sub(1);
-    let (p1, p2, m1, m2) = (
-        |n: usize| (n + 1) & m,
-        |n: usize| (n + 2) & m,
-        |n: usize| (n + m) & m,
-        |n: usize| (n + m - 1) & m,
-    );
-    match step {
-        0 => (lo..hi).for_each(|n| sub(d, n, three(&P4, ld(s, n), ld(s, m1(n)), ld(s, m2(n))))),
-        1 => (lo..hi).for_each(|n| sub(s, n, two(&U3, ld(d, n), ld(d, m1(n))))),
-        2 => (lo..hi).for_each(|n| sub(d, n, two(&P2, ld(s, p2(n)), ld(s, p1(n))))),
-        3 => (lo..hi).for_each(|n| sub(s, n, two(&U1, ld(d, n), ld(d, m1(n))))),
-        _ => (lo..hi).for_each(|n| sub(d, n, P0[0] * ld(s, p1(n)))),
+/// `v[a + k .. b + k]` (empty if out of range).
+fn shifted(v: &[f32], a: usize, b: usize, k: isize) -> &[f32] {
+    v.get(a.wrapping_add_signed(k)..b.wrapping_add_signed(k))
+        .unwrap_or(&[])
+}
+
+/// [`lift`] at `n = a..b` with `2 <= a < b <= h - 2`: no index wraps, so each step is a
+/// zip of sub-slices (the same f32 operations as [`lift_masked`]).
+fn lift_interior(s: &mut [f32], d: &mut [f32], step: u8, inverse: bool, a: usize, b: usize) {
+    let at = |v, k| shifted(v, a, b, k);
+    match (inverse, step) {
+        (false, 0) | (true, 4) => {
+            let src = at(s, 1);
+            let Some(dst) = d.get_mut(a..b) else { return };
+            if inverse {
+                dst.iter_mut().zip(src).for_each(|(o, v)| *o -= P0[0] * v);
+            } else {
+                dst.iter_mut().zip(src).for_each(|(o, v)| *o += P0[0] * v);
+            }
+        }
+        (false, 1) | (true, 3) | (false, 3) | (true, 1) => {
+            let c = if (step == 1) != inverse { &U1 } else { &U3 };
+            let (u, v) = (at(d, 0), at(d, -1));
+            let Some(dst) = s.get_mut(a..b) else { return };
+            let it = dst.iter_mut().zip(u).zip(v);
+            if inverse {
+                it.for_each(|((o, u), v)| *o -= two(c, *u, *v));
+            } else {
+                it.for_each(|((o, u), v)| *o += two(c, *u, *v));
+            }
+        }
+        (false, 2) | (true, 2) => {
+            let (u, v) = (at(s, 2), at(s, 1));
+            let Some(dst) = d.get_mut(a..b) else { return };
+            let it = dst.iter_mut().zip(u).zip(v);
+            if inverse {
+                it.for_each(|((o, u), v)| *o -= two(&P2, *u, *v));
+            } else {
+                it.for_each(|((o, u), v)| *o += two(&P2, *u, *v));
+            }
+        }
+        _ => {
+            let (u, v, w) = (at(s, 0), at(s, -1), at(s, -2));
+            let Some(dst) = d.get_mut(a..b) else { return };
+            let it = dst.iter_mut().zip(u).zip(v).zip(w);
+            if inverse {
+                it.for_each(|(((o, u), v), w)| *o -= three(&P4, *u, *v, *w));
+            } else {
+                it.for_each(|(((o, u), v), w)| *o += three(&P4, *u, *v, *w));
+            }
+        }
     }
 }
 
