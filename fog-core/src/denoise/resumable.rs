@@ -34,6 +34,9 @@ use crate::threshold::{
 /// instructions on a Cortex-M4F, against about 10 per unit of the loops).
 const THRESHOLD_UNITS: usize = 16;
 
+/// Work units charged for choosing a radix pass's digit (a scan of the 16 counts).
+const DIGIT_UNITS: usize = 6;
+
 /// Radix passes of the median selection (4 bits of a 32-bit key each).
 const RADIX_PASSES: u32 = 8;
 
@@ -79,6 +82,8 @@ struct Job {
     /// `peak * sqrt(2)^level`, updated as in `denoise_in_place`.
     level_scale: f32,
     finest_sigma: f32,
+    /// `sqrtf(2 logf(B))`, the universal threshold's factor.
+    mu_factor: f32,
     zero_tol: f32,
     /// Candidates copied by [`Stage::MadCopy`].
     mad_n: usize,
@@ -104,6 +109,7 @@ impl Job {
         mean: 0.0,
         level_scale: 0.0,
         finest_sigma: 0.0,
+        mu_factor: 0.0,
         zero_tol: 0.0,
         mad_n: 0,
         len: 0,
@@ -186,6 +192,8 @@ pub struct ResumableDenoiser<const B: usize> {
     out_valid: bool,
     out_thr: Thresholds,
     units: usize,
+    /// `sqrtf(2 logf(B))`: `universal_threshold(sigma, B) = sigma * mu_factor`, bit for bit.
+    mu_factor: f32,
     refused: Refused,
     late: u32,
 }
@@ -215,6 +223,7 @@ impl<const B: usize> ResumableDenoiser<B> {
             out_valid: false,
             out_thr: Job::IDLE.thr,
             units,
+            mu_factor: threshold::universal_threshold(1.0, B),
             refused: Refused::default(),
             late: 0,
         })
@@ -341,6 +350,7 @@ impl<const B: usize> ResumableDenoiser<B> {
             peak,
             mean,
             level_scale: peak,
+            mu_factor: self.mu_factor,
             thr: Thresholds {
                 levels: self.cfg.levels,
                 ..Job::IDLE.thr
@@ -497,6 +507,7 @@ impl Job {
     /// that transition costs (at least 1).
     fn next(&mut self, w: &mut [f32], s: &mut [f32], cfg: &DenoiseConfig) -> usize {
         let bl = w.len();
+        let _ = bl;
         self.i = 0;
         match self.stage {
             Stage::Idle => {}
@@ -512,12 +523,12 @@ impl Job {
                     self.stage = Stage::FwdSplit;
                 } else {
                     self.level = 0;
-                    return self.begin_level_threshold(bl, cfg);
+                    return self.begin_level_threshold(cfg);
                 }
             }
             Stage::MadCopy => {
                 if self.mad_n == 0 {
-                    return self.set_threshold(0.0, bl);
+                    return self.set_threshold(0.0);
                 }
                 self.len = self.mad_n;
                 self.rank = self.mad_n / 2;
@@ -538,14 +549,17 @@ impl Job {
                 }
                 self.m = 0;
                 self.stage = Stage::RadixCompact;
-                return 2;
+                return DIGIT_UNITS;
             }
             Stage::RadixCompact => {
                 self.len = self.m;
                 self.pass += 1;
-                if self.pass < RADIX_PASSES {
+                // One candidate left: the remaining passes would keep it and count nothing
+                // below it (its digit always holds rank 0), so they are skipped.
+                if self.pass < RADIX_PASSES && self.len > 1 {
                     self.hist = [0; 16];
                     self.stage = Stage::RadixHist;
+                    return 2;
                 } else {
                     // As `threshold::median`: every remaining candidate has the middle key.
                     let n = self.mad_n;
@@ -560,12 +574,12 @@ impl Job {
                         };
                         0.5 * (lower_mid + upper)
                     };
-                    return self.set_threshold(median / MAD_TO_SIGMA, bl);
+                    return self.set_threshold(median / MAD_TO_SIGMA);
                 }
             }
             Stage::Shrink => {
                 if self.level < cfg.levels {
-                    return self.begin_level_threshold(bl, cfg);
+                    return self.begin_level_threshold(cfg);
                 }
                 self.stage = Stage::InvSplit;
             }
@@ -588,7 +602,7 @@ impl Job {
 
     /// Starts the next level's threshold: its MAD when the configuration estimates one
     /// there, else the threshold from the finest (or fixed) sigma.
-    fn begin_level_threshold(&mut self, bl: usize, cfg: &DenoiseConfig) -> usize {
+    fn begin_level_threshold(&mut self, cfg: &DenoiseConfig) -> usize {
         self.level += 1;
         self.level_scale *= core::f32::consts::SQRT_2;
         let mad = match cfg.sigma {
@@ -600,7 +614,7 @@ impl Job {
             Sigma::PerLevelMad => true,
         };
         if !mad {
-            return self.set_threshold(self.finest_sigma, bl);
+            return self.set_threshold(self.finest_sigma);
         }
         // The tolerances of `denoise_in_place`, with the same roundings.
         self.zero_tol = if self.level == 1 {
@@ -614,11 +628,13 @@ impl Job {
     }
 
     /// Records the level's sigma and threshold and starts shrinking.
-    fn set_threshold(&mut self, sigma: f32, bl: usize) -> usize {
+    fn set_threshold(&mut self, sigma: f32) -> usize {
         if self.level == 1 {
             self.finest_sigma = sigma;
         }
-        let mu = threshold::universal_threshold(sigma, bl);
+        // `universal_threshold(sigma, bl)` is `sigma * sqrtf(2 logf(bl))`: the same product
+        // with the factor computed once (`logf` and `sqrtf` are software on a Cortex-M4F).
+        let mu = sigma * self.mu_factor;
         let i = (self.level - 1) as usize;
         if let (Some(sg), Some(m)) = (self.thr.sigma.get_mut(i), self.thr.mu.get_mut(i)) {
             (*sg, *m) = (sigma, mu);
@@ -744,7 +760,7 @@ fn worst_units(bl: usize, cfg: &DenoiseConfig) -> usize {
             Sigma::PerLevelMad => true,
         };
         if mad {
-            units += h + 2 + RADIX_PASSES as usize * (2 * h + 3);
+            units += h + 2 + RADIX_PASSES as usize * (2 * h + DIGIT_UNITS + 2);
         }
     }
     units + 8
