@@ -307,3 +307,13 @@ proptest! {
         compare::<64>(cfg, &samples);
     }
 }
+
+#[test]
+fn memory_is_three_blocks_plus_state() {
+    let size = core::mem::size_of::<ResumableDenoiser<512>>();
+    let blocks = 3 * 512 * 4;
+    println!("ResumableDenoiser<512>: {size} bytes ({blocks} of blocks)");
+    // State beyond the three blocks: the job (radix counts, thresholds) and the output's
+    // thresholds; at most 1 KiB on a 64-bit host (less on a 32-bit target).
+    assert!(size >= blocks && size - blocks <= 1024, "{size}");
+}
