@@ -3,7 +3,6 @@
 //! both give the same bits.
 #![forbid(unsafe_code)]
 
-
 use fog_core::denoise::{BlockDenoiser, DenoiseConfig, Push, ResumableDenoiser};
 
 use super::{row, time, Acc, Calibration, Source};
@@ -38,8 +37,7 @@ pub(super) fn table<C: TickCounter, W: core::fmt::Write>(
     let (mut compared, mut differ) = (0u32, 0u32);
     let mut worst_at = 0usize;
     for k in 0..BLOCKS * BLOCK {
-        let rate_dps =
-            f32::from(source.next_counts()) * (pipeline::FULL_SCALE_DPS / 32768.0);
+        let rate_dps = f32::from(source.next_counts()) * (pipeline::FULL_SCALE_DPS / 32768.0);
         let (got, t) = time(c, || res.push(rate_dps));
         if t > a_res.max {
             worst_at = k % BLOCK;
@@ -69,9 +67,21 @@ pub(super) fn table<C: TickCounter, W: core::fmt::Write>(
         "resumable denoiser ({BLOCKS} blocks of {BLOCK}, paper config, {} units per push):",
         res.units_per_push()
     )?;
-    row(out, cal, "BlockDenoiser::push (same samples)", "sample", &a_block)?;
+    row(
+        out,
+        cal,
+        "BlockDenoiser::push (same samples)",
+        "sample",
+        &a_block,
+    )?;
     row(out, cal, "ResumableDenoiser::push", "sample", &a_res)?;
-    row(out, cal, "  of which block-completing pushes", "block", &a_res_end)?;
+    row(
+        out,
+        cal,
+        "  of which block-completing pushes",
+        "block",
+        &a_res_end,
+    )?;
     writeln!(
         out,
         "resumable outputs compared with the block denoiser's: {compared}, differing in any bit: {differ}; late finishes: {}; worst push: sample {worst_at} of its block",
