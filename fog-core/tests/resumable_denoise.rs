@@ -242,7 +242,7 @@ fn bad_configs_are_refused_as_by_block_denoiser() {
 #[test]
 fn work_is_spread_and_bounded() {
     let mut res = ResumableDenoiser::<512>::new(DenoiseConfig::PAPER).expect("valid");
-    // Worst case of the paper's configuration at 512: 11,132 units over 511 pushes.
+    // Worst case of the paper's configuration at 512: 11,242 units over 511 pushes.
     assert_eq!(res.units_per_push(), 22);
     let stream = adversarial_stream(512, 3);
     let mut busy_after_completion = 0;
