@@ -400,7 +400,6 @@ impl Job {
         let (lo, hi) = (self.i, self.i + k);
         self.i = hi;
         let h = w.len() >> self.level;
-        let mask = h.wrapping_sub(1);
         let offset = if self.level == 1 { self.mean } else { 0.0 };
         match self.stage {
             Stage::Idle => {}
@@ -426,10 +425,11 @@ impl Job {
                     return;
                 };
                 // cA[n] = K_S s[n - 1], cD[n] = K_D d[n + 1] (PyWavelets' alignment).
-                for n in lo..hi {
-                    st(w, n, K_S * ld(sv, (n + mask) & mask));
-                    st(w, h + n, K_D * ld(dv, (n + 1) & mask));
-                }
+                let Some((ca, cd)) = w.split_at_mut_checked(h) else {
+                    return;
+                };
+                scale_rotated(ca, sv, K_S, false, lo, hi);
+                scale_rotated(cd, dv.get(..h).unwrap_or(&[]), K_D, true, lo, hi);
             }
             Stage::MadCopy => {
                 for n in lo..hi {
@@ -480,10 +480,11 @@ impl Job {
                     return;
                 };
                 // d[n] = K_S cD[n - 1], s[n] = K_D cA[n + 1]: the inverse of the rotation.
-                for n in lo..hi {
-                    st(dv, n, K_S * ld(w, h + ((n + mask) & mask)));
-                    st(sv, n, K_D * ld(w, (n + 1) & mask));
-                }
+                let Some((ca, cd)) = w.get(..2 * h).and_then(|v| v.split_at_checked(h)) else {
+                    return;
+                };
+                scale_rotated(dv, cd, K_S, false, lo, hi);
+                scale_rotated(sv, ca, K_D, true, lo, hi);
             }
             Stage::InvLift => lift(s, h, self.step, true, lo, hi),
             Stage::InvMerge => {
@@ -642,6 +643,40 @@ impl Job {
         self.stage = Stage::Shrink;
         self.i = 0;
         THRESHOLD_UNITS
+    }
+}
+
+/// `dst[n] = k * src[(n + 1) mod H]` (`ahead`) or `k * src[(n - 1) mod H]` for
+/// `n = lo..hi`, `H = src.len()` a power of two: the one wrapping index masked, the others
+/// on shifted sub-slices.
+fn scale_rotated(dst: &mut [f32], src: &[f32], k: f32, ahead: bool, lo: usize, hi: usize) {
+    let len = src.len();
+    let m = len.wrapping_sub(1);
+    let (a, b) = if ahead {
+        (lo, hi.min(len.saturating_sub(1)))
+    } else {
+        (lo.max(1), hi)
+    };
+    let from = |n: usize| if ahead { (n + 1) & m } else { (n + m) & m };
+    if a >= b {
+        for n in lo..hi {
+            st(dst, n, k * ld(src, from(n)));
+        }
+        return;
+    }
+    for n in (lo..a).chain(b..hi) {
+        st(dst, n, k * ld(src, from(n)));
+    }
+    let (sa, sb) = if ahead {
+        (a + 1, b + 1)
+    } else {
+        (a - 1, b - 1)
+    };
+    let (Some(d), Some(v)) = (dst.get_mut(a..b), src.get(sa..sb)) else {
+        return;
+    };
+    for (o, x) in d.iter_mut().zip(v) {
+        *o = k * x;
     }
 }
 
