@@ -162,7 +162,7 @@ pub struct Refused {
 ///
 /// # Memory
 /// `3 B` floats (`12 B` bytes: the filling block, the block being transformed, the scratch
-/// the lifting and the median selection work in) plus about 300 bytes of state. The block
+/// the lifting and the median selection work in) plus about 0.5 KiB of state. The block
 /// being filled also holds the previous denoised block, which it hands out one sample per
 /// push as it is overwritten.
 ///
