@@ -20,6 +20,8 @@ use fog_core::wnn::{dot, HiddenCache};
 use crate::app::TickCounter;
 use crate::pipeline::{self, BLOCK, NEURONS};
 
+mod resumable;
+
 /// Samples measured: 8 blocks; steady-state figures skip the first two (no training yet).
 const SAMPLES: usize = 8 * BLOCK;
 /// First sample of the steady state (training on every sample from here).
@@ -455,6 +457,8 @@ where
         }
         writeln!(out)?;
         exp_table(c, &cal, &mut out)?;
+        writeln!(out)?;
+        resumable::table(c, &cal, &mut out)?;
         writeln!(out)?;
         let worst = cal.instr_x10(u64::from(a_pipe_all.max), 1) / 10;
         writeln!(
