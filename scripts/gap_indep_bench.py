@@ -54,9 +54,9 @@ def logistic_fit(x, y):
     if len(x) < 3 or y.min() == y.max():
         return None
     a, b = 0.0, 1.0
-    lam = 1e-3  # small ridge: keeps separable data finite
+    lam = 0.5  # ridge on the slope: keeps (nearly) separable data finite
     for _ in range(100):
-        p = 1 / (1 + np.exp(-(a + b * x)))
+        p = 1 / (1 + np.exp(-np.clip(a + b * x, -50, 50)))
         w = p * (1 - p) + 1e-9
         g = np.array([np.sum(y - p), np.sum((y - p) * x) - lam * b])
         h = np.array([[np.sum(w), np.sum(w * x)], [np.sum(w * x), np.sum(w * x * x) + lam]])
@@ -74,7 +74,8 @@ def s90(fit):
     a, b = fit
     if b <= 0:
         return None
-    return math.exp((math.log(9.0) - a) / b)
+    u = (math.log(9.0) - a) / b
+    return math.exp(min(max(u, -50.0), 50.0))
 
 
 def svg_power(curves, path):
@@ -108,7 +109,7 @@ def svg_power(curves, path):
             pts = []
             for k in range(61):
                 s = math.exp(math.log(lo) + (math.log(hi) - math.log(lo)) * k / 60)
-                p = 1 / (1 + math.exp(-(a + b * math.log(s))))
+                p = 1 / (1 + math.exp(-min(max(a + b * math.log(s), -50.0), 50.0)))
                 pts.append(f"{lx(s):.1f},{ly(p):.1f}")
             out.append(f'<polyline points="{" ".join(pts)}" fill="none" stroke="#22c"/>')
         if c["s90"] is not None and lo <= c["s90"] <= hi:

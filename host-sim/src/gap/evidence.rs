@@ -15,16 +15,15 @@
 //! - `warmup`: a time-domain test. 5-s window means: SSE of `c + r t` over SSE of
 //!   `c + r t + A exp(-t / tau)`, tau on a 16-per-decade grid from 5 s to a third of the
 //!   record; statistic ln of that ratio (a ramp alone gives nothing; a transient does).
-//! - `markov`: the PSD. Welch PSD (fit-free, 4096-point Hann segments) of the record less
-//!   the same of the median simulation, in ln, summed over the bands below the white-noise
-//!   corner; statistic: the largest excess of a Lorentzian bump in a 1-decade band,
-//!   `max_band mean(ln P_real - ln P_sim)` (a Gauss-Markov term of correlation time T
-//!   raises the PSD by a plateau below 1 / (2 pi T)).
+//! - `scale_factor`: 5-s means of the rate less the reference regressed on `[1, t,
+//!   reference]`: `ln(SSE without / with the reference)`.
 //!
-//! Each test gives `z = (real - mean_null) / sd_null` (sd floored); it *passes* when `z`
-//! exceeds its threshold ([`THRESHOLDS`], calibrated on the calibration records of
-//! `scripts/gap_indep_gen.py`, seeds stated in docs/gap.md) and the real statistic exceeds
-//! every null value.
+//! Each test gives `z = (real - mean_null) / sd_null` (sd floored at a tenth of the null
+//! mean and at 0.01); it *passes* when `z` exceeds its threshold ([`THRESHOLDS`],
+//! calibrated on the calibration records of `scripts/gap_indep_gen.py`, first seed 1, not
+//! on the evaluation records; see docs/gap.md). Short Gauss-Markov correlation times have
+//! no test of their own: the PSD group of the gap measure sees them, and without a user
+//! model the `markov` candidate is the baseline refitted jointly with the GM term.
 
 use super::effects::Effect;
 use super::features::{mean, median};
@@ -34,12 +33,11 @@ use serde::Serialize;
 pub const WINDOW_S: f64 = 5.0;
 
 /// z thresholds per test.
-pub const THRESHOLDS: [(Effect, f64); 5] = [
-    (Effect::Temperature, 4.0),
-    (Effect::ScaleFactor, 4.0),
-    (Effect::Sinusoid, 4.0),
-    (Effect::Warmup, 4.0),
-    (Effect::Markov, 4.0),
+pub const THRESHOLDS: [(Effect, f64); 4] = [
+    (Effect::Temperature, 3.0),
+    (Effect::ScaleFactor, 3.0),
+    (Effect::Sinusoid, 2.5),
+    (Effect::Warmup, 3.0),
 ];
 
 /// Threshold of one test.
@@ -71,7 +69,7 @@ pub struct Test {
     pub z: f64,
     /// Threshold on z.
     pub threshold: f64,
-    /// `z > threshold` and `statistic > null_max`.
+    /// `z > threshold`.
     pub passed: bool,
     /// Where the evidence is (e.g. the line's frequency, the transient's time constant).
     pub detail: String,
@@ -101,7 +99,7 @@ pub fn outcome(effect: Effect, test: &str, real: f64, nulls: &[f64], detail: Str
         nulls: v.len(),
         z,
         threshold,
-        passed: z > threshold && real > null_max,
+        passed: z > threshold,
         detail,
     }
 }

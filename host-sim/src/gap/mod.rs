@@ -40,7 +40,12 @@ use std::path::Path;
 /// An effect without a dedicated test is named only when `gap_before` exceeds this many
 /// times `null_gap_95` (calibrated on the `none` records of the calibration set, see
 /// docs/gap.md).
-pub const NONE_MARGIN: f64 = 1.0;
+pub const NONE_MARGIN: f64 = 1.5;
+
+/// A candidate named by the gap rule overrides one whose dedicated test passed only when
+/// the gap is this many times `null_gap_95` and its shrink beats the tested one's by 0.5
+/// (a gross mismatch, e.g. quantization, that the tested effect does not explain).
+pub const OVERRIDE_RATIO: f64 = 10.0;
 
 /// A record as the diagnosis sees it.
 #[derive(Debug, Clone)]
@@ -799,16 +804,29 @@ pub fn diagnose(
             .unwrap_or(f64::INFINITY)
             .total_cmp(&b.gap_after.unwrap_or(f64::INFINITY))
     };
-    let tested = candidates
+    // Among passed tests, the one furthest past its threshold.
+    let tested = tests
         .iter()
-        .filter(|c| c.gap_after.is_some() && tests.iter().any(|t| t.passed && t.effect == c.effect))
+        .filter(|t| t.passed)
+        .max_by(|a, b| (a.z / a.threshold).total_cmp(&(b.z / b.threshold)))
+        .and_then(|t| {
+            candidates
+                .iter()
+                .find(|c| c.effect == t.effect && c.gap_after.is_some())
+        });
+    let by_gap_rule = candidates
+        .iter()
+        .filter(|c| c.gap_after.is_some() && c.excluded.is_none())
         .min_by(by_gap);
-    let best = tested.or_else(|| {
-        candidates
-            .iter()
-            .filter(|c| c.gap_after.is_some() && c.excluded.is_none())
-            .min_by(by_gap)
-    });
+    let overridden = match (tested, by_gap_rule) {
+        (Some(t), Some(g)) => {
+            gap_before > OVERRIDE_RATIO * g95
+                && g.shrink.unwrap_or(0.0) > t.shrink.unwrap_or(0.0) + 0.5
+        }
+        _ => false,
+    };
+    let tested = if overridden { None } else { tested };
+    let best = tested.or(by_gap_rule);
     let (effect, gap_after, params, decision) = match (best, tested) {
         (Some(c), Some(_)) => {
             let after = c.gap_after.unwrap_or(gap_before);
