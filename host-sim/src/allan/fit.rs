@@ -302,7 +302,11 @@ pub fn fit(points: &[AdevPoint], markov: bool) -> Result<Fit> {
         };
         let (sel, _, _) = irls(best_sup)?;
         let total: Vec<f64> = (0..n)
-            .map(|i| (0..kinds.len()).map(|j| sel.coef[j] * cols[j][i]).sum::<f64>())
+            .map(|i| {
+                (0..kinds.len())
+                    .map(|j| sel.coef[j] * cols[j][i])
+                    .sum::<f64>()
+            })
             .collect();
         let mut weak = None;
         for j in 0..kinds.len() {

@@ -533,7 +533,8 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
         }
         Effect::Markov
             if ctx.joint_markov.as_ref().is_some_and(|m| {
-                m.noise.gm_sigma_dps > 0.0 && m.noise.gm_tau_s < t_rec / super::features::BLOCKS as f64
+                m.noise.gm_sigma_dps > 0.0
+                    && m.noise.gm_tau_s < t_rec / super::features::BLOCKS as f64
             }) =>
         {
             // Fitted baseline and a short correlation time: the N, B, K baseline absorbed
@@ -547,8 +548,14 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
                 p.insert("gm_sigma_dps".into(), m.noise.gm_sigma_dps);
                 p.insert("gm_tau_s".into(), m.noise.gm_tau_s);
                 p.insert("refit_arw_dps_per_rthz".into(), m.noise.arw_dps_per_rthz);
-                p.insert("refit_bias_instability_dps".into(), m.noise.bias_instability_dps);
-                p.insert("refit_rrw_dps_per_s_rthz".into(), m.noise.rrw_dps_per_s_rthz);
+                p.insert(
+                    "refit_bias_instability_dps".into(),
+                    m.noise.bias_instability_dps,
+                );
+                p.insert(
+                    "refit_rrw_dps_per_s_rthz".into(),
+                    m.noise.rrw_dps_per_s_rthz,
+                );
             }
         }
         Effect::Markov => {

@@ -87,7 +87,11 @@ pub fn outcome(effect: Effect, test: &str, real: f64, nulls: &[f64], detail: Str
     // Floor: a tenth of the null mean's magnitude, and 0.01 absolute (ln statistics).
     let sd = sd.max(0.1 * m.abs()).max(0.01);
     let null_max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let z = if real.is_finite() { (real - m) / sd } else { 0.0 };
+    let z = if real.is_finite() {
+        (real - m) / sd
+    } else {
+        0.0
+    };
     let threshold = threshold(effect);
     Test {
         effect,

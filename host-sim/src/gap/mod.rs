@@ -26,6 +26,7 @@ pub mod bench;
 pub mod effects;
 pub mod evidence;
 pub mod features;
+pub mod plain;
 pub mod report;
 
 use crate::identify::series::{Records, Series};
@@ -324,6 +325,14 @@ pub struct Diagnosis {
     pub best_candidate: Option<Effect>,
     /// Fitted parameters of the named effect.
     pub params: Option<BTreeMap<String, f64>>,
+    /// Their standard uncertainty (jackknife over the three fit blocks: the fit repeated
+    /// with each fit block left out, `sqrt(2/3 sum (p_i - mean)^2)`); only for the fits made
+    /// directly on the record's samples over the whole record (rate_ramp, temperature,
+    /// sinusoid, scale_factor); `null` otherwise (a warm-up lives in the first block, so
+    /// leaving blocks out is no estimate of its uncertainty).
+    pub params_sigma: Option<BTreeMap<String, f64>>,
+    /// The gap in plain units ([`plain`]).
+    pub plain: plain::Plain,
     /// Null gaps: median and 95 % quantile.
     pub null_gap_median: f64,
     /// 95 % quantile.
@@ -672,7 +681,7 @@ pub fn diagnose(
     );
     let z_all = features::zscores(&real_out.all, &st_all);
     let where_ = where_of(&defs_all, &z_all);
-    let feature_rows = defs_all
+    let feature_rows: Vec<FeatureRow> = defs_all
         .iter()
         .zip(&real_out.all)
         .zip(&st_all)
@@ -706,7 +715,7 @@ pub fn diagnose(
     let drift_bins = features::drift_pairs(&sel_fit);
     let block_s = layout.t_total_s / BLOCKS as f64;
     let col = |v: &[Vec<f64>], k: usize| v.iter().map(|a| a[k]).collect::<Vec<_>>();
-    let ctx = FitCtx {
+    let mut ctx = FitCtx {
         avar_ln_sd,
         real_drift: layout.drift_variogram(&real.t_s, &real.rate_dps, &sel_fit),
         sim_drift: (0..drift_bins.len())
@@ -903,6 +912,47 @@ pub fn diagnose(
         curves.psd_after = p.clone();
     }
 
+    // Jackknife of the named effect's parameters over the fit blocks.
+    let params_sigma = match best_effect {
+        Some(e)
+            if effect != "none"
+                && matches!(
+                    e,
+                    Effect::RateRamp | Effect::Temperature | Effect::Sinusoid | Effect::ScaleFactor
+                ) =>
+        {
+            let all_ranges = ctx.fit_ranges.clone();
+            let mut reps: Vec<BTreeMap<String, f64>> = Vec::new();
+            for k in 0..all_ranges.len() {
+                ctx.fit_ranges = all_ranges
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != k)
+                    .map(|(_, r)| *r)
+                    .collect();
+                if let Ok(Fitted::Spec(_, p, _)) = effects::fit(e, &ctx) {
+                    reps.push(p);
+                }
+            }
+            ctx.fit_ranges = all_ranges;
+            let k = reps.len() as f64;
+            params.as_ref().map(|p| {
+                p.keys()
+                    .filter_map(|key| {
+                        let v: Vec<f64> = reps.iter().filter_map(|r| r.get(key).copied()).collect();
+                        (v.len() >= 2).then(|| {
+                            let m = features::mean(&v);
+                            let ss: f64 = v.iter().map(|x| (x - m).powi(2)).sum();
+                            (key.clone(), ((k - 1.0) / k * ss).sqrt())
+                        })
+                    })
+                    .collect()
+            })
+        }
+        _ => None,
+    };
+    let feature_rows_copy: Vec<FeatureRow> = feature_rows.clone();
+    let effect_name_copy = effect.clone();
     let task = if o.task {
         Some(run_task(raw, &task_sims)?)
     } else {
@@ -918,6 +968,8 @@ pub fn diagnose(
         shrink: 1.0 - gap_after / gap_before,
         best_candidate: best_effect,
         params,
+        params_sigma,
+        plain: plain::build(&curves, &feature_rows_copy, &effect_name_copy),
         null_gap_median: g50,
         null_gap_95: g95,
         decision,
