@@ -121,9 +121,10 @@ def smooth_derivative(temp, dt, win_s=30.0):
     return np.gradient(sm, dt)
 
 
-def make_record(seed, cls, duration_s, mode):
+def make_record(seed, cls, duration_s, mode, strength=None, fs=None, with_temp=False):
     rng = np.random.default_rng(seed)
-    fs = float(rng.choice([50.0, 100.0, 200.0]))
+    fs_draw = float(rng.choice([50.0, 100.0, 200.0]))
+    fs = fs_draw if fs is None else fs
     dt = 1.0 / fs
     n = int(round(duration_s * fs))
     t = np.arange(n) * dt
@@ -146,6 +147,8 @@ def make_record(seed, cls, duration_s, mode):
     if cls != "none":
         lo, hi = S_RANGE[cls]
         s = loguni(rng, lo, hi)
+        if strength is not None:
+            s = strength
     truth["strength"] = s
     act = dict(model)
     if cls == "white_noise":
@@ -157,7 +160,7 @@ def make_record(seed, cls, duration_s, mode):
     y = bias_dps + act["arw_dps_per_rthz"] / math.sqrt(dt) * rng.standard_normal(n)
     y += flicker(rng, n, dt, act["bias_instability_dps"])
     y += np.cumsum(rng.standard_normal(n)) * act["rrw_dps_per_s_rthz"] * math.sqrt(dt)
-    has_temp = cls == "temperature" or rng.uniform() < 0.6
+    has_temp = cls == "temperature" or with_temp or rng.uniform() < 0.6
     temp_true = temperature_profile(rng, t) if has_temp else None
     has_motion = cls == "scale_factor" or rng.uniform() < 0.3
     motion = None
@@ -264,6 +267,9 @@ def main():
     ap.add_argument("--mode", choices=["fitted", "sim"], default="fitted",
                     help="fitted: classes usable without --sim; sim: all 13 (run gap with --sim NAME.toml)")
     ap.add_argument("--duration-s", type=float, default=1800.0)
+    ap.add_argument("--strength", type=float, default=None, help="force the strength (smoke tests)")
+    ap.add_argument("--with-temp", action="store_true", help="every record carries temp_c (smoke tests)")
+    ap.add_argument("--fs", type=float, default=None, help="force the sample rate, Hz (smoke tests)")
     a = ap.parse_args()
     classes = (a.classes.split(",") if a.classes else
                FITTED_CLASSES + (SIM_ONLY_CLASSES if a.mode == "sim" else []))
@@ -276,7 +282,7 @@ def main():
         for i in range(a.per_class):
             seed = a.first_seed + 1000 * ci + i
             name = f"{cls}-{seed}"
-            cols, keep, model, truth, fs = make_record(seed, cls, a.duration_s, a.mode)
+            cols, keep, model, truth, fs = make_record(seed, cls, a.duration_s, a.mode, a.strength, a.fs, a.with_temp)
             write_csv(os.path.join(a.out, name + ".csv"), cols, keep)
             write_toml(os.path.join(a.out, name + ".toml"), model, fs)
             truth["name"] = name
