@@ -15,7 +15,10 @@ const HOURS: f64 = 10.0;
 fn fit_of(ramp_dps_per_s: f64, seed: u64) -> host_sim::allan::fit::Fit {
     let mut m = Model::default();
     m.noise.arw_dps_per_rthz = 0.1 / 60.0; // 0.1 deg/sqrt(h)
-    m.noise.rrw_dps_per_s_rthz = 0.5 / 216_000.0; // 0.5 deg/h/sqrt(h)
+                                           // 2 deg/h/sqrt(h): RRW crosses ARW at tau = sqrt(3) N / K = 78 s, so K shapes the
+                                           // octave taus 160 s - 13 107 s (with K four times smaller it crosses at 1250 s and the
+                                           // last three points cannot tell it from a flicker floor: a test of that would be noise).
+    m.noise.rrw_dps_per_s_rthz = 2.0 / 216_000.0;
     m.noise.rate_ramp_dps_per_s = ramp_dps_per_s;
     let mut sim = Simulator::new(&m, seed, RATE_HZ).expect("valid model");
     let n = (HOURS * 3600.0 * RATE_HZ) as usize;
@@ -35,7 +38,10 @@ fn white_noise_and_rrw_report_no_quantization_and_no_ramp() {
     for seed in [1u64, 2, 3] {
         let f = fit_of(0.0, seed);
         for t in &f.terms {
-            eprintln!("seed {seed}: {:?} active {} - {}", t.term, t.active, t.selection);
+            eprintln!(
+                "seed {seed}: {:?} active {} - {}",
+                t.term, t.active, t.selection
+            );
             assert!(!t.selection.is_empty(), "{:?}: no selection reason", t.term);
         }
         assert!(active(&f, Kind::Arw), "seed {seed}: N missing");
