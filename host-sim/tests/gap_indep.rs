@@ -1,6 +1,6 @@
 //! Smoke test of the independent-generator benchmark (issue 13): records made by
 //! `scripts/gap_indep_gen.py` (numpy, written from the physics, not from the simulator),
-//! 900 s at 50 Hz, 6 simulations per model, fitted baseline (no `--sim`): a strong
+//! 600 s at 25 Hz, 6 simulations per model, fitted baseline (no `--sim`): a strong
 //! temperature effect (drift follows `temp_c` and its rate; must not be missed), a strong
 //! sinusoid (must be named), and a `none` record carrying a temperature channel the drift
 //! does not follow (must be `none`).
@@ -26,7 +26,7 @@ fn generate(dir: &Path, class: &str, seed: u64, strength: Option<f64>) -> std::p
         .arg(dir)
         .args(["--first-seed", &seed.to_string()])
         .args(["--per-class", "1", "--classes", class])
-        .args(["--duration-s", "900", "--fs", "50", "--with-temp"]);
+        .args(["--duration-s", "600", "--fs", "25", "--with-temp"]);
     if let Some(s) = strength {
         cmd.args(["--strength", &s.to_string()]);
     }
