@@ -19,6 +19,11 @@
 //! - NNLS: exact, by enumeration of the 2^5 - 1 (or 2^6 - 1) supports: the least-squares
 //!   solution on each support (Householder QR on scaled columns) that is strictly positive
 //!   and has the smallest weighted residual is the NNLS optimum.
+//! - Term selection: a term is reported only when the data support it: the support with the
+//!   lowest information criterion `chi2 / max(1, chi2_red) + SELECT_BIC_FACTOR ln(points)
+//!   |support|` over every support wins, and each of its terms must make
+//!   [`SELECT_MIN_SHARE`] of the fitted AVAR at some tau (else it is removed and the
+//!   selection repeated). Each term's `selection` says why, with the figures.
 //! - Gauss-Markov (`--markov`): T is searched on a grid of 8 points per decade spanning the
 //!   taus of the curve; the best (T, support) wins. T has no error bar (grid step 33 %).
 //! - Uncertainty: the covariance of the active coefficients is `(A^T W A)^-1`, multiplied by
@@ -33,6 +38,15 @@ use serde::Serialize;
 
 /// `2 ln 2 / pi`: Allan variance of flicker noise per unit `B^2`.
 pub const FLICKER_AVAR: f64 = 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI;
+
+/// Term selection: the support (set of active terms) with the lowest information criterion
+/// `chi2 / max(1, chi2_reduced) + SELECT_BIC_FACTOR ln(points) |support|` (BIC's penalty per
+/// parameter, doubled because overlapping Allan points at octave taus are correlated and
+/// the weights count them as independent) ...
+pub const SELECT_BIC_FACTOR: f64 = 2.0;
+/// ... and if it makes at least this share of the fitted AVAR at some fitted tau (a term
+/// that never matters to a fifth of the curve is not a property the data show).
+pub const SELECT_MIN_SHARE: f64 = 0.2;
 
 /// A term of the noise model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -122,8 +136,10 @@ pub struct Term {
     pub sigma_alt: Option<f64>,
     /// The other unit.
     pub unit_alt: &'static str,
-    /// Whether the term is in the NNLS support (coefficient > 0).
+    /// Whether the term is in the selected model (coefficient > 0).
     pub active: bool,
+    /// Why the term is in the model or not (the selection test's figures).
+    pub selection: String,
 }
 
 /// Result of the fit.
@@ -211,43 +227,129 @@ pub fn fit(points: &[AdevPoint], markov: bool) -> Result<Fit> {
         vec![1.0]
     };
     let floor = avar.iter().cloned().fold(0.0, f64::max) * 1e-30;
-    let mut model: Vec<f64> = avar.iter().map(|&v| v.max(floor)).collect();
-    let mut best: Option<(Solution, f64)> = None;
-    for _ in 0..5 {
-        let w: Vec<f64> = points
+    let cols_at = |t: f64| -> Vec<Vec<f64>> {
+        kinds
             .iter()
-            .zip(&model)
-            .map(|(p, &m)| p.edf / (2.0 * m * m))
-            .collect();
-        best = None;
-        for &t in &grid {
-            let cols: Vec<Vec<f64>> = kinds
+            .map(|k| tau.iter().map(|&x| k.basis(x, t)).collect())
+            .collect()
+    };
+    // IRLS on the allowed terms: (solution, T, final weights).
+    let irls = |allowed: u32| -> Result<(Solution, f64, Vec<f64>)> {
+        let mut model: Vec<f64> = avar.iter().map(|&v| v.max(floor)).collect();
+        let mut best: Option<(Solution, f64, Vec<f64>)> = None;
+        for _ in 0..5 {
+            let w: Vec<f64> = points
                 .iter()
-                .map(|k| tau.iter().map(|&x| k.basis(x, t)).collect())
+                .zip(&model)
+                .map(|(p, &m)| p.edf / (2.0 * m * m))
                 .collect();
-            if let Some(s) = nnls(&cols, &avar, &w) {
-                if best.as_ref().is_none_or(|(b, _)| s.cost < b.cost) {
-                    best = Some((s, t));
+            best = None;
+            for &t in &grid {
+                if let Some(s) = nnls(&cols_at(t), &avar, &w, allowed) {
+                    if best.as_ref().is_none_or(|(b, _, _)| s.cost < b.cost) {
+                        best = Some((s, t, w.clone()));
+                    }
                 }
             }
+            let Some((s, t, _)) = &best else {
+                bail!("the least-squares fit failed (no positive solution)");
+            };
+            model = tau
+                .iter()
+                .map(|&x| {
+                    kinds
+                        .iter()
+                        .zip(&s.coef)
+                        .map(|(k, c)| c * k.basis(x, *t))
+                        .sum::<f64>()
+                        .max(floor)
+                })
+                .collect();
         }
-        let Some((s, t)) = &best else {
-            bail!("the least-squares fit failed (no positive solution)");
+        best.ok_or_else(|| anyhow::anyhow!("the least-squares fit failed"))
+    };
+    // Term selection by an information criterion over every support, on the full fit's
+    // weights: IC(S) = cost(S) / max(1, chi2_red) + SELECT_BIC_FACTOR ln(points) |S|; the
+    // support with the lowest IC wins; a winning term that never reaches SELECT_MIN_SHARE
+    // of the fitted AVAR is removed and the selection repeated.
+    let all: u32 = (1 << kinds.len()) - 1;
+    let mut allowed = all;
+    let mut reasons: Vec<Option<String>> = vec![None; kinds.len()];
+    let penalty = SELECT_BIC_FACTOR * (n as f64).ln();
+    let (s, t) = loop {
+        let (full, t, w) = irls(allowed)?;
+        let chi2_red = if n > full.active {
+            (full.cost / (n - full.active) as f64).max(1.0)
+        } else {
+            1.0
         };
-        model = tau
-            .iter()
-            .map(|&x| {
-                kinds
-                    .iter()
-                    .zip(&s.coef)
-                    .map(|(k, c)| c * k.basis(x, *t))
+        let cols = cols_at(t);
+        let ic = |x: &Solution| x.cost / chi2_red + penalty * x.active as f64;
+        let mut sols: Vec<(u32, f64)> = Vec::new();
+        for mask in 1..=all {
+            if mask & !allowed != 0 {
+                continue;
+            }
+            if let Some(x) = nnls(&cols, &avar, &w, mask) {
+                let sup = (0..kinds.len())
+                    .filter(|&j| x.coef[j] > 0.0)
+                    .fold(0u32, |m, j| m | (1 << j));
+                sols.push((sup, ic(&x)));
+            }
+        }
+        let Some(&(best_sup, best_ic)) = sols.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
+            break (full, t);
+        };
+        let (sel, _, _) = irls(best_sup)?;
+        let total: Vec<f64> = (0..n)
+            .map(|i| {
+                (0..kinds.len())
+                    .map(|j| sel.coef[j] * cols[j][i])
                     .sum::<f64>()
-                    .max(floor)
             })
             .collect();
-    }
-    let Some((s, t)) = best else {
-        bail!("the least-squares fit failed");
+        let mut weak = None;
+        for j in 0..kinds.len() {
+            if allowed & (1 << j) == 0 {
+                continue;
+            }
+            let with_j = sols
+                .iter()
+                .filter(|(m, _)| m & (1 << j) != 0)
+                .map(|x| x.1)
+                .fold(f64::INFINITY, f64::min);
+            let without_j = sols
+                .iter()
+                .filter(|(m, _)| m & (1 << j) == 0)
+                .map(|x| x.1)
+                .fold(f64::INFINITY, f64::min);
+            if best_sup & (1 << j) != 0 {
+                let (share, at) = (0..n)
+                    .map(|i| (sel.coef[j] * cols[j][i] / total[i].max(floor), tau[i]))
+                    .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
+                let why = format!(
+                    "IC without it higher by {:.1} (IC = chi2 / max(1, chi2_red = {chi2_red:.2}) + {SELECT_BIC_FACTOR} ln({n}) per term); largest share of the fitted AVAR {:.0} % at tau {at:.4} s (minimum {:.0} %)",
+                    without_j - best_ic,
+                    100.0 * share,
+                    100.0 * SELECT_MIN_SHARE
+                );
+                if share < SELECT_MIN_SHARE {
+                    weak = Some(j);
+                    reasons[j] = Some(format!("dropped (too small to matter): {why}"));
+                } else {
+                    reasons[j] = Some(format!("kept: {why}"));
+                }
+            } else {
+                reasons[j] = Some(format!(
+                    "not supported by the data: the lowest IC with it is higher by {:.1} (IC = chi2 / max(1, chi2_red = {chi2_red:.2}) + {SELECT_BIC_FACTOR} ln({n}) per term)",
+                    with_j - best_ic
+                ));
+            }
+        }
+        match weak {
+            Some(j) => allowed = best_sup & !(1 << j),
+            None => break (sel, t),
+        }
     };
     let gm_active = markov && s.coef.last().is_some_and(|&c| c > 0.0);
     let params = s.active + usize::from(gm_active);
@@ -264,7 +366,8 @@ pub fn fit(points: &[AdevPoint], markov: bool) -> Result<Fit> {
     let terms = kinds
         .iter()
         .zip(s.coef.iter().zip(&s.sigma))
-        .map(|(&kind, (&c, &sc))| {
+        .zip(reasons)
+        .map(|((&kind, (&c, &sc)), reason)| {
             let (symbol, unit, unit_alt, factor) = kind.units();
             let sc = sc.map(|v| v * inflate);
             let value = c.sqrt();
@@ -281,6 +384,11 @@ pub fn fit(points: &[AdevPoint], markov: bool) -> Result<Fit> {
                 sigma_alt: sigma.map(|v| v * factor),
                 unit_alt,
                 active: c > 0.0,
+                selection: if c > 0.0 {
+                    reason.unwrap_or_else(|| "kept (the only active term)".into())
+                } else {
+                    reason.unwrap_or_else(|| "at the bound 0 in the NNLS fit".into())
+                },
             }
         })
         .collect();
@@ -293,10 +401,13 @@ pub fn fit(points: &[AdevPoint], markov: bool) -> Result<Fit> {
 }
 
 /// Exact NNLS by enumerating supports (see the module docs).
-fn nnls(cols: &[Vec<f64>], b: &[f64], w: &[f64]) -> Option<Solution> {
+fn nnls(cols: &[Vec<f64>], b: &[f64], w: &[f64], allowed: u32) -> Option<Solution> {
     let p = cols.len();
     let mut best: Option<Solution> = None;
     for mask in 1u32..(1 << p) {
+        if mask & !allowed != 0 {
+            continue;
+        }
         let support: Vec<usize> = (0..p).filter(|j| mask & (1 << j) != 0).collect();
         let sub: Vec<&[f64]> = support.iter().map(|&j| cols[j].as_slice()).collect();
         let Some((x, cov)) = weighted_lstsq(&sub, b, w) else {

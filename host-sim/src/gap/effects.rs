@@ -107,6 +107,11 @@ pub struct Spec {
     pub temp_dps_per_c: f64,
     /// Temperature at which that bias is 0, deg C.
     pub temp_ref_c: f64,
+    /// Bias per (deg C / s) of the record's temperature rate of change, deg/s per deg C/s.
+    pub temp_rate_dps_per_c_per_s: f64,
+    /// That rate of change on the real record's samples, deg C/s ([`super::evidence`]'s
+    /// 30-s smoothed difference of 5-s window means); empty when the record has no `temp_c`.
+    pub dtemp_c_per_s: std::sync::Arc<Vec<f64>>,
     /// Extra warm-up: (amplitude deg/s, time constant s).
     pub warmup: Option<(f64, f64)>,
     /// Extra sinusoid: (amplitude deg/s, frequency Hz, phase rad).
@@ -135,6 +140,8 @@ impl Spec {
             sf_ppm,
             temp_dps_per_c: 0.0,
             temp_ref_c: 25.0,
+            temp_rate_dps_per_c_per_s: 0.0,
+            dtemp_c_per_s: Default::default(),
             warmup: None,
             sine: None,
         }
@@ -170,6 +177,10 @@ impl Spec {
                 if let (Some(tc), true) = (&real.temp_c, self.temp_dps_per_c != 0.0) {
                     v += self.temp_dps_per_c
                         * (interp(&real.t_s, tc, cursor, s.t_s) - self.temp_ref_c);
+                }
+                if self.temp_rate_dps_per_c_per_s != 0.0 && !self.dtemp_c_per_s.is_empty() {
+                    v += self.temp_rate_dps_per_c_per_s
+                        * interp(&real.t_s, &self.dtemp_c_per_s, cursor, s.t_s);
                 }
             }
             if let Some((a, tau)) = self.warmup {
@@ -246,6 +257,9 @@ pub struct FitCtx<'a> {
     pub drift_lags_s: Vec<Vec<f64>>,
     /// Drift window length, s.
     pub drift_window_s: f64,
+    /// Without a user model: the baseline refitted with a Gauss-Markov term (N, B, K,
+    /// sigma, T jointly on the fit blocks' AVAR).
+    pub joint_markov: Option<Model>,
 }
 
 /// Variogram of `W`-s window means at lag `L >= W` (start to start) of a unit rate random
@@ -517,6 +531,33 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             p.insert("added_rrw_dps_per_s_rthz".into(), c.sqrt());
             p.insert("fit_chi2".into(), chi2);
         }
+        Effect::Markov
+            if ctx.joint_markov.as_ref().is_some_and(|m| {
+                m.noise.gm_sigma_dps > 0.0
+                    && m.noise.gm_tau_s < t_rec / super::features::BLOCKS as f64
+            }) =>
+        {
+            // Fitted baseline and a short correlation time: the N, B, K baseline absorbed
+            // part of the bump, so the candidate is the baseline refitted jointly with it.
+            if let Some(m) = &ctx.joint_markov {
+                n.arw_dps_per_rthz = m.noise.arw_dps_per_rthz;
+                n.bias_instability_dps = m.noise.bias_instability_dps;
+                n.rrw_dps_per_s_rthz = m.noise.rrw_dps_per_s_rthz;
+                n.gm_sigma_dps = m.noise.gm_sigma_dps;
+                n.gm_tau_s = m.noise.gm_tau_s;
+                p.insert("gm_sigma_dps".into(), m.noise.gm_sigma_dps);
+                p.insert("gm_tau_s".into(), m.noise.gm_tau_s);
+                p.insert("refit_arw_dps_per_rthz".into(), m.noise.arw_dps_per_rthz);
+                p.insert(
+                    "refit_bias_instability_dps".into(),
+                    m.noise.bias_instability_dps,
+                );
+                p.insert(
+                    "refit_rrw_dps_per_s_rthz".into(),
+                    m.noise.rrw_dps_per_s_rthz,
+                );
+            }
+        }
         Effect::Markov => {
             // Correlation time on an 8-per-decade grid from 4 samples to 3 record lengths,
             // fitted jointly to the fit blocks' AVAR and their long-lag drift variogram.
@@ -607,9 +648,15 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             };
             let tv: Vec<f64> = idx.iter().map(|&i| tc[i]).collect();
             let tref = super::features::mean(&tv);
-            let Some(beta) = lstsq(idx.len(), 2, &mut |k, r| {
+            let dtemp = &ctx.base.dtemp_c_per_s;
+            let with_rate = dtemp.len() == real.t_s.len();
+            let np = if with_rate { 3 } else { 2 };
+            let Some(beta) = lstsq(idx.len(), np, &mut |k, r| {
                 r[0] = 1.0;
                 r[1] = tv[k] - tref;
+                if with_rate {
+                    r[2] = dtemp[idx[k]];
+                }
                 y[k]
             }) else {
                 return Ok(Fitted::NotApplicable(
@@ -620,6 +667,10 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             spec.temp_ref_c = tref;
             p.insert("bias_dps_per_c".into(), beta[1]);
             p.insert("reference_c".into(), tref);
+            if with_rate {
+                spec.temp_rate_dps_per_c_per_s += beta[2];
+                p.insert("bias_dps_per_c_per_s".into(), beta[2]);
+            }
         }
         Effect::Sinusoid => {
             let (f, a, ph) = fit_sine(real, &ctx.fit_ranges);

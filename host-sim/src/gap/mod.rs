@@ -24,7 +24,9 @@
 
 pub mod bench;
 pub mod effects;
+pub mod evidence;
 pub mod features;
+pub mod plain;
 pub mod report;
 
 use crate::identify::series::{Records, Series};
@@ -35,6 +37,16 @@ use features::{Def, Fft, Group, Layout, BLOCKS};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::Path;
+
+/// An effect without a dedicated test is named only when `gap_before` exceeds this many
+/// times `null_gap_95` (calibrated on the `none` records of the calibration set, see
+/// docs/gap.md).
+pub const NONE_MARGIN: f64 = 1.5;
+
+/// A candidate named by the gap rule overrides one whose dedicated test passed only when
+/// the gap is this many times `null_gap_95` and its shrink beats the tested one's by 0.5
+/// (a gross mismatch, e.g. quantization, that the tested effect does not explain).
+pub const OVERRIDE_RATIO: f64 = 10.0;
 
 /// A record as the diagnosis sees it.
 #[derive(Debug, Clone)]
@@ -313,6 +325,14 @@ pub struct Diagnosis {
     pub best_candidate: Option<Effect>,
     /// Fitted parameters of the named effect.
     pub params: Option<BTreeMap<String, f64>>,
+    /// Their standard uncertainty (jackknife over the three fit blocks: the fit repeated
+    /// with each fit block left out, `sqrt(2/3 sum (p_i - mean)^2)`); only for the fits made
+    /// directly on the record's samples over the whole record (rate_ramp, temperature,
+    /// sinusoid, scale_factor); `null` otherwise (a warm-up lives in the first block, so
+    /// leaving blocks out is no estimate of its uncertainty).
+    pub params_sigma: Option<BTreeMap<String, f64>>,
+    /// The gap in plain units ([`plain`]).
+    pub plain: plain::Plain,
     /// Null gaps: median and 95 % quantile.
     pub null_gap_median: f64,
     /// 95 % quantile.
@@ -328,6 +348,8 @@ pub struct Diagnosis {
     pub where_: Where,
     /// Every candidate.
     pub candidates: Vec<Candidate>,
+    /// The dedicated detection tests ([`evidence`]).
+    pub tests: Vec<evidence::Test>,
     /// Baseline model (TOML-shaped).
     pub baseline: Model,
     /// Where the baseline comes from.
@@ -403,6 +425,18 @@ fn null_gaps(defs: &[Def], sims: &[Vec<f64>]) -> Vec<f64> {
 
 /// Baseline model fitted to the fit blocks: ARW, bias instability and RRW (allan fit).
 pub fn fit_baseline(real: &Rec, layout: &Layout, fit_ranges: &[(usize, usize)]) -> Result<Model> {
+    fit_baseline_terms(real, layout, fit_ranges, false)
+}
+
+/// [`fit_baseline`], optionally with a first-order Gauss-Markov term fitted jointly (the
+/// `markov` candidate of a fitted baseline: a GM bump that the N, B, K baseline absorbed
+/// is only recovered by refitting the baseline with it).
+pub fn fit_baseline_terms(
+    real: &Rec,
+    layout: &Layout,
+    fit_ranges: &[(usize, usize)],
+    markov: bool,
+) -> Result<Model> {
     use crate::allan::{edf, fit, AdevPoint};
     let pooled = features::pooled_avar(&real.rate_dps, fit_ranges, real.dt_s, &layout.ms);
     let mut pts: Vec<AdevPoint> = layout
@@ -443,7 +477,7 @@ pub fn fit_baseline(real: &Rec, layout: &Layout, fit_ranges: &[(usize, usize)]) 
     set_edf(&mut pts, None);
     let mut f = fit::fit(&pts, false).with_context(|| format!("{}: baseline fit", real.name))?;
     set_edf(&mut pts, Some(&f));
-    f = fit::fit(&pts, false).with_context(|| format!("{}: baseline fit", real.name))?;
+    f = fit::fit(&pts, markov).with_context(|| format!("{}: baseline fit", real.name))?;
     let get = |k| f.get(k).map_or(0.0, |t| t.value);
     let mut m = Model {
         sample_rate_hz: Some(1.0 / real.dt_s),
@@ -452,8 +486,14 @@ pub fn fit_baseline(real: &Rec, layout: &Layout, fit_ranges: &[(usize, usize)]) 
     m.noise.arw_dps_per_rthz = get(fit::Kind::Arw);
     m.noise.bias_instability_dps = get(fit::Kind::BiasInstability);
     m.noise.rrw_dps_per_s_rthz = get(fit::Kind::Rrw);
-    m.noise.flicker_tau_min_s = (2.5 * real.dt_s).max(1.0);
+    m.noise.flicker_tau_min_s = 2.5 * real.dt_s;
     m.noise.flicker_tau_max_s = 1e5;
+    if let (Some(t), Some(tc)) = (f.get(fit::Kind::GaussMarkov), f.gm_tau_s) {
+        if t.active {
+            m.noise.gm_sigma_dps = t.value;
+            m.noise.gm_tau_s = tc;
+        }
+    }
     Ok(m)
 }
 
@@ -493,14 +533,51 @@ pub fn diagnose(
         .filter(|(b, _)| sel_fit[*b])
         .map(|(_, r)| *r)
         .collect();
+    // Without a model the baseline is fitted to the rate less the reference rate (if any).
+    let less_ref = |r: &Rec| -> Rec {
+        let mut c = r.clone();
+        if let Some(rf) = &r.ref_dps {
+            for (v, x) in c.rate_dps.iter_mut().zip(rf) {
+                *v -= x;
+            }
+        }
+        c
+    };
+    let fitted_on = less_ref(real);
     let (base_model, source) = match model {
         Some(m) => (m.clone(), "user model (--sim)".to_string()),
         None => (
-            fit_baseline(real, &layout, &fit_ranges)?,
+            fit_baseline(&fitted_on, &layout, &fit_ranges)?,
             "fitted to the fit blocks: ARW, bias instability, rate random walk".to_string(),
         ),
     };
-    let base = Spec::from_model(&base_model, real.ref_dps.is_some());
+    let mut base = Spec::from_model(&base_model, real.ref_dps.is_some());
+    // Temperature windows (and their rate of change) on the record's own time grid.
+    let w_s = evidence::WINDOW_S;
+    let t_total = real.t_s.last().copied().unwrap_or(0.0) + real.dt_s;
+    let n_win = ((t_total / w_s).floor() as usize).max(1);
+    let t_w: Vec<f64> = (0..n_win).map(|k| (k as f64 + 0.5) * w_s).collect();
+    let temp_w = real
+        .temp_c
+        .as_ref()
+        .map(|tc| evidence::window_means(&real.t_s, tc, w_s, n_win));
+    let ref_w = real
+        .ref_dps
+        .as_ref()
+        .map(|r| evidence::window_means(&real.t_s, r, w_s, n_win));
+    let dtemp_w = temp_w
+        .as_ref()
+        .map(|tw| evidence::rate_of_change(tw, w_s, 6));
+    if let Some(dw) = &dtemp_w {
+        base.dtemp_c_per_s = std::sync::Arc::new(
+            real.t_s
+                .iter()
+                .map(|&t| dw[((t / w_s) as usize).min(n_win - 1)])
+                .map(|v| if v.is_finite() { v } else { 0.0 })
+                .collect(),
+        );
+    }
+    let base = base;
     let g_base = 1.0 + 1e-6 * base.sf_ppm;
     let raw = real;
     let mut resid = real.clone();
@@ -528,8 +605,18 @@ pub fn diagnose(
     let mut sim_spikes = Vec::new();
     let mut sim_missing = Vec::new();
     let mut task_sims = Vec::new();
+    let mut null_stats: Vec<evidence::EvStats> = Vec::new();
     for (i, &s) in seeds.iter().enumerate() {
         let sim = base.simulate(real, s, g_base)?;
+        null_stats.push(evidence::stats(
+            &sim.t,
+            &sim.res,
+            real.dt_s,
+            layout.t_total_s / BLOCKS as f64,
+            &t_w,
+            temp_w.as_deref().zip(dtemp_w.as_deref()),
+            ref_w.as_deref(),
+        ));
         let r = layout.ranges(&sim.t);
         let fr: Vec<(usize, usize)> = r.iter().step_by(2).copied().collect();
         sim_avars.push(features::pooled_avar(&sim.res, &fr, real.dt_s, &layout.ms));
@@ -575,6 +662,18 @@ pub fn diagnose(
     );
     let gap_before = features::gap(&defs_score, &features::zscores(&real_out.score, &st_score));
 
+    // Dedicated tests.
+    let real_stats = evidence::stats(
+        &real.t_s,
+        &real.rate_dps,
+        real.dt_s,
+        layout.t_total_s / BLOCKS as f64,
+        &t_w,
+        temp_w.as_deref().zip(dtemp_w.as_deref()),
+        ref_w.as_deref(),
+    );
+    let tests = evidence::run(&real_stats, &null_stats, temp_w.as_deref());
+
     // Where (full record).
     let st_all = features::stats(
         &defs_all,
@@ -582,7 +681,7 @@ pub fn diagnose(
     );
     let z_all = features::zscores(&real_out.all, &st_all);
     let where_ = where_of(&defs_all, &z_all);
-    let feature_rows = defs_all
+    let feature_rows: Vec<FeatureRow> = defs_all
         .iter()
         .zip(&real_out.all)
         .zip(&st_all)
@@ -616,7 +715,7 @@ pub fn diagnose(
     let drift_bins = features::drift_pairs(&sel_fit);
     let block_s = layout.t_total_s / BLOCKS as f64;
     let col = |v: &[Vec<f64>], k: usize| v.iter().map(|a| a[k]).collect::<Vec<_>>();
-    let ctx = FitCtx {
+    let mut ctx = FitCtx {
         avar_ln_sd,
         real_drift: layout.drift_variogram(&real.t_s, &real.rate_dps, &sel_fit),
         sim_drift: (0..drift_bins.len())
@@ -648,6 +747,11 @@ pub fn diagnose(
             features::median(&sim_missing),
         ),
         bursty: time.bursty,
+        joint_markov: if model.is_none() {
+            fit_baseline_terms(&fitted_on, &layout, &fit_ranges, true).ok()
+        } else {
+            None
+        },
     };
 
     // Candidates.
@@ -692,29 +796,77 @@ pub fn diagnose(
             }
         }
     }
-    let best = candidates
+    // A candidate with a dedicated test may be named only when its test passes; a passed
+    // test is its own significance (the gap rule below is for the others).
+    for c in candidates.iter_mut() {
+        if let Some(t) = tests.iter().find(|t| t.effect == c.effect) {
+            if !t.passed && c.excluded.is_none() && c.gap_after.is_some() {
+                c.excluded = Some(format!(
+                    "its dedicated test did not pass (z {:.1}, threshold {:.1}; statistic {:.3}, largest null {:.3})",
+                    t.z, t.threshold, t.statistic, t.null_max
+                ));
+            }
+        }
+    }
+    let by_gap = |a: &&Candidate, b: &&Candidate| {
+        a.gap_after
+            .unwrap_or(f64::INFINITY)
+            .total_cmp(&b.gap_after.unwrap_or(f64::INFINITY))
+    };
+    // Among passed tests, the one furthest past its threshold.
+    let tested = tests
+        .iter()
+        .filter(|t| t.passed)
+        .max_by(|a, b| (a.z / a.threshold).total_cmp(&(b.z / b.threshold)))
+        .and_then(|t| {
+            candidates
+                .iter()
+                .find(|c| c.effect == t.effect && c.gap_after.is_some())
+        });
+    let by_gap_rule = candidates
         .iter()
         .filter(|c| c.gap_after.is_some() && c.excluded.is_none())
-        .min_by(|a, b| {
-            a.gap_after
-                .unwrap_or(f64::INFINITY)
-                .total_cmp(&b.gap_after.unwrap_or(f64::INFINITY))
-        });
-    let (effect, gap_after, params, decision) = match best {
-        None => (
+        .min_by(by_gap);
+    let overridden = match (tested, by_gap_rule) {
+        (Some(t), Some(g)) => {
+            gap_before > OVERRIDE_RATIO * g95
+                && g.shrink.unwrap_or(0.0) > t.shrink.unwrap_or(0.0) + 0.5
+        }
+        _ => false,
+    };
+    let tested = if overridden { None } else { tested };
+    let best = tested.or(by_gap_rule);
+    let (effect, gap_after, params, decision) = match (best, tested) {
+        (Some(c), Some(_)) => {
+            let after = c.gap_after.unwrap_or(gap_before);
+            let t = tests.iter().find(|t| t.effect == c.effect);
+            (
+                c.effect.name().to_string(),
+                after,
+                c.params.clone(),
+                format!(
+                    "{}: its dedicated test passed (z {:.1} > {:.1}{}); held-out gap {gap_before:.3} -> {after:.3}",
+                    c.effect.name(),
+                    t.map_or(0.0, |t| t.z),
+                    t.map_or(0.0, |t| t.threshold),
+                    t.map_or(String::new(), |t| if t.detail.is_empty() { String::new() } else { format!(", {}", t.detail) }),
+                ),
+            )
+        }
+        (None, _) => (
             "none".to_string(),
             gap_before,
             None,
             "no candidate could be fitted".to_string(),
         ),
-        Some(c) => {
+        (Some(c), None) => {
             let after = c.gap_after.unwrap_or(gap_before);
-            if gap_before <= g95 {
+            if gap_before <= NONE_MARGIN * g95 {
                 (
                     "none".into(),
                     gap_before,
                     None,
-                    format!("gap_before {gap_before:.3} <= null_gap_95 {g95:.3}: the record is within the simulations' seed-to-seed spread"),
+                    format!("gap_before {gap_before:.3} <= {NONE_MARGIN} x null_gap_95 {g95:.3}: the record is within the simulations' seed-to-seed spread"),
                 )
             } else if gap_before - after <= g95 - g50 {
                 (
@@ -760,6 +912,47 @@ pub fn diagnose(
         curves.psd_after = p.clone();
     }
 
+    // Jackknife of the named effect's parameters over the fit blocks.
+    let params_sigma = match best_effect {
+        Some(e)
+            if effect != "none"
+                && matches!(
+                    e,
+                    Effect::RateRamp | Effect::Temperature | Effect::Sinusoid | Effect::ScaleFactor
+                ) =>
+        {
+            let all_ranges = ctx.fit_ranges.clone();
+            let mut reps: Vec<BTreeMap<String, f64>> = Vec::new();
+            for k in 0..all_ranges.len() {
+                ctx.fit_ranges = all_ranges
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != k)
+                    .map(|(_, r)| *r)
+                    .collect();
+                if let Ok(Fitted::Spec(_, p, _)) = effects::fit(e, &ctx) {
+                    reps.push(p);
+                }
+            }
+            ctx.fit_ranges = all_ranges;
+            let k = reps.len() as f64;
+            params.as_ref().map(|p| {
+                p.keys()
+                    .filter_map(|key| {
+                        let v: Vec<f64> = reps.iter().filter_map(|r| r.get(key).copied()).collect();
+                        (v.len() >= 2).then(|| {
+                            let m = features::mean(&v);
+                            let ss: f64 = v.iter().map(|x| (x - m).powi(2)).sum();
+                            (key.clone(), ((k - 1.0) / k * ss).sqrt())
+                        })
+                    })
+                    .collect()
+            })
+        }
+        _ => None,
+    };
+    let feature_rows_copy: Vec<FeatureRow> = feature_rows.clone();
+    let effect_name_copy = effect.clone();
     let task = if o.task {
         Some(run_task(raw, &task_sims)?)
     } else {
@@ -775,6 +968,8 @@ pub fn diagnose(
         shrink: 1.0 - gap_after / gap_before,
         best_candidate: best_effect,
         params,
+        params_sigma,
+        plain: plain::build(&curves, &feature_rows_copy, &effect_name_copy),
         null_gap_median: g50,
         null_gap_95: g95,
         decision,
@@ -782,6 +977,7 @@ pub fn diagnose(
         null_group_gaps: null_groups,
         where_,
         candidates,
+        tests,
         baseline: base_model,
         baseline_source: source,
         task,

@@ -152,12 +152,23 @@ pub fn write(dir: &Path, d: &Diagnosis) -> Result<PathBuf> {
     let html = format!(
         "<!doctype html><html><head><meta charset=\"utf-8\"><title>gap: {rec}</title>\
 <style>body{{font-family:sans-serif;max-width:1000px;margin:auto}}td,th{{padding:2px 8px;border-bottom:1px solid #ddd}}</style></head><body>\
-<h1>Sim-to-real gap: {rec}</h1><p><b>effect: {effect}</b>; held-out gap {gb:.3} &rarr; {ga:.3} (shrink {sh:.3}); null gap median {g50:.3}, 95 % {g95:.3}.</p>\
+<h1>Sim-to-real gap: {rec}</h1><p><b>effect: {effect}</b> {params}</p><p><b>In plain units:</b> {plain}</p><p>Held-out gap score (mean squared z of the worst feature group; about 1 when the record is one more draw of the model) {gb:.3} &rarr; {ga:.3} (shrink {sh:.3}); null gap median {g50:.3}, 95 % {g95:.3}.</p>\
 <p>{dec}</p><p>Baseline: {src}.</p><p>Where: tau {tau}, frequency {fr}, time {tm}; distribution: {dist}</p>\
 <h2>Allan deviation</h2>{adev}<h2>PSD</h2>{psd}<h2>Candidates (held-out)</h2><table><tr><th>effect</th><th>gap after</th><th>shrink</th><th>parameters</th></tr>{rows}</table>\
 <p><small>{defs}</small></p></body></html>\n",
         rec = esc(&d.record),
         effect = d.effect,
+        plain = esc(&d.plain.summary),
+        params = esc(&d
+            .params
+            .iter()
+            .flat_map(|m| m.iter())
+            .map(|(k, v)| match d.params_sigma.as_ref().and_then(|s| s.get(k)) {
+                Some(e) => format!("{k} = {v:.4e} +- {e:.1e}"),
+                None => format!("{k} = {v:.4e}"),
+            })
+            .collect::<Vec<_>>()
+            .join(", ")),
         gb = d.gap_before,
         ga = d.gap_after,
         sh = d.shrink,
