@@ -15,10 +15,13 @@ use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::debug;
 use embedded_hal_nb::serial::{ErrorKind, ErrorType, Write};
 
+#[cfg(not(feature = "budget"))]
 use fog_core::tmp117::Address;
 
+#[cfg(not(feature = "budget"))]
 use super::sbcon_i2c::{self, SbconI2c};
 use crate::app::TickCounter;
+#[cfg(not(feature = "budget"))]
 use crate::temperature::TemperatureSource;
 
 /// CMSDK APB UART0 base address.
@@ -242,6 +245,9 @@ fn main() -> ! {
             super::stack_used_bytes,
             super::rx::loss,
             temperature,
+            // No still input pin on this board: the external flag comes from the in-band
+            // commands of the input stream (`pipeline::STILL_MARKER`, ...).
+            || None,
         ) == crate::app::Stop::EndOfInput
     };
     #[cfg(feature = "budget")]
