@@ -5,14 +5,15 @@
 # warm-up coefficients), then `host-sim identify --preset motion --save-identifier` (3 epochs,
 # sensor ecore2000). Deterministic: the same code gives the same bytes.
 #   bash scripts/train-default-identifier.sh [OUT.fogi]     (default: the committed file)
-# Takes a few minutes (release build of host-sim, then about 1 min of simulation and training).
+# Takes about a minute once host-sim is built (the debug build: the tests use it too; debug and
+# release give the same bits, no fast-math).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-fog-firmware/identifier/default.fogi}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-cargo build -q --release -p host-sim --bin host-sim
-bin=${CARGO_TARGET_DIR:-target}/release/host-sim
+cargo build -q -p host-sim --bin host-sim
+bin=${CARGO_TARGET_DIR:-target}/debug/host-sim
 mkdir -p "$work/train"
 for i in $(seq 1 12); do
   "$bin" simulate --preset ecore2000 --duration-s 1800 --seed $((100 + i)) \
