@@ -37,6 +37,11 @@ pub const SAMPLE_RATE_HZ: f32 = 100.0;
 /// Samples per denoising block.
 pub const BLOCK: usize = 512;
 
+/// The denoised field of sample `k`'s record is the denoised rate of sample
+/// `k - DENOISED_DELAY_SAMPLES` (NaN before): one block (`BlockDenoiser` hands a block out
+/// whole on its last sample, and its values are read out as the next block fills).
+pub const DENOISED_DELAY_SAMPLES: usize = BLOCK;
+
 /// First byte of every record.
 pub const RECORD_SYNC: u8 = 0xA5;
 /// `kind` of a per-sample record.
@@ -143,8 +148,8 @@ pub struct Output {
     pub drift_dps: f32,
     /// `rate - drift`, deg/s.
     pub compensated_dps: f32,
-    /// The paper's denoised rate of the sample one block earlier (sample `k - BLOCK`), deg/s;
-    /// NaN until the first block is complete.
+    /// The paper's denoised rate of sample `k - DENOISED_DELAY_SAMPLES`, deg/s; NaN until
+    /// there is one.
     pub denoised_dps: f32,
 }
 

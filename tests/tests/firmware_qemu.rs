@@ -172,6 +172,46 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
     }
     assert_eq!(mismatches, 0, "per-sample records differ from the host");
 
+    // A second reference, fog-core called directly (not through pipeline.rs): the estimator
+    // from the parsed image, and the paper's denoiser on the first block.
+    let image = fog_core::image::Image::parse(&default_image()).expect("default image");
+    let mut estimator = image.estimator().expect("estimator");
+    for (k, r) in records.iter().enumerate() {
+        let rate_dps = f32::from_bits(r.bits[0]);
+        let m = estimator
+            .push(rate_dps, f32::NAN, expected.external[k])
+            .expect("finite rate");
+        assert_eq!(
+            [r.bits[1], r.bits[2]],
+            [m.drift_dps.to_bits(), m.compensated_dps.to_bits()],
+            "record {k}: drift, compensated vs MotionEstimator"
+        );
+        assert_eq!(
+            r.status & pipeline::STATUS_STILL != 0,
+            m.still,
+            "record {k}: still"
+        );
+    }
+    let mut block: Vec<f32> = records[..pipeline::BLOCK]
+        .iter()
+        .map(|r| f32::from_bits(r.bits[0]))
+        .collect();
+    let mut scratch = vec![0.0f32; pipeline::BLOCK];
+    fog_core::denoise::denoise_in_place(
+        &mut block,
+        &mut scratch,
+        &fog_core::denoise::DenoiseConfig::PAPER,
+    )
+    .expect("denoised");
+    for (i, d) in block.iter().enumerate() {
+        let k = pipeline::DENOISED_DELAY_SAMPLES + i;
+        assert_eq!(
+            records[k].bits[3],
+            d.to_bits(),
+            "record {k}: denoised field"
+        );
+    }
+
     let want = expected.stats.counters();
     assert_eq!(
         stats.counters, want,

@@ -56,6 +56,8 @@ pub struct Expected {
     pub stats: ByteStats,
     /// Still-flag commands in the stream.
     pub still_commands: u32,
+    /// The external still flag each good frame was processed with.
+    pub external: Vec<Option<bool>>,
 }
 
 impl Expected {
@@ -88,6 +90,7 @@ pub fn host_reference_with(stream: &[u8], image: &[u8]) -> Expected {
     let (mut still, mut still_commands, mut ended) = (None, 0, false);
     let mut samples = Vec::new();
     let mut frames = Vec::new();
+    let mut external = Vec::new();
     for &b in stream {
         // The firmware stops reading at the end marker.
         if ended {
@@ -105,6 +108,7 @@ pub fn host_reference_with(stream: &[u8], image: &[u8]) -> Expected {
             let (out, status) = pipeline::process(&mut stage, frame.rate_dps, None, still);
             samples.push((frame.rate_dps, out, status));
             frames.push(frame);
+            external.push(still);
         }
     }
     decoder.flush();
@@ -113,6 +117,7 @@ pub fn host_reference_with(stream: &[u8], image: &[u8]) -> Expected {
         frames,
         stats: *decoder.stats(),
         still_commands,
+        external,
     }
 }
 
