@@ -40,23 +40,23 @@
 //! the signal's RMS (tested to 2e-6 for lengths 64..=4096 and levels 1..=5).
 
 /// Predict step 1 (`d += P0 * s[n+1]`).
-const P0: [f32; 1] = [-3.222_758_880_002_811_2e-1];
+pub(crate) const P0: [f32; 1] = [-3.222_758_880_002_811_2e-1];
 /// Update step 2 (taps `d[n]`, `d[n-1]`).
-const U1: [f32; 2] = [-1.117_123_605_116_217_2, -3.001_422_585_491_521_6e-1];
+pub(crate) const U1: [f32; 2] = [-1.117_123_605_116_217_2, -3.001_422_585_491_521_6e-1];
 /// Predict step 3 (taps `s[n+2]`, `s[n+1]`).
-const P2: [f32; 2] = [-1.880_835_272_775_004_1e-2, 1.176_480_868_035_395_1e-1];
+pub(crate) const P2: [f32; 2] = [-1.880_835_272_775_004_1e-2, 1.176_480_868_035_395_1e-1];
 /// Update step 4 (taps `d[n]`, `d[n-1]`).
-const U3: [f32; 2] = [2.131_816_712_612_866_7, 6.364_282_709_619_261_1e-1];
+pub(crate) const U3: [f32; 2] = [2.131_816_712_612_866_7, 6.364_282_709_619_261_1e-1];
 /// Predict step 5 (taps `s[n]`, `s[n-1]`, `s[n-2]`).
-const P4: [f32; 3] = [
+pub(crate) const P4: [f32; 3] = [
     -4.690_834_789_330_211e-1,
     1.400_392_377_392_728_2e-1,
     -2.479_123_815_827_083_4e-2,
 ];
 /// Scaling of the approximation channel.
-const K_S: f32 = 7.341_245_277_004_642_1e-1;
+pub(crate) const K_S: f32 = 7.341_245_277_004_642_1e-1;
 /// Scaling of the detail channel.
-const K_D: f32 = 1.362_166_720_041_831_5;
+pub(crate) const K_D: f32 = 1.362_166_720_041_831_5;
 
 /// Shortest coarsest approximation a transform may leave: the db4 filter length.
 ///
@@ -121,13 +121,13 @@ const GHOST: usize = 4;
 /// validated by [`check`]); `get` instead of indexing keeps the firmware free of
 /// bounds-check panics where the compiler cannot prove the range itself.
 #[inline(always)]
-fn ld(v: &[f32], i: usize) -> f32 {
+pub(crate) fn ld(v: &[f32], i: usize) -> f32 {
     v.get(i).copied().unwrap_or(0.0)
 }
 
 /// `v[i] = x` when `i` is in range (see [`ld`]).
 #[inline(always)]
-fn st(v: &mut [f32], i: usize, x: f32) {
+pub(crate) fn st(v: &mut [f32], i: usize, x: f32) {
     if let Some(o) = v.get_mut(i) {
         *o = x;
     }
@@ -135,7 +135,7 @@ fn st(v: &mut [f32], i: usize, x: f32) {
 
 /// `v[i] += x` when `i` is in range (see [`ld`]): the same f32 operation as `v[i] += x`.
 #[inline(always)]
-fn add(v: &mut [f32], i: usize, x: f32) {
+pub(crate) fn add(v: &mut [f32], i: usize, x: f32) {
     if let Some(o) = v.get_mut(i) {
         *o += x;
     }
@@ -143,7 +143,7 @@ fn add(v: &mut [f32], i: usize, x: f32) {
 
 /// `v[i] -= x` when `i` is in range (see [`ld`]).
 #[inline(always)]
-fn sub(v: &mut [f32], i: usize, x: f32) {
+pub(crate) fn sub(v: &mut [f32], i: usize, x: f32) {
     if let Some(o) = v.get_mut(i) {
         *o -= x;
     }
@@ -159,13 +159,13 @@ fn copy(dst: &mut [f32], src: &[f32]) {
 
 /// `a * x + b * y`, in this order (the same f32 operations everywhere).
 #[inline(always)]
-fn two(c: &[f32; 2], a: f32, b: f32) -> f32 {
+pub(crate) fn two(c: &[f32; 2], a: f32, b: f32) -> f32 {
     c[0] * a + c[1] * b
 }
 
 /// `((0 + c0 * a) + c1 * b) + c2 * e`, in this order.
 #[inline(always)]
-fn three(c: &[f32; 3], a: f32, b: f32, e: f32) -> f32 {
+pub(crate) fn three(c: &[f32; 3], a: f32, b: f32, e: f32) -> f32 {
     let mut acc = 0.0f32;
     acc += c[0] * a;
     acc += c[1] * b;

@@ -1,7 +1,11 @@
-//! Wavelet denoising of one block (paper section 3) and a sample-by-sample block buffer.
+//! Wavelet denoising of one block (paper section 3), a sample-by-sample block buffer, and
+//! the same denoising spread over the samples ([`ResumableDenoiser`]).
 
 use crate::db4::{self, TransformError};
 use crate::threshold::{self, Sigma, ThresholdRule, ZERO_REL};
+
+mod resumable;
+pub use resumable::{Refused, ResumableDenoiser};
 
 /// Largest sample magnitude accepted: far above any rate a gyro reports, far enough below
 /// `f32::MAX` that no intermediate value of the transform (at most a few hundred times the

@@ -102,7 +102,9 @@ impl SensorConfig {
             // max/min, not `f32::clamp`: clamp panics when its bounds are NaN or crossed, a
             // panic path in the firmware (tests/tests/firmware_no_panic.rs); same result for
             // a valid (positive, finite) bound.
-            drift_dps.max(-self.drift_bound_dps).min(self.drift_bound_dps)
+            drift_dps
+                .max(-self.drift_bound_dps)
+                .min(self.drift_bound_dps)
         }
     }
 }

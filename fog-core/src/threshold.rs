@@ -243,7 +243,7 @@ pub fn median_abs_bracketed(x: &[f32], work: &mut [f32], zero_tol: f32) -> Optio
 /// Unsigned key that sorts like `f32::total_cmp` (the IEEE bits, with the negative values'
 /// magnitude bits flipped and the sign bit inverted).
 #[inline(always)]
-fn total_key(x: f32) -> u32 {
+pub(crate) fn total_key(x: f32) -> u32 {
     let b = x.to_bits();
     let flip = (((b as i32) >> 31) as u32) >> 1;
     (b ^ flip) ^ 0x8000_0000
@@ -251,7 +251,7 @@ fn total_key(x: f32) -> u32 {
 
 /// The value whose [`total_key`] is `k`.
 #[inline(always)]
-fn from_total_key(k: u32) -> f32 {
+pub(crate) fn from_total_key(k: u32) -> f32 {
     let b = k ^ 0x8000_0000;
     let flip = (((b as i32) >> 31) as u32) >> 1;
     f32::from_bits(b ^ flip)

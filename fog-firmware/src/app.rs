@@ -212,12 +212,13 @@ where
     let mut totals = RunTotals::default();
     let mut period = Period::default();
     defmt::info!(
-        "fog-firmware: E-Core {=f32} deg/s full scale, {=f32} Hz, motion-safe identifier image ({=usize} bytes) loaded, drift bound {=f32} deg/s, denoise block {=usize}",
+        "fog-firmware: E-Core {=f32} deg/s full scale, {=f32} Hz, motion-safe identifier image ({=usize} bytes) loaded, drift bound {=f32} deg/s, denoise block {=usize} (resumable), denoised field {=usize} samples late",
         pipeline::FULL_SCALE_DPS,
         pipeline::SAMPLE_RATE_HZ,
         IDENTIFIER_IMAGE.len(),
         stage.estimator().config().sensor.drift_bound_dps,
-        pipeline::BLOCK
+        pipeline::BLOCK,
+        pipeline::DENOISED_DELAY_SAMPLES
     );
     loop {
         match reader.read() {

@@ -10,13 +10,15 @@
 use core::fmt::Write as _;
 
 use embedded_hal_nb::serial::Write;
-use fog_core::denoise::{BlockDenoiser, DenoiseConfig, Push};
+use fog_core::denoise::{DenoiseConfig, ResumableDenoiser};
 use fog_core::frame::{ecore, Decoder, EcoreDecoder};
 use fog_core::image::Image;
 use fog_core::still::Stillness;
 
 use crate::app::{TickCounter, IDENTIFIER_IMAGE};
 use crate::pipeline::{self, BLOCK};
+
+mod resumable;
 
 /// Samples measured: 8 blocks (41 s at 100 Hz).
 const SAMPLES: usize = 8 * BLOCK;
@@ -231,7 +233,7 @@ where
     let Some(mut detector) = Stillness::new(&cfg.sensor, &cfg.still) else {
         return false;
     };
-    let Ok(mut denoiser) = BlockDenoiser::<BLOCK>::new(DenoiseConfig::PAPER) else {
+    let Ok(mut denoiser) = ResumableDenoiser::<BLOCK>::new(DenoiseConfig::PAPER) else {
         return false;
     };
 
@@ -239,7 +241,8 @@ where
         state: 0x5EED,
         k: 0,
     };
-    let (mut a_decode, mut a_detect, mut a_estimate, mut a_denoise) = (
+    let (mut a_decode, mut a_detect, mut a_estimate, mut a_denoise, mut a_denoise_mid) = (
+        Acc::default(),
         Acc::default(),
         Acc::default(),
         Acc::default(),
@@ -308,12 +311,15 @@ where
             sink += m.compensated_dps;
         }
 
-        // The block denoiser alone (db4, 3 levels, B = 512), every push, block ends included.
+        // The resumable denoiser alone (db4, 3 levels, B = 512), every push.
         let (d, t) = time(c, || match denoiser.push(rate_dps) {
-            Ok(Push::Block(b, _)) => b[BLOCK - 1],
+            Ok(Some(v)) => v,
             _ => 0.0,
         });
         a_denoise.add(t);
+        if denoiser.filled() != 0 {
+            a_denoise_mid.add(t);
+        }
         sink += d;
     }
     // Stack used by all of the above (the stage and the copies live on the stack here).
@@ -371,9 +377,16 @@ where
         row(
             &mut out,
             &cal,
-            "denoise db4 x3, B=512, every push",
+            "denoise db4 x3, B=512, resumable",
             "sample",
             &a_denoise,
+        )?;
+        row(
+            &mut out,
+            &cal,
+            "  of which pushes not completing a block",
+            "sample",
+            &a_denoise_mid,
         )?;
         row(
             &mut out,
@@ -428,6 +441,8 @@ where
         )?;
         writeln!(out)?;
         exp_table(c, &cal, &mut out)?;
+        writeln!(out)?;
+        resumable::table(c, &cal, &mut out)?;
         writeln!(out)?;
         writeln!(
             out,

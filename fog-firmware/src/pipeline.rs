@@ -11,7 +11,10 @@
 //! clamp(level + m(time since power-on, temperature, its rate)), the level a stillness-gated
 //! random-walk Kalman state; see `docs/motion.md`) loaded from an identifier image
 //! ([`new_stage`]: `fog_core::image::Image::parse` + `check_rate`), plus the paper's block
-//! denoiser (db4, 3 levels, `B` = 512) whose output is reported one block late.
+//! denoiser (db4, 3 levels, `B` = 512) in its resumable form
+//! (`fog_core::denoise::ResumableDenoiser`: block `j`'s transform spread over the pushes of
+//! block `j + 1`, bit-identical to `BlockDenoiser`), its output reported per sample
+//! [`DENOISED_DELAY_SAMPLES`] late.
 //! [`process`] runs one sample.
 //!
 //! # Records (see `fog-firmware/README.md`, the normative description)
@@ -19,7 +22,7 @@
 //! checksum covers `kind`, `len` and the payload. All multi-byte fields are little-endian.
 #![forbid(unsafe_code)]
 
-use fog_core::denoise::{BlockDenoiser, DenoiseConfig, DenoiseError, Push, MAX_ABS_INPUT};
+use fog_core::denoise::{DenoiseConfig, DenoiseError, ResumableDenoiser, MAX_ABS_INPUT};
 use fog_core::frame::ByteStats;
 use fog_core::image::{Image, ImageError};
 use fog_core::motion::{MotionError, MotionEstimator};
@@ -38,9 +41,11 @@ pub const SAMPLE_RATE_HZ: f32 = 100.0;
 pub const BLOCK: usize = 512;
 
 /// The denoised field of sample `k`'s record is the denoised rate of sample
-/// `k - DENOISED_DELAY_SAMPLES` (NaN before): one block (`BlockDenoiser` hands a block out
-/// whole on its last sample, and its values are read out as the next block fills).
-pub const DENOISED_DELAY_SAMPLES: usize = BLOCK;
+/// `k - DENOISED_DELAY_SAMPLES` (NaN before): two blocks. Block `j` is transformed while
+/// block `j + 1` fills (so that no sample pays for a whole transform), comes out whole when
+/// block `j + 1` completes, one block later than `BlockDenoiser` would give it, and is read
+/// out sample by sample while block `j + 2` fills.
+pub const DENOISED_DELAY_SAMPLES: usize = 2 * BLOCK;
 
 /// First byte of every record.
 pub const RECORD_SYNC: u8 = 0xA5;
@@ -59,8 +64,8 @@ pub const STATS_RECORD_LEN: usize = 3 + STATS_PAYLOAD_LEN + 2;
 
 /// Status bit: the sample was taken as still (the detector's state, or the external flag).
 pub const STATUS_STILL: u8 = 1 << 0;
-/// Status bit: this sample completed a denoising block (from the next sample on, the
-/// denoised field carries that block).
+/// Status bit: this sample completed a denoising block (its transform runs during the next
+/// block; the denoised field carries it one block after that).
 pub const STATUS_BLOCK_DONE: u8 = 1 << 1;
 /// Status bit: an external still flag was given for this sample (it overrides the detector).
 pub const STATUS_EXTERNAL: u8 = 1 << 2;
@@ -108,13 +113,10 @@ pub enum SetupError {
     Denoiser(DenoiseError),
 }
 
-/// The per-sample stage: the estimator from the image, and the block denoiser.
+/// The per-sample stage: the estimator from the image, and the resumable block denoiser.
 pub struct Stage {
     estimator: MotionEstimator,
-    denoiser: BlockDenoiser<BLOCK>,
-    /// The last completed block, denoised (valid when `have_block`).
-    denoised: [f32; BLOCK],
-    have_block: bool,
+    denoiser: ResumableDenoiser<BLOCK>,
 }
 
 impl Stage {
@@ -132,12 +134,10 @@ pub fn new_stage(image: &[u8]) -> Result<Stage, SetupError> {
         .check_rate(SAMPLE_RATE_HZ)
         .map_err(SetupError::Image)?;
     let estimator = image.estimator().map_err(SetupError::Estimator)?;
-    let denoiser = BlockDenoiser::new(DenoiseConfig::PAPER).map_err(SetupError::Denoiser)?;
+    let denoiser = ResumableDenoiser::new(DenoiseConfig::PAPER).map_err(SetupError::Denoiser)?;
     Ok(Stage {
         estimator,
         denoiser,
-        denoised: [0.0; BLOCK],
-        have_block: false,
     })
 }
 
@@ -196,17 +196,12 @@ pub fn process(
     if temp_c.is_some() {
         status |= STATUS_TEMPERATURE;
     }
-    // The denoised value of this position in the previous block, read before this sample
-    // takes its place.
-    let slot = stage.denoiser.filled();
-    let denoised_dps = match stage.denoised.get(slot) {
-        Some(&d) if stage.have_block => d,
+    // The range was checked above: the denoiser cannot refuse this sample.
+    let denoised_dps = match stage.denoiser.push(rate_dps) {
+        Ok(Some(d)) => d,
         _ => f32::NAN,
     };
-    // The range was checked above: the denoiser cannot refuse this sample.
-    if let Ok(Push::Block(block, _)) = stage.denoiser.push(rate_dps) {
-        stage.denoised = *block;
-        stage.have_block = true;
+    if stage.denoiser.filled() == 0 {
         status |= STATUS_BLOCK_DONE;
     }
     (

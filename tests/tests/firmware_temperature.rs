@@ -28,8 +28,11 @@ use temperature_hold::Hold;
 /// The firmware's end-of-input marker (`pipeline::END_MARKER`).
 const END_MARKER: [u8; 8] = [0xC6, 0xCF, 0xC7, 0xAD, 0xC5, 0xCE, 0xC4, 0xA1];
 
-/// Statistics record: sync, kind 0x02, len 164, payload, checksum.
-const STATS_RECORD_LEN: usize = 3 + 164 + 2;
+/// Statistics record: sync, kind 0x02, len, payload, checksum (the firmware's constants).
+#[allow(dead_code)]
+#[path = "../../fog-firmware/src/pipeline.rs"]
+mod pipeline;
+use pipeline::{STATS_PAYLOAD_LEN, STATS_RECORD_LEN};
 
 /// Runs the firmware with only the end marker on its UART and `extra` QEMU arguments;
 /// returns (UART output, defmt bytes, exit code).
@@ -92,7 +95,7 @@ fn no_sensor_on_the_bus_is_reported_and_the_firmware_runs() {
     };
     assert_eq!(code, Some(0), "QEMU's exit code (semihosting)");
     assert_eq!(out.len(), STATS_RECORD_LEN, "only the statistics record");
-    assert_eq!(&out[..3], &[0xA5, 0x02, 164]);
+    assert_eq!(&out[..3], &[0xA5, 0x02, STATS_PAYLOAD_LEN as u8]);
     assert!(
         contains(&log, b"no acknowledge"),
         "the probe's NACK reason in the defmt log: {}",
