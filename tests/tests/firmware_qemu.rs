@@ -295,7 +295,7 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
         );
         assert_eq!(
             o.denoised_dps.is_nan(),
-            k < pipeline::BLOCK,
+            k < pipeline::DENOISED_DELAY_SAMPLES,
             "denoised field at {k}"
         );
     }
