@@ -19,9 +19,29 @@ fn main() {
     println!("cargo:rerun-if-changed={}", memory.display());
     println!("cargo:rerun-if-changed=build.rs");
     rt_feed(&out);
+    identifier(&out, &manifest);
     for arg in ["--nmagic", "-Tlink.x", "-Tdefmt.x"] {
         println!("cargo:rustc-link-arg-bins={arg}");
     }
+}
+
+/// The identifier image the firmware embeds: the file named by `FOG_IDENTIFIER`, else the
+/// committed `identifier/default.fogi` (made by `scripts/train-default-identifier.sh`),
+/// copied to `OUT_DIR/identifier.fogi` as it is. It is not checked here: the firmware parses
+/// and checks it at boot (a corrupt or wrong-rate image stops it with an error there).
+fn identifier(out: &std::path::Path, manifest: &std::path::Path) {
+    println!("cargo:rerun-if-env-changed=FOG_IDENTIFIER");
+    let file = env::var_os("FOG_IDENTIFIER")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| manifest.join("identifier/default.fogi"));
+    println!("cargo:rerun-if-changed={}", file.display());
+    let bytes = fs::read(&file).unwrap_or_else(|e| {
+        panic!(
+            "identifier image {} unreadable ({e}); set FOG_IDENTIFIER or run scripts/train-default-identifier.sh",
+            file.display()
+        )
+    });
+    fs::write(out.join("identifier.fogi"), bytes).expect("OUT_DIR writable");
 }
 
 /// Feature `rt-feed` (test build): the capture named by `FOG_RT_CAPTURE` goes into the image,

@@ -99,7 +99,12 @@ impl SensorConfig {
         if drift_dps.is_nan() {
             0.0
         } else {
-            drift_dps.clamp(-self.drift_bound_dps, self.drift_bound_dps)
+            // max/min, not `f32::clamp`: clamp panics when its bounds are NaN or crossed, a
+            // panic path in the firmware (tests/tests/firmware_no_panic.rs); same result for
+            // a valid (positive, finite) bound.
+            drift_dps
+                .max(-self.drift_bound_dps)
+                .min(self.drift_bound_dps)
         }
     }
 }

@@ -7,8 +7,13 @@ use embedded_hal_nb::serial::{ErrorType, Read, Write};
 use fog_core::driver::GyroReader;
 use fog_core::frame::{ByteStats, Decoder, EcoreDecoder};
 
-use crate::pipeline::{self, EndDetector, RunTotals};
+use crate::pipeline::{self, Command, CommandDetector, RunTotals};
 use crate::temperature::TemperatureSource;
+
+/// The identifier image embedded at build time: `build.rs` copies the file named by
+/// `FOG_IDENTIFIER` (default `fog-firmware/identifier/default.fogi`) to `OUT_DIR`. It is
+/// parsed and checked at boot ([`pipeline::new_stage`]).
+pub static IDENTIFIER_IMAGE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/identifier.fogi"));
 
 /// Periodic statistics on defmt every this many samples.
 pub const STATS_EVERY_SAMPLES: u32 = 1000;
@@ -51,28 +56,63 @@ pub enum Stop {
     Setup,
 }
 
-/// A receive half that watches for [`pipeline::END_MARKER`] and reports `WouldBlock` for
-/// ever once it has passed (the bytes of the marker are given to the decoder like any byte).
-struct EndTap<'a, R> {
-    rx: R,
-    detector: EndDetector,
-    ended: &'a Cell<bool>,
+/// What the in-band commands set so far (see [`pipeline::Command`]).
+#[derive(Debug, Clone, Copy, Default)]
+struct Commands {
+    ended: bool,
+    still: Option<bool>,
+    count: u32,
 }
 
-impl<R: ErrorType> ErrorType for EndTap<'_, R> {
+/// A receive half that watches for the in-band commands ([`pipeline::END_MARKER`], the
+/// still-flag markers) and reports `WouldBlock` for ever once the end marker has passed.
+/// Every byte, those of the commands included, is given to the decoder like any byte (it
+/// counts them as skipped).
+struct CommandTap<'a, R> {
+    rx: R,
+    detector: CommandDetector,
+    state: &'a Cell<Commands>,
+}
+
+impl<R: ErrorType> ErrorType for CommandTap<'_, R> {
     type Error = R::Error;
 }
 
-impl<R: Read<u8>> Read<u8> for EndTap<'_, R> {
+impl<R: Read<u8>> Read<u8> for CommandTap<'_, R> {
     fn read(&mut self) -> nb::Result<u8, Self::Error> {
-        if self.ended.get() {
+        let mut st = self.state.get();
+        if st.ended {
             return Err(nb::Error::WouldBlock);
         }
         let byte = self.rx.read()?;
-        if self.detector.push(byte) {
-            self.ended.set(true);
+        match self.detector.push(byte) {
+            Some(Command::End) => st.ended = true,
+            Some(c) => {
+                st.still = c.still_flag();
+                st.count = st.count.wrapping_add(1);
+            }
+            None => return Ok(byte),
         }
+        self.state.set(st);
         Ok(byte)
+    }
+}
+
+/// A short reason for a refused image, sent as a `{=str}` argument (so that it appears
+/// verbatim in the defmt log, not only as an interned index).
+fn image_error_reason(e: &fog_core::image::ImageError) -> &'static str {
+    use fog_core::image::ImageError as E;
+    match e {
+        E::BadMagic => "bad magic",
+        E::Truncated { .. } => "truncated",
+        E::UnsupportedVersion(_) => "unsupported format version",
+        E::TrailingBytes(_) => "trailing bytes",
+        E::Checksum { .. } => "checksum mismatch",
+        E::UnknownPreset(_) => "unknown preset",
+        E::Layout { .. } => "network layout does not fit",
+        E::BadValue { .. } => "invalid value",
+        E::RateMismatch { .. } => "sample rate mismatch",
+        E::BufferTooSmall => "buffer too small",
     }
 }
 
@@ -119,7 +159,10 @@ fn log_stats<C: TickCounter>(s: &ByteStats, t: &RunTotals, p: &Period) {
 /// frame to `tx`, then flushes the decoder and writes the statistics record.
 ///
 /// `stack_bytes` and `rx_loss` are called once at the end for the final record. `temperature`
-/// gives each sample's `temp_c` (`None` without a sensor).
+/// gives each sample's `temp_c` (`None` without a sensor). `still_input` is the board's
+/// external still flag (a GPIO input; `None` when the board has none). The external flag of
+/// a sample is the last still-flag command of the stream when one set it (`FOG-STL!` or
+/// `FOG-MOV!`), else `still_input()`.
 pub fn run<R, W, C, I>(
     rx: R,
     tx: &mut W,
@@ -127,6 +170,7 @@ pub fn run<R, W, C, I>(
     stack_bytes: fn() -> u32,
     rx_loss: fn() -> RxLoss,
     mut temperature: TemperatureSource<I>,
+    still_input: fn() -> Option<bool>,
 ) -> Stop
 where
     R: Read<u8>,
@@ -138,36 +182,52 @@ where
         defmt::error!("decoder configuration refused");
         return Stop::Setup;
     };
-    let mut stage = match pipeline::new_stage() {
+    let mut stage = match pipeline::new_stage(IDENTIFIER_IMAGE) {
         Ok(s) => s,
-        Err(e) => {
-            defmt::error!("identifier configuration refused: {}", e);
+        Err(pipeline::SetupError::Image(e)) => {
+            defmt::error!(
+                "identifier image refused ({=usize} bytes embedded): {=str}: {}",
+                IDENTIFIER_IMAGE.len(),
+                image_error_reason(&e),
+                e
+            );
+            return Stop::Setup;
+        }
+        Err(pipeline::SetupError::Estimator(e)) => {
+            defmt::error!("identifier image: estimator refused: {}", e);
+            return Stop::Setup;
+        }
+        Err(pipeline::SetupError::Denoiser(e)) => {
+            defmt::error!("denoiser configuration refused: {}", e);
             return Stop::Setup;
         }
     };
-    let ended = Cell::new(false);
-    let tap = EndTap {
+    let commands = Cell::new(Commands::default());
+    let tap = CommandTap {
         rx,
-        detector: EndDetector::default(),
-        ended: &ended,
+        detector: CommandDetector::default(),
+        state: &commands,
     };
     let mut reader = GyroReader::new(tap, decoder);
     let mut totals = RunTotals::default();
     let mut period = Period::default();
     defmt::info!(
-        "fog-firmware: E-Core {=f32} deg/s full scale, {=f32} s per sample, block {=usize}, {=usize} neurons",
+        "fog-firmware: E-Core {=f32} deg/s full scale, {=f32} Hz, motion-safe identifier image ({=usize} bytes) loaded, drift bound {=f32} deg/s, denoise block {=usize} (resumable), denoised field {=usize} samples late",
         pipeline::FULL_SCALE_DPS,
-        pipeline::SAMPLE_PERIOD_S,
+        pipeline::SAMPLE_RATE_HZ,
+        IDENTIFIER_IMAGE.len(),
+        stage.estimator().config().sensor.drift_bound_dps,
         pipeline::BLOCK,
-        pipeline::NEURONS
+        pipeline::DENOISED_DELAY_SAMPLES
     );
     loop {
         match reader.read() {
             Ok(frame) => {
                 let temp_c = temperature.sample();
+                let external = commands.get().still.or_else(still_input);
                 let t0 = counter.stamp();
-                let (est, status) = pipeline::process(&mut stage, frame.rate_dps, temp_c);
-                let record = pipeline::sample_record(totals.samples, frame.rate_dps, &est, status);
+                let (out, status) = pipeline::process(&mut stage, frame.rate_dps, temp_c, external);
+                let record = pipeline::sample_record(totals.samples, frame.rate_dps, &out, status);
                 let ticks = counter.ticks_since(t0);
                 write_all(tx, &record);
                 totals.samples = totals.samples.wrapping_add(1);
@@ -183,7 +243,7 @@ where
                 }
             }
             Err(nb::Error::WouldBlock) => {
-                if ended.get() {
+                if commands.get().ended {
                     break;
                 }
             }
@@ -195,6 +255,7 @@ where
     }
     reader.decoder_mut().flush();
     totals.stack_bytes = stack_bytes();
+    totals.still_commands = commands.get().count;
     let loss = rx_loss();
     (totals.rx_overrun, totals.rx_queue_full) = (loss.overrun, loss.queue_full);
     let stats = *reader.stats();
@@ -206,6 +267,15 @@ where
         totals.rx_overrun,
         totals.rx_queue_full,
         stats.is_consistent()
+    );
+    let m = stage.estimator().stats();
+    defmt::info!(
+        "estimator: {=u32} samples, {=u32} still, {=u32} level updates, {=u32} refused; still-flag commands {=u32}",
+        m.samples,
+        m.still_samples,
+        m.level_updates,
+        m.rejected,
+        totals.still_commands
     );
     defmt::info!(
         "temperature: sensor present {=bool}, failed reads {=u32}",

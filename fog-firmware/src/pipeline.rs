@@ -3,35 +3,49 @@
 //!
 //! This file depends on `fog-core` and `core` only. The hardware-in-the-loop test
 //! (`tests/tests/firmware_qemu.rs`) compiles this very file on the host (`#[path]`), runs it
-//! on the bytes it sends to QEMU, and requires the firmware's records to be bit-identical.
+//! on the bytes it sends to QEMU with the same identifier image, and requires the firmware's
+//! records to be bit-identical.
 //!
 //! # The estimation stage
-//! [`Stage`] is `fog_core::identify::presets::LevelTrend<512>`: inputs `[10-s level, trend,
-//! T]`, bias + linear link + 28 Gaussians (L = 30), sequential guarded DRLS, targets from the
-//! paper's block denoiser (`B` = 512), built by [`new_stage`]. [`process`] runs one sample.
+//! [`Stage`] is the motion-safe estimator `fog_core::motion::MotionEstimator` (drift =
+//! clamp(level + m(time since power-on, temperature, its rate)), the level a stillness-gated
+//! random-walk Kalman state; see `docs/motion.md`) loaded from an identifier image
+//! ([`new_stage`]: `fog_core::image::Image::parse` + `check_rate`), plus the paper's block
+//! denoiser (db4, 3 levels, `B` = 512) in its resumable form
+//! (`fog_core::denoise::ResumableDenoiser`: block `j`'s transform spread over the pushes of
+//! block `j + 1`, bit-identical to `BlockDenoiser`), its output reported per sample
+//! [`DENOISED_DELAY_SAMPLES`] late.
+//! [`process`] runs one sample.
 //!
 //! # Records (see `fog-firmware/README.md`, the normative description)
 //! Every record is `[0xA5, kind, len, payload (len bytes), fletcher16 (2 bytes, LE)]`; the
 //! checksum covers `kind`, `len` and the payload. All multi-byte fields are little-endian.
 #![forbid(unsafe_code)]
 
+use fog_core::denoise::{DenoiseConfig, DenoiseError, ResumableDenoiser, MAX_ABS_INPUT};
 use fog_core::frame::ByteStats;
-use fog_core::identify::{presets, IdentifyError};
-
-pub use fog_core::identify::Estimate;
+use fog_core::image::{Image, ImageError};
+use fog_core::motion::{MotionError, MotionEstimator};
 
 /// Full scale of the E-Core 2000 unit the firmware decodes, deg/s.
 pub const FULL_SCALE_DPS: f32 = 60.0;
 
-/// Sample period of the gyro's output, s (100 Hz; the network's time input `T` counts
-/// samples times this).
+/// Sample period of the gyro's output, s (100 Hz: E-Core 2000).
 pub const SAMPLE_PERIOD_S: f32 = 0.01;
+
+/// Sample rate the firmware runs at, Hz; the identifier image must be for this rate
+/// (`Image::check_rate`, 1 % tolerance).
+pub const SAMPLE_RATE_HZ: f32 = 100.0;
 
 /// Samples per denoising block.
 pub const BLOCK: usize = 512;
 
-/// Neurons of the network, bias and direct link included.
-pub const NEURONS: usize = presets::L;
+/// The denoised field of sample `k`'s record is the denoised rate of sample
+/// `k - DENOISED_DELAY_SAMPLES` (NaN before): two blocks. Block `j` is transformed while
+/// block `j + 1` fills (so that no sample pays for a whole transform), comes out whole when
+/// block `j + 1` completes, one block later than `BlockDenoiser` would give it, and is read
+/// out sample by sample while block `j + 2` fills.
+pub const DENOISED_DELAY_SAMPLES: usize = 2 * BLOCK;
 
 /// First byte of every record.
 pub const RECORD_SYNC: u8 = 0xA5;
@@ -43,64 +57,161 @@ pub const KIND_STATS: u8 = 0x02;
 pub const SAMPLE_PAYLOAD_LEN: usize = 21;
 /// Bytes of a whole per-sample record.
 pub const SAMPLE_RECORD_LEN: usize = 3 + SAMPLE_PAYLOAD_LEN + 2;
-/// Payload bytes of the statistics record: 17 `u64` counters and 6 `u32`.
-pub const STATS_PAYLOAD_LEN: usize = 17 * 8 + 6 * 4;
+/// Payload bytes of the statistics record: 17 `u64` counters and 7 `u32`.
+pub const STATS_PAYLOAD_LEN: usize = 17 * 8 + 7 * 4;
 /// Bytes of the whole statistics record.
 pub const STATS_RECORD_LEN: usize = 3 + STATS_PAYLOAD_LEN + 2;
 
-/// Status bit: a training step was made at this sample (`train_error_dps` is a number).
-pub const STATUS_TRAINED: u8 = 1 << 0;
-/// Status bit: this sample completed a denoising block.
+/// Status bit: the sample was taken as still (the detector's state, or the external flag).
+pub const STATUS_STILL: u8 = 1 << 0;
+/// Status bit: this sample completed a denoising block (its transform runs during the next
+/// block; the denoised field carries it one block after that).
 pub const STATUS_BLOCK_DONE: u8 = 1 << 1;
-/// Status bit: the sample was refused (non-finite or out of range); the three estimates are
-/// NaN and the identifier did not change.
+/// Status bit: an external still flag was given for this sample (it overrides the detector).
+pub const STATUS_EXTERNAL: u8 = 1 << 2;
+/// Status bit: a still window was released into the level at this sample (level update).
+pub const STATUS_LEVEL_UPDATE: u8 = 1 << 3;
+/// Status bit: a temperature reading went into the estimator with this sample.
+pub const STATUS_TEMPERATURE: u8 = 1 << 4;
+/// Status bit: the sample was refused (non-finite or beyond `denoise::MAX_ABS_INPUT`); the
+/// three estimates are NaN, and neither the estimator nor the denoiser changed.
 pub const STATUS_REJECTED: u8 = 1 << 7;
 
 /// End of input: these 8 bytes in a row (`b"FOG-END!"` with bit 7 set on each) end the run.
 ///
 /// They are ordinary input for the decoder too (a valid E-Core stream never holds two sync
 /// bytes in a row, so they decode as 7 frames cut short and one pending byte), so the host
-/// reproduces the counters by decoding exactly the bytes it sent.
-pub const END_MARKER: [u8; 8] = [0xC6, 0xCF, 0xC7, 0xAD, 0xC5, 0xCE, 0xC4, 0xA1];
+/// reproduces the counters by decoding exactly the bytes it sent. The still-flag commands
+/// ([`Command`]) are built the same way.
+pub const END_MARKER: [u8; 8] = marker(*b"FOG-END!");
+/// External still flag command: "still" from the next frame on (`b"FOG-STL!"`, bit 7 set).
+pub const STILL_MARKER: [u8; 8] = marker(*b"FOG-STL!");
+/// External still flag command: "moving" from the next frame on (`b"FOG-MOV!"`, bit 7 set).
+pub const MOVING_MARKER: [u8; 8] = marker(*b"FOG-MOV!");
+/// External still flag command: no external flag, the detector decides (`b"FOG-AUT!"`).
+pub const AUTO_MARKER: [u8; 8] = marker(*b"FOG-AUT!");
 
-/// The stage the firmware runs.
-pub type Stage = presets::LevelTrend<BLOCK>;
-
-/// Builds the stage: the level-trend preset with its default scaling and trainer.
-pub fn new_stage() -> Result<Stage, IdentifyError> {
-    presets::level_trend::<BLOCK>(presets::LEVEL_TREND_SCALING, SAMPLE_PERIOD_S)
+/// `ascii` with bit 7 set on each byte.
+const fn marker(ascii: [u8; 8]) -> [u8; 8] {
+    let mut m = ascii;
+    let mut i = 0;
+    while i < 8 {
+        m[i] |= 0x80;
+        i += 1;
+    }
+    m
 }
 
-/// One sample through the stage: its estimate and the record's status byte. A refused
-/// sample gives NaN estimates and [`STATUS_REJECTED`].
-///
-/// `temp_c` is the board temperature, °C (`None` without a sensor or while its reading is
-/// stale; see `temperature.rs`). The level-trend stage has no temperature input and does not
-/// use it yet: this argument is the one place where the temperature enters the sample
-/// processing, for the identifier with a temperature input.
-pub fn process(stage: &mut Stage, rate_dps: f32, temp_c: Option<f32>) -> (Estimate, u8) {
-    let _ = temp_c;
-    match stage.push(rate_dps) {
-        Ok(est) => {
-            let mut status = 0;
-            if !est.train_error_dps.is_nan() {
-                status |= STATUS_TRAINED;
-            }
-            if est.block_done {
-                status |= STATUS_BLOCK_DONE;
-            }
-            (est, status)
-        }
-        Err(_) => (
-            Estimate {
-                drift_dps: f32::NAN,
-                compensated_dps: f32::NAN,
-                train_error_dps: f32::NAN,
-                block_done: false,
-            },
-            STATUS_REJECTED,
-        ),
+/// Why the stage could not be built.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SetupError {
+    /// The identifier image was refused (corrupt, truncated, wrong version or rate).
+    Image(ImageError),
+    /// The image parsed but its configuration does not build an estimator.
+    Estimator(MotionError),
+    /// The denoiser's configuration was refused.
+    Denoiser(DenoiseError),
+}
+
+/// The per-sample stage: the estimator from the image, and the resumable block denoiser.
+pub struct Stage {
+    estimator: MotionEstimator,
+    denoiser: ResumableDenoiser<BLOCK>,
+}
+
+impl Stage {
+    /// The estimator (its counters, level and configuration).
+    pub fn estimator(&self) -> &MotionEstimator {
+        &self.estimator
     }
+}
+
+/// Builds the stage from an identifier image (`fog_core::image` format), checked against
+/// [`SAMPLE_RATE_HZ`].
+pub fn new_stage(image: &[u8]) -> Result<Stage, SetupError> {
+    let image = Image::parse(image).map_err(SetupError::Image)?;
+    image
+        .check_rate(SAMPLE_RATE_HZ)
+        .map_err(SetupError::Image)?;
+    let estimator = image.estimator().map_err(SetupError::Estimator)?;
+    let denoiser = ResumableDenoiser::new(DenoiseConfig::PAPER).map_err(SetupError::Denoiser)?;
+    Ok(Stage {
+        estimator,
+        denoiser,
+    })
+}
+
+/// What one sample gives, besides its status byte.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Output {
+    /// Drift estimate, deg/s (within the image's drift bound).
+    pub drift_dps: f32,
+    /// `rate - drift`, deg/s.
+    pub compensated_dps: f32,
+    /// The paper's denoised rate of sample `k - DENOISED_DELAY_SAMPLES`, deg/s; NaN until
+    /// there is one.
+    pub denoised_dps: f32,
+}
+
+/// The output of a refused sample.
+const REJECTED: Output = Output {
+    drift_dps: f32::NAN,
+    compensated_dps: f32::NAN,
+    denoised_dps: f32::NAN,
+};
+
+/// One sample through the stage: its output and the record's status byte.
+///
+/// `temp_c`: the board temperature, deg C (`None` without a sensor or while its reading is
+/// stale; the estimator then gets NaN, as its API asks). `external_still`: the external
+/// still flag (`Some(true)` still, `Some(false)` moving, `None` absent: the detector
+/// decides).
+pub fn process(
+    stage: &mut Stage,
+    rate_dps: f32,
+    temp_c: Option<f32>,
+    external_still: Option<bool>,
+) -> (Output, u8) {
+    // Both parts refuse the same samples, so that they stay aligned.
+    if !rate_dps.is_finite() || rate_dps.abs() > MAX_ABS_INPUT {
+        return (REJECTED, STATUS_REJECTED);
+    }
+    let updates = stage.estimator.stats().level_updates;
+    let Ok(m) = stage
+        .estimator
+        .push(rate_dps, temp_c.unwrap_or(f32::NAN), external_still)
+    else {
+        return (REJECTED, STATUS_REJECTED);
+    };
+    let mut status = 0;
+    if m.still {
+        status |= STATUS_STILL;
+    }
+    if external_still.is_some() {
+        status |= STATUS_EXTERNAL;
+    }
+    if stage.estimator.stats().level_updates != updates {
+        status |= STATUS_LEVEL_UPDATE;
+    }
+    if temp_c.is_some() {
+        status |= STATUS_TEMPERATURE;
+    }
+    // The range was checked above: the denoiser cannot refuse this sample.
+    let denoised_dps = match stage.denoiser.push(rate_dps) {
+        Ok(Some(d)) => d,
+        _ => f32::NAN,
+    };
+    if stage.denoiser.filled() == 0 {
+        status |= STATUS_BLOCK_DONE;
+    }
+    (
+        Output {
+            drift_dps: m.drift_dps,
+            compensated_dps: m.compensated_dps,
+            denoised_dps,
+        },
+        status,
+    )
 }
 
 /// Fletcher-16 (mod 255) of `bytes`: `sum1 | sum2 << 8`, with `sum1 = (sum1 + b) % 255` and
@@ -135,16 +246,16 @@ fn seal(out: &mut [u8], kind: u8, len: usize) {
 pub fn sample_record(
     index: u32,
     rate_dps: f32,
-    est: &Estimate,
+    out: &Output,
     status: u8,
 ) -> [u8; SAMPLE_RECORD_LEN] {
     let mut r = [0u8; SAMPLE_RECORD_LEN];
     r[3..7].copy_from_slice(&index.to_le_bytes());
     let values = [
         rate_dps,
-        est.drift_dps,
-        est.compensated_dps,
-        est.train_error_dps,
+        out.drift_dps,
+        out.compensated_dps,
+        out.denoised_dps,
     ];
     for (chunk, v) in r[7..23].chunks_exact_mut(4).zip(values) {
         chunk.copy_from_slice(&v.to_bits().to_le_bytes());
@@ -170,6 +281,9 @@ pub struct RunTotals {
     pub rx_overrun: u32,
     /// Received bytes dropped because the receive queue was full.
     pub rx_queue_full: u32,
+    /// External still-flag commands received ([`Command::Still`], [`Command::Moving`],
+    /// [`Command::Auto`]).
+    pub still_commands: u32,
 }
 
 /// The final statistics record: every [`ByteStats`] counter, then [`RunTotals`].
@@ -186,6 +300,7 @@ pub fn stats_record(s: &ByteStats, t: &RunTotals) -> [u8; STATS_RECORD_LEN] {
         t.stack_bytes,
         t.rx_overrun,
         t.rx_queue_full,
+        t.still_commands,
     ];
     for (chunk, v) in r[3 + 17 * 8..3 + STATS_PAYLOAD_LEN]
         .chunks_exact_mut(4)
@@ -197,26 +312,60 @@ pub fn stats_record(s: &ByteStats, t: &RunTotals) -> [u8; STATS_RECORD_LEN] {
     r
 }
 
-/// Watches a byte stream for [`END_MARKER`].
-#[derive(Debug, Clone, Copy, Default)]
-pub struct EndDetector {
-    matched: usize,
+/// An in-band command on the input stream (8 bytes, see [`END_MARKER`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Command {
+    /// [`END_MARKER`]: end of input.
+    End,
+    /// [`STILL_MARKER`]: external still flag `Some(true)` for the frames that follow.
+    Still,
+    /// [`MOVING_MARKER`]: external still flag `Some(false)` for the frames that follow.
+    Moving,
+    /// [`AUTO_MARKER`]: no external flag (`None`) for the frames that follow.
+    Auto,
 }
 
-impl EndDetector {
-    /// Feeds one byte; true when it completes the marker.
-    pub fn push(&mut self, byte: u8) -> bool {
-        // The marker's first byte occurs nowhere else in it, so a mismatch restarts at 0 or 1.
-        self.matched = if END_MARKER.get(self.matched) == Some(&byte) {
-            self.matched + 1
-        } else {
-            usize::from(byte == END_MARKER[0])
-        };
-        if self.matched == END_MARKER.len() {
-            self.matched = 0;
-            true
-        } else {
-            false
+impl Command {
+    /// The external still flag this command sets (`None` for [`Command::End`] too).
+    pub fn still_flag(self) -> Option<bool> {
+        match self {
+            Self::Still => Some(true),
+            Self::Moving => Some(false),
+            Self::End | Self::Auto => None,
         }
+    }
+}
+
+/// Watches a byte stream for the 8-byte commands: the last 8 bytes are kept in a shift
+/// register and compared with each marker (a few instructions per byte).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CommandDetector {
+    last8: u64,
+    seen: u8,
+}
+
+impl CommandDetector {
+    /// Feeds one byte; the command it completes, if any. After a command the register
+    /// starts empty, so that no two commands share bytes.
+    pub fn push(&mut self, byte: u8) -> Option<Command> {
+        self.last8 = (self.last8 << 8) | u64::from(byte);
+        self.seen = self.seen.saturating_add(1);
+        if self.seen < 8 {
+            return None;
+        }
+        let cmd = [
+            (END_MARKER, Command::End),
+            (STILL_MARKER, Command::Still),
+            (MOVING_MARKER, Command::Moving),
+            (AUTO_MARKER, Command::Auto),
+        ]
+        .into_iter()
+        .find(|(m, _)| u64::from_be_bytes(*m) == self.last8)
+        .map(|(_, c)| c);
+        if cmd.is_some() {
+            self.seen = 0;
+            self.last8 = 0;
+        }
+        cmd
     }
 }

@@ -1,65 +1,127 @@
 //! Hardware-in-the-loop test of the firmware under QEMU (`-machine mps2-an386`, Cortex-M4F).
 //!
-//! A simulated E-Core 2000 record (seeded, deterministic: bias + slow drift + white noise,
-//! quantized to 60/32768 deg/s) is encoded into frames, damaged in known ways (noise bytes, a
-//! cut frame, a checksum error, a random burst), followed by the end marker, and sent to the
-//! firmware's UART0. The host decodes the same bytes with the same fog-core decoder and runs
-//! the same per-sample code (`fog-firmware/src/pipeline.rs`, compiled here). Every per-sample
-//! record must match bit for bit, and the final statistics record must match the host's
-//! byte counters exactly. The record format is parsed here independently, from
-//! `fog-firmware/README.md`.
+//! A **recorded vehicle capture**: `host-sim simulate --model <ecore2000 preset with the
+//! vehicle profile> --format ecore-bin` (E-Core 2000 frames: a still alignment period, then
+//! drives with road curvature and turns, and stops), damaged in known ways (noise bytes, a cut
+//! frame, a checksum error, a random burst), with in-band still-flag commands (still, moving,
+//! back to the detector) at known places, followed by the end marker, sent to the firmware's
+//! UART0. The firmware runs the motion-safe identifier **loaded from the image it embeds**
+//! (`fog-firmware/identifier/default.fogi`). The host decodes the same bytes with the same
+//! fog-core decoder and runs the same per-sample code (`fog-firmware/src/pipeline.rs`,
+//! compiled here) with the same image. Every per-sample record must match bit for bit, and
+//! the final statistics record must match the host's byte counters exactly. The record
+//! format is parsed here independently, from `fog-firmware/README.md`.
+//!
+//! A second test builds the firmware with a corrupted image (`FOG_IDENTIFIER`) and checks
+//! that it stops at setup with a non-zero exit and the error on defmt.
 
 use std::time::{Duration, Instant};
 
 use fog_core::frame::ecore;
-use fog_system_tests::{firmware_elf, qemu_system_arm};
+use fog_system_tests::{firmware_elf, firmware_elf_in, host_sim, qemu_system_arm};
 
 mod hil;
-use hil::{host_reference, parse_records, pipeline, run_qemu, Rng};
+use hil::{default_image, host_reference, parse_records, pipeline, run_qemu, Rng};
 
-/// Samples in the simulated record.
-const SAMPLES: usize = 4000;
+/// Length of the vehicle capture, s (100 Hz).
+const DURATION_S: u32 = 70;
 
-/// E-Core-like rates in counts: turn-on bias 0.012 deg/s (43 deg/h), a slow drift of a few
-/// mdeg/s (warm-up exponential + sine), white noise 0.015 deg/s per sample (54 deg/h at
-/// 100 Hz), quantized to 60/32768 deg/s.
-fn simulated_counts(n: usize, seed: u64) -> Vec<i16> {
-    let mut rng = Rng(seed);
-    let lsb_dps = 60.0 / 32768.0;
-    (0..n)
-        .map(|k| {
-            let t_s = k as f64 * 0.01;
-            let drift_dps = 0.006 * (1.0 - (-t_s / 15.0).exp())
-                + 0.003 * (2.0 * std::f64::consts::PI * t_s / 25.0).sin();
-            let rate_dps = 0.012 + drift_dps + 0.015 * rng.normal();
-            (rate_dps / lsb_dps).round() as i16
-        })
-        .collect()
+/// The ecore2000 preset with the vehicle profile: 20 s still alignment, drives of 15-30 s
+/// with a turn every 8 s on average, stops of 8-15 s.
+fn vehicle_model() -> String {
+    let preset = std::fs::read_to_string(
+        fog_system_tests::firmware_dir().join("../host-sim/presets/ecore2000.toml"),
+    )
+    .expect("host-sim/presets/ecore2000.toml");
+    let preset = preset.replacen("[motion]\n", "[motion]\nprofile = \"vehicle\"\n", 1);
+    assert!(preset.contains("profile = \"vehicle\""), "[motion] section");
+    format!(
+        "{preset}\n[motion.vehicle]\nalign_s = 20.0\nstop_min_s = 8.0\nstop_max_s = 15.0\n\
+         drive_min_s = 15.0\ndrive_max_s = 30.0\nturn_interval_s = 8.0\n"
+    )
 }
 
-/// The byte stream sent to the UART: frames with known damage, then the end marker.
-fn wire_stream(counts: &[i16], seed: u64) -> Vec<u8> {
+/// The recorded capture: E-Core frames of a simulated vehicle record (8 bytes per sample),
+/// and its true rate per sample (from the CSV of the same seed).
+fn vehicle_capture(dir: &std::path::Path) -> (Vec<u8>, Vec<f64>) {
+    let model = dir.join("vehicle.toml");
+    std::fs::write(&model, vehicle_model()).expect("model written");
+    let mut truth = Vec::new();
+    let mut frames = Vec::new();
+    for (format, file) in [("ecore-bin", "vehicle.bin"), ("csv", "vehicle.csv")] {
+        let out = dir.join(file);
+        let _ = std::fs::remove_file(&out);
+        let st = host_sim()
+            .args(["simulate", "--model"])
+            .arg(&model)
+            .args(["--duration-s", &DURATION_S.to_string(), "--seed", "4242"])
+            .args(["--format", format, "--output"])
+            .arg(&out)
+            .status()
+            .expect("host-sim runs");
+        assert!(st.success(), "host-sim simulate --format {format}");
+        if format == "csv" {
+            let text = std::fs::read_to_string(&out).expect("csv");
+            let mut lines = text.lines();
+            let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+            let col = header
+                .iter()
+                .position(|h| *h == "true_rate_dps")
+                .expect("true_rate_dps column");
+            truth = lines
+                .map(|l| {
+                    l.split(',')
+                        .nth(col)
+                        .expect("field")
+                        .parse()
+                        .expect("number")
+                })
+                .collect();
+        } else {
+            frames = std::fs::read(&out).expect("capture");
+        }
+    }
+    assert_eq!(frames.len() % 8, 0, "whole frames");
+    assert_eq!(frames.len() / 8, truth.len(), "one frame per CSV row");
+    (frames, truth)
+}
+
+/// Frame `k` of the capture.
+fn frame(capture: &[u8], k: usize) -> [u8; 8] {
+    capture[8 * k..8 * k + 8].try_into().expect("8 bytes")
+}
+
+/// Frame indices where the in-band still-flag commands go (before that frame).
+const CMD_STILL_AT: usize = 3000;
+const CMD_MOVING_AT: usize = 4000;
+const CMD_AUTO_AT: usize = 5000;
+
+/// The byte stream sent to the UART: the capture's frames with known damage and the still
+/// commands, then the end marker.
+fn wire_stream(capture: &[u8], seed: u64) -> Vec<u8> {
     let mut rng = Rng(seed);
     // Starts mid-frame: the tail of a frame the firmware never saw the start of.
     let mut s = Vec::from(&ecore::encode(123, [0; 4])[3..]);
-    for (k, &c) in counts.iter().enumerate() {
-        let raw = [0x10, (k >> 8) as u8, k as u8, 0x5A];
-        let mut frame = ecore::encode(c, raw);
+    for k in 0..capture.len() / 8 {
+        let mut f = frame(capture, k);
         match k {
             // Line noise between frames (no sync flag).
             100 | 2500 => s.extend([0x00, 0x13, 0x7F, 0x42, 0x01]),
             // A frame cut short by the next one's sync byte.
             700 => {
-                s.extend(&frame[..5]);
+                s.extend(&f[..5]);
                 continue;
             }
             // A corrupted bit: the checksum catches it.
-            1300 => frame[3] ^= 0x01,
+            1300 => f[3] ^= 0x01,
             // A random burst of any bytes (may contain sync bytes).
             2000 => s.extend((0..20).map(|_| rng.next_u64() as u8)),
+            CMD_STILL_AT => s.extend(pipeline::STILL_MARKER),
+            CMD_MOVING_AT => s.extend(pipeline::MOVING_MARKER),
+            CMD_AUTO_AT => s.extend(pipeline::AUTO_MARKER),
             _ => {}
         }
-        s.extend(frame);
+        s.extend(f);
     }
     s.extend(pipeline::END_MARKER);
     s
@@ -74,8 +136,12 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
     let elf = firmware_elf(&[]);
     let built = t0.elapsed();
 
-    let counts = simulated_counts(SAMPLES, 0x05EE_DF06);
-    let stream = wire_stream(&counts, 0xBADB_17E5);
+    let dir = elf.with_file_name("hil-vehicle");
+    std::fs::create_dir_all(&dir).expect("capture folder");
+    let (capture, truth) = vehicle_capture(&dir);
+    let samples = truth.len();
+    assert_eq!(samples, DURATION_S as usize * 100);
+    let stream = wire_stream(&capture, 0xBADB_17E5);
     let expected = host_reference(&stream);
 
     let log = elf.with_file_name("hil-defmt.bin");
@@ -92,13 +158,8 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
         "one record per good frame"
     );
     let mut mismatches = 0;
-    for (k, (r, (rate_dps, est, status))) in records.iter().zip(&expected.samples).enumerate() {
-        let want = [
-            rate_dps.to_bits(),
-            est.drift_dps.to_bits(),
-            est.compensated_dps.to_bits(),
-            est.train_error_dps.to_bits(),
-        ];
+    for (k, (r, (_, _, status))) in records.iter().zip(&expected.samples).enumerate() {
+        let want = expected.bits(k);
         if r.index as usize != k || r.bits != want || r.status != *status {
             mismatches += 1;
             if mismatches <= 5 {
@@ -111,6 +172,46 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
     }
     assert_eq!(mismatches, 0, "per-sample records differ from the host");
 
+    // A second reference, fog-core called directly (not through pipeline.rs): the estimator
+    // from the parsed image, and the paper's denoiser on the first block.
+    let image = fog_core::image::Image::parse(&default_image()).expect("default image");
+    let mut estimator = image.estimator().expect("estimator");
+    for (k, r) in records.iter().enumerate() {
+        let rate_dps = f32::from_bits(r.bits[0]);
+        let m = estimator
+            .push(rate_dps, f32::NAN, expected.external[k])
+            .expect("finite rate");
+        assert_eq!(
+            [r.bits[1], r.bits[2]],
+            [m.drift_dps.to_bits(), m.compensated_dps.to_bits()],
+            "record {k}: drift, compensated vs MotionEstimator"
+        );
+        assert_eq!(
+            r.status & pipeline::STATUS_STILL != 0,
+            m.still,
+            "record {k}: still"
+        );
+    }
+    let mut block: Vec<f32> = records[..pipeline::BLOCK]
+        .iter()
+        .map(|r| f32::from_bits(r.bits[0]))
+        .collect();
+    let mut scratch = vec![0.0f32; pipeline::BLOCK];
+    fog_core::denoise::denoise_in_place(
+        &mut block,
+        &mut scratch,
+        &fog_core::denoise::DenoiseConfig::PAPER,
+    )
+    .expect("denoised");
+    for (i, d) in block.iter().enumerate() {
+        let k = pipeline::DENOISED_DELAY_SAMPLES + i;
+        assert_eq!(
+            records[k].bits[3],
+            d.to_bits(),
+            "record {k}: denoised field"
+        );
+    }
+
     let want = expected.stats.counters();
     assert_eq!(
         stats.counters, want,
@@ -119,6 +220,8 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
     assert_eq!(stats.samples as usize, expected.samples.len());
     assert_eq!(stats.rejected, 0);
     assert_eq!(stats.serial_errors, 0);
+    assert_eq!(stats.still_commands, 3, "still, moving, auto");
+    assert_eq!(stats.still_commands, expected.still_commands);
     // QEMU's UART waits for the guest (flow control): the receive queue never overflows.
     assert_eq!(
         (stats.rx_overrun, stats.rx_queue_full),
@@ -136,17 +239,69 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
         s.skipped.no_sync >= 5 + 10,
         "noise bytes and the mid-frame start"
     );
-    assert!(s.frames_good >= SAMPLES as u64 - 3);
-    // The identifier trained (two blocks in) and tracked.
-    let trained = expected
-        .samples
-        .iter()
-        .filter(|(_, _, st)| st & pipeline::STATUS_TRAINED != 0)
+    assert!(s.frames_good >= samples as u64 - 3);
+
+    // What the records say: the still flag, the external flag's span, level updates, the
+    // denoised field one block late, the drift within the image's bound.
+    let status = |k: usize| expected.samples[k].2;
+    let external: Vec<usize> = (0..expected.samples.len())
+        .filter(|&k| status(k) & pipeline::STATUS_EXTERNAL != 0)
+        .collect();
+    // Frames lost to the damage (3 before the commands) shift the indices by at most 3.
+    let (first, last) = (external[0], *external.last().expect("external span"));
+    assert!(
+        (CMD_STILL_AT - 3..=CMD_STILL_AT).contains(&first)
+            && (CMD_AUTO_AT - 4..CMD_AUTO_AT).contains(&last)
+            && external.len() == last - first + 1,
+        "external flag on frames {first}..={last}"
+    );
+    for k in first..=last {
+        let still = status(k) & pipeline::STATUS_STILL != 0;
+        assert_eq!(
+            still,
+            k < first + (CMD_MOVING_AT - CMD_STILL_AT),
+            "frame {k}"
+        );
+    }
+    let detector_still = (0..expected.samples.len())
+        .filter(|&k| {
+            status(k) & (pipeline::STATUS_STILL | pipeline::STATUS_EXTERNAL)
+                == pipeline::STATUS_STILL
+        })
         .count();
-    assert!(trained >= SAMPLES - 2 * pipeline::BLOCK - 3, "{trained}");
+    let level_updates = (0..expected.samples.len())
+        .filter(|&k| status(k) & pipeline::STATUS_LEVEL_UPDATE != 0)
+        .count();
+    assert!(
+        detector_still > 500,
+        "the detector found the stops: {detector_still}"
+    );
+    assert!(level_updates > 5, "level updates: {level_updates}");
+    let truly_moving_called_still = (0..expected.samples.len())
+        .filter(|&k| {
+            status(k) & (pipeline::STATUS_STILL | pipeline::STATUS_EXTERNAL) == pipeline::STATUS_STILL
+                && // Frame k of the output is frame k..=k+3 of the capture (3 damaged before).
+                truth.get(k..k + 4).is_some_and(|t| t.iter().all(|r| r.abs() > 0.5))
+        })
+        .count();
+    eprintln!(
+        "HIL vehicle: {detector_still} samples still by the detector ({truly_moving_called_still} of \
+         them turning faster than 0.5 deg/s: the one-window lag at a drive's start), {level_updates} level updates"
+    );
+    for (k, (_, o, _)) in expected.samples.iter().enumerate() {
+        assert!(
+            o.drift_dps.abs() <= 30.0 / 3600.0 + 1e-9,
+            "drift bound at {k}"
+        );
+        assert_eq!(
+            o.denoised_dps.is_nan(),
+            k < pipeline::DENOISED_DELAY_SAMPLES,
+            "denoised field at {k}"
+        );
+    }
 
     eprintln!(
-        "HIL: {} bytes in, {} records bit-identical, counters identical; frames good {} bad {}; \
+        "HIL: {} bytes in (vehicle capture, loaded identifier), {} records bit-identical, counters identical; frames good {} bad {}; \
          stack high-water {} bytes; build {:.1} s, QEMU run {:.2} s, total {:.1} s",
         stream.len(),
         records.len(),
@@ -161,5 +316,144 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
     assert!(
         t0.elapsed() - built < Duration::from_secs(60),
         "HIL test too slow"
+    );
+}
+
+/// Builds the firmware with `image` embedded (`FOG_IDENTIFIER`, into `target/badimg`), runs
+/// it with only the end marker on its UART; returns (UART output, defmt bytes, exit code).
+fn run_with_image(
+    qemu: &std::path::Path,
+    name: &str,
+    image: &[u8],
+) -> (Vec<u8>, Vec<u8>, Option<i32>) {
+    let dir = fog_system_tests::firmware_dir().join("target/badimg");
+    std::fs::create_dir_all(&dir).expect("target/badimg");
+    let path = dir.join(format!("{name}.fogi"));
+    std::fs::write(&path, image).expect("image written");
+    let elf = firmware_elf_in(
+        "target/badimg",
+        &[],
+        &[("FOG_IDENTIFIER", path.as_os_str())],
+    );
+    let log = dir.join(format!("{name}-defmt.bin"));
+    let (out, code) = run_qemu(qemu, &elf, pipeline::END_MARKER.to_vec(), &log);
+    (out, std::fs::read(&log).expect("defmt log"), code)
+}
+
+fn contains(haystack: &[u8], needle: &[u8]) -> bool {
+    haystack.windows(needle.len()).any(|w| w == needle)
+}
+
+/// The payloads of defmt's frames in `log` (rzCOBS-encoded frames, each ended by a zero
+/// byte), concatenated: a `{=str}` argument appears there verbatim. Written here from the
+/// rzCOBS format (the encoding is read from the end: a byte 0x01..=0x7F is a mask of 7
+/// bytes, bit set = zero byte; 0x80..=0xFE is a zero byte after `(b & 0x7F) + 7` non-zero
+/// bytes; 0xFF is 134 non-zero bytes).
+fn defmt_payloads(log: &[u8]) -> Vec<u8> {
+    let mut text = Vec::new();
+    for frame in log.split(|&b| b == 0).filter(|f| !f.is_empty()) {
+        let mut out = Vec::new();
+        let mut it = frame.iter().rev().copied();
+        while let Some(x) = it.next() {
+            match x {
+                0x01..=0x7F => {
+                    for i in 0..7 {
+                        if x & (1 << (6 - i)) == 0 {
+                            out.extend(it.next());
+                        } else {
+                            out.push(0);
+                        }
+                    }
+                }
+                0x80..=0xFE => {
+                    out.push(0);
+                    for _ in 0..usize::from(x & 0x7F) + 7 {
+                        out.extend(it.next());
+                    }
+                }
+                _ => {
+                    for _ in 0..134 {
+                        out.extend(it.next());
+                    }
+                }
+            }
+        }
+        out.reverse();
+        text.extend(out);
+    }
+    text
+}
+
+#[test]
+fn a_corrupt_or_wrong_rate_image_stops_the_firmware_at_setup() {
+    let Some(qemu) = qemu_system_arm() else {
+        return;
+    };
+    let good = default_image();
+    // One bit flipped in the middle: the CRC-32 catches it.
+    let mut corrupt = good.clone();
+    corrupt[good.len() / 2] ^= 0x10;
+    // A valid image (checksum and all) for 1 kHz: the firmware runs at 100 Hz.
+    let mut image = fog_core::image::Image::parse(&good).expect("the default image parses");
+    image.config.sensor.sample_rate_hz = 1000.0;
+    let mut wrong_rate = vec![0u8; fog_core::image::IMAGE_LEN];
+    let n = image.to_bytes(&mut wrong_rate).expect("image written");
+    wrong_rate.truncate(n);
+    assert!(fog_core::image::Image::parse(&wrong_rate).is_ok());
+
+    for (name, bytes, reason) in [
+        ("corrupt", corrupt, &b"checksum mismatch"[..]),
+        ("wrong-rate", wrong_rate, &b"sample rate mismatch"[..]),
+        ("truncated", good[..100].to_vec(), &b"truncated"[..]),
+    ] {
+        let (out, log, code) = run_with_image(&qemu, name, &bytes);
+        assert!(
+            matches!(code, Some(c) if c != 0),
+            "{name}: non-zero exit expected, got {code:?}"
+        );
+        assert!(
+            out.is_empty(),
+            "{name}: no record written ({} bytes)",
+            out.len()
+        );
+        assert!(
+            contains(&defmt_payloads(&log), reason),
+            "{name}: reason in the defmt log: {}",
+            log.escape_ascii()
+        );
+        eprintln!(
+            "{name} image: exit {code:?}, reason {:?} on defmt",
+            std::str::from_utf8(reason)
+        );
+    }
+}
+
+#[test]
+fn the_default_image_parses_and_says_how_it_was_made() {
+    let bytes = default_image();
+    let image = fog_core::image::Image::parse(&bytes).expect("default.fogi parses");
+    image
+        .check_rate(pipeline::SAMPLE_RATE_HZ)
+        .expect("default.fogi is for the firmware's rate");
+    assert!(
+        image.records_trained >= 12,
+        "trained on >= 12 records: {}",
+        image.records_trained
+    );
+    assert!(
+        image.model.weights.iter().any(|w| *w != 0.0),
+        "trained weights"
+    );
+    let readme =
+        std::fs::read_to_string(fog_system_tests::firmware_dir().join("identifier/README.md"))
+            .expect("identifier/README.md");
+    let script = fog_system_tests::firmware_dir().join("../scripts/train-default-identifier.sh");
+    assert!(script.is_file(), "the script that makes it");
+    assert!(readme.contains("scripts/train-default-identifier.sh"));
+    // The README names the bytes it describes.
+    let crc = u32::from_le_bytes(bytes[bytes.len() - 4..].try_into().expect("4 bytes"));
+    assert!(
+        readme.contains(&format!("{crc:#010x}")),
+        "identifier/README.md names the image's CRC-32 {crc:#010x}"
     );
 }

@@ -28,7 +28,7 @@ use temperature_hold::Hold;
 /// The firmware's end-of-input marker (`pipeline::END_MARKER`).
 const END_MARKER: [u8; 8] = [0xC6, 0xCF, 0xC7, 0xAD, 0xC5, 0xCE, 0xC4, 0xA1];
 
-/// Statistics record: sync, kind 0x02, len 152, payload, checksum.
+/// Statistics record: sync, kind 0x02, len, payload, checksum (the firmware's constants).
 #[allow(dead_code)]
 #[path = "../../fog-firmware/src/pipeline.rs"]
 mod pipeline;

@@ -15,6 +15,7 @@ mod defmt_stderr;
 #[cfg(feature = "board-mps2-an386")]
 mod mps2_an386;
 mod rx;
+// The budget image does not probe the temperature sensor.
 #[cfg(all(feature = "board-mps2-an386", not(feature = "budget")))]
 mod sbcon_i2c;
 #[cfg(feature = "board-stm32f407")]

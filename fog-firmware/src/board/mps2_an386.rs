@@ -245,6 +245,9 @@ fn main() -> ! {
             super::stack_used_bytes,
             super::rx::loss,
             temperature,
+            // No still input pin on this board: the external flag comes from the in-band
+            // commands of the input stream (`pipeline::STILL_MARKER`, ...).
+            || None,
         ) == crate::app::Stop::EndOfInput
     };
     #[cfg(feature = "budget")]

@@ -7,6 +7,11 @@
 //! the queue of `board::rx`; an overrun (ORE) or another receive error becomes a marker at
 //! its place in the stream.
 //!
+//! External still flag (feature `still-pa0`): PA0 as an input with pull-down, active high =
+//! still (a vehicle's "parked" or zero-velocity signal, 3.3 V logic). Without the feature the
+//! board has no still input (`None`: the detector decides). The in-band still-flag commands
+//! of the input stream (`pipeline::STILL_MARKER`, ...) override it.
+//!
 //! At the end marker the final record is written and the core sleeps (no semihosting on a
 //! board without a debugger).
 
@@ -34,6 +39,24 @@ const BAUD: u32 = 115_200;
 const I2C_KHZ: u32 = 100;
 /// TMP117 address (ADD0 to ground).
 const TMP117_ADDRESS: Address = Address::Gnd;
+
+/// GPIOA input data register (RM0090: GPIOA at 0x4002_0000, IDR at offset 0x10).
+#[cfg(feature = "still-pa0")]
+const GPIOA_IDR: usize = 0x4002_0010;
+
+/// The external still flag: PA0 high = still (feature `still-pa0`), else `None`.
+fn still_input() -> Option<bool> {
+    #[cfg(feature = "still-pa0")]
+    {
+        // SAFETY: a volatile read of GPIOA's input data register, a read-only register of
+        // this chip with no read side effects; PA0 was made an input by `main` (through the
+        // HAL) before the loop that calls this runs.
+        let idr = unsafe { core::ptr::read_volatile(GPIOA_IDR as *const u32) };
+        Some(idr & 1 != 0)
+    }
+    #[cfg(not(feature = "still-pa0"))]
+    None
+}
 
 /// DWT cycle counter, 32 bits, counting up at the core clock.
 pub struct CycleCounter;
@@ -110,6 +133,9 @@ fn main() -> ! {
     cp.DWT.enable_cycle_counter();
 
     let gpioa = dp.GPIOA.split(&mut rcc);
+    // The pin's mode stays configured when its handle is dropped; `still_input` reads it.
+    #[cfg(feature = "still-pa0")]
+    let _ = gpioa.pa0.into_pull_down_input();
     let serial = match dp.USART2.serial(
         (gpioa.pa2, gpioa.pa3),
         Config::default().baudrate(BAUD.bps()),
@@ -150,6 +176,7 @@ fn main() -> ! {
             super::stack_used_bytes,
             super::rx::loss,
             temperature,
+            still_input,
         );
         defmt::info!("stopped: {}", stop);
     }

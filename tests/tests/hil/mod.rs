@@ -39,26 +39,76 @@ impl Rng {
     }
 }
 
+/// The identifier image the firmware embeds by default (`fog-firmware/identifier/default.fogi`,
+/// made by `scripts/train-default-identifier.sh`).
+pub fn default_image() -> Vec<u8> {
+    let p = fog_system_tests::firmware_dir().join("identifier/default.fogi");
+    std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
 /// What the host expects: one entry per good frame, then the flushed counters.
 pub struct Expected {
-    /// (rate, estimate, status) of each good frame, in order.
-    pub samples: Vec<(f32, pipeline::Estimate, u8)>,
+    /// (rate, output, status) of each good frame, in order.
+    pub samples: Vec<(f32, pipeline::Output, u8)>,
     /// The decoded frames themselves (their raw bytes tag them).
     pub frames: Vec<EcoreFrame>,
     /// Counters after the final flush.
     pub stats: ByteStats,
+    /// Still-flag commands in the stream.
+    pub still_commands: u32,
+    /// The external still flag each good frame was processed with.
+    pub external: Vec<Option<bool>>,
 }
 
+impl Expected {
+    /// The four f32 fields of sample `k`'s record, as bits (rate, drift, compensated,
+    /// denoised).
+    pub fn bits(&self, k: usize) -> [u32; 4] {
+        let (rate_dps, o, _) = &self.samples[k];
+        [
+            rate_dps.to_bits(),
+            o.drift_dps.to_bits(),
+            o.compensated_dps.to_bits(),
+            o.denoised_dps.to_bits(),
+        ]
+    }
+}
+
+/// [`host_reference_with`] and the default image.
 pub fn host_reference(stream: &[u8]) -> Expected {
+    host_reference_with(stream, &default_image())
+}
+
+/// The firmware's loop on the host: the same bytes through the command detector and the
+/// decoder, each good frame through `pipeline::process` with the stage built from `image`
+/// (no temperature sensor under QEMU, no still input pin: the external flag comes from the
+/// in-band commands only).
+pub fn host_reference_with(stream: &[u8], image: &[u8]) -> Expected {
     let mut decoder = EcoreDecoder::new(pipeline::FULL_SCALE_DPS).expect("valid full scale");
-    let mut stage = pipeline::new_stage().expect("valid identifier");
+    let mut stage = pipeline::new_stage(image).expect("valid identifier image");
+    let mut commands = pipeline::CommandDetector::default();
+    let (mut still, mut still_commands, mut ended) = (None, 0, false);
     let mut samples = Vec::new();
     let mut frames = Vec::new();
+    let mut external = Vec::new();
     for &b in stream {
+        // The firmware stops reading at the end marker.
+        if ended {
+            break;
+        }
+        match commands.push(b) {
+            Some(pipeline::Command::End) => ended = true,
+            Some(c) => {
+                still = c.still_flag();
+                still_commands += 1;
+            }
+            None => {}
+        }
         if let Some(frame) = decoder.push(b) {
-            let (est, status) = pipeline::process(&mut stage, frame.rate_dps, None);
-            samples.push((frame.rate_dps, est, status));
+            let (out, status) = pipeline::process(&mut stage, frame.rate_dps, None, still);
+            samples.push((frame.rate_dps, out, status));
             frames.push(frame);
+            external.push(still);
         }
     }
     decoder.flush();
@@ -66,6 +116,8 @@ pub fn host_reference(stream: &[u8]) -> Expected {
         samples,
         frames,
         stats: *decoder.stats(),
+        still_commands,
+        external,
     }
 }
 
@@ -95,6 +147,7 @@ pub struct StatsRecord {
     pub stack_bytes: u32,
     pub rx_overrun: u32,
     pub rx_queue_full: u32,
+    pub still_commands: u32,
 }
 
 pub fn le_u32(b: &[u8]) -> u32 {
@@ -131,7 +184,7 @@ pub fn parse_records(out: &[u8]) -> (Vec<SampleRecord>, Option<StatsRecord>) {
                 ],
                 status: p[20],
             }),
-            (0x02, 160) => {
+            (0x02, 164) => {
                 let mut counters = [0u64; 17];
                 for (c, chunk) in counters.iter_mut().zip(p[..136].chunks_exact(8)) {
                     *c = u64::from_le_bytes(chunk.try_into().expect("8 bytes"));
@@ -144,6 +197,7 @@ pub fn parse_records(out: &[u8]) -> (Vec<SampleRecord>, Option<StatsRecord>) {
                     stack_bytes: le_u32(&p[148..152]),
                     rx_overrun: le_u32(&p[152..156]),
                     rx_queue_full: le_u32(&p[156..160]),
+                    still_commands: le_u32(&p[160..164]),
                 });
             }
             other => panic!("unknown record (kind, len) {other:?} at {i}"),
