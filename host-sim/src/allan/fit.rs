@@ -538,7 +538,8 @@ mod tests {
 
     #[test]
     fn exact_curve_is_recovered() {
-        let (q, n, b, k) = (1e-5, 1e-3, 3e-4, 2e-5);
+        // Every term well above the selection's minimum share of the Allan variance somewhere.
+        let (q, n, b, k) = (1e-4, 1e-3, 3e-4, 2e-5);
         let pts =
             points(|t| 3.0 * q * q / (t * t) + n * n / t + FLICKER_AVAR * b * b + k * k * t / 3.0);
         let f = fit(&pts, false).expect("fit");
