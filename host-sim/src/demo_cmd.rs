@@ -14,7 +14,7 @@
 //!    `host-sim simulate --preset ecore2000 --duration-s 1800 --seed 1 --output rec.csv`.
 
 use crate::record;
-use crate::replay_cmd::{self, IdPreset, InputFormat, Options, Outcome};
+use crate::replay::stream::{self as replay_cmd, IdPreset, InputFormat, Options, Outcome};
 use crate::report;
 use crate::sim::{self, Simulator};
 use crate::simulate_cmd;

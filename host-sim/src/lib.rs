@@ -13,6 +13,7 @@ pub mod identify_cmd;
 pub mod motion;
 pub mod nav;
 pub mod record;
+pub mod replay;
 pub mod replay_cmd;
 pub mod report;
 pub mod reproduce_cmd;
