@@ -4,6 +4,7 @@
 
 pub mod allan;
 pub mod allan_cmd;
+pub mod demo;
 pub mod demo_cmd;
 pub mod denoise_cmd;
 pub mod gap;

@@ -145,7 +145,7 @@ fn run_motion(args: &Args, sensor: Option<fog_core::still::SensorConfig>) -> Res
             scale: args.rate_scale,
         },
         still_column: args.still_column.clone(),
-        baseline_q_dps2: args.baseline_q,
+        baseline_q: args.baseline_q.map(|q| (q, "--baseline-q".to_string())),
         validate: args.validate.clone(),
     };
     let out = motion::replay(&args.input, &args.output, &o)?;

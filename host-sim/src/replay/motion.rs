@@ -39,8 +39,9 @@ pub struct MotionOptions {
     pub rate: RateSpec,
     /// External still flag column.
     pub still_column: Option<String>,
-    /// `--baseline-q`: the gated Kalman filters' q, (deg/s)^2 per sample.
-    pub baseline_q_dps2: Option<f64>,
+    /// The gated Kalman filters' q, (deg/s)^2 per sample, and where it came from (e.g.
+    /// `--baseline-q`).
+    pub baseline_q: Option<(f64, String)>,
     /// `--validate`: records with truth on which the q is tuned ([`nav::tune_gated_q`]).
     pub validate: Vec<PathBuf>,
 }
@@ -155,13 +156,13 @@ fn angle_deg(t_s: &[f64], rate: impl Iterator<Item = f64>) -> f64 {
 fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
     let s = image.config.sensor;
     let r_dps2 = f64::from(s.sample_var_dps2());
-    if let Some(q) = o.baseline_q_dps2 {
-        if !(q.is_finite() && q >= 0.0) {
-            bail!("--baseline-q {q}: must be finite and >= 0");
+    if let Some((q, from)) = &o.baseline_q {
+        if !(q.is_finite() && *q >= 0.0) {
+            bail!("{from} {q}: must be finite and >= 0");
         }
         return Ok(BaselineConfig {
-            q_dps2: q,
-            q_source: "--baseline-q".into(),
+            q_dps2: *q,
+            q_source: from.clone(),
             r_dps2,
         });
     }
