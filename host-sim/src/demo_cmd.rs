@@ -12,7 +12,7 @@ pub struct Args {
     /// Folder to write (created if missing; its demo files are replaced).
     #[arg(long)]
     pub out: PathBuf,
-    /// Records of 300 s instead of 1800 s and one validation record (the CI test's variant).
+    /// Records of 600 s instead of 1800 s and one validation record (the CI test's variant).
     #[arg(long)]
     pub quick: bool,
 }

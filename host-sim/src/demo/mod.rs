@@ -39,6 +39,8 @@ pub const UNIT_SPREAD: f64 = 0.2;
 pub const INITIAL_C_RANGE: [f64; 2] = [10.0, 35.0];
 /// Self-heating after power-on, deg C, uniform per record (ASSUMED).
 pub const WARMUP_RISE_C_RANGE: [f64; 2] = [2.0, 8.0];
+/// Initial still (alignment) period of the vehicle records, s.
+pub const ALIGN_S: f64 = 120.0;
 /// Unit of the replayed vehicle record (not a training unit).
 pub const VEHICLE_UNIT: u64 = 900;
 /// Seed of the replayed vehicle record.
@@ -62,11 +64,11 @@ impl DemoConfig {
         validate_records: 2,
         duration_s: 1800.0,
     };
-    /// The CI variant (`--quick`): 12 training records, 1 validation record, 300 s each.
+    /// The CI variant (`--quick`): 12 training records, 1 validation record, 600 s each.
     pub const QUICK: Self = Self {
         train_records: 12,
         validate_records: 1,
-        duration_s: 300.0,
+        duration_s: 600.0,
     };
 }
 
@@ -79,6 +81,7 @@ pub fn family_model(unit: u64, vehicle: bool) -> Result<Model> {
     m.family.warmup_rise_c_range = Some(WARMUP_RISE_C_RANGE);
     if vehicle {
         m.motion.profile = Profile::Vehicle;
+        m.motion.vehicle.align_s = ALIGN_S;
     }
     Ok(m)
 }
