@@ -139,6 +139,16 @@ pub fn builtin_image(sensor: SensorConfig) -> Result<Image> {
     motion::untrained(&o)
 }
 
+/// The built-in sensor whose rate is `hz` (within [`fog_core::image::RATE_TOLERANCE`]):
+/// E-Core 2000 (100 Hz) or KVH DSP-1750 (1 kHz); the E-Core otherwise (the rate check then
+/// names the mismatch).
+pub fn sensor_for_rate(hz: f32) -> SensorConfig {
+    [SensorConfig::ECORE_2000, SensorConfig::KVH_DSP_1750]
+        .into_iter()
+        .find(|s| (hz - s.sample_rate_hz).abs() <= fog_core::image::RATE_TOLERANCE * s.sample_rate_hz)
+        .unwrap_or(SensorConfig::ECORE_2000)
+}
+
 /// Trapezoid integral of `rate` over `t`, deg.
 fn angle_deg(t_s: &[f64], rate: impl Iterator<Item = f64>) -> f64 {
     let (mut a, mut prev) = (0.0, None::<(f64, f64)>);
@@ -201,43 +211,55 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         inputs.push(id);
     }
     record::refuse_overwrite_all(&inputs, &[output])?;
-    let (image, identifier) = match &o.identifier {
+    let file_image = match &o.identifier {
         Some(p) => {
             let im = motion::read_image(p)?;
-            if let Some(s) = o.sensor {
-                if s != im.config.sensor {
-                    bail!(
-                        "{}: its sensor configuration differs from --sensor; leave --sensor out",
-                        p.display()
-                    );
-                }
+            if o.sensor.is_some_and(|s| s != im.config.sensor) {
+                bail!(
+                    "{}: its sensor configuration differs from --sensor; leave --sensor out",
+                    p.display()
+                );
             }
-            (im, p.display().to_string())
+            Some((im, p.display().to_string()))
         }
-        None => {
-            let s = o.sensor.unwrap_or(SensorConfig::ECORE_2000);
-            (
-                builtin_image(s)?,
-                "built-in: untrained model (gated random-walk level with the stillness detector)"
-                    .into(),
-            )
-        }
+        None => None,
     };
-    let sensor = image.config.sensor;
+    let decode_sensor = file_image
+        .as_ref()
+        .map(|f| f.0.config.sensor)
+        .or(o.sensor)
+        .unwrap_or(SensorConfig::ECORE_2000);
     // 0 = "the sensor's" (the command line left them out).
     let mut sopts = o.stream.clone();
     if sopts.rate_hz == 0.0 {
-        sopts.rate_hz = f64::from(sensor.sample_rate_hz);
+        sopts.rate_hz = f64::from(decode_sensor.sample_rate_hz);
     }
     if !(sopts.rate_hz.is_finite() && sopts.rate_hz > 0.0) {
         bail!("--rate-hz {}: must be finite and > 0", sopts.rate_hz);
     }
     if sopts.full_scale_dps == 0.0 {
-        sopts.full_scale_dps = sensor.full_scale_dps;
+        sopts.full_scale_dps = decode_sensor.full_scale_dps;
     }
     let rec = input::read(input, &sopts, &o.rate, o.still_column.as_deref())?;
     let s = &rec.record.series;
     let hz = (1.0 / s.sample_period_s()) as f32;
+    let (image, identifier) = match file_image {
+        Some(f) => f,
+        None => {
+            let (sensor, how) = match o.sensor {
+                Some(s) => (s, "--sensor"),
+                None => (sensor_for_rate(hz), "picked by the record's rate"),
+            };
+            (
+                builtin_image(sensor)?,
+                format!(
+                    "built-in: untrained model (gated random-walk level with the stillness detector), sensor {} Hz / {} deg/s ({how})",
+                    sensor.sample_rate_hz, sensor.full_scale_dps
+                ),
+            )
+        }
+    };
+    let sensor = image.config.sensor;
     image.check_rate(hz).map_err(|e| {
         anyhow!(
             "{}: {e} ({}; give --sensor or an identifier for this rate)",
@@ -358,6 +380,127 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
     }
     if let Some(c) = &s.scores {
         write!(err, "{}", nav::table(c))?;
+    }
+    Ok(())
+}
+
+/// One validation record's scores (`identify --preset motion --validate`).
+#[derive(Debug, Clone, Serialize)]
+pub struct RecordScores {
+    /// The record.
+    pub record: String,
+    /// Identifier and baselines.
+    pub scores: nav::Comparison,
+}
+
+/// Scores over a set of validation records.
+#[derive(Debug, Clone, Serialize)]
+pub struct ValidationScores {
+    /// Per record.
+    pub records: Vec<RecordScores>,
+    /// Mean heading-error RMS over the records per estimator, deg (rows' order).
+    pub mean_heading_rms_deg: Vec<(String, f64)>,
+}
+
+/// Runs `image` over each record with truth in `paths` (files or folders) and scores it
+/// beside the baselines; the baselines' q is `baseline_q` or tuned on these records
+/// ([`nav::tune_gated_q`], truth still flags). A record without truth is refused.
+pub fn score_records(
+    image: &Image,
+    paths: &[PathBuf],
+    baseline_q: Option<(f64, String)>,
+) -> Result<ValidationScores> {
+    let files = CsvFiles::from_args(paths, "rate_dps")?;
+    let rate_hz = f64::from(image.config.sensor.sample_rate_hz);
+    let mut recs = Vec::new();
+    for p in &files.0 {
+        let r = input::read_csv(p, &RateSpec::default(), rate_hz, None)?;
+        if r.truth.is_none() {
+            bail!(
+                "{}: no truth (`true_rate_dps` and `drift_dps`): cannot score",
+                p.display()
+            );
+        }
+        let hz = (1.0 / r.record.series.sample_period_s()) as f32;
+        image
+            .check_rate(hz)
+            .map_err(|e| anyhow!("{}: {e}", p.display()))?;
+        let moving = has_moving(p, &r)?;
+        recs.push((p.display().to_string(), r, moving));
+    }
+    let r_dps2 = f64::from(image.config.sensor.sample_var_dps2());
+    let cfg = match baseline_q {
+        Some((q, from)) => BaselineConfig {
+            q_dps2: q,
+            q_source: from,
+            r_dps2,
+        },
+        None => {
+            let truths: Vec<NavRecord> = recs.iter().filter_map(|r| r.1.truth.clone()).collect();
+            let t = nav::tune_gated_q(&truths, r_dps2, &nav::log_grid(1e-18, 1e-8, 2))
+                .ok_or_else(|| anyhow!("--validate: no record"))?;
+            BaselineConfig {
+                q_dps2: t.q_dps2,
+                q_source: format!(
+                    "tuned on these {} validation records (truth still flags)",
+                    truths.len()
+                ),
+                r_dps2,
+            }
+        }
+    };
+    let mut out = Vec::new();
+    for (name, r, moving) in &recs {
+        let Some(t) = &r.truth else { continue };
+        let mut est = image.estimator().map_err(|e| anyhow!("{name}: {e}"))?;
+        let o = motion::run(&mut est, &r.record);
+        let drift: Vec<f64> = o.iter().map(|m| f64::from(m.drift_dps)).collect();
+        let still: Vec<bool> = o.iter().map(|m| m.still).collect();
+        let c = nav::compare(
+            t,
+            "motion identifier",
+            &drift,
+            &still,
+            *moving,
+            cfg.clone(),
+        );
+        out.push(RecordScores {
+            record: name.clone(),
+            scores: c.table,
+        });
+    }
+    let mut mean: Vec<(String, f64)> = Vec::new();
+    if let Some(first) = out.first() {
+        for (i, row) in first.scores.rows.iter().enumerate() {
+            let m = out
+                .iter()
+                .map(|r| r.scores.rows[i].scores.heading_rms_deg)
+                .sum::<f64>()
+                / out.len() as f64;
+            mean.push((row.name.clone(), m));
+        }
+    }
+    Ok(ValidationScores {
+        records: out,
+        mean_heading_rms_deg: mean,
+    })
+}
+
+/// Prints validation scores on stderr: the mean heading-error RMS per estimator first, then
+/// each record's table.
+pub fn print_validation(v: &ValidationScores) -> Result<()> {
+    let mut err = std::io::stderr().lock();
+    writeln!(
+        err,
+        "mean heading error RMS over {} validation records:",
+        v.records.len()
+    )?;
+    for (name, m) in &v.mean_heading_rms_deg {
+        writeln!(err, "  {name:<44} {m:>10.4} deg")?;
+    }
+    for r in &v.records {
+        writeln!(err, "{}:", r.record)?;
+        write!(err, "{}", nav::table(&r.scores))?;
     }
     Ok(())
 }
