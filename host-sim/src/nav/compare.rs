@@ -17,6 +17,45 @@ pub struct BaselineConfig {
     pub q_source: String,
     /// White-noise variance per sample, (deg/s)^2 (the sensor configuration's).
     pub r_dps2: f64,
+    /// Release delay, samples (the detector's window): the baselines learn from a sample
+    /// flagged still only this many samples later, and only if the flag is still then too,
+    /// as the identifier's level does (a window reaches it one window late, only if the
+    /// next window passed), so that the flag's lag at the onset of motion reaches neither.
+    /// Their estimate at sample k is their state after sample `k - release_samples - 1`.
+    /// 0: no delay.
+    pub release_samples: usize,
+}
+
+/// [`BaselineConfig::release_samples`] around an estimator.
+struct Released<E> {
+    inner: E,
+    delay: usize,
+    buf: std::collections::VecDeque<(f64, f64, Option<f64>, bool)>,
+    est: f64,
+}
+
+impl<E: DriftEstimator> DriftEstimator for Released<E> {
+    fn name(&self) -> String {
+        self.inner.name()
+    }
+    fn push(&mut self, t_s: f64, rate_dps: f64, temp_c: Option<f64>, still: bool) -> f64 {
+        self.buf.push_back((t_s, rate_dps, temp_c, still));
+        if self.buf.len() > self.delay {
+            if let Some((t, r, c, s)) = self.buf.pop_front() {
+                self.est = self.inner.push(t, r, c, s && still);
+            }
+        }
+        self.est
+    }
+}
+
+fn released<'a, E: DriftEstimator + 'a>(inner: E, delay: usize) -> Box<dyn DriftEstimator + 'a> {
+    Box::new(Released {
+        inner,
+        delay,
+        buf: std::collections::VecDeque::with_capacity(delay + 1),
+        est: 0.0,
+    })
 }
 
 /// Drift estimates computed beforehand (an identifier already run over the record),
@@ -93,9 +132,9 @@ pub fn compare(
             k: 0,
         }),
         Box::new(NoCompensation),
-        Box::new(AlignmentBias::default()),
-        Box::new(GatedKalman::new(cfg.q_dps2, cfg.r_dps2)),
-        Box::new(ThermalKalman::new(thermal)),
+        released(AlignmentBias::default(), cfg.release_samples),
+        released(GatedKalman::new(cfg.q_dps2, cfg.r_dps2), cfg.release_samples),
+        released(ThermalKalman::new(thermal), cfg.release_samples),
     ];
     let labels = [
         name.to_string(),
@@ -187,10 +226,11 @@ pub fn table(c: &Comparison) -> String {
         }
     );
     o += &format!(
-        "baselines: q {:.3e} (deg/s)^2 per sample from {}, r {:.3e} (deg/s)^2; same still flags as the identifier\n",
+        "baselines: q {:.3e} (deg/s)^2 per sample from {}, r {:.3e} (deg/s)^2; same still flags as the identifier, released {} samples late as its level\n",
         c.baselines.q_dps2,
         c.baselines.q_source,
-        c.baselines.r_dps2
+        c.baselines.r_dps2,
+        c.baselines.release_samples
     );
     o
 }

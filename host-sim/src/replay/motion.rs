@@ -149,6 +149,12 @@ pub fn sensor_for_rate(hz: f32) -> SensorConfig {
         .unwrap_or(SensorConfig::ECORE_2000)
 }
 
+/// The identifier's release delay: its detector window, samples.
+fn release_samples(image: &Image) -> usize {
+    let c = &image.config;
+    (c.still.window_s * c.sensor.sample_rate_hz).round().max(0.0) as usize
+}
+
 /// Trapezoid integral of `rate` over `t`, deg.
 fn angle_deg(t_s: &[f64], rate: impl Iterator<Item = f64>) -> f64 {
     let (mut a, mut prev) = (0.0, None::<(f64, f64)>);
@@ -174,6 +180,7 @@ fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
             q_dps2: *q,
             q_source: from.clone(),
             r_dps2,
+            release_samples: release_samples(image),
         });
     }
     if !o.validate.is_empty() {
@@ -195,12 +202,14 @@ fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
                 t.heading_rms_deg
             ),
             r_dps2,
+            release_samples: release_samples(image),
         });
     }
     Ok(BaselineConfig {
         q_dps2: f64::from(image.config.level_q_dps2_per_s) / f64::from(s.sample_rate_hz),
         q_source: "the identifier's level noise".into(),
         r_dps2,
+        release_samples: release_samples(image),
     })
 }
 
@@ -434,6 +443,7 @@ pub fn score_records(
             q_dps2: q,
             q_source: from,
             r_dps2,
+            release_samples: release_samples(image),
         },
         None => {
             let truths: Vec<NavRecord> = recs.iter().filter_map(|r| r.1.truth.clone()).collect();
@@ -446,6 +456,7 @@ pub fn score_records(
                     truths.len()
                 ),
                 r_dps2,
+                release_samples: release_samples(image),
             }
         }
     };
