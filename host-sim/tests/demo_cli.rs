@@ -55,14 +55,16 @@ fn demo_writes_the_report() {
         assert!(svg.contains("<svg") && svg.contains("</svg>"), "{f}");
     }
     assert_eq!(
-        fs::metadata(dir.join("identifier.fogi")).expect("image").len(),
+        fs::metadata(dir.join("identifier.fogi"))
+            .expect("image")
+            .len(),
         fog_core::image::IMAGE_LEN as u64
     );
     let s: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(dir.join("summary.json")).expect("summary"))
             .expect("json");
     assert_eq!(s["rows"], 60_000);
-    assert_eq!(s["records_trained"], 12);
+    assert_eq!(s["records_trained"], 36, "12 records x 3 passes");
     let rows = s["scores"]["rows"].as_array().expect("scores");
     assert_eq!(rows.len(), 5, "identifier and four baselines");
     assert_eq!(rows[0]["name"], "motion identifier");
@@ -72,18 +74,24 @@ fn demo_writes_the_report() {
         if i != 1 {
             // Every compensation beats none on a vehicle record.
             assert!(
-                r["scores"]["heading_rms_deg"].as_f64() < rows[1]["scores"]["heading_rms_deg"].as_f64(),
+                r["scores"]["heading_rms_deg"].as_f64()
+                    < rows[1]["scores"]["heading_rms_deg"].as_f64(),
                 "{r}"
             );
         }
     }
     let det = &s["scores"]["detector"];
-    assert!(det["moving_samples"].as_u64().expect("n") > 10_000, "a vehicle that moves");
+    assert!(
+        det["moving_samples"].as_u64().expect("n") > 10_000,
+        "a vehicle that moves"
+    );
     finite(det, "false_still_rate");
     finite(det, "missed_still_rate");
     let html = fs::read_to_string(&index).expect("index.html");
     assert_eq!(html.matches("<svg").count(), SVGS.len(), "SVGs inlined");
-    let head = html.find("heading error RMS: motion identifier").expect("headline");
+    let head = html
+        .find("heading error RMS: motion identifier")
+        .expect("headline");
     assert!(head < html.find("<svg").expect("svg"), "headline first");
     assert!(!html.contains("<script"));
 }

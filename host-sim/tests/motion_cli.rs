@@ -271,7 +271,10 @@ fn kvh_log_rotation_is_not_drift() {
             .success();
         let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
         assert!(err.contains("full scale 490 deg/s, 1000 Hz"), "{err}");
-        assert!(!err.contains("full scale ("), "nothing at full scale: {err}");
+        assert!(
+            !err.contains("full scale ("),
+            "nothing at full scale: {err}"
+        );
         let (mut raw, mut comp) = (0.0f64, 0.0f64);
         let (mut raw_max, mut comp_at_max, mut max_drift, mut max_rate) =
             (f64::MIN, 0.0, 0.0f64, 0.0f64);

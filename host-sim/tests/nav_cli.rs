@@ -50,10 +50,7 @@ fn record(dir: &Path) -> (PathBuf, f64, f64) {
         prev = Some((t, e));
         sum_sq += h * h;
         count += 1;
-        text += &format!(
-            "{t},{rate},25,{DRIFT_DPS},{truth},{}\n",
-            u8::from(moving)
-        );
+        text += &format!("{t},{rate},25,{DRIFT_DPS},{truth},{}\n", u8::from(moving));
     }
     let p = dir.join("turn.csv");
     fs::write(&p, text).expect("test");
@@ -162,7 +159,9 @@ fn report_has_the_heading_error_figure_and_readable_axes() {
         .assert()
         .success();
     let html = fs::read_to_string(rep.join("index.html")).expect("html");
-    let head = html.find("heading error RMS: motion identifier").expect("headline");
+    let head = html
+        .find("heading error RMS: motion identifier")
+        .expect("headline");
     let fig = html.find("id=\"heading_error.svg\"").expect("figure");
     assert!(head < fig, "headline first");
     let svg = fs::read_to_string(rep.join("heading_error.svg")).expect("svg");
@@ -244,7 +243,11 @@ fn sensor_option_sets_full_scale_and_rate() {
     // The E-Core at its own rate with a 200 deg/s turn: replayed, with a full-scale warning.
     let mut text = String::from("t_s,rate_dps\n");
     for k in 0..500 {
-        text += &format!("{},{}\n", f64::from(k) * 0.01, if k == 250 { 200.0 } else { 0.0 });
+        text += &format!(
+            "{},{}\n",
+            f64::from(k) * 0.01,
+            if k == 250 { 200.0 } else { 0.0 }
+        );
     }
     fs::write(&rec, &text).expect("test");
     host_sim()

@@ -133,7 +133,10 @@ pub fn compare(
         }),
         Box::new(NoCompensation),
         released(AlignmentBias::default(), cfg.release_samples),
-        released(GatedKalman::new(cfg.q_dps2, cfg.r_dps2), cfg.release_samples),
+        released(
+            GatedKalman::new(cfg.q_dps2, cfg.r_dps2),
+            cfg.release_samples,
+        ),
         released(ThermalKalman::new(thermal), cfg.release_samples),
     ];
     let labels = [

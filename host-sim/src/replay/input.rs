@@ -178,14 +178,24 @@ pub fn read_csv(
         let r: f64 = record::parse_field(&row, rc, &rate.column, path, line)?;
         let r = r * rate.scale;
         if !r.is_finite() || r.abs() > f64::from(f32::MAX) {
-            bail!("{name}:{line}: `{}` * {} is out of range", rate.column, rate.scale);
+            bail!(
+                "{name}:{line}: `{}` * {} is out of range",
+                rate.column,
+                rate.scale
+            );
         }
         rate_dps.push(r as f32);
         if let (Some(c), Some(v)) = (cc, temp.as_mut()) {
             v.push(record::parse_field::<f32>(&row, c, "temp_c", path, line)?);
         }
         if let (Some(c), Some(v)) = (dc, drift.as_mut()) {
-            v.push(record::parse_field::<f32>(&row, c, "drift_dps", path, line)?);
+            v.push(record::parse_field::<f32>(
+                &row,
+                c,
+                "drift_dps",
+                path,
+                line,
+            )?);
         }
         if let (Some(c), Some(v)) = (vc, truth.as_mut()) {
             v.push(record::parse_field::<f32>(

@@ -84,7 +84,8 @@ pub struct MotionSummary {
     pub output: String,
     /// The identifier image, or the built-in default.
     pub identifier: String,
-    /// Models trained into the image (0: untrained, the gated level alone).
+    /// Record passes trained into the image (12 records x 3 passes = 36; 0: untrained, the
+    /// gated level alone).
     pub records_trained: u32,
     /// The sensor configuration used.
     pub sensor: SensorSummary,
@@ -145,14 +146,18 @@ pub fn builtin_image(sensor: SensorConfig) -> Result<Image> {
 pub fn sensor_for_rate(hz: f32) -> SensorConfig {
     [SensorConfig::ECORE_2000, SensorConfig::KVH_DSP_1750]
         .into_iter()
-        .find(|s| (hz - s.sample_rate_hz).abs() <= fog_core::image::RATE_TOLERANCE * s.sample_rate_hz)
+        .find(|s| {
+            (hz - s.sample_rate_hz).abs() <= fog_core::image::RATE_TOLERANCE * s.sample_rate_hz
+        })
         .unwrap_or(SensorConfig::ECORE_2000)
 }
 
 /// The identifier's release delay: its detector window, samples.
 fn release_samples(image: &Image) -> usize {
     let c = &image.config;
-    (c.still.window_s * c.sensor.sample_rate_hz).round().max(0.0) as usize
+    (c.still.window_s * c.sensor.sample_rate_hz)
+        .round()
+        .max(0.0) as usize
 }
 
 /// Trapezoid integral of `rate` over `t`, deg.
@@ -276,7 +281,9 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
             input.display()
         )
     })?;
-    let mut est = image.estimator().map_err(|e| anyhow!("{identifier}: {e}"))?;
+    let mut est = image
+        .estimator()
+        .map_err(|e| anyhow!("{identifier}: {e}"))?;
     let out = motion::run(&mut est, &rec.record);
     record::write_atomic(output, |w| {
         writeln!(w, "{OUTPUT_HEADER}")?;
@@ -467,14 +474,7 @@ pub fn score_records(
         let o = motion::run(&mut est, &r.record);
         let drift: Vec<f64> = o.iter().map(|m| f64::from(m.drift_dps)).collect();
         let still: Vec<bool> = o.iter().map(|m| m.still).collect();
-        let c = nav::compare(
-            t,
-            "motion identifier",
-            &drift,
-            &still,
-            *moving,
-            cfg.clone(),
-        );
+        let c = nav::compare(t, "motion identifier", &drift, &still, *moving, cfg.clone());
         out.push(RecordScores {
             record: name.clone(),
             scores: c.table,

@@ -47,12 +47,7 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
         };
         figs.push((
             "heading_error.svg",
-            heading_error_svg_labelled(
-                &format!("Heading error: {name}"),
-                &series,
-                &spans,
-                label,
-            )?,
+            heading_error_svg_labelled(&format!("Heading error: {name}"), &series, &spans, label)?,
             "Heading error = integral of (compensated - true rate), deg, for the identifier \
              and the causal baselines (same still flags); shaded: still periods."
                 .to_string(),
@@ -178,7 +173,7 @@ fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
         o,
         "<h2>Record and identifier</h2>\n<pre>{}</pre>",
         esc(&format!(
-            "input      {} ({}, t_s from {})\nrate       column {:?} x {}\nidentifier {} ({} records trained)\nsensor     full scale {} deg/s, quantum {} deg/s, {} Hz, drift bound {:.1} deg/h\nrows       {} ({} still, {} level updates, {} at full scale)\nangle end  raw {:.4} deg, compensated {:.4} deg\noutput     {}",
+            "input      {} ({}, t_s from {})\nrate       column {:?} x {}\nidentifier {} ({} record passes trained)\nsensor     full scale {} deg/s, quantum {} deg/s, {} Hz, drift bound {:.1} deg/h\nrows       {} ({} still, {} level updates, {} at full scale)\nangle end  raw {:.4} deg, compensated {:.4} deg\noutput     {}",
             s.input,
             s.format,
             s.t_s_source,
