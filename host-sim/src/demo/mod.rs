@@ -8,7 +8,8 @@
 //!    1.., record seeds 101..), 3 passes, and writes `DIR/identifier.fogi`. The records are
 //!    simulated again at each pass (the simulator is deterministic), so memory holds one.
 //! 3. Tunes the gated Kalman baseline's q on `validate_records` simulated `vehicle` records
-//!    of other units ([`nav::tune_gated_q`], truth still flags).
+//!    of other units ([`nav::tune_gated_q`], truth still flags), and the identifier's level
+//!    noise on the same records and grid (its detector's flags), then writes the image.
 //! 4. Simulates one `vehicle` record (unit [`VEHICLE_UNIT`], seed [`VEHICLE_SEED`]), writes
 //!    it as `DIR/vehicle.csv`, replays it with the identifier ([`crate::replay::motion`]),
 //!    `DIR/replay.csv`, and writes the report (`index.html`, heading-error figure with the
@@ -152,9 +153,8 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         n: cfg.train_records,
         duration_s: cfg.duration_s,
     };
-    let (image, _) = motion::train(&set, &TrainOptions::new(sensor))?;
+    let (mut image, _) = motion::train(&set, &TrainOptions::new(sensor))?;
     let fogi = dir.join("identifier.fogi");
-    motion::write_image(&fogi, &image)?;
     eprintln!(
         "demo: trained the motion identifier on {} static {PRESET} records ({} s, unit spread {UNIT_SPREAD}, start {:?} C, self-heating {:?} C) -> {}",
         cfg.train_records,
@@ -171,6 +171,42 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let r_dps2 = f64::from(sensor.sample_var_dps2());
     let tuned = nav::tune_gated_q(&val, r_dps2, &nav::log_grid(1e-18, 1e-8, 2))
         .context("demo: no validation record")?;
+    // The identifier's level noise, tuned on the same records and grid as the baseline.
+    let grid = nav::log_grid(1e-18, 1e-8, 2);
+    let mut best = (f64::INFINITY, image.config.level_q_dps2_per_s);
+    for &q in &grid {
+        let mut im = image.clone();
+        im.config.level_q_dps2_per_s = (q * RATE_HZ) as f32;
+        let mut sum = 0.0;
+        for v in &val {
+            let mut est = im.estimator().map_err(|e| anyhow::anyhow!("demo: {e}"))?;
+            let mut acc = nav::HeadingAcc::new();
+            for k in 0..v.len() {
+                let temp = v.temp_c.as_ref().map_or(f32::NAN, |t| t[k] as f32);
+                let d = est
+                    .push(v.rate_dps[k] as f32, temp, None)
+                    .map_or(0.0, |o| f64::from(o.drift_dps));
+                acc.push(
+                    v.t_s[k],
+                    v.rate_dps[k] - d,
+                    v.true_rate_dps[k],
+                    d,
+                    v.drift_dps[k],
+                    v.moving[k],
+                );
+            }
+            sum += acc.scores().heading_rms_deg;
+        }
+        if sum < best.0 {
+            best = (sum, im.config.level_q_dps2_per_s);
+        }
+    }
+    image.config.level_q_dps2_per_s = best.1;
+    motion::write_image(&fogi, &image)?;
+    eprintln!(
+        "demo: level noise of the identifier tuned on the validation records: {:.3e} (deg/s)^2/s; baseline q {:.3e} (deg/s)^2 per sample",
+        best.1, tuned.q_dps2
+    );
     let vehicle = dir.join("vehicle.csv");
     let x = samples(
         &family_model(VEHICLE_UNIT, true)?,
