@@ -170,11 +170,12 @@ fn report_has_the_heading_error_figure_and_readable_axes() {
         "time since power-on (s)",
         "still (truth)",
         "motion identifier",
-        "no compensation",
+        "gated random-walk Kalman (ZARU)",
         "<rect",
     ] {
         assert!(svg.contains(want), "missing {want}");
     }
+    assert!(!svg.contains("no compensation"), "left out of the figure");
     assert!(fs::read_to_string(rep.join("drift.svg"))
         .expect("svg")
         .contains("drift (deg/h)"));

@@ -77,6 +77,9 @@ impl DriftEstimator for Precomputed<'_> {
     }
 }
 
+/// Name of the no-compensation row.
+pub const NO_COMPENSATION: &str = "no compensation";
+
 /// One row of the table.
 #[derive(Debug, Clone, Serialize)]
 pub struct Row {
@@ -141,7 +144,7 @@ pub fn compare(
     ];
     let labels = [
         name.to_string(),
-        "no compensation".into(),
+        NO_COMPENSATION.into(),
         "alignment bias (initial still mean, held)".into(),
         "gated random-walk Kalman (ZARU)".into(),
         "gated Kalman + temperature regression".into(),

@@ -23,7 +23,7 @@ pub use baselines::{
     fit_thermal, AlignmentBias, DriftEstimator, GatedKalman, NoCompensation, TempRate, ThermalFit,
     ThermalKalman, ThermalKalmanConfig,
 };
-pub use compare::{compare, table, BaselineConfig, Compared, Comparison, Row};
+pub use compare::{compare, table, BaselineConfig, Compared, Comparison, Row, NO_COMPENSATION};
 pub use record::NavRecord;
 pub use score::{DetectorAcc, DetectorScores, HeadingAcc, NavScores, DPH_PER_DPS};
 pub use tune::{log_grid, tune_gated_q, Tuning};

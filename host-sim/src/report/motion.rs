@@ -34,6 +34,9 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
             .rows
             .iter()
             .zip(&c.heading_deg)
+            // No compensation is in the table; drawn, its error (degrees) would flatten
+            // the others (tenths of a degree) to the axis.
+            .filter(|(r, _)| r.name != nav::NO_COMPENSATION)
             .map(|(r, h)| HeadingSeries {
                 label: &r.name,
                 t_s: &t.t_s,
@@ -49,7 +52,8 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
             "heading_error.svg",
             heading_error_svg_labelled(&format!("Heading error: {name}"), &series, &spans, label)?,
             "Heading error = integral of (compensated - true rate), deg, for the identifier \
-             and the causal baselines (same still flags); shaded: still periods."
+             and the causal baselines (same still flags; no compensation is in the table \
+             only); shaded: still periods."
                 .to_string(),
         ));
     }
