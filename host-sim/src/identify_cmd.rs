@@ -223,7 +223,12 @@ fn run_motion(a: &Args) -> Result<()> {
         anyhow::bail!("--preset motion needs --save-identifier FILE");
     };
     let train = CsvFiles::from_args(&a.train, &a.rate_column)?;
-    for p in &train.0 {
+    let validate = if a.validate.is_empty() {
+        Vec::new()
+    } else {
+        CsvFiles::from_args(&a.validate, "rate_dps")?.0
+    };
+    for p in train.0.iter().chain(&validate) {
         record::refuse_overwrite(p, out)?;
         if let Some(j) = &a.json {
             record::refuse_overwrite(p, j)?;
