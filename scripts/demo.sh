@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# The project's main job on the embedded default: simulates a 30-min E-Core 2000-like record
-# (built-in preset, seed 1), writes it as E-Core binary frames, replays it through the
-# firmware's fog-core pipeline and writes a report folder. Usage: scripts/demo.sh [OUT_DIR]
-# (default out/demo); prints the path of OUT_DIR/index.html.
+# The project's main job: trains the motion identifier on 12 simulated static E-Core 2000
+# family records (unit spread, per-record temperature), replays a simulated 1800-s vehicle
+# record with it and writes a report folder with the identifier beside the causal baselines
+# (heading error RMS table and figure). Usage: scripts/demo.sh [OUT_DIR] (default
+# out/demo); prints the path of OUT_DIR/index.html.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh

@@ -83,7 +83,8 @@ pub struct Args {
     /// Training records: CSV files or folders of them (`--input` is the same).
     #[arg(long, alias = "input", num_args = 1.., required = true)]
     pub train: Vec<PathBuf>,
-    /// Validation records: CSV files or folders of them (not with `--preset motion`).
+    /// Validation records: CSV files or folders of them (with `--preset motion`: optional,
+    /// records with truth on which the trained identifier is scored beside the baselines).
     #[arg(long, num_args = 1.., required_unless_present = "save_identifier")]
     pub validate: Vec<PathBuf>,
     /// Column holding the rate in deg/s (e.g. `gz_dps` of a multi-axis recording).
@@ -109,6 +110,10 @@ pub struct Args {
     /// 4, i.e. 2 deg/h/sqrt(h)).
     #[arg(long)]
     pub level_q_dph2_per_h: Option<f32>,
+    /// `--preset motion --validate`: the baselines' gated Kalman q, (deg/s)^2 per sample
+    /// (default: tuned on the validation records).
+    #[arg(long)]
+    pub baseline_q: Option<f64>,
 }
 
 /// Options from the arguments.
@@ -218,7 +223,12 @@ fn run_motion(a: &Args) -> Result<()> {
         anyhow::bail!("--preset motion needs --save-identifier FILE");
     };
     let train = CsvFiles::from_args(&a.train, &a.rate_column)?;
-    for p in &train.0 {
+    let validate = if a.validate.is_empty() {
+        Vec::new()
+    } else {
+        CsvFiles::from_args(&a.validate, "rate_dps")?.0
+    };
+    for p in train.0.iter().chain(&validate) {
         record::refuse_overwrite(p, out)?;
         if let Some(j) = &a.json {
             record::refuse_overwrite(p, j)?;
@@ -230,6 +240,14 @@ fn run_motion(a: &Args) -> Result<()> {
         o.config.level_q_dps2_per_s = q / (3600.0 * 3600.0 * 3600.0);
     }
     let (image, rows) = motion::train(&train, &o)?;
+    let validation = if a.validate.is_empty() {
+        None
+    } else {
+        let q = a.baseline_q.map(|q| (q, "--baseline-q".to_string()));
+        let v = crate::replay::motion::score_records(&image, &a.validate, q)?;
+        crate::replay::motion::print_validation(&v)?;
+        Some(v)
+    };
     if let Some(j) = &a.json {
         let text = serde_json::to_string_pretty(&serde_json::json!({
             "preset": "motion",
@@ -237,6 +255,7 @@ fn run_motion(a: &Args) -> Result<()> {
             "epochs": a.epochs,
             "records": rows,
             "weights_dps": image.model.weights,
+            "validation": validation,
         }))
         .context("report to JSON")?;
         record::write_atomic(j, |w| {

@@ -4,6 +4,7 @@
 
 pub mod allan;
 pub mod allan_cmd;
+pub mod demo;
 pub mod demo_cmd;
 pub mod denoise_cmd;
 pub mod gap;
@@ -13,6 +14,7 @@ pub mod identify_cmd;
 pub mod motion;
 pub mod nav;
 pub mod record;
+pub mod replay;
 pub mod replay_cmd;
 pub mod report;
 pub mod reproduce_cmd;

@@ -213,11 +213,12 @@ fn bad_identifiers_are_refused() {
         .stderr(predicates::str::contains("required"));
 }
 
-/// The real KVH DSP-1750 log (X axis: still, +180 deg, hold, -180 deg, fast back and
-/// forth, back to the start; 1 kHz, peaks at 327 deg/s). With a KVH identifier (no static
-/// KVH training records exist: the gated Kalman filter alone, `--epochs 0`), the
-/// compensated angle stays within 0.5 deg of the raw angle at the 180-deg hold and at the
-/// end. Reads `../shared` (non-commercial data, never copied): skipped when absent.
+/// The default replay (no `--identifier`: the built-in untrained motion identifier, its
+/// sensor picked by the record's 1 kHz rate) of the KVH log converted to `t_s,rate_dps`
+/// (`dtheta_x_deg / 0.001`), and the raw log with `--sensor kvh1750 --rate-column
+/// dtheta_x_deg --rate-scale 1000`: the compensated angle stays within 0.5 deg of the raw
+/// angle at the 180-deg hold and at the end, nothing clipped at 327 deg/s. Reads `../shared`
+/// (non-commercial data, never copied): skipped when absent.
 #[test]
 fn kvh_log_rotation_is_not_drift() {
     let src = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -236,47 +237,66 @@ fn kvh_log_rotation_is_not_drift() {
         .position(|h| h == "dtheta_x_deg")
         .expect("test");
     let mut text = String::from("t_s,rate_dps\n");
+    let mut n = 0usize;
     for (i, r) in rdr.records().enumerate() {
         let dtheta: f64 = r.expect("test")[col].parse().expect("test");
         text += &format!("{},{}\n", i as f64 * 0.001, dtheta / 0.001);
+        n += 1;
     }
     let rec = d.join("kvh.csv");
     fs::write(&rec, text).expect("test");
-    let img = d.join("kvh.fogi");
-    host_sim()
-        .args([
-            "identify", "--preset", "motion", "--sensor", "kvh1750", "--epochs", "0", "--input",
-        ])
-        .arg(&rec)
-        .arg("--save-identifier")
-        .arg(&img)
-        .assert()
-        .success();
-    let out = d.join("out.csv");
-    host_sim()
-        .args(["replay", "--input"])
-        .arg(&rec)
-        .arg("--identifier")
-        .arg(&img)
-        .arg("--output")
-        .arg(&out)
-        .assert()
-        .success();
-    let (mut raw, mut comp) = (0.0f64, 0.0f64);
-    let (mut raw_max, mut comp_at_max, mut max_drift) = (f64::MIN, 0.0, 0.0f64);
-    for row in &rows(&out)[1..] {
-        raw += row[2].parse::<f64>().expect("test") * 0.001;
-        comp += row[5].parse::<f64>().expect("test") * 0.001;
-        max_drift = max_drift.max(row[4].parse::<f64>().expect("test").abs());
-        if raw > raw_max {
-            (raw_max, comp_at_max) = (raw, comp);
+    let runs: [(&Path, &[&str]); 2] = [
+        (&rec, &[]),
+        (
+            &src,
+            &[
+                "--sensor",
+                "kvh1750",
+                "--rate-column",
+                "dtheta_x_deg",
+                "--rate-scale",
+                "1000",
+            ],
+        ),
+    ];
+    for (i, (input, extra)) in runs.iter().enumerate() {
+        let out = d.join(format!("out{i}.csv"));
+        let a = host_sim()
+            .args(["replay", "--input"])
+            .arg(input)
+            .args(*extra)
+            .arg("--output")
+            .arg(&out)
+            .assert()
+            .success();
+        let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+        assert!(err.contains("full scale 490 deg/s, 1000 Hz"), "{err}");
+        assert!(
+            !err.contains("full scale ("),
+            "nothing at full scale: {err}"
+        );
+        let (mut raw, mut comp) = (0.0f64, 0.0f64);
+        let (mut raw_max, mut comp_at_max, mut max_drift, mut max_rate) =
+            (f64::MIN, 0.0, 0.0f64, 0.0f64);
+        let r = rows(&out);
+        assert_eq!(r.len() - 1, n, "one row per input row");
+        for row in &r[1..] {
+            let rate = row[2].parse::<f64>().expect("test");
+            max_rate = max_rate.max(rate.abs());
+            raw += rate * 0.001;
+            comp += row[5].parse::<f64>().expect("test") * 0.001;
+            max_drift = max_drift.max(row[4].parse::<f64>().expect("test").abs());
+            if raw > raw_max {
+                (raw_max, comp_at_max) = (raw, comp);
+            }
         }
+        eprintln!(
+            "KVH run {i}: raw {raw_max:.3} deg at the hold, compensated {comp_at_max:.3}; end raw {raw:.3}, compensated {comp:.3}; max |drift| {:.2} deg/h; max |rate| {max_rate:.1} deg/s",
+            max_drift * 3600.0
+        );
+        assert!(max_rate > 300.0, "peaks kept unclipped: {max_rate}");
+        assert!((raw_max - 180.0).abs() < 1.0, "{raw_max}");
+        assert!((comp_at_max - raw_max).abs() < 0.5);
+        assert!((comp - raw).abs() < 0.5);
     }
-    eprintln!(
-        "KVH: raw {raw_max:.3} deg at the hold, compensated {comp_at_max:.3}; end raw {raw:.3}, compensated {comp:.3}; max |drift| {:.2} deg/h",
-        max_drift * 3600.0
-    );
-    assert!((raw_max - 180.0).abs() < 1.0, "{raw_max}");
-    assert!((comp_at_max - raw_max).abs() < 0.5);
-    assert!((comp - raw).abs() < 0.5);
 }

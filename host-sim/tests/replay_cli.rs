@@ -160,9 +160,7 @@ fn csv_replay_matches_the_identifier_bit_for_bit() {
             .arg(&input)
             .arg("--output")
             .arg(&output);
-        if paper {
-            cmd.args(["--preset", "paper"]);
-        }
+        cmd.args(["--preset", if paper { "paper" } else { "level-trend" }]);
         let a = cmd.assert().success();
         let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
         assert!(err.contains("1700 samples (csv)"), "{err}");
@@ -196,7 +194,7 @@ fn csv_with_truth_column_gives_a_report() {
     let output = dir.path().join("out.csv");
     let rep = dir.path().join("rep");
     host_sim()
-        .args(["replay", "--input"])
+        .args(["replay", "--preset", "level-trend", "--input"])
         .arg(&input)
         .arg("--output")
         .arg(&output)
@@ -245,7 +243,7 @@ fn replay_bin(dir: &Path, bytes: &[u8], extra: &[&str]) -> (Vec<Out>, serde_json
     let output = dir.join("out.csv");
     let rep = dir.join("rep");
     let a = host_sim()
-        .args(["replay", "--input"])
+        .args(["replay", "--preset", "level-trend", "--input"])
         .arg(&input)
         .arg("--output")
         .arg(&output)
@@ -407,7 +405,7 @@ fn nan_in_csv_is_a_one_line_error_and_leaves_nothing() {
     let output = dir.path().join("out.csv");
     let rep = dir.path().join("rep");
     let a = host_sim()
-        .args(["replay", "--input"])
+        .args(["replay", "--preset", "level-trend", "--input"])
         .arg(&input)
         .arg("--output")
         .arg(&output)
@@ -434,7 +432,7 @@ fn refuses_to_overwrite_the_input() {
     let input = write_csv(dir.path(), &rates(100), false);
     let before = fs::read(&input).expect("read");
     host_sim()
-        .args(["replay", "--input"])
+        .args(["replay", "--preset", "level-trend", "--input"])
         .arg(&input)
         .arg("--output")
         .arg(&input)

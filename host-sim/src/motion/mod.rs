@@ -96,12 +96,7 @@ pub fn check_rate(s: &Series, sensor: &SensorConfig) -> Result<f32> {
 /// Trains a model on `records` (each static, from power-on) and returns its image and the
 /// per-record figures of the last pass.
 pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<(Image, Vec<TrainedRecord>)> {
-    o.config
-        .check()
-        .map_err(|e| anyhow!("configuration: {e}"))?;
-    let model = MotionModel::standard(o.time_max_s).map_err(|e| anyhow!("model: {e}"))?;
-    let mut tr = MotionTrainer::new(model, MOTION_DRLS, o.config.still.window_s)
-        .map_err(|e| anyhow!("trainer: {e}"))?;
+    let mut tr = trainer(o)?;
     let mut rows = Vec::new();
     for pass in 0..o.epochs {
         for i in 0..records.len() {
@@ -128,6 +123,22 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<(Image, Vec<Trai
         Image::new(o.config, *tr.model(), tr.drls(), tr.records()),
         rows,
     ))
+}
+
+fn trainer(o: &TrainOptions) -> Result<MotionTrainer> {
+    o.config
+        .check()
+        .map_err(|e| anyhow!("configuration: {e}"))?;
+    let model = MotionModel::standard(o.time_max_s).map_err(|e| anyhow!("model: {e}"))?;
+    MotionTrainer::new(model, MOTION_DRLS, o.config.still.window_s)
+        .map_err(|e| anyhow!("trainer: {e}"))
+}
+
+/// The image of an untrained model (weights 0) with `o`'s configuration: the
+/// stillness-gated level alone (the built-in default of `host-sim replay`).
+pub fn untrained(o: &TrainOptions) -> Result<Image> {
+    let tr = trainer(o)?;
+    Ok(Image::new(o.config, *tr.model(), tr.drls(), 0))
 }
 
 /// Writes `image` to `path` atomically.
@@ -159,49 +170,17 @@ pub struct MotionRecord {
     pub true_rate_dps: Option<Vec<f32>>,
 }
 
-fn parse_flag(raw: &str) -> std::result::Result<Option<bool>, ()> {
-    match raw.trim() {
-        "" => Ok(None),
-        "1" | "true" | "still" => Ok(Some(true)),
-        "0" | "false" | "moving" => Ok(Some(false)),
-        _ => Err(()),
-    }
-}
-
-/// Reads an interchange CSV with the optional columns of [`MotionRecord`].
+/// Reads an interchange CSV (`t_s`, `rate_dps`, optional `temp_c`, `drift_dps`,
+/// `true_rate_dps` and the still flag column `still_column`), with
+/// [`crate::replay::input::read_csv`] (a CSV without `t_s` is taken at 100 Hz).
 pub fn read_record(path: &Path, still_column: Option<&str>) -> Result<MotionRecord> {
-    let series = Series::read_csv(path)?;
-    let name = path.display().to_string();
-    let (mut rdr, header) = record::csv_with_header(&name, record::open_maybe_gz(path)?)?;
-    let col = |want: &str| header.iter().position(|h| h.trim() == want);
-    let sc = match still_column {
-        Some(c) => Some(col(c).ok_or_else(|| anyhow!("{name}:1: no column `{c}`"))?),
-        None => None,
-    };
-    let tc = col("true_rate_dps");
-    let mut still = sc.map(|_| Vec::with_capacity(series.t_s.len()));
-    let mut truth = tc.map(|_| Vec::with_capacity(series.t_s.len()));
-    if sc.is_some() || tc.is_some() {
-        for rec in rdr.records() {
-            let rec = rec.map_err(|e| anyhow!("{name}: {e}"))?;
-            let line = rec.position().map_or(0, |p| p.line());
-            if let (Some(c), Some(v)) = (sc, still.as_mut()) {
-                let raw = rec.get(c).unwrap_or("");
-                let f = parse_flag(raw).map_err(|()| {
-                    anyhow!("{name}:{line}: still flag {raw:?} is not 1/0/true/false/empty")
-                })?;
-                v.push(f);
-            }
-            if let (Some(c), Some(v)) = (tc, truth.as_mut()) {
-                v.push(record::parse_field(&rec, c, "true_rate_dps", path, line)?);
-            }
-        }
-    }
-    Ok(MotionRecord {
-        series,
-        still,
-        true_rate_dps: truth,
-    })
+    let r = crate::replay::input::read_csv(
+        path,
+        &crate::replay::input::RateSpec::default(),
+        100.0,
+        still_column,
+    )?;
+    Ok(r.record)
 }
 
 /// Runs `estimator` over a record from power-on: one output per row.
@@ -236,65 +215,3 @@ pub fn run(estimator: &mut MotionEstimator, r: &MotionRecord) -> Vec<MotionOutpu
 /// and the model term.
 pub const OUTPUT_HEADER: &str =
     "index,t_s,rate_dps,denoised_dps,drift_dps,compensated_dps,still,level_dps,model_dps";
-
-/// What a replay did.
-#[derive(Debug, Clone, Serialize)]
-pub struct ReplaySummary {
-    /// Rows in and out.
-    pub rows: usize,
-    /// Rows flagged still.
-    pub still_rows: usize,
-    /// Level updates.
-    pub level_updates: u32,
-    /// Heading error figures when the record has `true_rate_dps`.
-    pub heading: Option<eval::Heading>,
-}
-
-/// `host-sim replay --identifier`: reads everything, checks the rate, then writes `output`
-/// atomically (nothing written on any error).
-pub fn replay(
-    input: &Path,
-    identifier: &Path,
-    output: &Path,
-    still_column: Option<&str>,
-) -> Result<ReplaySummary> {
-    record::refuse_overwrite_all(&[input, identifier], &[output])?;
-    let image = read_image(identifier)?;
-    let r = read_record(input, still_column)?;
-    let hz = (1.0 / r.series.sample_period_s()) as f32;
-    image
-        .check_rate(hz)
-        .map_err(|e| anyhow!("{}: {e} ({})", identifier.display(), input.display()))?;
-    let mut est = image
-        .estimator()
-        .map_err(|e| anyhow!("{}: {e}", identifier.display()))?;
-    let out = run(&mut est, &r);
-    let s = &r.series;
-    record::write_atomic(output, |w| {
-        writeln!(w, "{OUTPUT_HEADER}")?;
-        for (k, o) in out.iter().enumerate() {
-            writeln!(
-                w,
-                "{k},{},{},,{},{},{},{},{}",
-                s.t_s[k],
-                s.rate_dps[k],
-                o.drift_dps,
-                o.compensated_dps,
-                u8::from(o.still),
-                o.level_dps,
-                o.model_dps
-            )?;
-        }
-        Ok(())
-    })?;
-    let heading = r.true_rate_dps.as_ref().map(|tr| {
-        let comp: Vec<f32> = out.iter().map(|o| o.compensated_dps).collect();
-        eval::heading(&comp, tr, s.sample_period_s())
-    });
-    Ok(ReplaySummary {
-        rows: out.len(),
-        still_rows: out.iter().filter(|o| o.still).count(),
-        level_updates: est.stats().level_updates,
-        heading,
-    })
-}

@@ -27,8 +27,9 @@ impl DriftEstimator for NoCompensation {
     }
 }
 
-/// Alignment bias: the mean rate of the initial still period (the still flags from the
-/// first sample up to the first non-still one), held for ever after.
+/// Alignment bias: the mean rate of the initial still period (from the first sample
+/// flagged still up to the first non-still one after it; a detector's first seconds of
+/// "not yet still" at power-on are skipped), held for ever after.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct AlignmentBias {
     sum_dps: f64,
@@ -47,7 +48,7 @@ impl DriftEstimator for AlignmentBias {
             0.0
         };
         if !still {
-            self.done = true;
+            self.done |= self.n > 0;
         } else if !self.done && rate_dps.is_finite() {
             self.sum_dps += rate_dps;
             self.n += 1;

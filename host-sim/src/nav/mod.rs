@@ -8,10 +8,13 @@
 //! - [`DriftEstimator`] baselines: [`NoCompensation`], [`AlignmentBias`], [`GatedKalman`]
 //!   (ZARU), [`ThermalKalman`] (ZARU + temperature regression, on-line RLS or coefficients
 //!   from [`fit_thermal`] on training records).
+//! - [`compare`] / [`table`]: an identifier's drift beside the four baselines, with the
+//!   same still flags, as scores and as the text table of `replay` / `identify`.
 //! - [`run`]: one estimator over one record; [`tune_gated_q`]: the gated Kalman's `q` on a
 //!   log grid, picked by mean heading-error RMS on validation records.
 
 mod baselines;
+mod compare;
 mod record;
 mod score;
 mod tune;
@@ -20,6 +23,7 @@ pub use baselines::{
     fit_thermal, AlignmentBias, DriftEstimator, GatedKalman, NoCompensation, TempRate, ThermalFit,
     ThermalKalman, ThermalKalmanConfig,
 };
+pub use compare::{compare, table, BaselineConfig, Compared, Comparison, Row, NO_COMPENSATION};
 pub use record::NavRecord;
 pub use score::{DetectorAcc, DetectorScores, HeadingAcc, NavScores, DPH_PER_DPS};
 pub use tune::{log_grid, tune_gated_q, Tuning};

@@ -74,11 +74,22 @@ pub fn still_spans(t_s: &[f64], still: &[bool]) -> Vec<(f64, f64)> {
     spans
 }
 
-/// SVG of the heading error (deg) of each series over time, `still_spans_s` shaded.
+/// SVG of the heading error (deg) of each series over time, `still_spans_s` shaded
+/// (legend `still (truth)`).
 pub fn heading_error_svg(
     title: &str,
     series: &[HeadingSeries<'_>],
     still_spans_s: &[(f64, f64)],
+) -> Result<String> {
+    heading_error_svg_labelled(title, series, still_spans_s, "still (truth)")
+}
+
+/// [`heading_error_svg`] with the shading's legend `still_label` (e.g. `still (detector)`).
+pub fn heading_error_svg_labelled(
+    title: &str,
+    series: &[HeadingSeries<'_>],
+    still_spans_s: &[(f64, f64)],
+    still_label: &str,
 ) -> Result<String> {
     let err = |e: String| anyhow!("SVG plot `{title}`: {e}");
     let t_end = series
@@ -146,7 +157,7 @@ pub fn heading_error_svg(
                 }),
             )
             .map_err(|e| err(e.to_string()))?
-            .label("still (truth)")
+            .label(still_label)
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], shade));
         for (i, (s, p)) in series.iter().zip(pts).enumerate() {
             let c = COLOURS[i % COLOURS.len()];

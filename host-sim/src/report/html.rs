@@ -5,7 +5,7 @@ use super::{Collector, Summary};
 use anyhow::Result;
 use std::fmt::Write;
 
-fn esc(s: &str) -> String {
+pub(super) fn esc(s: &str) -> String {
     let mut o = String::with_capacity(s.len());
     for c in s.chars() {
         match c {
@@ -21,7 +21,7 @@ fn esc(s: &str) -> String {
 }
 
 /// The SVG document without an XML declaration, ready to inline.
-fn inline_svg(svg: &str) -> &str {
+pub(super) fn inline_svg(svg: &str) -> &str {
     let s = svg.trim_start();
     match (s.starts_with("<?xml"), s.find("?>")) {
         (true, Some(i)) => s[i + 2..].trim_start(),

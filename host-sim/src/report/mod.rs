@@ -23,9 +23,12 @@
 pub mod decimate;
 mod heading;
 mod html;
+pub mod motion;
 mod plots;
 
-pub use heading::{heading_error_svg, still_spans, tick_label, HeadingSeries};
+pub use heading::{
+    heading_error_svg, heading_error_svg_labelled, still_spans, tick_label, HeadingSeries,
+};
 
 use crate::allan::{self, edf, Taus};
 use crate::record;
@@ -319,7 +322,7 @@ pub fn analyse_allan(c: &Collector, rate_hz: f64) -> AllanSummary {
     }
 }
 
-fn write_text(path: &Path, text: &str) -> Result<()> {
+pub(crate) fn write_text(path: &Path, text: &str) -> Result<()> {
     record::write_atomic(path, |w| {
         w.write_all(text.as_bytes())
             .with_context(|| format!("{}: write failed", path.display()))

@@ -6,22 +6,22 @@ use super::Collector;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 
-const GREY: RGBColor = RGBColor(175, 175, 175);
+pub(super) const GREY: RGBColor = RGBColor(175, 175, 175);
 const BLUE_: RGBColor = RGBColor(31, 119, 180);
-const RED_: RGBColor = RGBColor(214, 39, 40);
+pub(super) const RED_: RGBColor = RGBColor(214, 39, 40);
 const GREEN_: RGBColor = RGBColor(44, 160, 44);
 const PURPLE: RGBColor = RGBColor(148, 103, 189);
 
 /// One line of a plot: label, colour, stroke width, data, value factor.
-struct Line<'a> {
-    label: &'a str,
-    colour: RGBColor,
-    width: u32,
-    data: &'a MinMax,
-    scale: f64,
+pub(super) struct Line<'a> {
+    pub(super) label: &'a str,
+    pub(super) colour: RGBColor,
+    pub(super) width: u32,
+    pub(super) data: &'a MinMax,
+    pub(super) scale: f64,
 }
 
-fn time_plot(title: &str, y_desc: &str, lines: &[Line<'_>]) -> Result<String> {
+pub(super) fn time_plot(title: &str, y_desc: &str, lines: &[Line<'_>]) -> Result<String> {
     let err = |e: String| anyhow!("SVG plot `{title}`: {e}");
     let pts: Vec<Vec<(f64, f64)>> = lines
         .iter()
@@ -56,6 +56,8 @@ fn time_plot(title: &str, y_desc: &str, lines: &[Line<'_>]) -> Result<String> {
     } else {
         (-1.0, 1.0)
     };
+    // Tick labels with the decimals the spacing needs (plotters draws about 10 per axis).
+    let (x_step, y_step) = ((t_hi - t_lo) / 10.0, (y_hi - y_lo) / 10.0);
     let mut out = String::new();
     {
         let root = SVGBackend::with_string(&mut out, (900, 480)).into_drawing_area();
@@ -71,7 +73,8 @@ fn time_plot(title: &str, y_desc: &str, lines: &[Line<'_>]) -> Result<String> {
             .configure_mesh()
             .x_desc("t (s)")
             .y_desc(y_desc)
-            .y_label_formatter(&|v| format!("{v:.3e}"))
+            .x_label_formatter(&|v| super::tick_label(*v, x_step))
+            .y_label_formatter(&|v| super::tick_label(*v, y_step))
             .draw()
             .map_err(|e| err(e.to_string()))?;
         for (l, p) in lines.iter().zip(pts) {

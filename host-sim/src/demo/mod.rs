@@ -1,0 +1,246 @@
+//! `host-sim demo`: train at rest, compensate in motion, score against the baselines.
+//!
+//! 1. A gyro family from the built-in `ecore2000` preset with `[family]` unit spread
+//!    [`UNIT_SPREAD`] and per-record temperature (ambient start uniform in
+//!    [`INITIAL_C_RANGE`], self-heating in [`WARMUP_RISE_C_RANGE`]): ASSUMED values of this
+//!    demo, not a measured family.
+//! 2. Trains the motion identifier on `train_records` static records of that family (units
+//!    1.., record seeds 101..), 3 passes, and writes `DIR/identifier.fogi`. The records are
+//!    simulated again at each pass (the simulator is deterministic), so memory holds one.
+//! 3. Tunes the gated Kalman baseline's q on `validate_records` simulated `vehicle` records
+//!    of other units ([`nav::tune_gated_q`], truth still flags), and the identifier's level
+//!    noise on the same records and grid (its detector's flags), then writes the image.
+//! 4. Simulates one `vehicle` record (unit [`VEHICLE_UNIT`], seed [`VEHICLE_SEED`]), writes
+//!    it as `DIR/vehicle.csv`, replays it with the identifier ([`crate::replay::motion`]),
+//!    `DIR/replay.csv`, and writes the report (`index.html`, heading-error figure with the
+//!    identifier beside the baselines, `summary.json`).
+
+use crate::identify::series::{Records, Series};
+use crate::motion::{self, TrainOptions};
+use crate::nav::{self, NavRecord};
+use crate::record;
+use crate::replay::input::RateSpec;
+use crate::replay::motion::{replay, MotionOptions};
+use crate::replay::stream::{IdPreset, InputFormat, Options};
+use crate::report;
+use crate::sim::{self, Model, Profile, Simulator};
+use crate::simulate_cmd::CSV_HEADER_MOVING;
+use anyhow::{Context, Result};
+use fog_core::still::SensorConfig;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Built-in model.
+pub const PRESET: &str = "ecore2000";
+/// Sample rate, Hz.
+pub const RATE_HZ: f64 = 100.0;
+/// Relative 1-sigma spread of the units' thermal and warm-up coefficients (ASSUMED).
+pub const UNIT_SPREAD: f64 = 0.2;
+/// Ambient temperature at power-on, deg C, uniform per record (ASSUMED).
+pub const INITIAL_C_RANGE: [f64; 2] = [10.0, 35.0];
+/// Self-heating after power-on, deg C, uniform per record (ASSUMED).
+pub const WARMUP_RISE_C_RANGE: [f64; 2] = [2.0, 8.0];
+/// Initial still (alignment) period of the vehicle records, s.
+pub const ALIGN_S: f64 = 120.0;
+/// Unit of the replayed vehicle record (not a training unit).
+pub const VEHICLE_UNIT: u64 = 900;
+/// Seed of the replayed vehicle record.
+pub const VEHICLE_SEED: u64 = 7;
+
+/// What the demo runs.
+#[derive(Debug, Clone, Copy)]
+pub struct DemoConfig {
+    /// Static training records.
+    pub train_records: u64,
+    /// Vehicle records on which the baseline's q is tuned.
+    pub validate_records: u64,
+    /// Length of every record, s.
+    pub duration_s: f64,
+}
+
+impl DemoConfig {
+    /// The demo: 12 training records, 2 validation records, 1800 s each.
+    pub const FULL: Self = Self {
+        train_records: 12,
+        validate_records: 2,
+        duration_s: 1800.0,
+    };
+    /// The CI variant (`--quick`): 12 training records, 1 validation record, 600 s each.
+    pub const QUICK: Self = Self {
+        train_records: 12,
+        validate_records: 1,
+        duration_s: 600.0,
+    };
+}
+
+/// A unit of the demo's family; `vehicle`: the `vehicle` motion profile, else static.
+pub fn family_model(unit: u64, vehicle: bool) -> Result<Model> {
+    let mut m = sim::preset(PRESET)?;
+    m.family.unit_seed = Some(unit);
+    m.family.unit_spread = UNIT_SPREAD;
+    m.family.initial_c_range = Some(INITIAL_C_RANGE);
+    m.family.warmup_rise_c_range = Some(WARMUP_RISE_C_RANGE);
+    if vehicle {
+        m.motion.profile = Profile::Vehicle;
+        m.motion.vehicle.align_s = ALIGN_S;
+    }
+    Ok(m)
+}
+
+fn samples(model: &Model, seed: u64, duration_s: f64) -> Result<Vec<sim::Sample>> {
+    let mut s = Simulator::new(model, seed, RATE_HZ)?;
+    let mut out = Vec::with_capacity((duration_s * RATE_HZ) as usize);
+    loop {
+        let x = s.next_sample();
+        if x.t_s >= duration_s {
+            return Ok(out);
+        }
+        out.push(x);
+    }
+}
+
+/// The static training records, simulated on demand.
+struct TrainingSet {
+    n: u64,
+    duration_s: f64,
+}
+
+impl Records for TrainingSet {
+    fn len(&self) -> usize {
+        self.n as usize
+    }
+    fn get(&self, i: usize) -> Result<Series> {
+        let unit = i as u64 + 1;
+        let seed = 101 + i as u64;
+        let x = samples(&family_model(unit, false)?, seed, self.duration_s)?;
+        Ok(Series {
+            name: format!("{PRESET} unit {unit} seed {seed} (static)"),
+            t_s: x.iter().map(|s| s.t_s).collect(),
+            rate_dps: x.iter().map(|s| s.rate_dps as f32).collect(),
+            drift_dps: Some(x.iter().map(|s| s.drift_dps as f32).collect()),
+            temp_c: Some(x.iter().map(|s| s.temp_c as f32).collect()),
+        })
+    }
+}
+
+fn write_csv(path: &Path, x: &[sim::Sample]) -> Result<()> {
+    record::write_atomic(path, |w| {
+        let io = |e: std::io::Error| anyhow::anyhow!("{}: write failed: {e}", path.display());
+        writeln!(w, "{CSV_HEADER_MOVING}").map_err(io)?;
+        for s in x {
+            writeln!(
+                w,
+                "{},{},{},{},{},{}",
+                s.t_s,
+                s.rate_dps,
+                s.temp_c,
+                s.drift_dps,
+                s.true_rate_dps,
+                u8::from(s.moving)
+            )
+            .map_err(io)?;
+        }
+        Ok(())
+    })
+}
+
+/// Runs the demo into `dir`; returns the path of `index.html`.
+pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: cannot create the output folder", dir.display()))?;
+    let sensor = SensorConfig::ECORE_2000;
+    let set = TrainingSet {
+        n: cfg.train_records,
+        duration_s: cfg.duration_s,
+    };
+    let (mut image, _) = motion::train(&set, &TrainOptions::new(sensor))?;
+    let fogi = dir.join("identifier.fogi");
+    eprintln!(
+        "demo: trained the motion identifier on {} static {PRESET} records ({} s, unit spread {UNIT_SPREAD}, start {:?} C, self-heating {:?} C) -> {}",
+        cfg.train_records,
+        cfg.duration_s,
+        INITIAL_C_RANGE,
+        WARMUP_RISE_C_RANGE,
+        fogi.display()
+    );
+    let mut val = Vec::new();
+    for i in 0..cfg.validate_records {
+        let x = samples(&family_model(800 + i, true)?, 201 + i, cfg.duration_s)?;
+        val.push(NavRecord::from_samples(&x));
+    }
+    let r_dps2 = f64::from(sensor.sample_var_dps2());
+    let tuned = nav::tune_gated_q(&val, r_dps2, &nav::log_grid(1e-18, 1e-8, 2))
+        .context("demo: no validation record")?;
+    // The identifier's level noise, tuned on the same records and grid as the baseline.
+    let grid = nav::log_grid(1e-18, 1e-8, 2);
+    let mut best = (f64::INFINITY, image.config.level_q_dps2_per_s);
+    for &q in &grid {
+        let mut im = image.clone();
+        im.config.level_q_dps2_per_s = (q * RATE_HZ) as f32;
+        let mut sum = 0.0;
+        for v in &val {
+            let mut est = im.estimator().map_err(|e| anyhow::anyhow!("demo: {e}"))?;
+            let mut acc = nav::HeadingAcc::new();
+            for k in 0..v.len() {
+                let temp = v.temp_c.as_ref().map_or(f32::NAN, |t| t[k] as f32);
+                let d = est
+                    .push(v.rate_dps[k] as f32, temp, None)
+                    .map_or(0.0, |o| f64::from(o.drift_dps));
+                acc.push(
+                    v.t_s[k],
+                    v.rate_dps[k] - d,
+                    v.true_rate_dps[k],
+                    d,
+                    v.drift_dps[k],
+                    v.moving[k],
+                );
+            }
+            sum += acc.scores().heading_rms_deg;
+        }
+        if sum < best.0 {
+            best = (sum, im.config.level_q_dps2_per_s);
+        }
+    }
+    image.config.level_q_dps2_per_s = best.1;
+    motion::write_image(&fogi, &image)?;
+    eprintln!(
+        "demo: level noise of the identifier tuned on the validation records: {:.3e} (deg/s)^2/s; baseline q {:.3e} (deg/s)^2 per sample",
+        best.1, tuned.q_dps2
+    );
+    let vehicle = dir.join("vehicle.csv");
+    let x = samples(
+        &family_model(VEHICLE_UNIT, true)?,
+        VEHICLE_SEED,
+        cfg.duration_s,
+    )?;
+    write_csv(&vehicle, &x)?;
+    eprintln!(
+        "demo: simulated a {} s vehicle record (unit {VEHICLE_UNIT}, seed {VEHICLE_SEED}) -> {}",
+        cfg.duration_s,
+        vehicle.display()
+    );
+    let o = MotionOptions {
+        identifier: Some(fogi),
+        sensor: None,
+        stream: Options {
+            format: InputFormat::Csv,
+            full_scale_dps: 0.0,
+            rate_hz: 0.0,
+            preset: IdPreset::LevelTrend,
+            collect: false,
+        },
+        rate: RateSpec::default(),
+        still_column: None,
+        baseline_q: Some((
+            tuned.q_dps2,
+            format!(
+                "tuned on {} validation vehicle records (units 800.., truth still flags)",
+                val.len()
+            ),
+        )),
+        validate: Vec::new(),
+    };
+    let out = replay(&vehicle, &dir.join("replay.csv"), &o)?;
+    crate::replay::motion::print_summary(&out.summary)?;
+    report::motion::write(dir, &out)
+}

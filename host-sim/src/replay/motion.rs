@@ -1,0 +1,517 @@
+//! `host-sim replay` with the motion preset (the default): a record through the motion-safe
+//! estimator ([`fog_core::motion`]), per-sample CSV, and when the record carries truth the
+//! navigator's scores beside the causal baselines ([`crate::nav::compare`]).
+//!
+//! The identifier is an image file (`--identifier`, from `identify --preset motion
+//! --save-identifier`) or, without one, the BUILT-IN default: an UNTRAINED model for the
+//! sensor (`--sensor`, default `ecore2000`), i.e. the stillness-gated level alone (the
+//! gated random-walk Kalman filter with the detector). It never subtracts more than the
+//! sensor's drift bound, so it cannot erase rotation; a trained image adds the drift shape
+//! learned on static records.
+//!
+//! The record is read whole (one f32 rate, f64 time and a few flags per sample: 24 B per
+//! sample, 43 MB for the 1.8-M-sample KVH log); the level-trend / paper presets stream.
+
+use super::input::{self, Input, RateSpec};
+use super::stream::{self, InputFormat};
+use crate::identify::series::{CsvFiles, Records};
+use crate::motion::{self, OUTPUT_HEADER};
+use crate::nav::{self, BaselineConfig, Compared, NavRecord};
+use crate::record;
+use crate::report::BytesSummary;
+use anyhow::{anyhow, bail, Result};
+use fog_core::image::Image;
+use fog_core::still::SensorConfig;
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// What a motion replay is asked to do.
+#[derive(Debug, Clone)]
+pub struct MotionOptions {
+    /// Identifier image; None: the built-in untrained default for `sensor`.
+    pub identifier: Option<PathBuf>,
+    /// `--sensor`: the sensor without an image (with an image, it must agree).
+    pub sensor: Option<SensorConfig>,
+    /// Format, full scale and rate for decoding captures (and `t_s` without a column).
+    pub stream: stream::Options,
+    /// The CSV's rate column and scale.
+    pub rate: RateSpec,
+    /// External still flag column.
+    pub still_column: Option<String>,
+    /// The gated Kalman filters' q, (deg/s)^2 per sample, and where it came from (e.g.
+    /// `--baseline-q`).
+    pub baseline_q: Option<(f64, String)>,
+    /// `--validate`: records with truth on which the q is tuned ([`nav::tune_gated_q`]).
+    pub validate: Vec<PathBuf>,
+}
+
+/// The sensor configuration as JSON.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct SensorSummary {
+    /// Full scale, deg/s.
+    pub full_scale_dps: f32,
+    /// One count, deg/s (0: floating point).
+    pub quantum_dps: f32,
+    /// Sample rate, Hz.
+    pub sample_rate_hz: f32,
+    /// White noise, deg/s/sqrt(Hz).
+    pub noise_density_dps_rthz: f32,
+    /// Drift bound, deg/h.
+    pub drift_bound_dph: f32,
+}
+
+impl From<SensorConfig> for SensorSummary {
+    fn from(s: SensorConfig) -> Self {
+        Self {
+            full_scale_dps: s.full_scale_dps,
+            quantum_dps: s.quantum_dps,
+            sample_rate_hz: s.sample_rate_hz,
+            noise_density_dps_rthz: s.noise_density_dps_rthz,
+            drift_bound_dph: s.drift_bound_dps * 3600.0,
+        }
+    }
+}
+
+/// What a motion replay did (`summary.json`, `--json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct MotionSummary {
+    /// Input file.
+    pub input: String,
+    /// Format read.
+    pub format: &'static str,
+    /// Output CSV.
+    pub output: String,
+    /// The identifier image, or the built-in default.
+    pub identifier: String,
+    /// Record passes trained into the image (12 records x 3 passes = 36; 0: untrained, the
+    /// gated level alone).
+    pub records_trained: u32,
+    /// The sensor configuration used.
+    pub sensor: SensorSummary,
+    /// Where `t_s` came from.
+    pub t_s_source: &'static str,
+    /// Rate column and scale (CSV).
+    pub rate_column: Option<String>,
+    /// Factor applied to the rate column.
+    pub rate_scale: f64,
+    /// Rows in and out (one output row per input sample).
+    pub rows: usize,
+    /// Samples at or beyond the sensor's full scale (possibly saturated input).
+    pub at_full_scale: usize,
+    /// Largest |rate|, deg/s.
+    pub max_abs_rate_dps: f32,
+    /// Rows flagged still.
+    pub still_rows: usize,
+    /// Level updates.
+    pub level_updates: u32,
+    /// Largest |drift estimate|, deg/h.
+    pub max_abs_drift_dph: f64,
+    /// Raw angle (integral of the rate) at the end, deg.
+    pub raw_angle_end_deg: f64,
+    /// Compensated angle at the end, deg.
+    pub compensated_angle_end_deg: f64,
+    /// DSP-3000 fault lines.
+    pub fault_lines: u64,
+    /// Byte counts of a capture.
+    pub bytes: Option<BytesSummary>,
+    /// Scores against the truth, identifier beside the baselines.
+    pub scores: Option<nav::Comparison>,
+}
+
+/// A replay's summary and per-sample data (for the report).
+pub struct MotionOutcome {
+    /// Summary.
+    pub summary: MotionSummary,
+    /// The record read.
+    pub input: Input,
+    /// Drift estimate per sample, deg/s.
+    pub drift_dps: Vec<f64>,
+    /// Still flag per sample.
+    pub still: Vec<bool>,
+    /// Scores and heading errors (records with truth).
+    pub compared: Option<Compared>,
+}
+
+/// The built-in identifier for `sensor`: an untrained model (the gated level alone).
+pub fn builtin_image(sensor: SensorConfig) -> Result<Image> {
+    let mut o = motion::TrainOptions::new(sensor);
+    o.epochs = 0;
+    motion::untrained(&o)
+}
+
+/// The built-in sensor whose rate is `hz` (within [`fog_core::image::RATE_TOLERANCE`]):
+/// E-Core 2000 (100 Hz) or KVH DSP-1750 (1 kHz); the E-Core otherwise (the rate check then
+/// names the mismatch).
+pub fn sensor_for_rate(hz: f32) -> SensorConfig {
+    [SensorConfig::ECORE_2000, SensorConfig::KVH_DSP_1750]
+        .into_iter()
+        .find(|s| {
+            (hz - s.sample_rate_hz).abs() <= fog_core::image::RATE_TOLERANCE * s.sample_rate_hz
+        })
+        .unwrap_or(SensorConfig::ECORE_2000)
+}
+
+/// The identifier's release delay: its detector window, samples.
+fn release_samples(image: &Image) -> usize {
+    let c = &image.config;
+    (c.still.window_s * c.sensor.sample_rate_hz)
+        .round()
+        .max(0.0) as usize
+}
+
+/// Trapezoid integral of `rate` over `t`, deg.
+fn angle_deg(t_s: &[f64], rate: impl Iterator<Item = f64>) -> f64 {
+    let (mut a, mut prev) = (0.0, None::<(f64, f64)>);
+    for (&t, r) in t_s.iter().zip(rate) {
+        if let Some((t0, r0)) = prev {
+            a += 0.5 * (r0 + r) * (t - t0);
+        }
+        prev = Some((t, r));
+    }
+    a
+}
+
+/// The baselines' q: `--baseline-q`, else tuned on `--validate`, else the identifier's level
+/// noise per sample.
+fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
+    let s = image.config.sensor;
+    let r_dps2 = f64::from(s.sample_var_dps2());
+    if let Some((q, from)) = &o.baseline_q {
+        if !(q.is_finite() && *q >= 0.0) {
+            bail!("{from} {q}: must be finite and >= 0");
+        }
+        return Ok(BaselineConfig {
+            q_dps2: *q,
+            q_source: from.clone(),
+            r_dps2,
+            release_samples: release_samples(image),
+        });
+    }
+    if !o.validate.is_empty() {
+        let files = CsvFiles::from_args(&o.validate, "rate_dps")?;
+        let mut recs = Vec::new();
+        for i in 0..files.len() {
+            let p = &files.0[i];
+            let r = NavRecord::read(p)?;
+            recs.push(r);
+        }
+        let grid = nav::log_grid(1e-18, 1e-8, 2);
+        let t = nav::tune_gated_q(&recs, r_dps2, &grid)
+            .ok_or_else(|| anyhow!("--validate: no record to tune on"))?;
+        return Ok(BaselineConfig {
+            q_dps2: t.q_dps2,
+            q_source: format!(
+                "tuned on {} validation records (truth still flags, grid 1e-18..1e-8, mean heading RMS {:.4} deg)",
+                recs.len(),
+                t.heading_rms_deg
+            ),
+            r_dps2,
+            release_samples: release_samples(image),
+        });
+    }
+    Ok(BaselineConfig {
+        q_dps2: f64::from(image.config.level_q_dps2_per_s) / f64::from(s.sample_rate_hz),
+        q_source: "the identifier's level noise".into(),
+        r_dps2,
+        release_samples: release_samples(image),
+    })
+}
+
+/// Replays `input` into `output` (atomically; nothing written on any error).
+pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOutcome> {
+    let mut inputs = vec![input];
+    if let Some(id) = &o.identifier {
+        inputs.push(id);
+    }
+    record::refuse_overwrite_all(&inputs, &[output])?;
+    let file_image = match &o.identifier {
+        Some(p) => {
+            let im = motion::read_image(p)?;
+            if o.sensor.is_some_and(|s| s != im.config.sensor) {
+                bail!(
+                    "{}: its sensor configuration differs from --sensor; leave --sensor out",
+                    p.display()
+                );
+            }
+            Some((im, p.display().to_string()))
+        }
+        None => None,
+    };
+    let decode_sensor = file_image
+        .as_ref()
+        .map(|f| f.0.config.sensor)
+        .or(o.sensor)
+        .unwrap_or(SensorConfig::ECORE_2000);
+    // 0 = "the sensor's" (the command line left them out).
+    let mut sopts = o.stream.clone();
+    if sopts.rate_hz == 0.0 {
+        sopts.rate_hz = f64::from(decode_sensor.sample_rate_hz);
+    }
+    if !(sopts.rate_hz.is_finite() && sopts.rate_hz > 0.0) {
+        bail!("--rate-hz {}: must be finite and > 0", sopts.rate_hz);
+    }
+    if sopts.full_scale_dps == 0.0 {
+        sopts.full_scale_dps = decode_sensor.full_scale_dps;
+    }
+    let rec = input::read(input, &sopts, &o.rate, o.still_column.as_deref())?;
+    let s = &rec.record.series;
+    let hz = (1.0 / s.sample_period_s()) as f32;
+    let (image, identifier) = match file_image {
+        Some(f) => f,
+        None => {
+            let (sensor, how) = match o.sensor {
+                Some(s) => (s, "--sensor"),
+                None => (sensor_for_rate(hz), "picked by the record's rate"),
+            };
+            (
+                builtin_image(sensor)?,
+                format!(
+                    "built-in: untrained model (gated random-walk level with the stillness detector), sensor {} Hz / {} deg/s ({how})",
+                    sensor.sample_rate_hz, sensor.full_scale_dps
+                ),
+            )
+        }
+    };
+    let sensor = image.config.sensor;
+    image.check_rate(hz).map_err(|e| {
+        anyhow!(
+            "{}: {e} ({}; give --sensor or an identifier for this rate)",
+            identifier,
+            input.display()
+        )
+    })?;
+    let mut est = image
+        .estimator()
+        .map_err(|e| anyhow!("{identifier}: {e}"))?;
+    let out = motion::run(&mut est, &rec.record);
+    record::write_atomic(output, |w| {
+        writeln!(w, "{OUTPUT_HEADER}")?;
+        for (k, m) in out.iter().enumerate() {
+            writeln!(
+                w,
+                "{k},{},{},,{},{},{},{},{}",
+                s.t_s[k],
+                s.rate_dps[k],
+                m.drift_dps,
+                m.compensated_dps,
+                u8::from(m.still),
+                m.level_dps,
+                m.model_dps
+            )?;
+        }
+        Ok(())
+    })?;
+    let drift_dps: Vec<f64> = out.iter().map(|m| f64::from(m.drift_dps)).collect();
+    let still: Vec<bool> = out.iter().map(|m| m.still).collect();
+    let fs = sensor.full_scale_dps;
+    let compared = match &rec.truth {
+        Some(t) => Some(nav::compare(
+            t,
+            "motion identifier",
+            &drift_dps,
+            &still,
+            has_moving(input, &rec)?,
+            baseline_config(o, &image)?,
+        )),
+        None => None,
+    };
+    let summary = MotionSummary {
+        input: input.display().to_string(),
+        format: rec.format.name(),
+        output: output.display().to_string(),
+        identifier,
+        records_trained: image.records_trained,
+        sensor: sensor.into(),
+        t_s_source: rec.t_s_source,
+        rate_column: (rec.format == InputFormat::Csv).then(|| o.rate.column.clone()),
+        rate_scale: o.rate.scale,
+        rows: out.len(),
+        at_full_scale: s.rate_dps.iter().filter(|r| r.abs() >= fs).count(),
+        max_abs_rate_dps: s.rate_dps.iter().fold(0.0f32, |a, r| a.max(r.abs())),
+        still_rows: still.iter().filter(|&&b| b).count(),
+        level_updates: est.stats().level_updates,
+        max_abs_drift_dph: drift_dps.iter().fold(0.0f64, |a, d| a.max(d.abs())) * 3600.0,
+        raw_angle_end_deg: angle_deg(&s.t_s, s.rate_dps.iter().map(|&r| f64::from(r))),
+        compensated_angle_end_deg: angle_deg(
+            &s.t_s,
+            out.iter().map(|m| f64::from(m.compensated_dps)),
+        ),
+        fault_lines: rec.fault_lines,
+        bytes: rec.bytes.clone(),
+        scores: compared.as_ref().map(|c| c.table.clone()),
+    };
+    Ok(MotionOutcome {
+        summary,
+        input: rec,
+        drift_dps,
+        still,
+        compared,
+    })
+}
+
+/// The record has a `moving` column (the header is read again: cheap).
+fn has_moving(path: &Path, rec: &Input) -> Result<bool> {
+    if rec.format != InputFormat::Csv {
+        return Ok(false);
+    }
+    let name = path.display().to_string();
+    let (_, header) = record::csv_with_header(&name, record::open_maybe_gz(path)?)?;
+    Ok(header.iter().any(|h| h.trim() == "moving"))
+}
+
+/// Prints the summary (and the score table) on stderr.
+pub fn print_summary(s: &MotionSummary) -> Result<()> {
+    let mut err = std::io::stderr().lock();
+    writeln!(
+        err,
+        "{}: {} rows ({}) through the motion identifier ({}); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still, {} level updates; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
+        s.input,
+        s.rows,
+        s.format,
+        s.identifier,
+        s.sensor.full_scale_dps,
+        s.sensor.sample_rate_hz,
+        s.sensor.drift_bound_dph,
+        s.still_rows,
+        s.level_updates,
+        s.max_abs_drift_dph,
+        s.raw_angle_end_deg,
+        s.compensated_angle_end_deg,
+        s.output
+    )?;
+    if s.at_full_scale > 0 {
+        writeln!(
+            err,
+            "{}: warning: {} samples at or beyond the sensor's full scale ({} deg/s; max |rate| {} deg/s): give the right --sensor",
+            s.input, s.at_full_scale, s.sensor.full_scale_dps, s.max_abs_rate_dps
+        )?;
+    }
+    if s.fault_lines > 0 {
+        writeln!(
+            err,
+            "{}: {} DSP-3000 fault lines (no output rows)",
+            s.input, s.fault_lines
+        )?;
+    }
+    if let Some(c) = &s.scores {
+        write!(err, "{}", nav::table(c))?;
+    }
+    Ok(())
+}
+
+/// One validation record's scores (`identify --preset motion --validate`).
+#[derive(Debug, Clone, Serialize)]
+pub struct RecordScores {
+    /// The record.
+    pub record: String,
+    /// Identifier and baselines.
+    pub scores: nav::Comparison,
+}
+
+/// Scores over a set of validation records.
+#[derive(Debug, Clone, Serialize)]
+pub struct ValidationScores {
+    /// Per record.
+    pub records: Vec<RecordScores>,
+    /// Mean heading-error RMS over the records per estimator, deg (rows' order).
+    pub mean_heading_rms_deg: Vec<(String, f64)>,
+}
+
+/// Runs `image` over each record with truth in `paths` (files or folders) and scores it
+/// beside the baselines; the baselines' q is `baseline_q` or tuned on these records
+/// ([`nav::tune_gated_q`], truth still flags). A record without truth is refused.
+pub fn score_records(
+    image: &Image,
+    paths: &[PathBuf],
+    baseline_q: Option<(f64, String)>,
+) -> Result<ValidationScores> {
+    let files = CsvFiles::from_args(paths, "rate_dps")?;
+    let rate_hz = f64::from(image.config.sensor.sample_rate_hz);
+    let mut recs = Vec::new();
+    for p in &files.0 {
+        let r = input::read_csv(p, &RateSpec::default(), rate_hz, None)?;
+        if r.truth.is_none() {
+            bail!(
+                "{}: no truth (`true_rate_dps` and `drift_dps`): cannot score",
+                p.display()
+            );
+        }
+        let hz = (1.0 / r.record.series.sample_period_s()) as f32;
+        image
+            .check_rate(hz)
+            .map_err(|e| anyhow!("{}: {e}", p.display()))?;
+        let moving = has_moving(p, &r)?;
+        recs.push((p.display().to_string(), r, moving));
+    }
+    let r_dps2 = f64::from(image.config.sensor.sample_var_dps2());
+    let cfg = match baseline_q {
+        Some((q, from)) => BaselineConfig {
+            q_dps2: q,
+            q_source: from,
+            r_dps2,
+            release_samples: release_samples(image),
+        },
+        None => {
+            let truths: Vec<NavRecord> = recs.iter().filter_map(|r| r.1.truth.clone()).collect();
+            let t = nav::tune_gated_q(&truths, r_dps2, &nav::log_grid(1e-18, 1e-8, 2))
+                .ok_or_else(|| anyhow!("--validate: no record"))?;
+            BaselineConfig {
+                q_dps2: t.q_dps2,
+                q_source: format!(
+                    "tuned on these {} validation records (truth still flags)",
+                    truths.len()
+                ),
+                r_dps2,
+                release_samples: release_samples(image),
+            }
+        }
+    };
+    let mut out = Vec::new();
+    for (name, r, moving) in &recs {
+        let Some(t) = &r.truth else { continue };
+        let mut est = image.estimator().map_err(|e| anyhow!("{name}: {e}"))?;
+        let o = motion::run(&mut est, &r.record);
+        let drift: Vec<f64> = o.iter().map(|m| f64::from(m.drift_dps)).collect();
+        let still: Vec<bool> = o.iter().map(|m| m.still).collect();
+        let c = nav::compare(t, "motion identifier", &drift, &still, *moving, cfg.clone());
+        out.push(RecordScores {
+            record: name.clone(),
+            scores: c.table,
+        });
+    }
+    let mut mean: Vec<(String, f64)> = Vec::new();
+    if let Some(first) = out.first() {
+        for (i, row) in first.scores.rows.iter().enumerate() {
+            let m = out
+                .iter()
+                .map(|r| r.scores.rows[i].scores.heading_rms_deg)
+                .sum::<f64>()
+                / out.len() as f64;
+            mean.push((row.name.clone(), m));
+        }
+    }
+    Ok(ValidationScores {
+        records: out,
+        mean_heading_rms_deg: mean,
+    })
+}
+
+/// Prints validation scores on stderr: the mean heading-error RMS per estimator first, then
+/// each record's table.
+pub fn print_validation(v: &ValidationScores) -> Result<()> {
+    let mut err = std::io::stderr().lock();
+    writeln!(
+        err,
+        "mean heading error RMS over {} validation records:",
+        v.records.len()
+    )?;
+    for (name, m) in &v.mean_heading_rms_deg {
+        writeln!(err, "  {name:<44} {m:>10.4} deg")?;
+    }
+    for r in &v.records {
+        writeln!(err, "{}:", r.record)?;
+        write!(err, "{}", nav::table(&r.scores))?;
+    }
+    Ok(())
+}

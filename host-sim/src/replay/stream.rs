@@ -1,0 +1,850 @@
+//! `host-sim replay`: a recording through the firmware's fog-core pipeline, streamed.
+//!
+//! # Input
+//! - `csv`: interchange CSV (`t_s`, `rate_dps`, optional others). Rows are validated as by
+//!   `host-sim denoise` (a bad row stops the command with one line naming the file and
+//!   line, and no output is left); `t_s` is taken from the file. A `drift_dps` column (the
+//!   simulator's true drift) is used, when present, to compare the estimates with it.
+//! - `ecore-bin`: E-Core 2000 8-byte frames, decoded byte by byte by
+//!   [`fog_core::frame::EcoreDecoder`] (`--full-scale-dps`).
+//! - `dsp3000`: KVH DSP-3000 21-byte ASCII lines ([`fog_core::frame::Dsp3000Decoder`]),
+//!   value in deg/s (rate mode). Fault lines (status `0`) are counted and not identified.
+//! - `auto` (default): bytes with bit 7 set in the first 8 KiB mean `ecore-bin`; otherwise a
+//!   first line containing `,` means `csv`, a CR LF means `dsp3000`.
+//!
+//! For binary and ASCII input there is no time stamp: **`t_s = index / rate_hz`**, where
+//! `index` counts the frames and lines the decoder delivered (fault lines included: they
+//! hold a sample slot). A frame lost to corruption takes no index, so later `t_s` are early
+//! by one period per lost frame; the lost frames are counted.
+//!
+//! # Pipeline
+//! Every good sample goes into the identifier the firmware runs,
+//! `presets::level_trend::<512>` (default) or `presets::paper::<512>` (`--preset paper`:
+//! Mexican-hat neurons, [`DrlsConfig::PAPER`]), with sample period `1 / rate_hz` rounded to
+//! f32. A sample the identifier refuses (|rate| above its range) is counted and gets no
+//! output row.
+//!
+//! # Output
+//! One row per identified sample: `index,t_s,rate_dps,denoised_dps,drift_dps,compensated_dps`
+//! (`index`: 0-based sample number in the input, so refused samples and fault lines show
+//! as missing indices). f32 values use Rust's shortest round-trip formatting: they parse
+//! back to the same bits. `denoised_dps` is known only when the sample's block of 512
+//! completes: at most 512 rows wait in memory for it, then are written. **The rows of the
+//! final partial block have an empty `denoised_dps`** (the firmware never denoises a
+//! partial block either).
+//!
+//! # Memory
+//! Constant: the input is streamed, at most one block of rows is held, and the report
+//! (`--report`) keeps bounded decimations and at most
+//! [`report::ALLAN_MAX_SAMPLES`] samples for the Allan deviation ([`report`]).
+//!
+//! Peak-memory check (release build; records from `host-sim simulate --preset ecore2000
+//! --seed 1 --duration-s 1000` (10^5 samples) and `--duration-s 100000` (10^7 samples, a
+//! 576 MB CSV)):
+//! ```text
+//! /usr/bin/time -v target/release/host-sim replay --input a.csv --output out.csv
+//!     # "Maximum resident set size": 4272 kB (10^5), 4508 kB (10^7, 40 s)
+//! ... --report DIR
+//!     # 6792 kB (10^5), 21456 kB (10^7: the 2^20-sample Allan buffer and its phase, f64)
+//! ```
+
+use crate::record;
+use crate::report::{self, BytesSummary, Collector, CsvSummary, Summary, Tail, TruthAcc};
+use anyhow::{anyhow, bail, Context, Result};
+use fog_core::baseline::RandomWalkKalman;
+use fog_core::frame::{Decoder, Dsp3000Decoder, Dsp3000Line, EcoreDecoder};
+use fog_core::identify::{presets, Estimate, IdentifyError};
+use fog_core::train::DrlsConfig;
+use fog_core::wnn::Activation;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::collections::VecDeque;
+use std::fs::File;
+use std::io::{BufRead, BufReader, IsTerminal, Write};
+use std::path::{Path, PathBuf};
+
+/// Denoising block of the pipeline, samples (the firmware's).
+pub const BLOCK: usize = 512;
+
+/// Header of the per-sample output.
+pub const OUTPUT_HEADER: &str = "index,t_s,rate_dps,denoised_dps,drift_dps,compensated_dps";
+
+/// Window of the moving-average baseline, s.
+pub const MOVING_AVERAGE_S: f64 = 10.0;
+
+/// Input formats.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputFormat {
+    /// Guess from the first bytes (see the module docs).
+    Auto,
+    /// Interchange CSV.
+    Csv,
+    /// E-Core 2000 binary frames.
+    EcoreBin,
+    /// KVH DSP-3000 ASCII lines.
+    Dsp3000,
+}
+
+impl InputFormat {
+    /// The format's name as the command line spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::Csv => "csv",
+            Self::EcoreBin => "ecore-bin",
+            Self::Dsp3000 => "dsp3000",
+        }
+    }
+}
+
+/// Identifier configurations (fog-core `identify::presets`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IdPreset {
+    /// `presets::level_trend` with `LEVEL_TREND_SCALING` (the firmware's default).
+    LevelTrend,
+    /// `presets::paper`: Mexican-hat neurons, `PAPER_SCALING`, `DrlsConfig::PAPER`.
+    Paper,
+}
+
+impl IdPreset {
+    /// The preset's name as the command line spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::LevelTrend => "level-trend",
+            Self::Paper => "paper",
+        }
+    }
+}
+
+/// The identifier of either preset.
+pub enum Pipeline {
+    /// `presets::level_trend::<512>`.
+    LevelTrend(Box<presets::LevelTrend<BLOCK>>),
+    /// `presets::paper::<512>`.
+    Paper(Box<presets::Paper<BLOCK>>),
+}
+
+impl Pipeline {
+    /// The identifier of `preset` for sample period `sample_period_s`.
+    pub fn new(preset: IdPreset, sample_period_s: f32) -> Result<Self, IdentifyError> {
+        Ok(match preset {
+            IdPreset::LevelTrend => Self::LevelTrend(Box::new(presets::level_trend::<BLOCK>(
+                presets::LEVEL_TREND_SCALING,
+                sample_period_s,
+            )?)),
+            IdPreset::Paper => Self::Paper(Box::new(presets::paper::<BLOCK>(
+                Activation::MexicanHat,
+                presets::PAPER_SCALING,
+                DrlsConfig::PAPER,
+                sample_period_s,
+            )?)),
+        })
+    }
+
+    /// One sample ([`fog_core::identify::Identifier::push`]).
+    pub fn push(&mut self, rate_dps: f32) -> Result<Estimate, IdentifyError> {
+        match self {
+            Self::LevelTrend(i) => i.push(rate_dps),
+            Self::Paper(i) => i.push(rate_dps),
+        }
+    }
+
+    /// Denoised values of the block that completed last.
+    pub fn last_denoised_block(&self) -> &[f32; BLOCK] {
+        match self {
+            Self::LevelTrend(i) => i.last_denoised_block(),
+            Self::Paper(i) => i.last_denoised_block(),
+        }
+    }
+}
+
+/// The identifier's sample period for `rate_hz`: `1 / rate_hz` in f64, rounded to f32.
+pub fn sample_period_s(rate_hz: f64) -> f32 {
+    (1.0 / rate_hz) as f32
+}
+
+/// What a replay is asked to do.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Input format.
+    pub format: InputFormat,
+    /// E-Core full scale, deg/s.
+    pub full_scale_dps: f32,
+    /// Nominal sample rate, Hz.
+    pub rate_hz: f64,
+    /// Identifier.
+    pub preset: IdPreset,
+    /// Collect what the report needs.
+    pub collect: bool,
+}
+
+/// What [`replay`] returns.
+pub struct Outcome {
+    /// Counts and figures.
+    pub summary: Summary,
+    /// The report's data (with [`Options::collect`]).
+    pub collector: Option<Collector>,
+}
+
+/// One input event.
+enum Event {
+    /// A sample: time (CSV only), rate, true drift (CSV `drift_dps` column).
+    Sample {
+        t_s: Option<f64>,
+        rate_dps: f32,
+        truth: Option<f64>,
+    },
+    /// A DSP-3000 fault line: holds a slot, is not identified.
+    Fault,
+}
+
+/// Interchange CSV, row by row.
+struct CsvSource {
+    name: String,
+    rdr: csv::Reader<BufReader<File>>,
+    rec: csv::StringRecord,
+    t_col: usize,
+    r_col: usize,
+    truth_col: Option<usize>,
+    path: PathBuf,
+    nominal_dt_s: f64,
+    rows: u64,
+    first_t: Option<f64>,
+    prev_t: Option<f64>,
+    gaps: u64,
+    largest_gap: Option<(f64, u64)>,
+}
+
+impl CsvSource {
+    fn new(path: &Path, reader: BufReader<File>, rate_hz: f64) -> Result<Self> {
+        let name = path.display().to_string();
+        let (rdr, header) = crate::record::csv_with_header(&name, reader)?;
+        let col = |want: &str| header.iter().position(|h| h.trim() == want);
+        let joined = || header.iter().collect::<Vec<_>>().join(",");
+        let Some(t_col) = col("t_s") else {
+            bail!("{name}:1: missing column `t_s` (header: {})", joined());
+        };
+        let Some(r_col) = col("rate_dps") else {
+            bail!("{name}:1: missing column `rate_dps` (header: {})", joined());
+        };
+        Ok(Self {
+            name,
+            truth_col: col("drift_dps"),
+            rdr,
+            rec: csv::StringRecord::new(),
+            t_col,
+            r_col,
+            path: path.to_path_buf(),
+            nominal_dt_s: 1.0 / rate_hz,
+            rows: 0,
+            first_t: None,
+            prev_t: None,
+            gaps: 0,
+            largest_gap: None,
+        })
+    }
+
+    fn next(&mut self) -> Result<Option<Event>> {
+        let name = &self.name;
+        let more = self.rdr.read_record(&mut self.rec).map_err(|e| {
+            let line = e.position().map_or(0, |p| p.line());
+            anyhow!("{name}:{line}: {e}")
+        })?;
+        if !more {
+            if self.rows == 0 {
+                bail!("{name}: no data rows after the header");
+            }
+            return Ok(None);
+        }
+        let line = self.rec.position().map_or(0, |p| p.line());
+        let t: f64 = record::parse_field(&self.rec, self.t_col, "t_s", &self.path, line)?;
+        let r: f32 = record::parse_field(&self.rec, self.r_col, "rate_dps", &self.path, line)?;
+        let truth: Option<f64> = match self.truth_col {
+            Some(c) => Some(record::parse_field(
+                &self.rec,
+                c,
+                "drift_dps",
+                &self.path,
+                line,
+            )?),
+            None => None,
+        };
+        if let Some(prev) = self.prev_t {
+            if t <= prev {
+                bail!("{name}:{line}: t_s = {t} does not increase (previous row {prev})");
+            }
+            let dt = t - prev;
+            if dt > record::GAP_FACTOR * self.nominal_dt_s {
+                self.gaps += 1;
+                if self.largest_gap.is_none_or(|(g, _)| dt > g) {
+                    self.largest_gap = Some((dt, line));
+                }
+            }
+        }
+        self.first_t.get_or_insert(t);
+        self.prev_t = Some(t);
+        self.rows += 1;
+        Ok(Some(Event::Sample {
+            t_s: Some(t),
+            rate_dps: r,
+            truth,
+        }))
+    }
+
+    fn position(&self) -> u64 {
+        self.rdr.position().byte()
+    }
+
+    fn summary(&self) -> CsvSummary {
+        let mean = match (self.first_t, self.prev_t) {
+            (Some(a), Some(b)) if self.rows > 1 => Some((b - a) / (self.rows - 1) as f64),
+            _ => None,
+        };
+        CsvSummary {
+            rows: self.rows,
+            gaps: self.gaps,
+            largest_gap_s: self.largest_gap.map(|g| g.0),
+            largest_gap_line: self.largest_gap.map(|g| g.1),
+            mean_step_s: mean,
+        }
+    }
+}
+
+/// A byte-at-a-time decoder over a file, with the offsets the report needs.
+struct ByteSource<D: Decoder> {
+    name: String,
+    reader: BufReader<File>,
+    decoder: D,
+    /// Bytes consumed so far.
+    offset: u64,
+    first_drop: Option<u64>,
+    tail: Option<Tail>,
+    done: bool,
+    /// Decoded output -> rate (None: fault line).
+    map: fn(D::Output) -> Option<f32>,
+}
+
+impl<D: Decoder> ByteSource<D> {
+    fn next(&mut self) -> Result<Option<Event>> {
+        if self.done {
+            return Ok(None);
+        }
+        loop {
+            let buf = self
+                .reader
+                .fill_buf()
+                .with_context(|| format!("{}: read failed at byte {}", self.name, self.offset))?;
+            if buf.is_empty() {
+                let st = *self.decoder.stats();
+                if st.bytes_pending > 0 {
+                    self.tail = Some(Tail {
+                        bytes: st.bytes_pending,
+                        offset: st.bytes_total - st.bytes_pending,
+                    });
+                }
+                self.decoder.flush();
+                self.done = true;
+                return Ok(None);
+            }
+            let mut used = 0usize;
+            let mut out = None;
+            for &b in buf {
+                let dropped = self.decoder.stats().skipped.total();
+                let o = self.decoder.push(b);
+                if self.first_drop.is_none() && self.decoder.stats().skipped.total() != dropped {
+                    self.first_drop = Some(self.offset + used as u64);
+                }
+                used += 1;
+                if o.is_some() {
+                    out = o;
+                    break;
+                }
+            }
+            self.reader.consume(used);
+            self.offset += used as u64;
+            if let Some(o) = out {
+                return Ok(Some(match (self.map)(o) {
+                    Some(rate_dps) => Event::Sample {
+                        t_s: None,
+                        rate_dps,
+                        truth: None,
+                    },
+                    None => Event::Fault,
+                }));
+            }
+        }
+    }
+
+    fn summary(&self) -> BytesSummary {
+        let s = self.decoder.stats();
+        BytesSummary {
+            bytes_total: s.bytes_total,
+            bytes_good: s.bytes_good,
+            bytes_dropped: s.skipped.total(),
+            skipped: (&s.skipped).into(),
+            frames_good: s.frames_good,
+            frames_fault: s.frames_fault,
+            frames_bad: s.frames_bad,
+            first_drop_at_byte: self.first_drop,
+            tail: self.tail,
+        }
+    }
+}
+
+enum Source {
+    Csv(Box<CsvSource>),
+    Ecore(ByteSource<EcoreDecoder>),
+    Dsp(ByteSource<Dsp3000Decoder>),
+}
+
+impl Source {
+    fn next(&mut self) -> Result<Option<Event>> {
+        match self {
+            Self::Csv(s) => s.next(),
+            Self::Ecore(s) => s.next(),
+            Self::Dsp(s) => s.next(),
+        }
+    }
+
+    fn position(&self) -> u64 {
+        match self {
+            Self::Csv(s) => s.position(),
+            Self::Ecore(s) => s.offset,
+            Self::Dsp(s) => s.offset,
+        }
+    }
+}
+
+/// A binary or ASCII capture decoded whole (for the motion preset, which reads the record
+/// before running it): one entry per delivered sample, fault lines excluded.
+#[derive(Debug, Clone)]
+pub struct Decoded {
+    /// The format read (never `Auto`).
+    pub format: InputFormat,
+    /// `index / rate_hz`, s (the index counts fault lines: they hold a slot).
+    pub t_s: Vec<f64>,
+    /// Rate, deg/s.
+    pub rate_dps: Vec<f32>,
+    /// DSP-3000 fault lines (no sample).
+    pub fault_lines: u64,
+    /// Byte counts (None for CSV).
+    pub bytes: Option<BytesSummary>,
+}
+
+/// Decodes `input` (E-Core frames with `opts.full_scale_dps`, or DSP-3000 lines) into
+/// memory. CSV input is refused here: it has its own reader with the truth columns
+/// ([`super::input`]).
+pub fn decode(input: &Path, opts: &Options) -> Result<Decoded> {
+    let (mut src, format, _) = open_source(input, opts)?;
+    if matches!(src, Source::Csv(_)) {
+        bail!("{}: a CSV record, not a capture", input.display());
+    }
+    let (mut t_s, mut rate_dps, mut faults, mut index) = (Vec::new(), Vec::new(), 0u64, 0u64);
+    while let Some(ev) = src.next()? {
+        let k = index;
+        index += 1;
+        match ev {
+            Event::Fault => faults += 1,
+            Event::Sample { rate_dps: r, .. } => {
+                t_s.push(k as f64 / opts.rate_hz);
+                rate_dps.push(r);
+            }
+        }
+    }
+    let bytes = match &src {
+        Source::Ecore(s) => Some(s.summary()),
+        Source::Dsp(s) => Some(s.summary()),
+        Source::Csv(_) => None,
+    };
+    Ok(Decoded {
+        format,
+        t_s,
+        rate_dps,
+        fault_lines: faults,
+        bytes,
+    })
+}
+
+/// Guesses the format from the first bytes (see the module docs).
+fn sniff(name: &str, head: &[u8]) -> Result<InputFormat> {
+    if head.is_empty() {
+        bail!("{name}: empty file");
+    }
+    if head.iter().any(|&b| b & 0x80 != 0) {
+        return Ok(InputFormat::EcoreBin);
+    }
+    let first_line = head.split(|&b| b == b'\n').next().unwrap_or(head);
+    if first_line.contains(&b',') {
+        return Ok(InputFormat::Csv);
+    }
+    if head.windows(2).any(|w| w == b"\r\n") {
+        return Ok(InputFormat::Dsp3000);
+    }
+    bail!(
+        "{name}: cannot tell the format from the first bytes; give --format csv|ecore-bin|dsp3000"
+    )
+}
+
+fn open_source(path: &Path, opts: &Options) -> Result<(Source, InputFormat, u64)> {
+    let name = path.display().to_string();
+    let file = File::open(path).with_context(|| format!("{name}: cannot open"))?;
+    let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let mut reader = BufReader::with_capacity(1 << 16, file);
+    let format = match opts.format {
+        InputFormat::Auto => {
+            let head = reader
+                .fill_buf()
+                .with_context(|| format!("{name}: read failed at byte 0"))?;
+            sniff(&name, &head[..head.len().min(8192)])?
+        }
+        f => f,
+    };
+    let src = match format {
+        InputFormat::Csv | InputFormat::Auto => {
+            Source::Csv(Box::new(CsvSource::new(path, reader, opts.rate_hz)?))
+        }
+        InputFormat::EcoreBin => Source::Ecore(ByteSource {
+            decoder: EcoreDecoder::new(opts.full_scale_dps)
+                .map_err(|e| anyhow!("--full-scale-dps {}: {e}", opts.full_scale_dps))?,
+            name,
+            reader,
+            offset: 0,
+            first_drop: None,
+            tail: None,
+            done: false,
+            map: |f| Some(f.rate_dps),
+        }),
+        InputFormat::Dsp3000 => Source::Dsp(ByteSource {
+            decoder: Dsp3000Decoder::new(),
+            name,
+            reader,
+            offset: 0,
+            first_drop: None,
+            tail: None,
+            done: false,
+            map: |l| match l {
+                Dsp3000Line::Valid(v) => Some(v.to_f32()),
+                Dsp3000Line::Fault(_) => None,
+            },
+        }),
+    };
+    Ok((src, format, len))
+}
+
+/// A row waiting for its block's denoised value.
+struct Row {
+    index: u64,
+    t_s: f64,
+    rate_dps: f32,
+    drift_dps: f32,
+    compensated_dps: f32,
+}
+
+fn write_row(w: &mut impl Write, r: &Row, denoised: Option<f32>) -> std::io::Result<()> {
+    match denoised {
+        Some(d) => writeln!(
+            w,
+            "{},{},{},{},{},{}",
+            r.index, r.t_s, r.rate_dps, d, r.drift_dps, r.compensated_dps
+        ),
+        None => writeln!(
+            w,
+            "{},{},{},,{},{}",
+            r.index, r.t_s, r.rate_dps, r.drift_dps, r.compensated_dps
+        ),
+    }
+}
+
+/// Causal moving average over a fixed number of samples (the current one included).
+struct MovingAverage {
+    window: VecDeque<f32>,
+    len: usize,
+    sum: f64,
+}
+
+impl MovingAverage {
+    fn new(len: usize) -> Self {
+        Self {
+            window: VecDeque::with_capacity(len.max(1)),
+            len: len.max(1),
+            sum: 0.0,
+        }
+    }
+
+    fn push(&mut self, x: f32) -> f64 {
+        if self.window.len() == self.len {
+            if let Some(old) = self.window.pop_front() {
+                self.sum -= f64::from(old);
+            }
+        }
+        self.window.push_back(x);
+        self.sum += f64::from(x);
+        self.sum / self.window.len() as f64
+    }
+}
+
+/// Replays `input` into `output` (atomically). `truth`, when given, is called once per
+/// sample read (fault lines included) and gives that sample's true drift, deg/s; otherwise
+/// a CSV `drift_dps` column is used when present.
+pub fn replay(
+    input: &Path,
+    output: &Path,
+    opts: &Options,
+    mut truth: Option<&mut dyn FnMut() -> f64>,
+    truth_source: &str,
+) -> Result<Outcome> {
+    let name = input.display().to_string();
+    record::refuse_overwrite(input, output)?;
+    if !(opts.rate_hz.is_finite() && opts.rate_hz > 0.0) {
+        bail!("--rate-hz {}: must be finite and > 0", opts.rate_hz);
+    }
+    let dt = sample_period_s(opts.rate_hz);
+    let mut pipe = Pipeline::new(opts.preset, dt)
+        .map_err(|e| anyhow!("identifier ({}): {e}", opts.preset.name()))?;
+    let (mut src, format, len) = open_source(input, opts)?;
+    let bar = if std::io::stderr().is_terminal() {
+        let b = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+        if let Ok(style) = ProgressStyle::with_template("{bar:40} {percent:>3}% {eta} left") {
+            b.set_style(style);
+        }
+        b
+    } else {
+        ProgressBar::hidden()
+    };
+    let mut collector = opts.collect.then(Collector::default);
+    let mut pending: Vec<Row> = Vec::with_capacity(BLOCK);
+    let mut ma = MovingAverage::new((MOVING_AVERAGE_S * opts.rate_hz).round() as usize);
+    let mut kf = RandomWalkKalman::new(1e-6, 1.0);
+    let mut truth_acc = TruthAcc::default();
+    let mut index = 0u64;
+    let (mut identified, mut rejected, mut faults, mut blocks, mut written) = (0u64, 0, 0, 0, 0);
+    let (mut t_first, mut t_last) = (None, None);
+    let (mut train_sq, mut train_n) = (0.0f64, 0u64);
+    let mut non_finite = 0u64;
+    let mut truth_seen = false;
+    let out = output.display().to_string();
+    record::write_atomic(output, |w| {
+        let io = |e: std::io::Error| anyhow!("{out}: write failed: {e}");
+        writeln!(w, "{OUTPUT_HEADER}").map_err(io)?;
+        while let Some(ev) = src.next()? {
+            let k = index;
+            index += 1;
+            if k.is_multiple_of(4096) {
+                bar.set_position(src.position());
+            }
+            let injected = truth.as_mut().map(|f| f());
+            let (t_opt, rate_dps, csv_truth) = match ev {
+                Event::Fault => {
+                    faults += 1;
+                    continue;
+                }
+                Event::Sample {
+                    t_s,
+                    rate_dps,
+                    truth,
+                } => (t_s, rate_dps, truth),
+            };
+            let t_s = t_opt.unwrap_or(k as f64 / opts.rate_hz);
+            t_first.get_or_insert(t_s);
+            t_last = Some(t_s);
+            let Ok(est) = pipe.push(rate_dps) else {
+                rejected += 1;
+                continue;
+            };
+            identified += 1;
+            if !est.drift_dps.is_finite() {
+                non_finite += 1;
+            }
+            if est.train_error_dps.is_finite() {
+                train_sq += f64::from(est.train_error_dps).powi(2);
+                train_n += 1;
+            }
+            pending.push(Row {
+                index: k,
+                t_s,
+                rate_dps,
+                drift_dps: est.drift_dps,
+                compensated_dps: est.compensated_dps,
+            });
+            let ma_dps = ma.push(rate_dps);
+            let kf_dps = f64::from(kf.push(rate_dps));
+            let truth_dps = injected.or(csv_truth);
+            if let Some(tr) = truth_dps {
+                truth_seen = true;
+                truth_acc.add(tr, [f64::from(est.drift_dps), ma_dps, kf_dps]);
+            }
+            if let Some(c) = collector.as_mut() {
+                c.measured.push(t_s, f64::from(rate_dps));
+                c.drift.push(t_s, f64::from(est.drift_dps));
+                c.push_allan(rate_dps);
+                if let Some(tr) = truth_dps {
+                    let dph = report::DPH_PER_DPS;
+                    c.truth.push(t_s, tr);
+                    c.err_identifier
+                        .push(t_s, (f64::from(est.drift_dps) - tr) * dph);
+                    c.err_moving_average.push(t_s, (ma_dps - tr) * dph);
+                    c.err_kalman.push(t_s, (kf_dps - tr) * dph);
+                }
+            }
+            if est.block_done {
+                blocks += 1;
+                let block = pipe.last_denoised_block();
+                if pending.len() != BLOCK {
+                    bail!(
+                        "{name}: internal error: block completed with {} rows pending",
+                        pending.len()
+                    );
+                }
+                for (r, &d) in pending.iter().zip(block.iter()) {
+                    write_row(w, r, Some(d)).map_err(io)?;
+                    if let Some(c) = collector.as_mut() {
+                        c.denoised.push(r.t_s, f64::from(d));
+                    }
+                }
+                written += pending.len() as u64;
+                pending.clear();
+            }
+        }
+        for r in &pending {
+            write_row(w, r, None).map_err(io)?;
+        }
+        written += pending.len() as u64;
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    let (bytes, csv) = match &src {
+        Source::Csv(s) => (None, Some(s.summary())),
+        Source::Ecore(s) => (Some(s.summary()), None),
+        Source::Dsp(s) => (Some(s.summary()), None),
+    };
+    let summary = Summary {
+        input: name,
+        format: format.name(),
+        output: out,
+        preset: opts.preset.name(),
+        block_samples: BLOCK,
+        rate_hz: opts.rate_hz,
+        sample_period_s: dt,
+        t_s_source: if format == InputFormat::Csv {
+            "the CSV's t_s column"
+        } else {
+            "index / rate_hz (no time stamps in the capture)"
+        },
+        full_scale_dps: (format == InputFormat::EcoreBin).then_some(opts.full_scale_dps),
+        samples_read: index,
+        samples_identified: identified,
+        samples_rejected: rejected,
+        fault_lines: faults,
+        drift_non_finite: non_finite,
+        blocks,
+        rows_written: written,
+        rows_without_denoised: pending.len() as u64,
+        t_first_s: t_first,
+        t_last_s: t_last,
+        rms_train_error_dps: (train_n > 0).then(|| (train_sq / train_n as f64).sqrt()),
+        bytes,
+        csv,
+        truth: if truth_seen {
+            truth_acc.summary(if truth.is_some() {
+                truth_source
+            } else {
+                "the CSV's drift_dps column"
+            })
+        } else {
+            None
+        },
+        allan: None,
+    };
+    Ok(Outcome { summary, collector })
+}
+
+/// Prints the summary of a replay on stderr.
+pub fn print_summary(s: &Summary) -> Result<()> {
+    let mut err = std::io::stderr().lock();
+    writeln!(
+        err,
+        "{}: {} samples ({}) through the {} identifier, {} blocks of {}; {} rows -> {} ({} rows of the final partial block without denoised_dps)",
+        s.input,
+        s.samples_read,
+        s.format,
+        s.preset,
+        s.blocks,
+        s.block_samples,
+        s.rows_written,
+        s.output,
+        s.rows_without_denoised
+    )?;
+    if s.samples_rejected > 0 || s.fault_lines > 0 {
+        writeln!(
+            err,
+            "{}: rejected: {} samples refused by the identifier, {} DSP-3000 fault lines (no output rows)",
+            s.input, s.samples_rejected, s.fault_lines
+        )?;
+    }
+    if s.drift_non_finite > 0 {
+        writeln!(
+            err,
+            "{}: warning: {} identified drift values are not finite (the {} identifier's trainer diverged); they are written as NaN",
+            s.input, s.drift_non_finite, s.preset
+        )?;
+    }
+    if let Some(b) = &s.bytes {
+        let k = &b.skipped;
+        writeln!(
+            err,
+            "{}: bytes: {} read, {} in good frames, {} dropped (no sync {}, checksum {}, cut short {}, UART {}, malformed {}, too long {}, incomplete {}); {} frames dropped{}",
+            s.input,
+            b.bytes_total,
+            b.bytes_good,
+            b.bytes_dropped,
+            k.no_sync,
+            k.checksum,
+            k.cut_short,
+            k.uart,
+            k.malformed,
+            k.too_long,
+            k.incomplete,
+            b.frames_bad,
+            b.first_drop_at_byte
+                .map_or(String::new(), |o| format!(", first drop at byte {o}"))
+        )?;
+        if let Some(t) = b.tail {
+            writeln!(
+                err,
+                "{}: warning: the capture ends inside a frame: {} bytes from byte offset {} dropped (incomplete)",
+                s.input, t.bytes, t.offset
+            )?;
+        }
+    }
+    if let Some(c) = &s.csv {
+        if let (Some(g), Some(l)) = (c.largest_gap_s, c.largest_gap_line) {
+            writeln!(
+                err,
+                "{}: warning: {} gap(s) in t_s (step > {} sample periods), largest {g:.4} s before line {l}; samples are identified as if evenly spaced",
+                s.input, c.gaps, record::GAP_FACTOR
+            )?;
+        }
+        if let Some(m) = c.mean_step_s {
+            let nominal = 1.0 / s.rate_hz;
+            if (m - nominal).abs() > 0.01 * nominal {
+                writeln!(
+                    err,
+                    "{}: warning: mean t_s step {m:.6} s differs from 1/--rate-hz = {nominal} s by more than 1 %",
+                    s.input
+                )?;
+            }
+        }
+    }
+    if let Some(t) = &s.truth {
+        writeln!(
+            err,
+            "{}: against the true drift (RMS {:.4} deg/h): e_truth identifier {:.4}, 10-s moving average {:.4}, Kalman {:.4}; best: {}",
+            s.input,
+            t.rms_true_drift_dph,
+            t.e_truth.identifier,
+            t.e_truth.moving_average_10s,
+            t.e_truth.kalman_random_walk,
+            t.best
+        )?;
+    }
+    Ok(())
+}
