@@ -13,16 +13,23 @@
 //!   the drift's *shape* (warm-up, thermal bias, Shupe term), not its per-unit offset. The
 //!   inputs move slowly: `m` is evaluated once per detector window (1 s by default) and
 //!   held in between (a change of the model's input, the same in training).
-//! - `level` = a scalar random-walk Kalman state on the residual `rate - m`, updated only
-//!   with window means the stillness detector ([`crate::still`]) released (still, and the
-//!   next window still too); in motion it is frozen while its variance keeps growing, so it
-//!   re-converges at the next stop.
+//! - `level` = a scalar random-walk Kalman state on the residual `rate - m`. By default
+//!   ([`LevelUpdate::Sample`]) updated at every sample the stillness detector
+//!   ([`crate::still`]) flags still, checkpointed at every window start and rolled back to
+//!   the checkpoint before the previous window when a window fails (so no sample of a failed
+//!   window, nor of the one before it, stays in the level), with a per-sample fast gate
+//!   ([`FAST_GATE_K`]) that stops the updates at the first sample of a drive. The
+//!   alternative ([`LevelUpdate::Window`]) takes only window means the detector released
+//!   (still, and the next window still too). In motion the level is frozen while its
+//!   variance keeps growing, so it re-converges at the next stop. Optional: a per-unit
+//!   gain on `m` ([`MotionEstimator::with_unit_gain`], off by default: no gain measured).
 //! - The clamp to the sensor's drift bound ([`SensorConfig::drift_bound_dps`]) means that
 //!   no state can subtract more than the bound from the rate.
 //!
 //! Per sample: the feature map (a sum and a count; once per second a 30-bin loop), the
-//! detector (3 additions, 1 multiplication), a clamp and a subtraction; once per window
-//! the network (`L` Gaussians) and a scalar Kalman step.
+//! detector (3 additions, 1 multiplication), the level step (1 division, about 14
+//! multiply/add/subtract with the gain state, 2 compares), a clamp and a subtraction; once
+//! per window the network (`L` Gaussians) and a 5-float checkpoint copy.
 
 use crate::denoise::{denoise_in_place, DenoiseConfig};
 use crate::features::{FeatureMap, TimeTemp};
@@ -279,8 +286,15 @@ pub struct MotionEstimator {
     // current and of the previous window, and the samples since the previous one.
     sample_q: f32,
     sample_r: f32,
-    checkpoint_now: (f32, f32),
-    checkpoint_prev: (f32, f32),
+    // Checkpoints: [level, level_var, gain, cov(level, gain), gain_var].
+    checkpoint_now: [f32; 5],
+    checkpoint_prev: [f32; 5],
+    // Per-unit gain on the model term (Sample mode with `with_unit_gain`): the drift is
+    // `level + (1 + gain) m`; its variance and its covariance with the level.
+    gain: f32,
+    gain_var: f32,
+    gain_cov: f32,
+    gain_sigma0: f32,
     since_prev: u32,
     since_now: u32,
     // Per-sample mode: a sample of this window was beyond the fast gate.
@@ -333,8 +347,12 @@ impl MotionEstimator {
             update: LevelUpdate::default(),
             sample_q: cfg.level_q_dps2_per_s / cfg.sensor.sample_rate_hz,
             sample_r: cfg.sensor.sample_var_dps2() * cfg.still.noise_scale,
-            checkpoint_now: (0.0, 0.0),
-            checkpoint_prev: (0.0, 0.0),
+            checkpoint_now: [0.0; 5],
+            checkpoint_prev: [0.0; 5],
+            gain: 0.0,
+            gain_var: 0.0,
+            gain_cov: 0.0,
+            gain_sigma0: 0.0,
             since_prev: 0,
             since_now: 0,
             halted: false,
@@ -354,7 +372,10 @@ impl MotionEstimator {
         self.level_var = b * b;
         self.model_now = 0.0;
         self.model_prev = 0.0;
-        self.checkpoint_now = (self.level, self.level_var);
+        self.gain = 0.0;
+        self.gain_var = self.gain_sigma0 * self.gain_sigma0;
+        self.gain_cov = 0.0;
+        self.checkpoint_now = self.level_state();
         self.checkpoint_prev = self.checkpoint_now;
         self.since_prev = 0;
         self.since_now = 0;
@@ -371,6 +392,42 @@ impl MotionEstimator {
     /// How the level learns.
     pub fn level_update(&self) -> LevelUpdate {
         self.update
+    }
+
+    /// Per-unit scaling of the model ([`LevelUpdate::Sample`] only): a second Kalman state
+    /// `gain`, prior `N(0, sigma0^2)`, constant (no process noise), so that the drift is
+    /// `level + (1 + gain) m(x)` and the observation of a still sample is
+    /// `rate - m = level + gain m`. Learned only from still samples, rolled back with the
+    /// level. `sigma0` = 0 (default) turns it off. Adds per sample about 12 multiply/adds.
+    pub fn with_unit_gain(mut self, sigma0: f32) -> Self {
+        self.gain_sigma0 = if sigma0.is_finite() { sigma0.abs() } else { 0.0 };
+        self.restart();
+        self
+    }
+
+    /// The per-unit gain on the model term and its variance.
+    pub fn unit_gain(&self) -> (f32, f32) {
+        (self.gain, self.gain_var)
+    }
+
+    fn level_state(&self) -> [f32; 5] {
+        [
+            self.level,
+            self.level_var,
+            self.gain,
+            self.gain_cov,
+            self.gain_var,
+        ]
+    }
+
+    fn set_level_state(&mut self, v: [f32; 5]) {
+        [
+            self.level,
+            self.level_var,
+            self.gain,
+            self.gain_cov,
+            self.gain_var,
+        ] = v;
     }
 
     /// One sample: `rate_dps`, `temp_c` (NaN: none), `external_still` (overrides the
@@ -390,7 +447,7 @@ impl MotionEstimator {
         let x = self.inputs.next(t_s, temp_c);
         if k.is_multiple_of(self.still.window_samples()) {
             self.checkpoint_prev = self.checkpoint_now;
-            self.checkpoint_now = (self.level, self.level_var);
+            self.checkpoint_now = self.level_state();
             // Samples since the new previous checkpoint: the last window's.
             self.since_prev = self.since_now;
             self.since_now = 0;
@@ -403,7 +460,10 @@ impl MotionEstimator {
                 self.model_now = 0.0;
             }
         }
-        let drift = self.cfg.sensor.clamp_drift(self.level + self.model_now);
+        let drift = self
+            .cfg
+            .sensor
+            .clamp_drift(self.level + (1.0 + self.gain) * self.model_now);
         let s = self
             .still
             .push(rate_dps, drift, self.level_var, external_still);
@@ -415,10 +475,9 @@ impl MotionEstimator {
             if self.update == LevelUpdate::Sample {
                 if !w.passed {
                     // Rollback: no sample of this window or of the one before reaches the level.
-                    let (level, var) = self.checkpoint_prev;
-                    self.level = level;
-                    self.level_var = var + self.sample_q * self.since_prev as f32;
-                    self.checkpoint_now = (self.level, self.level_var);
+                    self.set_level_state(self.checkpoint_prev);
+                    self.level_var += self.sample_q * self.since_prev as f32;
+                    self.checkpoint_now = self.level_state();
                     self.checkpoint_prev = self.checkpoint_now;
                     self.since_prev = 0;
                     self.since_now = 0;
@@ -479,17 +538,26 @@ impl MotionEstimator {
         if !still || self.halted {
             return false;
         }
-        let innovation = rate_dps - self.model_now - self.level;
-        let s = self.level_var + self.sample_r;
+        // Observation rate - m = level + gain m: H = [1, m].
+        let h = self.model_now;
+        let innovation = rate_dps - h - self.level - self.gain * h;
+        let ph0 = self.level_var + self.gain_cov * h;
+        let ph1 = self.gain_cov + self.gain_var * h;
+        let s = ph0 + ph1 * h + self.sample_r;
         if innovation * innovation > FAST_GATE_K * FAST_GATE_K * s {
             self.halted = true;
             return false;
         }
-        let gain = self.level_var / s;
-        let level = self.level + gain * innovation;
-        if level.is_finite() {
+        let k0 = ph0 / s;
+        let k1 = ph1 / s;
+        let level = self.level + k0 * innovation;
+        let gain = self.gain + k1 * innovation;
+        if level.is_finite() && gain.is_finite() {
             self.level = level;
-            self.level_var *= 1.0 - gain;
+            self.gain = gain;
+            self.level_var -= k0 * ph0;
+            self.gain_cov -= k0 * ph1;
+            self.gain_var -= k1 * ph1;
         }
         self.stats.level_updates = self.stats.level_updates.wrapping_add(1);
         true

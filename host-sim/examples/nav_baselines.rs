@@ -244,8 +244,10 @@ impl DriftEstimator for Motion {
     }
 }
 
-/// Level noise grid, (deg/h)^2/h.
-const Q_DPH2_PER_H: [f64; 9] = [0.25, 1.0, 4.0, 16.0, 64.0, 256.0, 1024.0, 4096.0, 16384.0];
+/// Level noise grid, (deg/h)^2/h: 0.25 .. 16384, 4 per decade (the Kalman's density).
+fn q_grid_dph2_per_h() -> Vec<f64> {
+    log_grid(0.25, 16384.0, 4)
+}
 
 fn q_dps2_per_s(q_dph2_per_h: f64) -> f32 {
     (q_dph2_per_h / 3600f64.powi(3)) as f32
@@ -257,12 +259,14 @@ fn motion_est(
     q: f64,
     update: LevelUpdate,
     truth: bool,
+    gain_sigma: f32,
 ) -> Result<Motion> {
     let mut cfg = MotionConfig::for_sensor(sensor);
     cfg.level_q_dps2_per_s = q_dps2_per_s(q);
     let est = MotionEstimator::new(*model, cfg)
         .map_err(|e| anyhow::anyhow!("estimator: {e}"))?
-        .with_level_update(update);
+        .with_level_update(update)
+        .with_unit_gain(gain_sigma);
     Ok(Motion {
         est,
         truth,
@@ -317,13 +321,12 @@ fn evaluate_motion(set: &Set) -> Result<()> {
                  recs: &[NavRecord],
                  sensors: &[SensorConfig],
                  q: f64,
-                 update: LevelUpdate,
-                 truth: bool|
+                 (update, truth, gain): (LevelUpdate, bool, f32)|
      -> Result<(f64, f64, f64, f64, f64)> {
         let (mut a, mut b, mut fs, mut ms) = (0.0, 0.0, 0.0, 0.0);
         let mut e = 0.0;
         for (r, s) in recs.iter().zip(sensors) {
-            let mut m = motion_est(model, *s, q, update, truth)?;
+            let mut m = motion_est(model, *s, q, update, truth, gain)?;
             let out = run(r, &mut m, &r.still_truth());
             a += out.scores.heading_rms_deg;
             b += out.scores.heading_final_deg.abs();
@@ -343,22 +346,24 @@ fn evaluate_motion(set: &Set) -> Result<()> {
         "{:<36} {:>8} {:>10} {:>10} {:>10} {:>9} {:>9}",
         "motion preset", "q dph2/h", "hdg RMS", "|hdg end|", "e moving", "false-st", "missed-st"
     );
-    for (name, model, update, truth) in [
-        ("motion, window update", &trained, LevelUpdate::Window, false),
-        ("motion, sample + rollback", &trained, LevelUpdate::Sample, false),
-        ("untrained m, sample + rollback", &untrained, LevelUpdate::Sample, false),
-        ("motion, sample, truth flags", &trained, LevelUpdate::Sample, true),
+    use LevelUpdate::{Sample, Window};
+    for (name, model, mode) in [
+        ("motion, window update", &trained, (Window, false, 0.0)),
+        ("motion, sample + rollback", &trained, (Sample, false, 0.0)),
+        ("motion, sample + unit gain 0.5", &trained, (Sample, false, 0.5)),
+        ("untrained m, sample + rollback", &untrained, (Sample, false, 0.0)),
+        ("motion, sample, truth flags", &trained, (Sample, true, 0.0)),
     ] {
-        let mut best = (f64::INFINITY, Q_DPH2_PER_H[0]);
-        for q in Q_DPH2_PER_H {
-            let v = score(model, &set.valid, s_valid, q, update, truth)?.0;
+        let mut best = (f64::INFINITY, 0.0);
+        for q in q_grid_dph2_per_h() {
+            let v = score(model, &set.valid, s_valid, q, mode)?.0;
             if v < best.0 {
                 best = (v, q);
             }
         }
-        let (a, b, e, fs, ms) = score(model, &set.test, s_test, best.1, update, truth)?;
+        let (a, b, e, fs, ms) = score(model, &set.test, s_test, best.1, mode)?;
         println!(
-            "{name:<36} {:>8} {a:>10.4} {b:>10.4} {e:>10.3} {:>8.2}% {:>8.2}%",
+            "{name:<36} {:>8.0} {a:>10.4} {b:>10.4} {e:>10.3} {:>8.2}% {:>8.2}%",
             best.1,
             100.0 * fs,
             100.0 * ms
@@ -382,18 +387,19 @@ fn evaluate_motion(set: &Set) -> Result<()> {
         "static: per-sample RW Kalman (q {:.2e} (deg/s)^2/sample, tuned by e_truth) e_truth {k_test:.4}",
         kbest.1
     );
-    for (name, model, update) in [
-        ("motion, window update", &trained, LevelUpdate::Window),
-        ("motion, sample + rollback", &trained, LevelUpdate::Sample),
-        ("untrained m, sample + rollback", &untrained, LevelUpdate::Sample),
+    for (name, model, (update, gain)) in [
+        ("motion, window update", &trained, (Window, 0.0)),
+        ("motion, sample + rollback", &trained, (Sample, 0.0)),
+        ("motion, sample + unit gain 0.5", &trained, (Sample, 0.5)),
+        ("untrained m, sample + rollback", &untrained, (Sample, 0.0)),
     ] {
         let mk = |q: f64| {
             move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
-                Ok(Box::new(motion_est(model, *s, q, update, false)?))
+                Ok(Box::new(motion_est(model, *s, q, update, false, gain)?))
             }
         };
         let mut best = (f64::INFINITY, 0.0);
-        for q in Q_DPH2_PER_H {
+        for q in q_grid_dph2_per_h() {
             let v = e_truth(&set.static_valid, mk(q))?;
             if v < best.0 {
                 best = (v, q);
@@ -401,7 +407,7 @@ fn evaluate_motion(set: &Set) -> Result<()> {
         }
         let t = e_truth(&set.static_test, mk(best.1))?;
         println!(
-            "static: {name:<32} (q {} (deg/h)^2/h) e_truth {t:.4} ({:+.1} % vs Kalman)",
+            "static: {name:<32} (q {:.0} (deg/h)^2/h) e_truth {t:.4} ({:+.1} % vs Kalman)",
             best.1,
             100.0 * (t / k_test - 1.0)
         );
