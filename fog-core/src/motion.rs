@@ -400,7 +400,11 @@ impl MotionEstimator {
     /// `rate - m = level + gain m`. Learned only from still samples, rolled back with the
     /// level. `sigma0` = 0 (default) turns it off. Adds per sample about 12 multiply/adds.
     pub fn with_unit_gain(mut self, sigma0: f32) -> Self {
-        self.gain_sigma0 = if sigma0.is_finite() { sigma0.abs() } else { 0.0 };
+        self.gain_sigma0 = if sigma0.is_finite() {
+            sigma0.abs()
+        } else {
+            0.0
+        };
         self.restart();
         self
     }
@@ -469,7 +473,7 @@ impl MotionEstimator {
             .push(rate_dps, drift, self.level_var, external_still);
         let mut still = s.still;
         if self.update == LevelUpdate::Sample {
-            still = self.sample_step(rate_dps, still);
+            still = self.sample_step(rate_dps, still, external_still.is_none());
         }
         if let Some(w) = s.window {
             if self.update == LevelUpdate::Sample {
@@ -523,7 +527,8 @@ impl MotionEstimator {
 
     /// Per-sample level step ([`LevelUpdate::Sample`]): the random walk always; when the
     /// sample is flagged still, the fast gate, then the Kalman update on `rate - m`.
-    /// Returns the still flag after the fast gate.
+    /// Returns the still flag after the fast gate. The gate is off for a sample with an
+    /// external still flag (the flag overrides the detector, as documented).
     ///
     /// Fast gate: a still-flagged sample whose innovation exceeds [`FAST_GATE_K`] sigma
     /// (the sample noise and the level's variance) marks the rest of its window as moving
@@ -531,7 +536,7 @@ impl MotionEstimator {
     /// failed window rolls back; a passing one, a false alarm of 1 in 1.7 million samples
     /// of white noise, resumes). This closes the detector's one-window lag at the start of
     /// a drive for any motion above the gate (0.06 deg/s for the E-Core).
-    fn sample_step(&mut self, rate_dps: f32, still: bool) -> bool {
+    fn sample_step(&mut self, rate_dps: f32, still: bool, gate: bool) -> bool {
         self.since_prev = self.since_prev.saturating_add(1);
         self.since_now = self.since_now.saturating_add(1);
         self.level_var += self.sample_q;
@@ -544,7 +549,7 @@ impl MotionEstimator {
         let ph0 = self.level_var + self.gain_cov * h;
         let ph1 = self.gain_cov + self.gain_var * h;
         let s = ph0 + ph1 * h + self.sample_r;
-        if innovation * innovation > FAST_GATE_K * FAST_GATE_K * s {
+        if gate && innovation * innovation > FAST_GATE_K * FAST_GATE_K * s {
             self.halted = true;
             return false;
         }
@@ -913,13 +918,19 @@ mod tests {
                 assert!(!o.still);
             }
         }
-        assert!(passed_creep, "the creeping window must pass for this test to mean anything");
+        assert!(
+            passed_creep,
+            "the creeping window must pass for this test to mean anything"
+        );
         // ... and the failed turn window rolled it back, bit for bit, with the variance of
         // the random walk over the 200 samples.
         let (level_b, var_b) = b.level();
         assert_eq!(level_b, level_a);
         let q = cfg.level_q_dps2_per_s / S.sample_rate_hz;
-        assert!((var_b - (var_a + 200.0 * q)).abs() <= 1e-6 * var_b, "{var_a} {var_b}");
+        assert!(
+            (var_b - (var_a + 200.0 * q)).abs() <= 1e-6 * var_b,
+            "{var_a} {var_b}"
+        );
         // The window update never takes a sample in before the next window passed.
         let mut c = MotionEstimator::new(model, cfg)
             .expect("test")

@@ -24,14 +24,14 @@
 //! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
 use anyhow::{bail, Result};
-use host_sim::nav::{
-    fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, DriftEstimator, GatedKalman,
-    NavRecord, NoCompensation, ThermalKalman, ThermalKalmanConfig,
-};
 use fog_core::motion::{
     LevelUpdate, MotionConfig, MotionEstimator, MotionModel, MotionTrainer, MOTION_DRLS,
 };
 use fog_core::still::SensorConfig;
+use host_sim::nav::{
+    fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, DriftEstimator, GatedKalman,
+    NavRecord, NoCompensation, ThermalKalman, ThermalKalmanConfig,
+};
 use host_sim::report::{heading_error_svg, still_spans, HeadingSeries};
 use host_sim::sim::{self, Model, Simulator};
 use std::path::{Path, PathBuf};
@@ -292,7 +292,10 @@ fn train_motion(recs: &[NavRecord], sensors: &[SensorConfig]) -> Result<MotionMo
 }
 
 /// Pooled e_truth (RMS(estimate - truth) / RMS(truth)) from 10 s on, every sample still.
-fn e_truth(recs: &[(NavRecord, SensorConfig)], mut make: impl FnMut(&SensorConfig) -> Result<Box<dyn DriftEstimator>>) -> Result<f64> {
+fn e_truth(
+    recs: &[(NavRecord, SensorConfig)],
+    mut make: impl FnMut(&SensorConfig) -> Result<Box<dyn DriftEstimator>>,
+) -> Result<f64> {
     let (mut se, mut st) = (0.0, 0.0);
     for (r, s) in recs {
         let mut est = make(s)?;
@@ -350,8 +353,16 @@ fn evaluate_motion(set: &Set) -> Result<()> {
     for (name, model, mode) in [
         ("motion, window update", &trained, (Window, false, 0.0)),
         ("motion, sample + rollback", &trained, (Sample, false, 0.0)),
-        ("motion, sample + unit gain 0.5", &trained, (Sample, false, 0.5)),
-        ("untrained m, sample + rollback", &untrained, (Sample, false, 0.0)),
+        (
+            "motion, sample + unit gain 0.5",
+            &trained,
+            (Sample, false, 0.5),
+        ),
+        (
+            "untrained m, sample + rollback",
+            &untrained,
+            (Sample, false, 0.0),
+        ),
         ("motion, sample, truth flags", &trained, (Sample, true, 0.0)),
     ] {
         let mut best = (f64::INFINITY, 0.0);
