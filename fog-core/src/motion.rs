@@ -14,22 +14,23 @@
 //!   inputs move slowly: `m` is evaluated once per detector window (1 s by default) and
 //!   held in between (a change of the model's input, the same in training).
 //! - `level` = a scalar random-walk Kalman state on the residual `rate - m`. By default
-//!   ([`LevelUpdate::Sample`]) updated at every sample the stillness detector
-//!   ([`crate::still`]) flags still, checkpointed at every window start and rolled back to
-//!   the checkpoint before the previous window when a window fails (so no sample of a failed
-//!   window, nor of the one before it, stays in the level), with a per-sample fast gate
-//!   ([`FAST_GATE_K`]) that stops the updates at the first sample of a drive. The
-//!   alternative ([`LevelUpdate::Window`]) takes only window means the detector released
-//!   (still, and the next window still too). In motion the level is frozen while its
-//!   variance keeps growing, so it re-converges at the next stop. Optional: a per-unit
+//!   ([`LevelUpdate::Window`]) updated only with window means the detector released
+//!   (still, and the next window still too). Alternative ([`LevelUpdate::Sample`]):
+//!   updated at every sample the stillness detector ([`crate::still`]) flags still,
+//!   checkpointed at every window start and rolled back to the checkpoint before the
+//!   previous window when a window fails (no sample of a failed window, nor of the one
+//!   before it, stays in the level), with a per-sample fast gate ([`FAST_GATE_K`]) that
+//!   stops the updates at the first sample of a drive. In motion the level is frozen while
+//!   its variance keeps growing, so it re-converges at the next stop. Optional: a per-unit
 //!   gain on `m` ([`MotionEstimator::with_unit_gain`], off by default: no gain measured).
 //! - The clamp to the sensor's drift bound ([`SensorConfig::drift_bound_dps`]) means that
 //!   no state can subtract more than the bound from the rate.
 //!
 //! Per sample: the feature map (a sum and a count; once per second a 30-bin loop), the
-//! detector (3 additions, 1 multiplication), the level step (1 division, about 14
-//! multiply/add/subtract with the gain state, 2 compares), a clamp and a subtraction; once
-//! per window the network (`L` Gaussians) and a 5-float checkpoint copy.
+//! detector (3 additions, 1 multiplication), a clamp and a subtraction, and in
+//! [`LevelUpdate::Sample`] the level step (1 division, about 14 multiply/add/subtract with
+//! the gain state, 2 compares); once per window the network (`L` Gaussians), a scalar
+//! Kalman step (`Window`) or a 5-float checkpoint copy (`Sample`).
 
 use crate::denoise::{denoise_in_place, DenoiseConfig};
 use crate::features::{FeatureMap, TimeTemp};
@@ -312,6 +313,9 @@ pub const FAST_GATE_K: f32 = 5.0;
 pub enum LevelUpdate {
     /// One Kalman step per released window mean (still, and the next window still too):
     /// the onset of motion never reaches the level, at the cost of a 2-window delay.
+    /// The default: it gives the lower heading error on vehicle records of both
+    /// generators' nominal families (docs/motion.md).
+    #[default]
     Window,
     /// One Kalman step per sample flagged still, on `rate - m` (variance `sigma^2`), with
     /// rollback: the level is checkpointed at every window start and, when a window fails
@@ -320,8 +324,8 @@ pub enum LevelUpdate {
     /// variance is the checkpoint's plus the random walk since). The output uses the
     /// tentative level; a fast gate ([`FAST_GATE_K`]) stops the updates of a window at its
     /// first sample beyond the gate. Adds per sample: 1 division, 8 multiply/add/subtract,
-    /// 2 compares (and a 2-float copy per window).
-    #[default]
+    /// 2 compares (and a 5-float copy per window). Ties the per-sample Kalman filter on
+    /// static records (docs/motion.md); loses on the Python generator's vehicles.
     Sample,
 }
 
@@ -383,7 +387,7 @@ impl MotionEstimator {
         self.stats = MotionStats::default();
     }
 
-    /// Chooses how the level learns ([`LevelUpdate`]; default [`LevelUpdate::Sample`]).
+    /// Chooses how the level learns ([`LevelUpdate`]; default [`LevelUpdate::Window`]).
     pub fn with_level_update(mut self, update: LevelUpdate) -> Self {
         self.update = update;
         self
@@ -892,7 +896,9 @@ mod tests {
         let mut z = Noise(21);
         // 30 s still: the reference estimator stops at the start of a window.
         let still: Vec<f32> = (0..3000).map(|_| bias + sigma * z.normal()).collect();
-        let mut a = MotionEstimator::new(model, cfg).expect("test");
+        let mut a = MotionEstimator::new(model, cfg)
+            .expect("test")
+            .with_level_update(LevelUpdate::Sample);
         assert_eq!(a.level_update(), LevelUpdate::Sample);
         for &x in &still {
             a.push(x, f32::NAN, None).expect("test");
