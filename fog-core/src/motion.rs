@@ -13,16 +13,24 @@
 //!   the drift's *shape* (warm-up, thermal bias, Shupe term), not its per-unit offset. The
 //!   inputs move slowly: `m` is evaluated once per detector window (1 s by default) and
 //!   held in between (a change of the model's input, the same in training).
-//! - `level` = a scalar random-walk Kalman state on the residual `rate - m`, updated only
-//!   with window means the stillness detector ([`crate::still`]) released (still, and the
-//!   next window still too); in motion it is frozen while its variance keeps growing, so it
-//!   re-converges at the next stop.
+//! - `level` = a scalar random-walk Kalman state on the residual `rate - m`. By default
+//!   ([`LevelUpdate::Window`]) updated only with window means the detector released
+//!   (still, and the next window still too). Alternative ([`LevelUpdate::Sample`]):
+//!   updated at every sample the stillness detector ([`crate::still`]) flags still,
+//!   checkpointed at every window start and rolled back to the checkpoint before the
+//!   previous window when a window fails (no sample of a failed window, nor of the one
+//!   before it, stays in the level), with a per-sample fast gate ([`FAST_GATE_K`]) that
+//!   stops the updates at the first sample of a drive. In motion the level is frozen while
+//!   its variance keeps growing, so it re-converges at the next stop. Optional: a per-unit
+//!   gain on `m` ([`MotionEstimator::with_unit_gain`], off by default: no gain measured).
 //! - The clamp to the sensor's drift bound ([`SensorConfig::drift_bound_dps`]) means that
 //!   no state can subtract more than the bound from the rate.
 //!
 //! Per sample: the feature map (a sum and a count; once per second a 30-bin loop), the
-//! detector (3 additions, 1 multiplication), a clamp and a subtraction; once per window
-//! the network (`L` Gaussians) and a scalar Kalman step.
+//! detector (3 additions, 1 multiplication), a clamp and a subtraction, and in
+//! [`LevelUpdate::Sample`] the level step (1 division, about 14 multiply/add/subtract with
+//! the gain state, 2 compares); once per window the network (`L` Gaussians), a scalar
+//! Kalman step (`Window`) or a 5-float checkpoint copy (`Sample`).
 
 use crate::denoise::{denoise_in_place, DenoiseConfig};
 use crate::features::{FeatureMap, TimeTemp};
@@ -249,7 +257,8 @@ pub struct MotionStats {
     pub rejected: u32,
     /// Samples flagged still.
     pub still_samples: u32,
-    /// Level updates (released still windows).
+    /// Level updates: released still windows ([`LevelUpdate::Window`]) or still samples
+    /// ([`LevelUpdate::Sample`]).
     pub level_updates: u32,
 }
 
@@ -273,7 +282,51 @@ pub struct MotionEstimator {
     x_now: [f32; MOTION_N],
     x_prev: [f32; MOTION_N],
     refine: Option<Drls<MOTION_L>>,
+    update: LevelUpdate,
+    // Per-sample mode: random-walk variance per sample, the level at the start of the
+    // current and of the previous window, and the samples since the previous one.
+    sample_q: f32,
+    sample_r: f32,
+    // Checkpoints: [level, level_var, gain, cov(level, gain), gain_var].
+    checkpoint_now: [f32; 5],
+    checkpoint_prev: [f32; 5],
+    // Per-unit gain on the model term (Sample mode with `with_unit_gain`): the drift is
+    // `level + (1 + gain) m`; its variance and its covariance with the level.
+    gain: f32,
+    gain_var: f32,
+    gain_cov: f32,
+    gain_sigma0: f32,
+    since_prev: u32,
+    since_now: u32,
+    // Per-sample mode: a sample of this window was beyond the fast gate.
+    halted: bool,
     stats: MotionStats,
+}
+
+/// Fast gate of [`LevelUpdate::Sample`], in sigma of the innovation (ASSUMED: 5 sigma,
+/// a white-noise false alarm every 1.7 million samples).
+pub const FAST_GATE_K: f32 = 5.0;
+
+/// How the level learns from still samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LevelUpdate {
+    /// One Kalman step per released window mean (still, and the next window still too):
+    /// the onset of motion never reaches the level, at the cost of a 2-window delay.
+    /// The default: it gives the lower heading error on vehicle records of both
+    /// generators' nominal families (docs/motion.md).
+    #[default]
+    Window,
+    /// One Kalman step per sample flagged still, on `rate - m` (variance `sigma^2`), with
+    /// rollback: the level is checkpointed at every window start and, when a window fails
+    /// the detector, restored to the checkpoint taken before the PREVIOUS window (so every
+    /// sample of the failed window and of the window before it leaves the level; its
+    /// variance is the checkpoint's plus the random walk since). The output uses the
+    /// tentative level; a fast gate ([`FAST_GATE_K`]) stops the updates of a window at its
+    /// first sample beyond the gate. Adds per sample: 1 division, 8 multiply/add/subtract,
+    /// 2 compares (and a 5-float copy per window). Ties the per-sample Kalman filter on
+    /// static records (docs/motion.md); loses on the Python generator's vehicles.
+    Sample,
 }
 
 impl MotionEstimator {
@@ -295,6 +348,18 @@ impl MotionEstimator {
             x_now: [0.0; MOTION_N],
             x_prev: [0.0; MOTION_N],
             refine: None,
+            update: LevelUpdate::default(),
+            sample_q: cfg.level_q_dps2_per_s / cfg.sensor.sample_rate_hz,
+            sample_r: cfg.sensor.sample_var_dps2() * cfg.still.noise_scale,
+            checkpoint_now: [0.0; 5],
+            checkpoint_prev: [0.0; 5],
+            gain: 0.0,
+            gain_var: 0.0,
+            gain_cov: 0.0,
+            gain_sigma0: 0.0,
+            since_prev: 0,
+            since_now: 0,
+            halted: false,
             stats: MotionStats::default(),
         };
         e.restart();
@@ -311,7 +376,66 @@ impl MotionEstimator {
         self.level_var = b * b;
         self.model_now = 0.0;
         self.model_prev = 0.0;
+        self.gain = 0.0;
+        self.gain_var = self.gain_sigma0 * self.gain_sigma0;
+        self.gain_cov = 0.0;
+        self.checkpoint_now = self.level_state();
+        self.checkpoint_prev = self.checkpoint_now;
+        self.since_prev = 0;
+        self.since_now = 0;
+        self.halted = false;
         self.stats = MotionStats::default();
+    }
+
+    /// Chooses how the level learns ([`LevelUpdate`]; default [`LevelUpdate::Window`]).
+    pub fn with_level_update(mut self, update: LevelUpdate) -> Self {
+        self.update = update;
+        self
+    }
+
+    /// How the level learns.
+    pub fn level_update(&self) -> LevelUpdate {
+        self.update
+    }
+
+    /// Per-unit scaling of the model ([`LevelUpdate::Sample`] only): a second Kalman state
+    /// `gain`, prior `N(0, sigma0^2)`, constant (no process noise), so that the drift is
+    /// `level + (1 + gain) m(x)` and the observation of a still sample is
+    /// `rate - m = level + gain m`. Learned only from still samples, rolled back with the
+    /// level. `sigma0` = 0 (default) turns it off. Adds per sample about 12 multiply/adds.
+    pub fn with_unit_gain(mut self, sigma0: f32) -> Self {
+        self.gain_sigma0 = if sigma0.is_finite() {
+            sigma0.abs()
+        } else {
+            0.0
+        };
+        self.restart();
+        self
+    }
+
+    /// The per-unit gain on the model term and its variance.
+    pub fn unit_gain(&self) -> (f32, f32) {
+        (self.gain, self.gain_var)
+    }
+
+    fn level_state(&self) -> [f32; 5] {
+        [
+            self.level,
+            self.level_var,
+            self.gain,
+            self.gain_cov,
+            self.gain_var,
+        ]
+    }
+
+    fn set_level_state(&mut self, v: [f32; 5]) {
+        [
+            self.level,
+            self.level_var,
+            self.gain,
+            self.gain_cov,
+            self.gain_var,
+        ] = v;
     }
 
     /// One sample: `rate_dps`, `temp_c` (NaN: none), `external_still` (overrides the
@@ -330,6 +454,12 @@ impl MotionEstimator {
         let t_s = k as f32 / self.cfg.sensor.sample_rate_hz;
         let x = self.inputs.next(t_s, temp_c);
         if k.is_multiple_of(self.still.window_samples()) {
+            self.checkpoint_prev = self.checkpoint_now;
+            self.checkpoint_now = self.level_state();
+            // Samples since the new previous checkpoint: the last window's.
+            self.since_prev = self.since_now;
+            self.since_now = 0;
+            self.halted = false;
             self.model_prev = self.model_now;
             self.x_prev = self.x_now;
             self.x_now = x;
@@ -338,17 +468,32 @@ impl MotionEstimator {
                 self.model_now = 0.0;
             }
         }
-        let drift = self.cfg.sensor.clamp_drift(self.level + self.model_now);
+        let drift = self
+            .cfg
+            .sensor
+            .clamp_drift(self.level + (1.0 + self.gain) * self.model_now);
         let s = self
             .still
             .push(rate_dps, drift, self.level_var, external_still);
+        let mut still = s.still;
+        if self.update == LevelUpdate::Sample {
+            still = self.sample_step(rate_dps, still, external_still.is_none());
+        }
         if let Some(w) = s.window {
-            self.level_var += self.window_q;
+            if self.update == LevelUpdate::Sample {
+                if !w.passed {
+                    // Rollback: no sample of this window or of the one before reaches the level.
+                    self.set_level_state(self.checkpoint_prev);
+                    self.level_var += self.sample_q * self.since_prev as f32;
+                    self.checkpoint_now = self.level_state();
+                    self.checkpoint_prev = self.checkpoint_now;
+                    self.since_prev = 0;
+                    self.since_now = 0;
+                }
+            } else {
+                self.level_var += self.window_q;
+            }
             if let Some(mean) = w.confirmed_mean_dps {
-                // The released window is the previous one: its model term is model_prev
-                // unless this window started a new evaluation after it (always, since
-                // windows and evaluations coincide): residual = mean - m(prev window).
-                let z = mean - self.model_prev;
                 if let Some(t) = self.refine.as_mut() {
                     // On-line refinement: the released window's residual after the level,
                     // one DRLS step on the model's weights (still windows only).
@@ -356,27 +501,75 @@ impl MotionEstimator {
                     self.model.hidden(&self.x_prev, &mut h);
                     let _ = t.step(&mut self.model.weights, &h, mean - self.level);
                 }
-                let r = self.still.window_mean_var_dps2();
-                let gain = self.level_var / (self.level_var + r);
-                let level = self.level + gain * (z - self.level);
-                if level.is_finite() {
-                    self.level = level;
-                    self.level_var *= 1.0 - gain;
+                if self.update == LevelUpdate::Window {
+                    // The released window is the previous one: its model term is
+                    // model_prev (windows and evaluations coincide).
+                    let z = mean - self.model_prev;
+                    let r = self.still.window_mean_var_dps2();
+                    let gain = self.level_var / (self.level_var + r);
+                    let level = self.level + gain * (z - self.level);
+                    if level.is_finite() {
+                        self.level = level;
+                        self.level_var *= 1.0 - gain;
+                    }
+                    self.stats.level_updates = self.stats.level_updates.wrapping_add(1);
                 }
-                self.stats.level_updates = self.stats.level_updates.wrapping_add(1);
             }
         }
         self.stats.samples = k.wrapping_add(1);
-        if s.still {
+        if still {
             self.stats.still_samples = self.stats.still_samples.wrapping_add(1);
         }
         Ok(MotionOutput {
             drift_dps: drift,
             compensated_dps: rate_dps - drift,
-            still: s.still,
+            still,
             level_dps: self.level,
             model_dps: self.model_now,
         })
+    }
+
+    /// Per-sample level step ([`LevelUpdate::Sample`]): the random walk always; when the
+    /// sample is flagged still, the fast gate, then the Kalman update on `rate - m`.
+    /// Returns the still flag after the fast gate. The gate is off for a sample with an
+    /// external still flag (the flag overrides the detector, as documented).
+    ///
+    /// Fast gate: a still-flagged sample whose innovation exceeds [`FAST_GATE_K`] sigma
+    /// (the sample noise and the level's variance) marks the rest of its window as moving
+    /// at once: no update, flag false, until the detector's verdict at the window end (a
+    /// failed window rolls back; a passing one, a false alarm of 1 in 1.7 million samples
+    /// of white noise, resumes). This closes the detector's one-window lag at the start of
+    /// a drive for any motion above the gate (0.06 deg/s for the E-Core).
+    fn sample_step(&mut self, rate_dps: f32, still: bool, gate: bool) -> bool {
+        self.since_prev = self.since_prev.saturating_add(1);
+        self.since_now = self.since_now.saturating_add(1);
+        self.level_var += self.sample_q;
+        if !still || self.halted {
+            return false;
+        }
+        // Observation rate - m = level + gain m: H = [1, m].
+        let h = self.model_now;
+        let innovation = rate_dps - h - self.level - self.gain * h;
+        let ph0 = self.level_var + self.gain_cov * h;
+        let ph1 = self.gain_cov + self.gain_var * h;
+        let s = ph0 + ph1 * h + self.sample_r;
+        if gate && innovation * innovation > FAST_GATE_K * FAST_GATE_K * s {
+            self.halted = true;
+            return false;
+        }
+        let k0 = ph0 / s;
+        let k1 = ph1 / s;
+        let level = self.level + k0 * innovation;
+        let gain = self.gain + k1 * innovation;
+        if level.is_finite() && gain.is_finite() {
+            self.level = level;
+            self.gain = gain;
+            self.level_var -= k0 * ph0;
+            self.gain_cov -= k0 * ph1;
+            self.gain_var -= k1 * ph1;
+        }
+        self.stats.level_updates = self.stats.level_updates.wrapping_add(1);
+        true
     }
 
     /// Turns on on-line refinement of the model's weights: at every window the detector
@@ -692,6 +885,66 @@ mod tests {
         assert!(e.stats().level_updates > 100);
         assert!(e.push(f32::NAN, 0.0, None).is_err());
         assert_eq!(e.stats().rejected, 1);
+    }
+
+    #[test]
+    fn rollback_removes_every_sample_of_the_failed_windows() {
+        let model = MotionModel::standard(1800.0).expect("test");
+        let cfg = MotionConfig::for_sensor(S);
+        let sigma = S.sample_var_dps2().sqrt();
+        let bias = 2.0 / 3600.0;
+        let mut z = Noise(21);
+        // 30 s still: the reference estimator stops at the start of a window.
+        let still: Vec<f32> = (0..3000).map(|_| bias + sigma * z.normal()).collect();
+        let mut a = MotionEstimator::new(model, cfg)
+            .expect("test")
+            .with_level_update(LevelUpdate::Sample);
+        assert_eq!(a.level_update(), LevelUpdate::Sample);
+        for &x in &still {
+            a.push(x, f32::NAN, None).expect("test");
+        }
+        let (level_a, var_a) = a.level();
+        // Then a window with a creeping onset the detector passes (0.2 sigma of a sample:
+        // 2 sigma of a window mean, below the 4-sigma test), then a 10 deg/s turn.
+        let mut b = a.clone();
+        let mut passed_creep = false;
+        for k in 0..200 {
+            let turn = if k < 100 { 0.2 * sigma } else { 10.0 };
+            let o = b
+                .push(bias + turn + sigma * z.normal(), f32::NAN, None)
+                .expect("test");
+            if k == 99 {
+                // The creep reached the tentative level...
+                assert!(b.level().0 != level_a);
+            }
+            if k == 100 {
+                // ... the creeping window passed, but the turn's first sample trips the
+                // fast gate: called moving at once.
+                passed_creep = b.still.is_still();
+                assert!(!o.still);
+            }
+        }
+        assert!(
+            passed_creep,
+            "the creeping window must pass for this test to mean anything"
+        );
+        // ... and the failed turn window rolled it back, bit for bit, with the variance of
+        // the random walk over the 200 samples.
+        let (level_b, var_b) = b.level();
+        assert_eq!(level_b, level_a);
+        let q = cfg.level_q_dps2_per_s / S.sample_rate_hz;
+        assert!(
+            (var_b - (var_a + 200.0 * q)).abs() <= 1e-6 * var_b,
+            "{var_a} {var_b}"
+        );
+        // The window update never takes a sample in before the next window passed.
+        let mut c = MotionEstimator::new(model, cfg)
+            .expect("test")
+            .with_level_update(LevelUpdate::Window);
+        for &x in &still {
+            c.push(x, f32::NAN, None).expect("test");
+        }
+        assert!((c.level().0 - bias).abs() < 1.0 / 3600.0);
     }
 
     #[test]

@@ -11,8 +11,23 @@
 //!
 //! Prints heading-error RMS / final (deg) and e_truth still / moving (deg/h), mean over the
 //! test records. With OUT_DIR, writes the heading-error SVG of the first test record.
+//!
+//! Then the firmware's preset `motion` (fog_core::motion), trained on the same 12 static
+//! records (3 DRLS passes), its level noise tuned on the same validation vehicles, with ITS
+//! OWN detector (no truth): both level updates ([`LevelUpdate::Window`], the window-mean
+//! update; [`LevelUpdate::Sample`], per sample with rollback), the same with the truth as
+//! external still flag, and an untrained model (the gated Kalman part alone); the detector's
+//! false-still / missed-still rates. Finally static records (4 static test units per set):
+//! e_truth of the per-sample random-walk Kalman (every sample still, q tuned on 3 static
+//! validation units by e_truth) against `motion` (q tuned the same way).
+//! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
+//! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
 use anyhow::{bail, Result};
+use fog_core::motion::{
+    LevelUpdate, MotionConfig, MotionEstimator, MotionModel, MotionTrainer, MOTION_DRLS,
+};
+use fog_core::still::SensorConfig;
 use host_sim::nav::{
     fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, DriftEstimator, GatedKalman,
     NavRecord, NoCompensation, ThermalKalman, ThermalKalmanConfig,
@@ -45,8 +60,14 @@ fn ours(vehicle: bool, unit: u64, seed: u64) -> Result<NavRecord> {
     Ok(NavRecord::from_samples(&v))
 }
 
-/// (record, white-noise variance per sample) from the Python generator.
-fn theirs(dir: &Path, kind: &str, unit: u64, seed: u64, ood: bool) -> Result<(NavRecord, f64)> {
+/// (record, white-noise variance per sample, sensor) from the Python generator.
+fn theirs(
+    dir: &Path,
+    kind: &str,
+    unit: u64,
+    seed: u64,
+    ood: bool,
+) -> Result<(NavRecord, f64, SensorConfig)> {
     let out = dir.join(format!("{kind}_{unit}_{seed}_{ood}.csv"));
     let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scripts/gen_nav_records.py");
     let mut c = Command::new("python3");
@@ -70,7 +91,14 @@ fn theirs(dir: &Path, kind: &str, unit: u64, seed: u64, ood: bool) -> Result<(Na
     let s = &meta["sensor"];
     let f = |k: &str| s[k].as_f64().unwrap_or(0.0);
     let r = (f("arw_deg_rth") / 60.0).powi(2) * f("rate_hz") + f("quantum_dps").powi(2) / 12.0;
-    Ok((NavRecord::read(&out)?, r))
+    let sensor = SensorConfig {
+        full_scale_dps: f("full_scale_dps") as f32,
+        quantum_dps: f("quantum_dps") as f32,
+        sample_rate_hz: f("rate_hz") as f32,
+        noise_density_dps_rthz: (f("arw_deg_rth") / 60.0) as f32,
+        drift_bound_dps: SensorConfig::ECORE_2000.drift_bound_dps,
+    };
+    Ok((NavRecord::read(&out)?, r, sensor))
 }
 
 fn thermal_rows(r: &NavRecord) -> Vec<(f64, f64, f64, bool)> {
@@ -94,6 +122,11 @@ struct Set {
     valid: Vec<NavRecord>,
     test: Vec<NavRecord>,
     r_dps2: f64,
+    /// Sensor of each train / valid / test record (in that order).
+    sensors: Vec<SensorConfig>,
+    /// Static records: 3 validation units, 4 test units, each with its sensor.
+    static_valid: Vec<(NavRecord, SensorConfig)>,
+    static_test: Vec<(NavRecord, SensorConfig)>,
 }
 
 fn evaluate(set: &Set, svg_dir: Option<&Path>) -> Result<()> {
@@ -183,9 +216,225 @@ fn evaluate(set: &Set, svg_dir: Option<&Path>) -> Result<()> {
     Ok(())
 }
 
+/// The motion estimator as a [`DriftEstimator`]: its own detector, or the run's still
+/// flags as its external flag (`truth`). Keeps its still calls for the detector scores.
+struct Motion {
+    est: MotionEstimator,
+    truth: bool,
+    calls: Vec<bool>,
+}
+
+impl DriftEstimator for Motion {
+    fn name(&self) -> String {
+        "motion".into()
+    }
+    fn push(&mut self, _: f64, rate_dps: f64, temp_c: Option<f64>, still: bool) -> f64 {
+        let temp = temp_c.map_or(f32::NAN, |t| t as f32);
+        let ext = self.truth.then_some(still);
+        match self.est.push(rate_dps as f32, temp, ext) {
+            Ok(o) => {
+                self.calls.push(o.still);
+                f64::from(o.drift_dps)
+            }
+            Err(_) => {
+                self.calls.push(false);
+                0.0
+            }
+        }
+    }
+}
+
+/// Level noise grid, (deg/h)^2/h: 0.25 .. 16384, 4 per decade (the Kalman's density).
+fn q_grid_dph2_per_h() -> Vec<f64> {
+    log_grid(0.25, 16384.0, 4)
+}
+
+fn q_dps2_per_s(q_dph2_per_h: f64) -> f32 {
+    (q_dph2_per_h / 3600f64.powi(3)) as f32
+}
+
+fn motion_est(
+    model: &MotionModel,
+    sensor: SensorConfig,
+    q: f64,
+    update: LevelUpdate,
+    truth: bool,
+    gain_sigma: f32,
+) -> Result<Motion> {
+    let mut cfg = MotionConfig::for_sensor(sensor);
+    cfg.level_q_dps2_per_s = q_dps2_per_s(q);
+    let est = MotionEstimator::new(*model, cfg)
+        .map_err(|e| anyhow::anyhow!("estimator: {e}"))?
+        .with_level_update(update)
+        .with_unit_gain(gain_sigma);
+    Ok(Motion {
+        est,
+        truth,
+        calls: Vec::new(),
+    })
+}
+
+fn train_motion(recs: &[NavRecord], sensors: &[SensorConfig]) -> Result<MotionModel> {
+    let model = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut tr = MotionTrainer::new(model, MOTION_DRLS, 1.0).map_err(|e| anyhow::anyhow!("{e}"))?;
+    for _ in 0..3 {
+        for (r, s) in recs.iter().zip(sensors) {
+            let rate: Vec<f32> = r.rate_dps.iter().map(|&x| x as f32).collect();
+            let temp: Option<Vec<f32>> = r
+                .temp_c
+                .as_ref()
+                .map(|t| t.iter().map(|&x| x as f32).collect());
+            tr.train_record(&rate, temp.as_deref(), s.sample_rate_hz)
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+        }
+    }
+    Ok(*tr.model())
+}
+
+/// Pooled e_truth (RMS(estimate - truth) / RMS(truth)) from 10 s on, every sample still.
+fn e_truth(
+    recs: &[(NavRecord, SensorConfig)],
+    mut make: impl FnMut(&SensorConfig) -> Result<Box<dyn DriftEstimator>>,
+) -> Result<f64> {
+    let (mut se, mut st) = (0.0, 0.0);
+    for (r, s) in recs {
+        let mut est = make(s)?;
+        let out = run(r, est.as_mut(), &vec![true; r.len()]);
+        let skip = (10.0 * f64::from(s.sample_rate_hz)) as usize;
+        for (d, t) in out.drift_est_dps.iter().zip(&r.drift_dps).skip(skip) {
+            se += (d - t).powi(2);
+            st += t * t;
+        }
+    }
+    Ok((se / st).sqrt())
+}
+
+fn sample_var(s: &SensorConfig) -> f64 {
+    f64::from(s.sample_var_dps2())
+}
+
+fn evaluate_motion(set: &Set) -> Result<()> {
+    let nt = set.train.len();
+    let nv = set.valid.len();
+    let (s_train, rest) = set.sensors.split_at(nt);
+    let (s_valid, s_test) = rest.split_at(nv);
+    let trained = train_motion(&set.train, s_train)?;
+    let untrained = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let score = |model: &MotionModel,
+                 recs: &[NavRecord],
+                 sensors: &[SensorConfig],
+                 q: f64,
+                 (update, truth, gain): (LevelUpdate, bool, f32)|
+     -> Result<(f64, f64, f64, f64, f64)> {
+        let (mut a, mut b, mut fs, mut ms) = (0.0, 0.0, 0.0, 0.0);
+        let mut e = 0.0;
+        for (r, s) in recs.iter().zip(sensors) {
+            let mut m = motion_est(model, *s, q, update, truth, gain)?;
+            let out = run(r, &mut m, &r.still_truth());
+            a += out.scores.heading_rms_deg;
+            b += out.scores.heading_final_deg.abs();
+            e += out.scores.e_truth_moving_dph.unwrap_or(f64::NAN);
+            let mut d = host_sim::nav::DetectorAcc::default();
+            for (mv, c) in r.moving.iter().zip(&m.calls) {
+                d.push(*mv, *c);
+            }
+            let d = d.scores();
+            fs += d.false_still_rate.unwrap_or(f64::NAN);
+            ms += d.missed_still_rate.unwrap_or(f64::NAN);
+        }
+        let n = recs.len() as f64;
+        Ok((a / n, b / n, e / n, fs / n, ms / n))
+    };
+    println!(
+        "{:<36} {:>8} {:>10} {:>10} {:>10} {:>9} {:>9}",
+        "motion preset", "q dph2/h", "hdg RMS", "|hdg end|", "e moving", "false-st", "missed-st"
+    );
+    use LevelUpdate::{Sample, Window};
+    for (name, model, mode) in [
+        ("motion, window update", &trained, (Window, false, 0.0)),
+        ("motion, sample + rollback", &trained, (Sample, false, 0.0)),
+        (
+            "motion, sample + unit gain 0.5",
+            &trained,
+            (Sample, false, 0.5),
+        ),
+        (
+            "untrained m, sample + rollback",
+            &untrained,
+            (Sample, false, 0.0),
+        ),
+        ("motion, sample, truth flags", &trained, (Sample, true, 0.0)),
+    ] {
+        let mut best = (f64::INFINITY, 0.0);
+        for q in q_grid_dph2_per_h() {
+            let v = score(model, &set.valid, s_valid, q, mode)?.0;
+            if v < best.0 {
+                best = (v, q);
+            }
+        }
+        let (a, b, e, fs, ms) = score(model, &set.test, s_test, best.1, mode)?;
+        println!(
+            "{name:<36} {:>8.0} {a:>10.4} {b:>10.4} {e:>10.3} {:>8.2}% {:>8.2}%",
+            best.1,
+            100.0 * fs,
+            100.0 * ms
+        );
+    }
+    // Static records.
+    let kalman = |q: f64| {
+        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+            Ok(Box::new(GatedKalman::new(q, sample_var(s))))
+        }
+    };
+    let mut kbest = (f64::INFINITY, 0.0);
+    for q in log_grid(1e-16, 1e-8, 4) {
+        let v = e_truth(&set.static_valid, kalman(q))?;
+        if v < kbest.0 {
+            kbest = (v, q);
+        }
+    }
+    let k_test = e_truth(&set.static_test, kalman(kbest.1))?;
+    println!(
+        "static: per-sample RW Kalman (q {:.2e} (deg/s)^2/sample, tuned by e_truth) e_truth {k_test:.4}",
+        kbest.1
+    );
+    for (name, model, (update, gain)) in [
+        ("motion, window update", &trained, (Window, 0.0)),
+        ("motion, sample + rollback", &trained, (Sample, 0.0)),
+        ("motion, sample + unit gain 0.5", &trained, (Sample, 0.5)),
+        ("untrained m, sample + rollback", &untrained, (Sample, 0.0)),
+    ] {
+        let mk = |q: f64| {
+            move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+                Ok(Box::new(motion_est(model, *s, q, update, false, gain)?))
+            }
+        };
+        let mut best = (f64::INFINITY, 0.0);
+        for q in q_grid_dph2_per_h() {
+            let v = e_truth(&set.static_valid, mk(q))?;
+            if v < best.0 {
+                best = (v, q);
+            }
+        }
+        let t = e_truth(&set.static_test, mk(best.1))?;
+        println!(
+            "static: {name:<32} (q {:.0} (deg/h)^2/h) e_truth {t:.4} ({:+.1} % vs Kalman)",
+            best.1,
+            100.0 * (t / k_test - 1.0)
+        );
+    }
+    Ok(())
+}
+
 fn main() -> Result<()> {
     let svg_dir = std::env::args().nth(1).map(PathBuf::from);
     let r_dps2 = 0.001_111_11f64.powi(2) * 100.0 + (60.0f64 / 32768.0).powi(2) / 12.0;
+    let ecore = SensorConfig::ECORE_2000;
+    let static_ours = |units: std::ops::RangeInclusive<u64>| -> Result<Vec<_>> {
+        units
+            .map(|u| Ok((ours(false, u, 4000 + u)?, ecore)))
+            .collect()
+    };
     let set = Set {
         name: "host-sim family".into(),
         train: (1..=12)
@@ -198,8 +447,12 @@ fn main() -> Result<()> {
             .map(|u| ours(true, u, 3000 + u))
             .collect::<Result<_>>()?,
         r_dps2,
+        sensors: vec![ecore; 19],
+        static_valid: static_ours(41..=43)?,
+        static_test: static_ours(51..=54)?,
     };
     evaluate(&set, svg_dir.as_deref())?;
+    evaluate_motion(&set)?;
     let ok = Command::new("python3")
         .args(["-c", "import numpy"])
         .status()
@@ -221,17 +474,32 @@ fn main() -> Result<()> {
         let test: Vec<_> = (31..=34)
             .map(|u| get("vehicle", u, 3000 + u))
             .collect::<Result<_>>()?;
-        // OOD records differ in rate and noise: r from the first test record's sensor (the
-        // nominal-family sets share it).
+        let stat = |units: std::ops::RangeInclusive<u64>| -> Result<Vec<_>> {
+            units
+                .map(|u| get("static", u, 4000 + u).map(|x| (x.0, x.2)))
+                .collect()
+        };
+        // OOD records differ in rate and noise: the baselines' r from the first test
+        // record's sensor (the nominal-family sets share it); motion uses each record's.
         let r_dps2 = test[0].1;
+        let sensors = train
+            .iter()
+            .chain(&valid)
+            .chain(&test)
+            .map(|x| x.2)
+            .collect();
         let set = Set {
             name: format!("gen_nav_records{}", if ood { " OOD" } else { "" }),
             train: train.into_iter().map(|x| x.0).collect(),
             valid: valid.into_iter().map(|x| x.0).collect(),
             test: test.into_iter().map(|x| x.0).collect(),
             r_dps2,
+            sensors,
+            static_valid: stat(41..=43)?,
+            static_test: stat(51..=54)?,
         };
         evaluate(&set, svg_dir.as_deref())?;
+        evaluate_motion(&set)?;
     }
     Ok(())
 }
