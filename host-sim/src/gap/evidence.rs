@@ -34,7 +34,7 @@ pub const WINDOW_S: f64 = 5.0;
 
 /// z thresholds per test.
 pub const THRESHOLDS: [(Effect, f64); 5] = [
-    (Effect::Temperature, 3.0),
+    (Effect::Temperature, 2.5),
     (Effect::RateRamp, 3.0),
     (Effect::ScaleFactor, 3.0),
     (Effect::Sinusoid, 2.5),
