@@ -471,7 +471,7 @@ pub fn stats(
 }
 
 /// The ramp test also needs `ln(1 + t^2) > ` this (`|t| > 3`).
-pub const RAMP_MIN_STAT: f64 = 2.302_585_092_994_046;
+pub const RAMP_MIN_STAT: f64 = std::f64::consts::LN_10;
 
 /// Surrogate temperature channels in the false-alarm null.
 pub const SURROGATES: usize = 8;
