@@ -1,14 +1,15 @@
 //! Dedicated detection tests: decisions that use what the record carries, each a statistic
 //! computed the same way on the real record and on every baseline simulation (the null).
 //!
-//! - `temperature`: the drift against the recorded channel. 5-s window means of the rate
-//!   are regressed on `[1, t, temp_c - mean, d temp_c / dt]` (the rate of change from 30-s
-//!   smoothed window means, central difference); statistic `ln(SSE_without / SSE_with)` for
-//!   the two temperature regressors. The null: the baseline simulations with the same
-//!   channel (which does not drive them) **and** the real record against surrogate channels
-//!   that cannot drive it (the channel reversed in time, and circularly shifted by a third and
-//!   two thirds of the record): a channel that merely shares the drift's slowness does not
-//!   pass.
+//! - `temperature`: the drift against the recorded channel, beyond a ramp and a warm-up:
+//!   30-s means of the rate regressed on `[1, t, exp(-t/tau)]` with and without `[temp_c,
+//!   d temp_c / dt]` (rate of change from 30-s smoothed window means, central difference;
+//!   `tau` the warm-up test's), AR(1) errors (Cochrane-Orcutt); statistic `ln(SSE_without /
+//!   SSE_with)`. The null: the baseline simulations with the same channel (which does not
+//!   drive them) **and** the real record against [`SURROGATES`] phase-randomised copies of
+//!   the channel (same spectrum, cannot drive it).
+//! - `rate_ramp`: 30-s means; the OLS slope's t with an AR(1) variance, `ln(1 + t^2)`; it
+//!   also needs `|t| > 3` ([`RAMP_MIN_STAT`]).
 //! - `sinusoid`: a periodogram test. Whole record on a zero-filled time line, 2x padded FFT;
 //!   each bin's power over the median power of its 256-bin chunk (so coloured noise does not
 //!   matter); statistic: ln of the largest ratio above 4 cycles per block.
@@ -18,7 +19,8 @@
 //! - `scale_factor`: 5-s means of the rate less the reference regressed on `[1, t,
 //!   reference]`: `ln(SSE without / with the reference)`.
 //!
-//! Each test gives `z = (real - mean_null) / sd_null` (sd floored at a tenth of the null
+//! The drift tests are nested (temperature > warmup > rate_ramp when several pass; the
+//! decision is in `mod.rs`). Each test gives `z = (real - mean_null) / sd_null` (sd floored at a tenth of the null
 //! mean and at [`SD_FLOOR`]); it *passes* when `z` exceeds its threshold ([`THRESHOLDS`],
 //! calibrated on the calibration records of `scripts/gap_indep_gen.py`, first seed 1, not
 //! on the evaluation records; see docs/gap.md). Short Gauss-Markov correlation times have
