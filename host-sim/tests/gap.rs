@@ -226,3 +226,58 @@ fn drift_variograms_match_allan_and_the_nested_limit() {
     let (a, b) = (gm_variogram(10.0, 300.0, w), gm_variogram(10.0, 1200.0, w));
     assert!((a / b - 1.0).abs() < 1e-6, "{a} vs {b}");
 }
+
+/// The ramp test's statistic tells a ramp from a random walk of the same end-to-end change
+/// (its AR(1) variance discounts the walk's apparent trend), and a phase-randomised
+/// temperature surrogate keeps the channel's power but not its shape.
+#[test]
+fn ramp_statistic_and_phase_randomised_surrogates() {
+    use host_sim::gap::evidence::{phase_randomised, ramp_stat, temperature_stat, WINDOW_S};
+    use rand::{Rng, SeedableRng};
+    let n = 360; // 1800 s of 5-s means
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+    let mut gauss = move || {
+        // Box-Muller: standard normal.
+        let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    };
+    let white: Vec<f64> = (0..n).map(|_| gauss()).collect();
+    let mut walk = vec![0.0; n];
+    for i in 1..n {
+        walk[i] = walk[i - 1] + gauss();
+    }
+    let change = walk[n - 1] - walk[0];
+    let ramp: Vec<f64> = (0..n)
+        .map(|i| change * i as f64 / n as f64 + 0.3 * white[i])
+        .collect();
+    let walk_noisy: Vec<f64> = walk.iter().zip(&white).map(|(w, e)| w + 0.3 * e).collect();
+    let (s_ramp, s_walk, s_white) = (ramp_stat(&ramp), ramp_stat(&walk_noisy), ramp_stat(&white));
+    assert!(s_ramp > 5.0, "ramp {s_ramp}");
+    assert!(s_ramp > s_walk + 2.0, "ramp {s_ramp} vs walk {s_walk}");
+    assert!(s_white < 2.5, "white {s_white}");
+    // Surrogate: same sum of squares about the end-point line (Parseval), different shape.
+    let temp: Vec<f64> = (0..n)
+        .map(|i| 25.0 + 5.0 * (1.0 - (-(i as f64) / 40.0).exp()) + (i as f64 / 20.0).sin())
+        .collect();
+    let sg = phase_randomised(&temp, 3);
+    // Parseval: about the channel's own end-point line (which the surrogate keeps).
+    let line = |i: usize| temp[0] + (temp[n - 1] - temp[0]) * i as f64 / (n - 1) as f64;
+    let ss = |x: &[f64]| (0..n).map(|i| (x[i] - line(i)).powi(2)).sum::<f64>();
+    assert!(
+        (ss(&sg) / ss(&temp) - 1.0).abs() < 0.05,
+        "{} vs {}",
+        ss(&sg),
+        ss(&temp)
+    );
+    assert_ne!(sg, temp);
+    // A drift that follows the channel passes beyond a warm-up exponential; the surrogate
+    // explains far less of it.
+    let dtemp = host_sim::gap::evidence::rate_of_change(&temp, WINDOW_S, 6);
+    let y: Vec<f64> = (0..n).map(|i| 0.5 * temp[i] + 0.05 * white[i]).collect();
+    let dsg = host_sim::gap::evidence::rate_of_change(&sg, WINDOW_S, 6);
+    let (real, sur) = (
+        temperature_stat(&y, &temp, &dtemp, 200.0),
+        temperature_stat(&y, &sg, &dsg, 200.0),
+    );
+    assert!(real > sur + 2.0, "channel {real} vs surrogate {sur}");
+}

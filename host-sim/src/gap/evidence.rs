@@ -1,14 +1,15 @@
 //! Dedicated detection tests: decisions that use what the record carries, each a statistic
 //! computed the same way on the real record and on every baseline simulation (the null).
 //!
-//! - `temperature`: the drift against the recorded channel. 5-s window means of the rate
-//!   are regressed on `[1, t, temp_c - mean, d temp_c / dt]` (the rate of change from 30-s
-//!   smoothed window means, central difference); statistic `ln(SSE_without / SSE_with)` for
-//!   the two temperature regressors. The null: the baseline simulations with the same
-//!   channel (which does not drive them) **and** the real record against surrogate channels
-//!   that cannot drive it (the channel reversed in time, and circularly shifted by a third and
-//!   two thirds of the record): a channel that merely shares the drift's slowness does not
-//!   pass.
+//! - `temperature`: the drift against the recorded channel, beyond a ramp and a warm-up:
+//!   30-s means of the rate regressed on `[1, t, exp(-t/tau)]` with and without `[temp_c,
+//!   d temp_c / dt]` (rate of change from 30-s smoothed window means, central difference;
+//!   `tau` the warm-up test's), AR(1) errors (Cochrane-Orcutt); statistic `ln(SSE_without /
+//!   SSE_with)`. The null: the baseline simulations with the same channel (which does not
+//!   drive them) **and** the real record against [`SURROGATES`] phase-randomised copies of
+//!   the channel (same spectrum, cannot drive it).
+//! - `rate_ramp`: 30-s means; the OLS slope's t with an AR(1) variance, `ln(1 + t^2)`; it
+//!   also needs `|t| > 3` ([`RAMP_MIN_STAT`]).
 //! - `sinusoid`: a periodogram test. Whole record on a zero-filled time line, 2x padded FFT;
 //!   each bin's power over the median power of its 256-bin chunk (so coloured noise does not
 //!   matter); statistic: ln of the largest ratio above 4 cycles per block.
@@ -18,8 +19,9 @@
 //! - `scale_factor`: 5-s means of the rate less the reference regressed on `[1, t,
 //!   reference]`: `ln(SSE without / with the reference)`.
 //!
-//! Each test gives `z = (real - mean_null) / sd_null` (sd floored at a tenth of the null
-//! mean and at 0.01); it *passes* when `z` exceeds its threshold ([`THRESHOLDS`],
+//! The drift tests are nested (temperature > warmup > rate_ramp when several pass; the
+//! decision is in `mod.rs`). Each test gives `z = (real - mean_null) / sd_null` (sd floored at a tenth of the null
+//! mean and at [`SD_FLOOR`]); it *passes* when `z` exceeds its threshold ([`THRESHOLDS`],
 //! calibrated on the calibration records of `scripts/gap_indep_gen.py`, first seed 1, not
 //! on the evaluation records; see docs/gap.md). Short Gauss-Markov correlation times have
 //! no test of their own: the PSD group of the gap measure sees them, and without a user
@@ -33,12 +35,17 @@ use serde::Serialize;
 pub const WINDOW_S: f64 = 5.0;
 
 /// z thresholds per test.
-pub const THRESHOLDS: [(Effect, f64); 4] = [
-    (Effect::Temperature, 3.0),
+pub const THRESHOLDS: [(Effect, f64); 5] = [
+    (Effect::Temperature, 2.5),
+    (Effect::RateRamp, 3.0),
     (Effect::ScaleFactor, 3.0),
     (Effect::Sinusoid, 2.5),
     (Effect::Warmup, 3.0),
 ];
+
+/// Absolute floor of a test's null standard deviation (ln statistics: 0.001 is a 0.1 %
+/// change of a residual sum of squares; a tenth of the null mean floors it too).
+pub const SD_FLOOR: f64 = 0.001;
 
 /// Threshold of one test.
 pub fn threshold(e: Effect) -> f64 {
@@ -84,8 +91,8 @@ pub fn outcome(effect: Effect, test: &str, real: f64, nulls: &[f64], detail: Str
     } else {
         0.0
     };
-    // Floor: a tenth of the null mean's magnitude, and 0.01 absolute (ln statistics).
-    let sd = sd.max(0.1 * m.abs()).max(0.01);
+    // Floor: a tenth of the null mean's magnitude, and `SD_FLOOR` absolute.
+    let sd = sd.max(0.1 * m.abs()).max(SD_FLOOR);
     let null_max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let z = if real.is_finite() {
         (real - m) / sd
@@ -211,22 +218,102 @@ pub fn solve(mut a: Vec<Vec<f64>>) -> Option<Vec<f64>> {
     Some(a.iter().map(|r| r[p]).collect())
 }
 
-/// Temperature statistic: `ln(SSE[1, t] / SSE[1, t, T, dT/dt])` on window means.
-pub fn temperature_stat(y_w: &[f64], temp_w: &[f64], dtemp_w: &[f64]) -> f64 {
-    let n = y_w.len();
-    let tc: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
-    let one = vec![1.0; n];
-    let tv: Vec<f64> = {
-        let v: Vec<f64> = temp_w.iter().copied().filter(|x| x.is_finite()).collect();
-        let m = mean(&v);
-        temp_w.iter().map(|x| x - m).collect()
+/// Window length of the temperature test's regression, s (5-s means averaged by six).
+pub const TEMP_WINDOW_S: f64 = 30.0;
+
+/// Averages consecutive groups of `k` values (a group with a NaN is NaN).
+fn aggregate(x: &[f64], k: usize) -> Vec<f64> {
+    x.chunks(k)
+        .filter(|c| c.len() == k)
+        .map(|c| c.iter().sum::<f64>() / k as f64)
+        .collect()
+}
+
+/// Nested-model statistic with an AR(1) error model (Cochrane-Orcutt): the lag-1
+/// autocorrelation `rho` of the full model's OLS residuals (clamped to [0, 0.98]); every
+/// series quasi-differenced (`x[i] - rho x[i-1]`); `ln(SSE_small / SSE_full)` on the
+/// transformed rows. A drift that merely wanders (random walk, flicker) leaves strongly
+/// autocorrelated residuals and is discounted; rows with a NaN are dropped.
+fn ar1_nested(y: &[f64], small: &[&[f64]], extra: &[&[f64]]) -> f64 {
+    let rows: Vec<usize> = (0..y.len())
+        .filter(|&i| y[i].is_finite() && small.iter().chain(extra).all(|c| c[i].is_finite()))
+        .collect();
+    let pick = |x: &[f64]| rows.iter().map(|&i| x[i]).collect::<Vec<f64>>();
+    let yv = pick(y);
+    let sv: Vec<Vec<f64>> = small.iter().map(|c| pick(c)).collect();
+    let ev: Vec<Vec<f64>> = extra.iter().map(|c| pick(c)).collect();
+    let full: Vec<&[f64]> = sv.iter().chain(&ev).map(|v| v.as_slice()).collect();
+    let Some(r) = resid(&yv, &full) else {
+        return 0.0;
     };
-    let s0 = sse(y_w, &[&one, &tc]);
-    let s1 = sse(y_w, &[&one, &tc, &tv, dtemp_w]);
+    let den: f64 = r.iter().map(|v| v * v).sum();
+    let rho = if den > 0.0 {
+        (r.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / den).clamp(0.0, 0.98)
+    } else {
+        0.0
+    };
+    let qd = |x: &[f64]| -> Vec<f64> { x.windows(2).map(|w| w[1] - rho * w[0]).collect() };
+    let yq = qd(&yv);
+    let sq: Vec<Vec<f64>> = sv.iter().map(|v| qd(v)).collect();
+    let eq: Vec<Vec<f64>> = ev.iter().map(|v| qd(v)).collect();
+    let small_q: Vec<&[f64]> = sq.iter().map(|v| v.as_slice()).collect();
+    let full_q: Vec<&[f64]> = sq.iter().chain(&eq).map(|v| v.as_slice()).collect();
+    let (s0, s1) = (sse(&yq, &small_q), sse(&yq, &full_q));
     if s0 > 0.0 && s1 > 0.0 {
         (s0 / s1).ln()
     } else {
         0.0
+    }
+}
+
+/// Least-squares residuals of `y` on the columns (all rows finite); `None` if singular.
+fn resid(y: &[f64], cols: &[&[f64]]) -> Option<Vec<f64>> {
+    let p = cols.len();
+    let mut a = vec![vec![0.0; p + 1]; p];
+    for i in 0..y.len() {
+        for r in 0..p {
+            for c in 0..p {
+                a[r][c] += cols[r][i] * cols[c][i];
+            }
+            a[r][p] += cols[r][i] * y[i];
+        }
+    }
+    let beta = solve(a)?;
+    Some(
+        (0..y.len())
+            .map(|i| y[i] - (0..p).map(|r| beta[r] * cols[r][i]).sum::<f64>())
+            .collect(),
+    )
+}
+
+/// Temperature statistic on [`TEMP_WINDOW_S`] means (from the 5-s means): what `[T,
+/// dT/dt]` add to `[1, t, exp(-t/tau)]` ([`ar1_nested`], AR(1) errors), `tau_s` the series'
+/// own best warm-up time constant (from [`warmup_stat`]; 0 = no exponential column): the
+/// channel must explain the drift **beyond** a ramp and a warm-up transient, so a drift that
+/// is merely a transient does not pass because the channel also rises at power-on.
+pub fn temperature_stat(y_w: &[f64], temp_w: &[f64], dtemp_w: &[f64], tau_s: f64) -> f64 {
+    let k = (TEMP_WINDOW_S / WINDOW_S).round().max(1.0) as usize;
+    let (y, tw, dw) = (
+        aggregate(y_w, k),
+        aggregate(temp_w, k),
+        aggregate(dtemp_w, k),
+    );
+    let n = y.len();
+    let w = k as f64 * WINDOW_S;
+    let tc: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
+    let one = vec![1.0; n];
+    let ex: Vec<f64> = (0..n)
+        .map(|i| (-((i as f64 + 0.5) * w) / tau_s.max(1e-9)).exp())
+        .collect();
+    let tv: Vec<f64> = {
+        let v: Vec<f64> = tw.iter().copied().filter(|x| x.is_finite()).collect();
+        let m = mean(&v);
+        tw.iter().map(|x| x - m).collect()
+    };
+    if tau_s > 0.0 {
+        ar1_nested(&y, &[&one, &tc, &ex], &[&tv, &dw])
+    } else {
+        ar1_nested(&y, &[&one, &tc], &[&tv, &dw])
     }
 }
 
@@ -249,6 +336,53 @@ pub fn warmup_stat(y_w: &[f64], t_w: &[f64], t_total_s: f64) -> (f64, f64) {
         ((s0 / best.0).ln(), best.1)
     } else {
         (0.0, best.1)
+    }
+}
+
+/// Window length of the ramp test, s: long enough that white noise averages out of the
+/// window means, short enough to leave 60 windows in 1800 s.
+pub const RAMP_WINDOW_S: f64 = 30.0;
+
+/// Ramp statistic on `RAMP_WINDOW_S` means (built from the 5-s means `y_w`): the OLS
+/// slope's t-statistic with a noise-aware variance, `|b| / se(b)`, where `se(b)` comes from
+/// the residuals' AR(1) model (lag-1 autocorrelation `rho` of the residuals, clamped to
+/// [0, 0.95], variance inflation `(1 + rho) / (1 - rho)`): a random walk's residuals are
+/// strongly autocorrelated, so its apparent trend is discounted; a ramp over white and
+/// flicker noise keeps its full t. Returned as `ln(1 + t^2)`, scale-free, compared with the
+/// simulations (the null: the same baseline, random walk included).
+pub fn ramp_stat(y_w: &[f64]) -> f64 {
+    let k = (RAMP_WINDOW_S / WINDOW_S).round().max(1.0) as usize;
+    let yw: Vec<f64> = y_w
+        .chunks(k)
+        .filter(|c| c.len() == k)
+        .map(|c| {
+            let v: Vec<f64> = c.iter().copied().filter(|x| x.is_finite()).collect();
+            if v.is_empty() {
+                f64::NAN
+            } else {
+                mean(&v)
+            }
+        })
+        .filter(|x| x.is_finite())
+        .collect();
+    let n = yw.len();
+    if n < 8 {
+        return 0.0;
+    }
+    let tm = (n as f64 - 1.0) / 2.0;
+    let ym = mean(&yw);
+    let sxx: f64 = (0..n).map(|i| (i as f64 - tm).powi(2)).sum();
+    let b = (0..n).map(|i| (i as f64 - tm) * (yw[i] - ym)).sum::<f64>() / sxx;
+    let r: Vec<f64> = (0..n).map(|i| yw[i] - ym - b * (i as f64 - tm)).collect();
+    let s2 = r.iter().map(|v| v * v).sum::<f64>() / (n as f64 - 2.0);
+    let c1 = r.windows(2).map(|w| w[0] * w[1]).sum::<f64>()
+        / r.iter().map(|v| v * v).sum::<f64>().max(1e-300);
+    let rho = c1.clamp(0.0, 0.95);
+    let se2 = s2 / sxx * (1.0 + rho) / (1.0 - rho);
+    if se2 > 0.0 {
+        (1.0 + b * b / se2).ln()
+    } else {
+        0.0
     }
 }
 
@@ -299,6 +433,8 @@ pub struct EvStats {
     pub warm: (f64, f64),
     /// Line statistic and its frequency, Hz.
     pub line: (f64, f64),
+    /// Ramp statistic ([`ramp_stat`]).
+    pub ramp: f64,
     /// Scale-factor statistic (when the record has a reference rate).
     pub sf: Option<f64>,
 }
@@ -316,6 +452,7 @@ pub fn stats(
 ) -> EvStats {
     let y_w = window_means(t_s, y, WINDOW_S, t_w.len());
     let t_total = t_w.len() as f64 * WINDOW_S;
+    let warm = warmup_stat(&y_w, t_w, t_total);
     EvStats {
         sf: ref_w.map(|r| {
             let one = vec![1.0; y_w.len()];
@@ -327,11 +464,51 @@ pub fn stats(
                 0.0
             }
         }),
-        temp: temp.map(|(tw, dw)| temperature_stat(&y_w, tw, dw)),
-        warm: warmup_stat(&y_w, t_w, t_total),
+        temp: temp.map(|(tw, dw)| temperature_stat(&y_w, tw, dw, warm.1)),
+        warm,
         line: line_stat(t_s, y, dt_s, 4.0 / block_s),
+        ramp: ramp_stat(&y_w),
         y_w,
     }
+}
+
+/// The ramp test also needs `ln(1 + t^2) > ` this (`|t| > 3`).
+pub const RAMP_MIN_STAT: f64 = std::f64::consts::LN_10;
+
+/// Surrogate temperature channels in the false-alarm null.
+pub const SURROGATES: usize = 8;
+
+/// A phase-randomised copy of a window series (NaNs filled by the mean): the line through
+/// the end points is removed (no wrap-around jump), the Fourier phases are drawn uniformly
+/// (deterministic `seed`), the amplitudes kept, the line added back. Same spectrum and
+/// slowness as the channel, but it cannot drive the rate.
+pub fn phase_randomised(x: &[f64], seed: u64) -> Vec<f64> {
+    use rand::{Rng, SeedableRng};
+    use rustfft::num_complex::Complex;
+    let n = x.len();
+    if n < 4 {
+        return x.to_vec();
+    }
+    let v: Vec<f64> = x.iter().copied().filter(|x| x.is_finite()).collect();
+    let m = mean(&v);
+    let xf: Vec<f64> = x
+        .iter()
+        .map(|&x| if x.is_finite() { x } else { m })
+        .collect();
+    let (a, b) = (xf[0], xf[n - 1]);
+    let line = |i: usize| a + (b - a) * i as f64 / (n - 1) as f64;
+    let mut buf: Vec<Complex<f64>> = (0..n).map(|i| Complex::new(xf[i] - line(i), 0.0)).collect();
+    let mut planner = rustfft::FftPlanner::<f64>::new();
+    planner.plan_fft_forward(n).process(&mut buf);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    for k in 1..n.div_ceil(2) {
+        let ph = rng.random::<f64>() * std::f64::consts::TAU;
+        let c = Complex::from_polar(buf[k].norm(), ph);
+        buf[k] = c;
+        buf[n - k] = c.conj();
+    }
+    planner.plan_fft_inverse(n).process(&mut buf);
+    (0..n).map(|i| buf[i].re / n as f64 + line(i)).collect()
 }
 
 /// The tests: the real statistics against the simulations' (and, for temperature, against
@@ -340,25 +517,31 @@ pub fn run(real: &EvStats, sims: &[EvStats], temp_w: Option<&[f64]>) -> Vec<Test
     let mut out = Vec::new();
     if let (Some(tw), Some(r)) = (temp_w, real.temp) {
         let mut nulls: Vec<f64> = sims.iter().filter_map(|s| s.temp).collect();
-        let n = tw.len();
-        let mut surrogates: Vec<Vec<f64>> = vec![tw.iter().rev().copied().collect()];
-        for k in [n / 3, 2 * n / 3] {
-            let mut v = tw.to_vec();
-            v.rotate_left(k);
-            surrogates.push(v);
-        }
-        for sg in &surrogates {
-            let dsg = rate_of_change(sg, WINDOW_S, 6);
-            nulls.push(temperature_stat(&real.y_w, sg, &dsg));
+        for k in 0..SURROGATES {
+            let sg = phase_randomised(tw, 0x7e3a_5c01 + k as u64);
+            let dsg = rate_of_change(&sg, WINDOW_S, 6);
+            nulls.push(temperature_stat(&real.y_w, &sg, &dsg, real.warm.1));
         }
         out.push(outcome(
             Effect::Temperature,
-            "5-s means regressed on [1, t, temp_c, d temp_c/dt]: ln(SSE without / with the temperature terms); null: simulations with the same channel + the real rate against 3 surrogate channels (reversed, shifted 1/3 and 2/3)",
+            "5-s means regressed on [1, t, exp(-t/tau), temp_c, d temp_c/dt] (tau: the warm-up test's): ln(SSE without / with the temperature terms); null: simulations with the same channel + the real rate against 8 phase-randomised surrogate channels",
             r,
             &nulls,
             String::new(),
         ));
     }
+    let nulls: Vec<f64> = sims.iter().map(|s| s.ramp).collect();
+    let mut ramp = outcome(
+        Effect::RateRamp,
+        "30-s means: OLS slope t-statistic with an AR(1) variance from the residuals, ln(1 + t^2); passes when z exceeds the threshold and |t| > 3",
+        real.ramp,
+        &nulls,
+        format!("|t| {:.1}", (real.ramp.exp() - 1.0).max(0.0).sqrt()),
+    );
+    // The simulations' null can be narrow (a dozen draws of a noise mix whose walk the AR(1)
+    // variance discounts strongly): the slope must also be significant on its own.
+    ramp.passed &= real.ramp > RAMP_MIN_STAT;
+    out.push(ramp);
     if let Some(r) = real.sf {
         let nulls: Vec<f64> = sims.iter().filter_map(|s| s.sf).collect();
         out.push(outcome(

@@ -813,10 +813,26 @@ pub fn diagnose(
             .unwrap_or(f64::INFINITY)
             .total_cmp(&b.gap_after.unwrap_or(f64::INFINITY))
     };
-    // Among passed tests, the one furthest past its threshold.
-    let tested = tests
+    // Among passed tests, the one furthest past its threshold; the drift tests are nested
+    // (temperature is tested beyond a ramp and a warm-up, warm-up beyond a ramp, and a
+    // warm-up or temperature drift also passes the ramp test), so among them the most
+    // specific passed one stands for the three.
+    let drift_rank = |e: Effect| match e {
+        Effect::Temperature => Some(0),
+        Effect::Warmup => Some(1),
+        Effect::RateRamp => Some(2),
+        _ => None,
+    };
+    let drift_pick = tests
         .iter()
         .filter(|t| t.passed)
+        .filter_map(|t| drift_rank(t.effect).map(|r| (r, t)))
+        .min_by_key(|(r, _)| *r)
+        .map(|(_, t)| t);
+    let tested = tests
+        .iter()
+        .filter(|t| t.passed && drift_rank(t.effect).is_none())
+        .chain(drift_pick)
         .max_by(|a, b| (a.z / a.threshold).total_cmp(&(b.z / b.threshold)))
         .and_then(|t| {
             candidates
