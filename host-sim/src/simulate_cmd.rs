@@ -78,6 +78,24 @@ pub const CSV_HEADER: &str = "t_s,rate_dps,temp_c,drift_dps,true_rate_dps";
 /// the platform moves, 0 when it is still; see [`sim::motion`]).
 pub const CSV_HEADER_MOVING: &str = "t_s,rate_dps,temp_c,drift_dps,true_rate_dps,moving";
 
+/// Writes `s` as one CSV row under [`CSV_HEADER`], or under [`CSV_HEADER_MOVING`] when
+/// `moving_column` (shortest round-trip floats).
+pub fn write_csv_row(
+    w: &mut impl std::io::Write,
+    s: &sim::Sample,
+    moving_column: bool,
+) -> std::io::Result<()> {
+    write!(
+        w,
+        "{},{},{},{},{}",
+        s.t_s, s.rate_dps, s.temp_c, s.drift_dps, s.true_rate_dps
+    )?;
+    if moving_column {
+        write!(w, ",{}", u8::from(s.moving))?;
+    }
+    writeln!(w)
+}
+
 /// E-Core counts of `rate_dps` for a unit of `full_scale_dps`: rounded, saturated.
 pub fn counts(rate_dps: f64, full_scale_dps: f64) -> i16 {
     let c = (rate_dps * f64::from(ecore::COUNTS_PER_FULL_SCALE) / full_scale_dps).round();
@@ -158,23 +176,7 @@ pub fn run(args: &Args) -> Result<()> {
                 break;
             }
             match args.format {
-                Format::Csv if moving_column => writeln!(
-                    w,
-                    "{},{},{},{},{},{}",
-                    s.t_s,
-                    s.rate_dps,
-                    s.temp_c,
-                    s.drift_dps,
-                    s.true_rate_dps,
-                    u8::from(s.moving)
-                )
-                .map_err(io)?,
-                Format::Csv => writeln!(
-                    w,
-                    "{},{},{},{},{}",
-                    s.t_s, s.rate_dps, s.temp_c, s.drift_dps, s.true_rate_dps
-                )
-                .map_err(io)?,
+                Format::Csv => write_csv_row(w, &s, moving_column).map_err(io)?,
                 Format::EcoreBin => w
                     .write_all(&ecore::encode(counts(s.rate_dps, full_scale_dps), [0; 4]))
                     .map_err(io)?,

@@ -24,7 +24,7 @@ use crate::replay::motion::{replay, MotionOptions};
 use crate::replay::stream::{IdPreset, InputFormat, Options};
 use crate::report;
 use crate::sim::{self, Model, Profile, Simulator};
-use crate::simulate_cmd::CSV_HEADER_MOVING;
+use crate::simulate_cmd::{write_csv_row, CSV_HEADER_MOVING};
 use anyhow::{Context, Result};
 use fog_core::still::SensorConfig;
 use std::io::Write;
@@ -128,17 +128,7 @@ fn write_csv(path: &Path, x: &[sim::Sample]) -> Result<()> {
         let io = |e: std::io::Error| anyhow::anyhow!("{}: write failed: {e}", path.display());
         writeln!(w, "{CSV_HEADER_MOVING}").map_err(io)?;
         for s in x {
-            writeln!(
-                w,
-                "{},{},{},{},{},{}",
-                s.t_s,
-                s.rate_dps,
-                s.temp_c,
-                s.drift_dps,
-                s.true_rate_dps,
-                u8::from(s.moving)
-            )
-            .map_err(io)?;
+            write_csv_row(w, s, true).map_err(io)?;
         }
         Ok(())
     })
