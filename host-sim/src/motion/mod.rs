@@ -10,8 +10,6 @@
 //! - training records are static (the true rate is zero, or constant and then removed with
 //!   the per-record intercept).
 
-pub mod eval;
-
 use crate::identify::series::{Records, Series};
 use crate::record;
 use anyhow::{anyhow, bail, Context, Result};
