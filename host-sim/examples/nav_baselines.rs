@@ -30,7 +30,7 @@ use fog_core::motion::{
 use fog_core::still::SensorConfig;
 use host_sim::nav::{
     fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, DriftEstimator, GatedKalman,
-    NavRecord, NoCompensation, ThermalKalman, ThermalKalmanConfig,
+    GatedRwGm, NavRecord, NoCompensation, RwGmConfig, ThermalKalman, ThermalKalmanConfig,
 };
 use host_sim::report::{heading_error_svg, still_spans, HeadingSeries};
 use host_sim::sim::{self, Model, Simulator};
@@ -116,6 +116,62 @@ fn thermal_rows(r: &NavRecord) -> Vec<(f64, f64, f64, bool)> {
         .collect()
 }
 
+/// RW+GM grid: slow random walk 1e-15 .. 1e-9 (deg/s)^2/s (0.05 .. 47,000 (deg/h)^2/h),
+/// 2 per decade; Gauss-Markov sigma 0.25 .. 16 deg/h, factor 2; tau 1 .. 3162 s, 2 per
+/// decade. [`rwgm_label`] marks a pick at an end of a range.
+const SIGMA_DPH: [f64; 7] = [0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
+const TAU_S: (f64, f64) = (1.0, 3162.3);
+const Q_RW: (f64, f64) = (1e-15, 1e-9);
+
+fn rwgm_grid(r_dps2: f64) -> Vec<RwGmConfig> {
+    let mut g = Vec::new();
+    for q in log_grid(Q_RW.0, Q_RW.1, 2) {
+        for sigma_dph in SIGMA_DPH {
+            for tau_s in log_grid(TAU_S.0, TAU_S.1, 2) {
+                g.push(RwGmConfig {
+                    q_rw_dps2_per_s: q,
+                    sigma_gm_dps: sigma_dph / 3600.0,
+                    tau_s,
+                    r_dps2,
+                    p0_dps2: (30.0f64 / 3600.0).powi(2),
+                });
+            }
+        }
+    }
+    g
+}
+
+fn rwgm_label(c: &RwGmConfig) -> String {
+    let end = |v: f64, (lo, hi): (f64, f64)| {
+        if (v / lo - 1.0).abs() < 1e-6 || (v / hi - 1.0).abs() < 1e-6 {
+            " (GRID END)"
+        } else {
+            ""
+        }
+    };
+    let sigma_dph = c.sigma_gm_dps * 3600.0;
+    format!(
+        "q {:.1} (deg/h)^2/h{}, sigma {sigma_dph} deg/h{}, tau {:.0} s{}",
+        c.q_rw_dps2_per_s * 3600f64.powi(3),
+        end(c.q_rw_dps2_per_s, Q_RW),
+        end(sigma_dph, (SIGMA_DPH[0], SIGMA_DPH[SIGMA_DPH.len() - 1])),
+        c.tau_s,
+        end(c.tau_s, TAU_S)
+    )
+}
+
+/// The grid point with the least `score` (ties to the first).
+fn pick<T: Copy>(grid: &[T], mut score: impl FnMut(&T) -> Result<f64>) -> Result<(T, f64)> {
+    let mut best: Option<(T, f64)> = None;
+    for c in grid {
+        let v = score(c)?;
+        if best.as_ref().is_none_or(|b| v < b.1) {
+            best = Some((*c, v));
+        }
+    }
+    best.ok_or_else(|| anyhow::anyhow!("empty grid"))
+}
+
 struct Set {
     name: String,
     train: Vec<NavRecord>,
@@ -165,6 +221,23 @@ fn evaluate(set: &Set, svg_dir: Option<&Path>) -> Result<()> {
             Box::new(move || Box::new(ThermalKalman::new(cfg))),
         ),
     ];
+    let valid_rms = |c: &RwGmConfig| -> Result<f64> {
+        let sum: f64 = set
+            .valid
+            .iter()
+            .map(|r| run(r, &mut GatedRwGm::new(*c), &r.still_truth()).scores.heading_rms_deg)
+            .sum();
+        Ok(sum / set.valid.len() as f64)
+    };
+    let (gm, gm_v) = pick(&rwgm_grid(set.r_dps2), valid_rms)?;
+    println!(
+        "gated RW+GM tuned: {} (valid heading RMS {gm_v:.4} deg)",
+        rwgm_label(&gm)
+    );
+    makers.push((
+        "gated RW+GM Kalman (tuned)",
+        Box::new(move || Box::new(GatedRwGm::new(gm))),
+    ));
     if let Some(fit) = fit {
         makers.push((
             "gated Kalman + thermal fit",
@@ -397,6 +470,21 @@ fn evaluate_motion(set: &Set) -> Result<()> {
     println!(
         "static: per-sample RW Kalman (q {:.2e} (deg/s)^2/sample, tuned by e_truth) e_truth {k_test:.4}",
         kbest.1
+    );
+    let rwgm = |c: RwGmConfig| {
+        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+            Ok(Box::new(GatedRwGm::new(RwGmConfig {
+                r_dps2: sample_var(s),
+                ..c
+            })))
+        }
+    };
+    let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
+    let t = e_truth(&set.static_test, rwgm(gm))?;
+    println!(
+        "static: per-sample RW+GM Kalman ({}) e_truth {t:.4} ({:+.1} % vs Kalman)",
+        rwgm_label(&gm),
+        100.0 * (t / k_test - 1.0)
     );
     for (name, model, (update, gain)) in [
         ("motion, window update", &trained, (Window, 0.0)),

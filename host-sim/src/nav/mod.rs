@@ -7,7 +7,8 @@
 //!   missed-still rates of a stillness detector against the `moving` truth.
 //! - [`DriftEstimator`] baselines: [`NoCompensation`], [`AlignmentBias`], [`GatedKalman`]
 //!   (ZARU), [`ThermalKalman`] (ZARU + temperature regression, on-line RLS or coefficients
-//!   from [`fit_thermal`] on training records).
+//!   from [`fit_thermal`] on training records); [`GatedRwGm`] (ZARU with a random walk plus
+//!   a Gauss-Markov state).
 //! - [`compare`] / [`table`]: an identifier's drift beside the four baselines, with the
 //!   same still flags, as scores and as the text table of `replay` / `identify`.
 //! - [`run`]: one estimator over one record; [`tune_gated_q`]: the gated Kalman's `q` on a
@@ -15,6 +16,7 @@
 
 mod baselines;
 mod compare;
+mod gm;
 mod record;
 mod score;
 mod tune;
@@ -23,6 +25,7 @@ pub use baselines::{
     fit_thermal, AlignmentBias, DriftEstimator, GatedKalman, NoCompensation, TempRate, ThermalFit,
     ThermalKalman, ThermalKalmanConfig,
 };
+pub use gm::{GatedRwGm, RwGmConfig};
 pub use compare::{compare, table, BaselineConfig, Compared, Comparison, Row, NO_COMPENSATION};
 pub use record::NavRecord;
 pub use score::{DetectorAcc, DetectorScores, HeadingAcc, NavScores, DPH_PER_DPS};

@@ -175,3 +175,81 @@ fn tuner_picks_the_grid_point_with_the_least_heading_rms() {
     assert!(t.q_dps2 > 1e-9, "{}", t.q_dps2);
     assert!(tune_gated_q(&[], 1e-4, &grid).is_none());
 }
+
+#[test]
+fn rw_gm_hand_computed_steps() {
+    // a = exp(-dt / tau) = 0.5 with dt = 1 s; sigma = 1, q = 0, r = 1, p0 = 1.
+    let cfg = RwGmConfig {
+        q_rw_dps2_per_s: 0.0,
+        sigma_gm_dps: 1.0,
+        tau_s: 1.0 / std::f64::consts::LN_2,
+        r_dps2: 1.0,
+        p0_dps2: 1.0,
+    };
+    let mut f = GatedRwGm::new(cfg);
+    // Still sample y = 2: S = 1 + 1 + 1 = 3, K = [1/3, 1/3], innovation 2.
+    assert_eq!(f.push(0.0, 2.0, None, true), 0.0);
+    let [b, g] = f.state();
+    close(b, 2.0 / 3.0, 1e-12);
+    close(g, 2.0 / 3.0, 1e-12);
+    let [p00, p01, p11] = f.covariance();
+    close(p00, 2.0 / 3.0, 1e-12);
+    close(p01, -1.0 / 3.0, 1e-12);
+    close(p11, 2.0 / 3.0, 1e-12);
+    // Moving sample 1 s later: g halves, P01 halves, P11 = 0.25 * 2/3 + 0.75.
+    close(f.push(1.0, 500.0, None, false), 2.0 / 3.0 + 1.0 / 3.0, 1e-12);
+    let [p00, p01, p11] = f.covariance();
+    close(p00, 2.0 / 3.0, 1e-12);
+    close(p01, -1.0 / 6.0, 1e-12);
+    close(p11, 11.0 / 12.0, 1e-12);
+}
+
+#[test]
+fn rw_gm_without_gm_is_the_scalar_random_walk_filter() {
+    let (q, r, p0) = (1e-3, 0.5, 4.0);
+    let mut f = GatedRwGm::new(RwGmConfig {
+        q_rw_dps2_per_s: q,
+        sigma_gm_dps: 0.0,
+        tau_s: 10.0,
+        r_dps2: r,
+        p0_dps2: p0,
+    });
+    // Float reference: scalar Kalman, var += q dt, update when still.
+    let (mut b, mut p) = (0.0f64, p0);
+    for k in 0..500 {
+        let t = k as f64 * 0.1;
+        if k > 0 {
+            p += q * 0.1;
+        }
+        let y = (k as f64 * 0.37).sin() + 0.01 * k as f64;
+        let still = k % 7 != 3;
+        close(f.push(t, y, None, still), b, 1e-12);
+        if still {
+            let kk = p / (p + r);
+            b += kk * (y - b);
+            p *= 1.0 - kk;
+        }
+    }
+}
+
+#[test]
+fn rw_gm_rotation_in_motion_never_moves_the_estimate() {
+    let cfg = RwGmConfig {
+        q_rw_dps2_per_s: 1e-12,
+        sigma_gm_dps: 2.0 / 3600.0,
+        tau_s: 30.0,
+        r_dps2: 1e-6,
+        p0_dps2: 1e-4,
+    };
+    let (mut a, mut b) = (GatedRwGm::new(cfg), GatedRwGm::new(cfg));
+    for k in 0..3000 {
+        let t = k as f64 * 0.01;
+        let still = !(1000..2000).contains(&k);
+        let drift = 3.0 / 3600.0;
+        // b sees a 30 deg/s turn during the drive; a sees none.
+        let turn = if still { 0.0 } else { 30.0 };
+        let ea = a.push(t, drift, None, still);
+        let eb = b.push(t, drift + turn, None, still);
+        assert_eq!(ea, eb);
+    }
+}
