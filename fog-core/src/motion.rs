@@ -296,11 +296,24 @@ pub struct MotionEstimator {
     gain_var: f32,
     gain_cov: f32,
     gain_sigma0: f32,
+    // The second state's coefficient in the drift: `m` (unit gain) or 1 (Gauss-Markov),
+    // its transition per sample and its process noise per sample.
+    second: Second,
     since_prev: u32,
     since_now: u32,
     // Per-sample mode: a sample of this window was beyond the fast gate.
     halted: bool,
     stats: MotionStats,
+}
+
+/// What the level's second state is ([`LevelUpdate::Sample`] only).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Second {
+    /// Per-unit gain on `m`: constant, observed through `m`.
+    Gain,
+    /// First-order Gauss-Markov state added to the level: `g <- a g + w`,
+    /// `var w = q` per sample, observed with coefficient 1.
+    GaussMarkov { a: f32, q: f32, sigma2: f32 },
 }
 
 /// Fast gate of [`LevelUpdate::Sample`], in sigma of the innovation (ASSUMED: 5 sigma,
@@ -357,6 +370,7 @@ impl MotionEstimator {
             gain_var: 0.0,
             gain_cov: 0.0,
             gain_sigma0: 0.0,
+            second: Second::Gain,
             since_prev: 0,
             since_now: 0,
             halted: false,
@@ -377,7 +391,10 @@ impl MotionEstimator {
         self.model_now = 0.0;
         self.model_prev = 0.0;
         self.gain = 0.0;
-        self.gain_var = self.gain_sigma0 * self.gain_sigma0;
+        self.gain_var = match self.second {
+            Second::Gain => self.gain_sigma0 * self.gain_sigma0,
+            Second::GaussMarkov { sigma2, .. } => sigma2,
+        };
         self.gain_cov = 0.0;
         self.checkpoint_now = self.level_state();
         self.checkpoint_prev = self.checkpoint_now;
@@ -409,8 +426,73 @@ impl MotionEstimator {
         } else {
             0.0
         };
+        self.second = Second::Gain;
         self.restart();
         self
+    }
+
+    /// A first-order Gauss-Markov state added to the level ([`LevelUpdate::Sample`] only;
+    /// replaces the unit gain, which uses the same slot): the drift is
+    /// `level + g + m(x)`, `g <- a g + w` at every sample (still or not), `a =
+    /// exp(-1 / (rate_hz tau_s))`, `var w = sigma^2 (1 - a^2)`; learned only from still
+    /// samples, rolled back with the level (propagated over the rolled-back samples). In
+    /// motion `g` decays toward 0 and the held estimate tends to the slow level. Models
+    /// the bias instability between stops better than a random walk alone.
+    /// `sigma_dps` = 0 or a `tau_s` that is not finite and > 0 turns it off. Adds per sample
+    /// 4 multiply/add (the prediction).
+    pub fn with_gauss_markov(mut self, sigma_dps: f32, tau_s: f32) -> Self {
+        self.gain_sigma0 = 0.0;
+        self.second = if sigma_dps.is_finite() && sigma_dps != 0.0 && tau_s > 0.0 && tau_s.is_finite() {
+            let a = libm::expf(-1.0 / (self.cfg.sensor.sample_rate_hz * tau_s));
+            let sigma2 = sigma_dps * sigma_dps;
+            Second::GaussMarkov {
+                a,
+                q: sigma2 * (1.0 - a * a),
+                sigma2,
+            }
+        } else {
+            Second::Gain
+        };
+        self.restart();
+        self
+    }
+
+    /// The Gauss-Markov state of the level and its variance (0, 0 when off).
+    pub fn gauss_markov(&self) -> (f32, f32) {
+        match self.second {
+            Second::GaussMarkov { .. } => (self.gain, self.gain_var),
+            Second::Gain => (0.0, 0.0),
+        }
+    }
+
+    /// The second state's coefficient in the drift: `m` for the gain, 1 for the
+    /// Gauss-Markov state.
+    fn second_coef(&self) -> f32 {
+        match self.second {
+            Second::Gain => self.model_now,
+            Second::GaussMarkov { .. } => 1.0,
+        }
+    }
+
+    /// Variance of `level + coef second` (what the detector's mean test uses): the level's
+    /// alone with the unit gain (as before it existed), the sum with the Gauss-Markov state.
+    fn drift_var(&self) -> f32 {
+        match (self.second, self.update) {
+            (Second::GaussMarkov { .. }, LevelUpdate::Sample) => {
+                self.level_var + 2.0 * self.gain_cov + self.gain_var
+            }
+            _ => self.level_var,
+        }
+    }
+
+    /// Predicts the second state over `n` samples (no-op for the constant gain).
+    fn predict_second(&mut self, n: u32) {
+        if let Second::GaussMarkov { a, sigma2, .. } = self.second {
+            let an = if n == 1 { a } else { libm::powf(a, n as f32) };
+            self.gain *= an;
+            self.gain_cov *= an;
+            self.gain_var = an * an * self.gain_var + sigma2 * (1.0 - an * an);
+        }
     }
 
     /// The per-unit gain on the model term and its variance.
@@ -471,10 +553,10 @@ impl MotionEstimator {
         let drift = self
             .cfg
             .sensor
-            .clamp_drift(self.level + (1.0 + self.gain) * self.model_now);
+            .clamp_drift(self.level + self.model_now + self.second_coef() * self.gain);
         let s = self
             .still
-            .push(rate_dps, drift, self.level_var, external_still);
+            .push(rate_dps, drift, self.drift_var(), external_still);
         let mut still = s.still;
         if self.update == LevelUpdate::Sample {
             still = self.sample_step(rate_dps, still, external_still.is_none());
@@ -485,6 +567,7 @@ impl MotionEstimator {
                     // Rollback: no sample of this window or of the one before reaches the level.
                     self.set_level_state(self.checkpoint_prev);
                     self.level_var += self.sample_q * self.since_prev as f32;
+                    self.predict_second(self.since_prev);
                     self.checkpoint_now = self.level_state();
                     self.checkpoint_prev = self.checkpoint_now;
                     self.since_prev = 0;
@@ -544,12 +627,13 @@ impl MotionEstimator {
         self.since_prev = self.since_prev.saturating_add(1);
         self.since_now = self.since_now.saturating_add(1);
         self.level_var += self.sample_q;
+        self.predict_second(1);
         if !still || self.halted {
             return false;
         }
-        // Observation rate - m = level + gain m: H = [1, m].
-        let h = self.model_now;
-        let innovation = rate_dps - h - self.level - self.gain * h;
+        // Observation rate - m = level + c second: H = [1, c], c = m (gain) or 1 (GM).
+        let h = self.second_coef();
+        let innovation = rate_dps - self.model_now - self.level - self.gain * h;
         let ph0 = self.level_var + self.gain_cov * h;
         let ph1 = self.gain_cov + self.gain_var * h;
         let s = ph0 + ph1 * h + self.sample_r;
@@ -982,5 +1066,83 @@ mod tests {
         let o = e.push(0.0, 25.0, Some(false)).expect("test");
         assert!(o.model_dps > S.drift_bound_dps);
         assert_eq!(o.drift_dps, S.drift_bound_dps);
+    }
+
+    #[test]
+    fn gauss_markov_level_matches_a_float_reference() {
+        // Untrained model (m = 0), every sample flagged still by the external flag: the
+        // level + Gauss-Markov state is the two-state Kalman filter, checked against an f64
+        // reference written here.
+        let model = MotionModel::standard(1800.0).expect("test");
+        let cfg = MotionConfig::for_sensor(S);
+        let (sigma_gm, tau_s) = (2.0f32 / 3600.0, 20.0f32);
+        let mut e = MotionEstimator::new(model, cfg)
+            .expect("test")
+            .with_level_update(LevelUpdate::Sample)
+            .with_gauss_markov(sigma_gm, tau_s);
+        let a = (-1.0 / (f64::from(S.sample_rate_hz) * f64::from(tau_s))).exp();
+        let s2 = f64::from(sigma_gm).powi(2);
+        let q = f64::from(cfg.level_q_dps2_per_s) / f64::from(S.sample_rate_hz);
+        let r = f64::from(S.sample_var_dps2() * cfg.still.noise_scale);
+        let b = f64::from(S.drift_bound_dps);
+        let (mut x, mut p) = ([0.0f64; 2], [b * b, 0.0, s2]);
+        let mut z = Noise(3);
+        let sigma = f64::from(S.sample_var_dps2()).sqrt();
+        let mut max_err = 0.0f64;
+        for k in 0..20_000 {
+            let t = k as f64 * 0.01;
+            let y = 3.0 / 3600.0 + 2.0 / 3600.0 * (t / 40.0).sin() + sigma * f64::from(z.normal());
+            let o = e.push(y as f32, f32::NAN, Some(true)).expect("test");
+            // Reference: predict, estimate (from earlier samples), update.
+            if k > 0 {
+                x[1] *= a;
+                p = [p[0] + q, p[1] * a, a * a * p[2] + s2 * (1.0 - a * a)];
+            }
+            max_err = max_err.max((f64::from(o.drift_dps) - (x[0] + x[1])).abs());
+            let (h0, h1) = (p[0] + p[1], p[1] + p[2]);
+            let sk = h0 + h1 + r;
+            let (k0, k1) = (h0 / sk, h1 / sk);
+            let inn = y - x[0] - x[1];
+            x = [x[0] + k0 * inn, x[1] + k1 * inn];
+            p = [p[0] - k0 * h0, p[1] - k0 * h1, p[2] - k1 * h1];
+        }
+        // f32 against f64 over 20,000 steps: within 0.02 deg/h.
+        assert!(max_err < 0.02 / 3600.0, "{}", max_err * 3600.0);
+        let (g, g_var) = e.gauss_markov();
+        assert!(g != 0.0 && g_var > 0.0 && g_var < f32::from(sigma_gm * sigma_gm));
+    }
+
+    #[test]
+    fn gauss_markov_level_ignores_rotation_in_motion_and_decays() {
+        let model = MotionModel::standard(1800.0).expect("test");
+        let cfg = MotionConfig::for_sensor(S);
+        let make = || {
+            MotionEstimator::new(model, cfg)
+                .expect("test")
+                .with_level_update(LevelUpdate::Sample)
+                .with_gauss_markov(3.0 / 3600.0, 10.0)
+        };
+        let (mut a, mut b) = (make(), make());
+        let mut z = Noise(17);
+        let sigma = S.sample_var_dps2().sqrt();
+        let mut g_at_drive_start = 0.0;
+        for k in 0..12_000usize {
+            let moving = (6000..12_000).contains(&k);
+            let n = sigma * z.normal();
+            let drift = 4.0 / 3600.0 + if k < 5000 { 0.0 } else { 2.0 / 3600.0 };
+            // `b` turns at 20 deg/s during the drive; `a` does not.
+            let oa = a.push(drift + n, f32::NAN, Some(!moving)).expect("test");
+            let ob = b
+                .push(drift + n + if moving { 20.0 } else { 0.0 }, f32::NAN, Some(!moving))
+                .expect("test");
+            assert_eq!(oa.drift_dps, ob.drift_dps, "{k}");
+            if k == 6000 {
+                g_at_drive_start = a.gauss_markov().0;
+            }
+        }
+        // After 60 s (6 tau) of motion the Gauss-Markov part has decayed toward 0.
+        let g_end = a.gauss_markov().0;
+        assert!(g_at_drive_start.abs() > 0.3 / 3600.0, "{}", g_at_drive_start * 3600.0);
+        assert!(g_end.abs() < 0.01 * g_at_drive_start.abs());
     }
 }
