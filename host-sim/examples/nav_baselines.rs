@@ -11,15 +11,22 @@
 //!
 //! Prints heading-error RMS / final (deg) and e_truth still / moving (deg/h), mean over the
 //! test records. With OUT_DIR, writes the heading-error SVG of the first test record.
+//! Beside them, the gated RW+GM Kalman filter ([`GatedRwGm`]: slow random walk plus a
+//! first-order Gauss-Markov state), its three parameters tuned on the same validation
+//! vehicles over [`rwgm_grid`] (a pick at a grid end is marked `GRID END`).
 //!
 //! Then the firmware's preset `motion` (fog_core::motion), trained on the same 12 static
 //! records (3 DRLS passes), its level noise tuned on the same validation vehicles, with ITS
 //! OWN detector (no truth): both level updates ([`LevelUpdate::Window`], the window-mean
 //! update; [`LevelUpdate::Sample`], per sample with rollback), the same with the truth as
-//! external still flag, and an untrained model (the gated Kalman part alone); the detector's
+//! external still flag, and an untrained model (the gated Kalman part alone); `Sample` with
+//! a Gauss-Markov state beside the level ([`MotionEstimator::with_gauss_markov`]) whose
+//! sigma and tau come from the RW+GM filter tuned on the validation vehicles
+//! (`vehicle-tuned`) or on the static validation units (`static-tuned`); the detector's
 //! false-still / missed-still rates. Finally static records (4 static test units per set):
-//! e_truth of the per-sample random-walk Kalman (every sample still, q tuned on 3 static
-//! validation units by e_truth) against `motion` (q tuned the same way).
+//! e_truth of the per-sample random-walk Kalman and RW+GM Kalman (every sample still,
+//! parameters tuned on 3 static validation units by e_truth) against `motion` (q tuned
+//! the same way, the GM state's sigma and tau from the static RW+GM tuning).
 //! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
 //! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
@@ -116,12 +123,12 @@ fn thermal_rows(r: &NavRecord) -> Vec<(f64, f64, f64, bool)> {
         .collect()
 }
 
-/// RW+GM grid: slow random walk 1e-15 .. 1e-9 (deg/s)^2/s (0.05 .. 47,000 (deg/h)^2/h),
-/// 2 per decade; Gauss-Markov sigma 0.25 .. 16 deg/h, factor 2; tau 1 .. 3162 s, 2 per
+/// RW+GM grid: slow random walk 1e-15 .. 1e-7 (deg/s)^2/s (0.00005 .. 4,666 (deg/h)^2/h),
+/// 2 per decade; Gauss-Markov sigma 0.25 .. 16 deg/h, factor 2; tau 1 .. 10,000 s, 2 per
 /// decade. [`rwgm_label`] marks a pick at an end of a range.
 const SIGMA_DPH: [f64; 7] = [0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
-const TAU_S: (f64, f64) = (1.0, 3162.3);
-const Q_RW: (f64, f64) = (1e-15, 1e-9);
+const TAU_S: (f64, f64) = (1.0, 10000.0);
+const Q_RW: (f64, f64) = (1e-15, 1e-7);
 
 fn rwgm_grid(r_dps2: f64) -> Vec<RwGmConfig> {
     let mut g = Vec::new();
@@ -185,7 +192,8 @@ struct Set {
     static_test: Vec<(NavRecord, SensorConfig)>,
 }
 
-fn evaluate(set: &Set, svg_dir: Option<&Path>) -> Result<()> {
+/// Returns the RW+GM configuration tuned on the validation vehicles.
+fn evaluate(set: &Set, svg_dir: Option<&Path>) -> Result<RwGmConfig> {
     let grid = log_grid(1e-16, 1e-8, 2);
     let Some(tuned) = tune_gated_q(&set.valid, set.r_dps2, &grid) else {
         bail!("no tuning");
@@ -286,7 +294,7 @@ fn evaluate(set: &Set, svg_dir: Option<&Path>) -> Result<()> {
         std::fs::write(&path, svg)?;
         println!("-> {}", path.display());
     }
-    Ok(())
+    Ok(gm)
 }
 
 /// The motion estimator as a [`DriftEstimator`]: its own detector, or the run's still
@@ -326,20 +334,34 @@ fn q_dps2_per_s(q_dph2_per_h: f64) -> f32 {
     (q_dph2_per_h / 3600f64.powi(3)) as f32
 }
 
+/// The level's second state in a `motion` row.
+#[derive(Clone, Copy)]
+enum Second {
+    None,
+    /// Per-unit gain, prior sigma.
+    Gain(f32),
+    /// Gauss-Markov state with the sigma and tau of this RW+GM configuration.
+    Gm(RwGmConfig),
+}
+
 fn motion_est(
     model: &MotionModel,
     sensor: SensorConfig,
     q: f64,
     update: LevelUpdate,
     truth: bool,
-    gain_sigma: f32,
+    second: Second,
 ) -> Result<Motion> {
     let mut cfg = MotionConfig::for_sensor(sensor);
     cfg.level_q_dps2_per_s = q_dps2_per_s(q);
     let est = MotionEstimator::new(*model, cfg)
         .map_err(|e| anyhow::anyhow!("estimator: {e}"))?
-        .with_level_update(update)
-        .with_unit_gain(gain_sigma);
+        .with_level_update(update);
+    let est = match second {
+        Second::None => est,
+        Second::Gain(s) => est.with_unit_gain(s),
+        Second::Gm(c) => est.with_gauss_markov(c.sigma_gm_dps as f32, c.tau_s as f32),
+    };
     Ok(Motion {
         est,
         truth,
@@ -386,7 +408,7 @@ fn sample_var(s: &SensorConfig) -> f64 {
     f64::from(s.sample_var_dps2())
 }
 
-fn evaluate_motion(set: &Set) -> Result<()> {
+fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
     let nt = set.train.len();
     let nv = set.valid.len();
     let (s_train, rest) = set.sensors.split_at(nt);
@@ -397,12 +419,12 @@ fn evaluate_motion(set: &Set) -> Result<()> {
                  recs: &[NavRecord],
                  sensors: &[SensorConfig],
                  q: f64,
-                 (update, truth, gain): (LevelUpdate, bool, f32)|
+                 (update, truth, second): (LevelUpdate, bool, Second)|
      -> Result<(f64, f64, f64, f64, f64)> {
         let (mut a, mut b, mut fs, mut ms) = (0.0, 0.0, 0.0, 0.0);
         let mut e = 0.0;
         for (r, s) in recs.iter().zip(sensors) {
-            let mut m = motion_est(model, *s, q, update, truth, gain)?;
+            let mut m = motion_est(model, *s, q, update, truth, second)?;
             let out = run(r, &mut m, &r.still_truth());
             a += out.scores.heading_rms_deg;
             b += out.scores.heading_final_deg.abs();
@@ -419,24 +441,60 @@ fn evaluate_motion(set: &Set) -> Result<()> {
         Ok((a / n, b / n, e / n, fs / n, ms / n))
     };
     println!(
-        "{:<36} {:>8} {:>10} {:>10} {:>10} {:>9} {:>9}",
+        "{:<42} {:>8} {:>10} {:>10} {:>10} {:>9} {:>9}",
         "motion preset", "q dph2/h", "hdg RMS", "|hdg end|", "e moving", "false-st", "missed-st"
     );
     use LevelUpdate::{Sample, Window};
+    let rwgm = |c: RwGmConfig| {
+        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+            Ok(Box::new(GatedRwGm::new(RwGmConfig {
+                r_dps2: sample_var(s),
+                ..c
+            })))
+        }
+    };
+    // The GM state tuned on the static validation units (the product's: one sigma and
+    // tau from the bias instability at rest).
+    let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
+    let gmv = Second::Gm(gm_vehicle);
     for (name, model, mode) in [
-        ("motion, window update", &trained, (Window, false, 0.0)),
-        ("motion, sample + rollback", &trained, (Sample, false, 0.0)),
+        ("motion, window update", &trained, (Window, false, Second::None)),
+        (
+            "motion, sample + rollback",
+            &trained,
+            (Sample, false, Second::None),
+        ),
         (
             "motion, sample + unit gain 0.5",
             &trained,
-            (Sample, false, 0.5),
+            (Sample, false, Second::Gain(0.5)),
+        ),
+        ("motion, sample + GM (vehicle-tuned)", &trained, (Sample, false, gmv)),
+        (
+            "motion, sample + GM (static-tuned)",
+            &trained,
+            (Sample, false, Second::Gm(gm)),
+        ),
+        (
+            "untrained m, sample + GM (static-tuned)",
+            &untrained,
+            (Sample, false, Second::Gm(gm)),
         ),
         (
             "untrained m, sample + rollback",
             &untrained,
-            (Sample, false, 0.0),
+            (Sample, false, Second::None),
         ),
-        ("motion, sample, truth flags", &trained, (Sample, true, 0.0)),
+        (
+            "motion, sample, truth flags",
+            &trained,
+            (Sample, true, Second::None),
+        ),
+        (
+            "motion, sample + GM (static-tuned), truth",
+            &trained,
+            (Sample, true, Second::Gm(gm)),
+        ),
     ] {
         let mut best = (f64::INFINITY, 0.0);
         for q in q_grid_dph2_per_h() {
@@ -447,7 +505,7 @@ fn evaluate_motion(set: &Set) -> Result<()> {
         }
         let (a, b, e, fs, ms) = score(model, &set.test, s_test, best.1, mode)?;
         println!(
-            "{name:<36} {:>8.0} {a:>10.4} {b:>10.4} {e:>10.3} {:>8.2}% {:>8.2}%",
+            "{name:<42} {:>8.1} {a:>10.4} {b:>10.4} {e:>10.3} {:>8.2}% {:>8.2}%",
             best.1,
             100.0 * fs,
             100.0 * ms
@@ -471,30 +529,28 @@ fn evaluate_motion(set: &Set) -> Result<()> {
         "static: per-sample RW Kalman (q {:.2e} (deg/s)^2/sample, tuned by e_truth) e_truth {k_test:.4}",
         kbest.1
     );
-    let rwgm = |c: RwGmConfig| {
-        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
-            Ok(Box::new(GatedRwGm::new(RwGmConfig {
-                r_dps2: sample_var(s),
-                ..c
-            })))
-        }
-    };
-    let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
     let t = e_truth(&set.static_test, rwgm(gm))?;
     println!(
         "static: per-sample RW+GM Kalman ({}) e_truth {t:.4} ({:+.1} % vs Kalman)",
         rwgm_label(&gm),
         100.0 * (t / k_test - 1.0)
     );
-    for (name, model, (update, gain)) in [
-        ("motion, window update", &trained, (Window, 0.0)),
-        ("motion, sample + rollback", &trained, (Sample, 0.0)),
-        ("motion, sample + unit gain 0.5", &trained, (Sample, 0.5)),
-        ("untrained m, sample + rollback", &untrained, (Sample, 0.0)),
+    let gms = Second::Gm(gm);
+    for (name, model, (update, second)) in [
+        ("motion, window update", &trained, (Window, Second::None)),
+        ("motion, sample + rollback", &trained, (Sample, Second::None)),
+        (
+            "motion, sample + unit gain 0.5",
+            &trained,
+            (Sample, Second::Gain(0.5)),
+        ),
+        ("motion, sample + GM", &trained, (Sample, gms)),
+        ("untrained m, sample + GM", &untrained, (Sample, gms)),
+        ("untrained m, sample + rollback", &untrained, (Sample, Second::None)),
     ] {
         let mk = |q: f64| {
             move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
-                Ok(Box::new(motion_est(model, *s, q, update, false, gain)?))
+                Ok(Box::new(motion_est(model, *s, q, update, false, second)?))
             }
         };
         let mut best = (f64::INFINITY, 0.0);
@@ -506,7 +562,7 @@ fn evaluate_motion(set: &Set) -> Result<()> {
         }
         let t = e_truth(&set.static_test, mk(best.1))?;
         println!(
-            "static: {name:<32} (q {:.0} (deg/h)^2/h) e_truth {t:.4} ({:+.1} % vs Kalman)",
+            "static: {name:<32} (q {:.1} (deg/h)^2/h) e_truth {t:.4} ({:+.1} % vs Kalman)",
             best.1,
             100.0 * (t / k_test - 1.0)
         );
@@ -539,8 +595,8 @@ fn main() -> Result<()> {
         static_valid: static_ours(41..=43)?,
         static_test: static_ours(51..=54)?,
     };
-    evaluate(&set, svg_dir.as_deref())?;
-    evaluate_motion(&set)?;
+    let gm = evaluate(&set, svg_dir.as_deref())?;
+    evaluate_motion(&set, gm)?;
     let ok = Command::new("python3")
         .args(["-c", "import numpy"])
         .status()
@@ -586,8 +642,8 @@ fn main() -> Result<()> {
             static_valid: stat(41..=43)?,
             static_test: stat(51..=54)?,
         };
-        evaluate(&set, svg_dir.as_deref())?;
-        evaluate_motion(&set)?;
+        let gm = evaluate(&set, svg_dir.as_deref())?;
+        evaluate_motion(&set, gm)?;
     }
     Ok(())
 }

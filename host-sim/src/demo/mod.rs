@@ -8,8 +8,10 @@
 //!    1.., record seeds 101..), 3 passes, and writes `DIR/identifier.fogi`. The records are
 //!    simulated again at each pass (the simulator is deterministic), so memory holds one.
 //! 3. Tunes the gated Kalman baseline's q on `validate_records` simulated `vehicle` records
-//!    of other units ([`nav::tune_gated_q`], truth still flags), and the identifier's level
-//!    noise on the same records and grid (its detector's flags), then writes the image.
+//!    of other units ([`nav::tune_gated_q`], truth still flags, [`BASELINE_Q_GRID`]), and
+//!    the identifier's level noise on the same records ([`LEVEL_Q_GRID_DPH2_PER_H`], its
+//!    own detector's flags), then writes the image. A pick at either end of a grid is
+//!    printed as a warning and written into the baseline's label (never silent).
 //! 4. Simulates one `vehicle` record (unit [`VEHICLE_UNIT`], seed [`VEHICLE_SEED`]), writes
 //!    it as `DIR/vehicle.csv`, replays it with the identifier ([`crate::replay::motion`]),
 //!    `DIR/replay.csv`, and writes the report (`index.html`, heading-error figure with the
@@ -47,6 +49,24 @@ pub const VEHICLE_UNIT: u64 = 900;
 /// Seed of the replayed vehicle record.
 pub const VEHICLE_SEED: u64 = 7;
 
+/// The gated Kalman baseline's q grid, (deg/s)^2 per sample: (low, high, points per decade).
+pub const BASELINE_Q_GRID: (f64, f64, usize) = (1e-16, 1e-8, 4);
+/// The identifier's level-noise grid, (deg/h)^2/h: (low, high, points per decade), the
+/// range of `examples/nav_baselines.rs`.
+pub const LEVEL_Q_GRID_DPH2_PER_H: (f64, f64, usize) = (0.25, 16384.0, 4);
+
+/// `" (AT THE LOW END OF ITS GRID)"` / `" (AT THE HIGH END ...)"` / `""`.
+pub fn grid_end_note(grid: &[f64], picked: f64) -> &'static str {
+    let at = |v: Option<&f64>| v.is_some_and(|&g| (picked / g - 1.0).abs() < 1e-9);
+    if grid.len() > 1 && at(grid.first()) {
+        " (AT THE LOW END OF ITS GRID)"
+    } else if grid.len() > 1 && at(grid.last()) {
+        " (AT THE HIGH END OF ITS GRID)"
+    } else {
+        ""
+    }
+}
+
 /// What the demo runs.
 #[derive(Debug, Clone, Copy)]
 pub struct DemoConfig {
@@ -59,16 +79,16 @@ pub struct DemoConfig {
 }
 
 impl DemoConfig {
-    /// The demo: 12 training records, 2 validation records, 1800 s each.
+    /// The demo: 12 training records, 8 validation records, 1800 s each.
     pub const FULL: Self = Self {
         train_records: 12,
-        validate_records: 2,
+        validate_records: 8,
         duration_s: 1800.0,
     };
-    /// The CI variant (`--quick`): 12 training records, 1 validation record, 600 s each.
+    /// The CI variant (`--quick`): 12 training records, 2 validation records, 600 s each.
     pub const QUICK: Self = Self {
         train_records: 12,
-        validate_records: 1,
+        validate_records: 2,
         duration_s: 600.0,
     };
 }
@@ -159,14 +179,18 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         val.push(NavRecord::from_samples(&x));
     }
     let r_dps2 = f64::from(sensor.sample_var_dps2());
-    let tuned = nav::tune_gated_q(&val, r_dps2, &nav::log_grid(1e-18, 1e-8, 2))
-        .context("demo: no validation record")?;
-    // The identifier's level noise, tuned on the same records and grid as the baseline.
-    let grid = nav::log_grid(1e-18, 1e-8, 2);
-    let mut best = (f64::INFINITY, image.config.level_q_dps2_per_s);
-    for &q in &grid {
+    let (lo, hi, per) = BASELINE_Q_GRID;
+    let baseline_grid = nav::log_grid(lo, hi, per);
+    let tuned =
+        nav::tune_gated_q(&val, r_dps2, &baseline_grid).context("demo: no validation record")?;
+    let baseline_note = grid_end_note(&baseline_grid, tuned.q_dps2);
+    // The identifier's level noise, tuned on the same records.
+    let (lo, hi, per) = LEVEL_Q_GRID_DPH2_PER_H;
+    let grid = nav::log_grid(lo, hi, per);
+    let mut best = (f64::INFINITY, grid.first().copied().unwrap_or(0.0));
+    for &q_dph2_per_h in &grid {
         let mut im = image.clone();
-        im.config.level_q_dps2_per_s = (q * RATE_HZ) as f32;
+        im.config.level_q_dps2_per_s = (q_dph2_per_h / 3600f64.powi(3)) as f32;
         let mut sum = 0.0;
         for v in &val {
             let mut est = im.estimator().map_err(|e| anyhow::anyhow!("demo: {e}"))?;
@@ -188,15 +212,25 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
             sum += acc.scores().heading_rms_deg;
         }
         if sum < best.0 {
-            best = (sum, im.config.level_q_dps2_per_s);
+            best = (sum, q_dph2_per_h);
         }
     }
-    image.config.level_q_dps2_per_s = best.1;
+    let level_note = grid_end_note(&grid, best.1);
+    image.config.level_q_dps2_per_s = (best.1 / 3600f64.powi(3)) as f32;
     motion::write_image(&fogi, &image)?;
     eprintln!(
-        "demo: level noise of the identifier tuned on the validation records: {:.3e} (deg/s)^2/s; baseline q {:.3e} (deg/s)^2 per sample",
-        best.1, tuned.q_dps2
+        "demo: on {} validation vehicles: identifier level noise {:.3} (deg/h)^2/h{level_note} (mean heading RMS {:.4} deg); gated Kalman q {:.3e} (deg/s)^2 per sample{baseline_note} ({:.4} deg, truth still flags)",
+        val.len(),
+        best.1,
+        best.0 / val.len() as f64,
+        tuned.q_dps2,
+        tuned.heading_rms_deg
     );
+    for note in [level_note, baseline_note] {
+        if !note.is_empty() {
+            eprintln!("demo: WARNING: a tuned noise is{note}: the grid does not bracket the optimum");
+        }
+    }
     let vehicle = dir.join("vehicle.csv");
     let x = samples(
         &family_model(VEHICLE_UNIT, true)?,
@@ -224,7 +258,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         baseline_q: Some((
             tuned.q_dps2,
             format!(
-                "tuned on {} validation vehicle records (units 800.., truth still flags)",
+                "tuned on {} validation vehicle records (units 800.., truth still flags){baseline_note}",
                 val.len()
             ),
         )),
@@ -233,4 +267,18 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let out = replay(&vehicle, &dir.join("replay.csv"), &o)?;
     crate::replay::motion::print_summary(&out.summary)?;
     report::motion::write(dir, &out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_ends_are_named() {
+        let g = nav::log_grid(1e-16, 1e-8, 4);
+        assert_eq!(grid_end_note(&g, 1e-16), " (AT THE LOW END OF ITS GRID)");
+        assert_eq!(grid_end_note(&g, g[g.len() - 1]), " (AT THE HIGH END OF ITS GRID)");
+        assert_eq!(grid_end_note(&g, g[3]), "");
+        assert_eq!(grid_end_note(&[1.0], 1.0), "");
+    }
 }
