@@ -21,8 +21,12 @@
 //!   previous window when a window fails (no sample of a failed window, nor of the one
 //!   before it, stays in the level), with a per-sample fast gate ([`FAST_GATE_K`]) that
 //!   stops the updates at the first sample of a drive. In motion the level is frozen while
-//!   its variance keeps growing, so it re-converges at the next stop. Optional: a per-unit
-//!   gain on `m` ([`MotionEstimator::with_unit_gain`], off by default: no gain measured).
+//!   its variance keeps growing, so it re-converges at the next stop. Optional, in the same
+//!   second-state slot ([`LevelUpdate::Sample`] only, off by default): a per-unit gain on
+//!   `m` ([`MotionEstimator::with_unit_gain`]: no gain measured) or a first-order
+//!   Gauss-Markov state beside the level ([`MotionEstimator::with_gauss_markov`]: below
+//!   the per-sample Kalman filter on static records, worse than the default on the
+//!   simulator's vehicles; docs/motion.md).
 //! - The clamp to the sensor's drift bound ([`SensorConfig::drift_bound_dps`]) means that
 //!   no state can subtract more than the bound from the rate.
 //!
@@ -442,17 +446,18 @@ impl MotionEstimator {
     /// 4 multiply/add (the prediction).
     pub fn with_gauss_markov(mut self, sigma_dps: f32, tau_s: f32) -> Self {
         self.gain_sigma0 = 0.0;
-        self.second = if sigma_dps.is_finite() && sigma_dps != 0.0 && tau_s > 0.0 && tau_s.is_finite() {
-            let a = libm::expf(-1.0 / (self.cfg.sensor.sample_rate_hz * tau_s));
-            let sigma2 = sigma_dps * sigma_dps;
-            Second::GaussMarkov {
-                a,
-                q: sigma2 * (1.0 - a * a),
-                sigma2,
-            }
-        } else {
-            Second::Gain
-        };
+        self.second =
+            if sigma_dps.is_finite() && sigma_dps != 0.0 && tau_s > 0.0 && tau_s.is_finite() {
+                let a = libm::expf(-1.0 / (self.cfg.sensor.sample_rate_hz * tau_s));
+                let sigma2 = sigma_dps * sigma_dps;
+                Second::GaussMarkov {
+                    a,
+                    q: sigma2 * (1.0 - a * a),
+                    sigma2,
+                }
+            } else {
+                Second::Gain
+            };
         self.restart();
         self
     }
@@ -1109,7 +1114,7 @@ mod tests {
         // f32 against f64 over 20,000 steps: within 0.02 deg/h.
         assert!(max_err < 0.02 / 3600.0, "{}", max_err * 3600.0);
         let (g, g_var) = e.gauss_markov();
-        assert!(g != 0.0 && g_var > 0.0 && g_var < f32::from(sigma_gm * sigma_gm));
+        assert!(g != 0.0 && g_var > 0.0 && g_var < sigma_gm * sigma_gm);
     }
 
     #[test]
@@ -1133,7 +1138,11 @@ mod tests {
             // `b` turns at 20 deg/s during the drive; `a` does not.
             let oa = a.push(drift + n, f32::NAN, Some(!moving)).expect("test");
             let ob = b
-                .push(drift + n + if moving { 20.0 } else { 0.0 }, f32::NAN, Some(!moving))
+                .push(
+                    drift + n + if moving { 20.0 } else { 0.0 },
+                    f32::NAN,
+                    Some(!moving),
+                )
                 .expect("test");
             assert_eq!(oa.drift_dps, ob.drift_dps, "{k}");
             if k == 6000 {
@@ -1142,7 +1151,11 @@ mod tests {
         }
         // After 60 s (6 tau) of motion the Gauss-Markov part has decayed toward 0.
         let g_end = a.gauss_markov().0;
-        assert!(g_at_drive_start.abs() > 0.3 / 3600.0, "{}", g_at_drive_start * 3600.0);
+        assert!(
+            g_at_drive_start.abs() > 0.3 / 3600.0,
+            "{}",
+            g_at_drive_start * 3600.0
+        );
         assert!(g_end.abs() < 0.01 * g_at_drive_start.abs());
     }
 }

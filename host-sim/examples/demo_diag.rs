@@ -39,7 +39,10 @@ impl DriftEstimator for Motion {
     }
     fn push(&mut self, _: f64, rate_dps: f64, temp_c: Option<f64>, still: bool) -> f64 {
         let temp = temp_c.map_or(f32::NAN, |t| t as f32);
-        match self.est.push(rate_dps as f32, temp, self.truth.then_some(still)) {
+        match self
+            .est
+            .push(rate_dps as f32, temp, self.truth.then_some(still))
+        {
             Ok(o) => {
                 self.calls.push(o.still);
                 f64::from(o.drift_dps)
@@ -110,7 +113,10 @@ fn main() -> Result<()> {
         let h = run(&veh, &mut GatedKalman::new(q, r), &still)
             .scores
             .heading_rms_deg;
-        println!("{:<44} {h:>10.4} {v:>10.4}", format!("gated Kalman truth, q {q:.1e}/sample"));
+        println!(
+            "{:<44} {h:>10.4} {v:>10.4}",
+            format!("gated Kalman truth, q {q:.1e}/sample")
+        );
     }
     use LevelUpdate::{Sample, Window};
     for (name, model, update, truth) in [

@@ -233,7 +233,11 @@ fn evaluate(set: &Set, svg_dir: Option<&Path>) -> Result<RwGmConfig> {
         let sum: f64 = set
             .valid
             .iter()
-            .map(|r| run(r, &mut GatedRwGm::new(*c), &r.still_truth()).scores.heading_rms_deg)
+            .map(|r| {
+                run(r, &mut GatedRwGm::new(*c), &r.still_truth())
+                    .scores
+                    .heading_rms_deg
+            })
             .sum();
         Ok(sum / set.valid.len() as f64)
     };
@@ -458,7 +462,11 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
     let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
     let gmv = Second::Gm(gm_vehicle);
     for (name, model, mode) in [
-        ("motion, window update", &trained, (Window, false, Second::None)),
+        (
+            "motion, window update",
+            &trained,
+            (Window, false, Second::None),
+        ),
         (
             "motion, sample + rollback",
             &trained,
@@ -469,7 +477,11 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
             &trained,
             (Sample, false, Second::Gain(0.5)),
         ),
-        ("motion, sample + GM (vehicle-tuned)", &trained, (Sample, false, gmv)),
+        (
+            "motion, sample + GM (vehicle-tuned)",
+            &trained,
+            (Sample, false, gmv),
+        ),
         (
             "motion, sample + GM (static-tuned)",
             &trained,
@@ -538,7 +550,11 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
     let gms = Second::Gm(gm);
     for (name, model, (update, second)) in [
         ("motion, window update", &trained, (Window, Second::None)),
-        ("motion, sample + rollback", &trained, (Sample, Second::None)),
+        (
+            "motion, sample + rollback",
+            &trained,
+            (Sample, Second::None),
+        ),
         (
             "motion, sample + unit gain 0.5",
             &trained,
@@ -546,7 +562,11 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
         ),
         ("motion, sample + GM", &trained, (Sample, gms)),
         ("untrained m, sample + GM", &untrained, (Sample, gms)),
-        ("untrained m, sample + rollback", &untrained, (Sample, Second::None)),
+        (
+            "untrained m, sample + rollback",
+            &untrained,
+            (Sample, Second::None),
+        ),
     ] {
         let mk = |q: f64| {
             move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {

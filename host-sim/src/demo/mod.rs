@@ -228,7 +228,9 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     );
     for note in [level_note, baseline_note] {
         if !note.is_empty() {
-            eprintln!("demo: WARNING: a tuned noise is{note}: the grid does not bracket the optimum");
+            eprintln!(
+                "demo: WARNING: a tuned noise is{note}: the grid does not bracket the optimum"
+            );
         }
     }
     let vehicle = dir.join("vehicle.csv");
@@ -277,7 +279,10 @@ mod tests {
     fn grid_ends_are_named() {
         let g = nav::log_grid(1e-16, 1e-8, 4);
         assert_eq!(grid_end_note(&g, 1e-16), " (AT THE LOW END OF ITS GRID)");
-        assert_eq!(grid_end_note(&g, g[g.len() - 1]), " (AT THE HIGH END OF ITS GRID)");
+        assert_eq!(
+            grid_end_note(&g, g[g.len() - 1]),
+            " (AT THE HIGH END OF ITS GRID)"
+        );
         assert_eq!(grid_end_note(&g, g[3]), "");
         assert_eq!(grid_end_note(&[1.0], 1.0), "");
     }

@@ -66,7 +66,7 @@ impl GatedRwGm {
 
     /// Prediction over `dt_s` seconds.
     pub fn predict(&mut self, dt_s: f64) {
-        if !(dt_s > 0.0) {
+        if dt_s.is_nan() || dt_s <= 0.0 {
             return;
         }
         if dt_s != self.dt_a.0 {
@@ -86,7 +86,7 @@ impl GatedRwGm {
         let h0 = p00 + p01;
         let h1 = p01 + p11;
         let s = h0 + h1 + r_dps2;
-        if !(s > 0.0) || !y_dps.is_finite() {
+        if s.is_nan() || s <= 0.0 || !y_dps.is_finite() {
             return;
         }
         let (k0, k1) = (h0 / s, h1 / s);

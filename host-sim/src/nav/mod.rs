@@ -25,8 +25,8 @@ pub use baselines::{
     fit_thermal, AlignmentBias, DriftEstimator, GatedKalman, NoCompensation, TempRate, ThermalFit,
     ThermalKalman, ThermalKalmanConfig,
 };
-pub use gm::{GatedRwGm, RwGmConfig};
 pub use compare::{compare, table, BaselineConfig, Compared, Comparison, Row, NO_COMPENSATION};
+pub use gm::{GatedRwGm, RwGmConfig};
 pub use record::NavRecord;
 pub use score::{DetectorAcc, DetectorScores, HeadingAcc, NavScores, DPH_PER_DPS};
 pub use tune::{log_grid, tune_gated_q, Tuning};

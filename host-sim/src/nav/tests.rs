@@ -197,7 +197,11 @@ fn rw_gm_hand_computed_steps() {
     close(p01, -1.0 / 3.0, 1e-12);
     close(p11, 2.0 / 3.0, 1e-12);
     // Moving sample 1 s later: g halves, P01 halves, P11 = 0.25 * 2/3 + 0.75.
-    close(f.push(1.0, 500.0, None, false), 2.0 / 3.0 + 1.0 / 3.0, 1e-12);
+    close(
+        f.push(1.0, 500.0, None, false),
+        2.0 / 3.0 + 1.0 / 3.0,
+        1e-12,
+    );
     let [p00, p01, p11] = f.covariance();
     close(p00, 2.0 / 3.0, 1e-12);
     close(p01, -1.0 / 6.0, 1e-12);
