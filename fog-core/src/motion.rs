@@ -199,6 +199,15 @@ impl MotionModel {
         self.hidden(x, &mut h);
         dot(&self.weights, &h)
     }
+
+    /// The model with its output weights times `alpha` (the shrinkage of
+    /// [`Transfer::alpha`]; `m` is linear in the weights, so the scale is folded in).
+    pub fn scaled(mut self, alpha: f32) -> Self {
+        for w in &mut self.weights {
+            *w *= alpha;
+        }
+        self
+    }
 }
 
 /// The feature map with the "no temperature channel: hold the reference" rule.
@@ -775,81 +784,26 @@ impl MotionTrainer {
         temp_c: Option<&[f32]>,
         sample_rate_hz: f32,
     ) -> Result<RecordFit, MotionError> {
-        if !(sample_rate_hz > 0.0 && sample_rate_hz.is_finite()) {
-            return Err(MotionError::BadSensor);
-        }
-        let w = libm::roundf(self.window_s * sample_rate_hz).max(8.0) as usize;
-        let windows = rate_dps.len() / w;
-        if windows < 2 {
-            return Err(MotionError::RecordTooShort);
-        }
-        // Intercept: mean of the full windows' finite samples (f64 sum: 10^6 samples).
-        let (mut sum, mut n) = (0.0f64, 0u32);
-        for &x in rate_dps.iter().take(windows * w).filter(|x| x.is_finite()) {
-            sum += f64::from(x);
-            n += 1;
-        }
-        let intercept = if n > 0 {
-            (sum / f64::from(n)) as f32
-        } else {
-            0.0
-        };
-
-        let mut inputs = Inputs::new(sample_rate_hz, self.model.scaling.offset[1]);
-        let mut block = [0.0f32; TRAIN_BLOCK];
-        let mut scratch = [0.0f32; TRAIN_BLOCK];
-        let mut h = [0.0f32; MOTION_L];
-        let mut x_window = [0.0f32; MOTION_N];
-        let (mut acc, mut acc_n, mut bad) = (0.0f32, 0usize, false);
         let (mut steps, mut err2) = (0u32, 0.0f64);
-        let mut last = 0.0f32;
-        let dt = 1.0 / sample_rate_hz;
-        let full = windows * w;
-        let mut start = 0usize;
-        while start < full {
-            let end = (start + TRAIN_BLOCK).min(full);
-            let len = end - start;
-            let mut any_bad = [false; TRAIN_BLOCK];
-            for (i, slot) in block.iter_mut().take(len).enumerate() {
-                let v = rate_dps.get(start + i).copied().unwrap_or(f32::NAN);
-                if v.is_finite() {
-                    last = v;
-                } else {
-                    any_bad[i] = true;
+        let ref_temp_c = self.model.scaling.offset[1];
+        let mut h = [0.0f32; MOTION_L];
+        let model = &mut self.model;
+        let drls = &mut self.drls;
+        let intercept = for_each_window(
+            rate_dps,
+            temp_c,
+            sample_rate_hz,
+            self.window_s,
+            ref_temp_c,
+            |x, d| {
+                model.hidden(x, &mut h);
+                let e = drls.step(&mut model.weights, &h, d);
+                if e.is_finite() {
+                    steps += 1;
+                    err2 += f64::from(e) * f64::from(e);
                 }
-                *slot = last;
-            }
-            if len == TRAIN_BLOCK {
-                // A refused block (cannot happen with finite values) stays raw.
-                let _ = denoise_in_place(&mut block, &mut scratch, &DenoiseConfig::PAPER);
-            }
-            for i in 0..len {
-                let k = start + i;
-                let temp = temp_c.and_then(|t| t.get(k).copied()).unwrap_or(f32::NAN);
-                let x = inputs.next(k as f32 * dt, temp);
-                if k.is_multiple_of(w) {
-                    x_window = x;
-                }
-                acc += block[i];
-                acc_n += 1;
-                bad |= any_bad[i];
-                if acc_n == w {
-                    if !bad {
-                        self.model.hidden(&x_window, &mut h);
-                        let d = acc / w as f32 - intercept;
-                        let e = self.drls.step(&mut self.model.weights, &h, d);
-                        if e.is_finite() {
-                            steps += 1;
-                            err2 += f64::from(e) * f64::from(e);
-                        }
-                    }
-                    acc = 0.0;
-                    acc_n = 0;
-                    bad = false;
-                }
-            }
-            start = end;
-        }
+            },
+        )?;
         self.records = self.records.wrapping_add(1);
         Ok(RecordFit {
             steps,
@@ -875,6 +829,185 @@ impl MotionTrainer {
     /// Records trained on (passes included).
     pub fn records(&self) -> u32 {
         self.records
+    }
+}
+
+/// The training targets of one static record: calls `f(x, d)` for every full detector
+/// window without a non-finite rate, `x` the features at the window's first sample, `d` the
+/// window's mean of the denoised rate minus the record's intercept (returned: the mean of
+/// the full windows' finite samples). See [`MotionTrainer`] for the steps.
+fn for_each_window(
+    rate_dps: &[f32],
+    temp_c: Option<&[f32]>,
+    sample_rate_hz: f32,
+    window_s: f32,
+    ref_temp_c: f32,
+    mut f: impl FnMut(&[f32; MOTION_N], f32),
+) -> Result<f32, MotionError> {
+    if !(sample_rate_hz > 0.0 && sample_rate_hz.is_finite()) {
+        return Err(MotionError::BadSensor);
+    }
+    let w = libm::roundf(window_s * sample_rate_hz).max(8.0) as usize;
+    let windows = rate_dps.len() / w;
+    if windows < 2 {
+        return Err(MotionError::RecordTooShort);
+    }
+    // Intercept: mean of the full windows' finite samples (f64 sum: 10^6 samples).
+    let (mut sum, mut n) = (0.0f64, 0u32);
+    for &x in rate_dps.iter().take(windows * w).filter(|x| x.is_finite()) {
+        sum += f64::from(x);
+        n += 1;
+    }
+    let intercept = if n > 0 {
+        (sum / f64::from(n)) as f32
+    } else {
+        0.0
+    };
+
+    let mut inputs = Inputs::new(sample_rate_hz, ref_temp_c);
+    let mut block = [0.0f32; TRAIN_BLOCK];
+    let mut scratch = [0.0f32; TRAIN_BLOCK];
+    let mut x_window = [0.0f32; MOTION_N];
+    let (mut acc, mut acc_n, mut bad) = (0.0f32, 0usize, false);
+    let mut last = 0.0f32;
+    let dt = 1.0 / sample_rate_hz;
+    let full = windows * w;
+    let mut start = 0usize;
+    while start < full {
+        let end = (start + TRAIN_BLOCK).min(full);
+        let len = end - start;
+        let mut any_bad = [false; TRAIN_BLOCK];
+        for (i, slot) in block.iter_mut().take(len).enumerate() {
+            let v = rate_dps.get(start + i).copied().unwrap_or(f32::NAN);
+            if v.is_finite() {
+                last = v;
+            } else {
+                any_bad[i] = true;
+            }
+            *slot = last;
+        }
+        if len == TRAIN_BLOCK {
+            // A refused block (cannot happen with finite values) stays raw.
+            let _ = denoise_in_place(&mut block, &mut scratch, &DenoiseConfig::PAPER);
+        }
+        for i in 0..len {
+            let k = start + i;
+            let temp = temp_c.and_then(|t| t.get(k).copied()).unwrap_or(f32::NAN);
+            let x = inputs.next(k as f32 * dt, temp);
+            if k.is_multiple_of(w) {
+                x_window = x;
+            }
+            acc += block[i];
+            acc_n += 1;
+            bad |= any_bad[i];
+            if acc_n == w {
+                if !bad {
+                    f(&x_window, acc / w as f32 - intercept);
+                }
+                acc = 0.0;
+                acc_n = 0;
+                bad = false;
+            }
+        }
+        start = end;
+    }
+    Ok(intercept)
+}
+
+/// How well a model's shape transfers to records it was not trained on: sums over the
+/// windows of held-out static records of the centred targets `d` (the trainer's, see
+/// [`MotionTrainer`]) and the model's predictions `p`, each centred per record (the level
+/// absorbs any constant). Filled by [`Transfer::add_record`], one record at a time.
+///
+/// With `E(alpha) = sum (d - alpha p)^2` (centred per record), [`Transfer::alpha`] is the
+/// least-squares scale `sum d p / sum p p` clamped to `[0, 1]` (0 when the model does not
+/// transfer, 1 at most: the shrinkage never amplifies), and [`Transfer::gain`] the
+/// fraction of `E(0)` (the error of `m = 0`) a scale removes.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Transfer {
+    /// Windows summed.
+    pub windows: u64,
+    /// Records summed.
+    pub records: u32,
+    /// Sum of centred `d^2`, deg^2/s^2.
+    pub dd: f64,
+    /// Sum of centred `d p`, deg^2/s^2.
+    pub dp: f64,
+    /// Sum of centred `p^2`, deg^2/s^2.
+    pub pp: f64,
+}
+
+impl Transfer {
+    /// Adds one held-out record (the same arguments as [`MotionTrainer::train_record`])
+    /// scored with `model`; returns the record's own sums.
+    pub fn add_record(
+        &mut self,
+        model: &MotionModel,
+        rate_dps: &[f32],
+        temp_c: Option<&[f32]>,
+        sample_rate_hz: f32,
+        window_s: f32,
+    ) -> Result<Transfer, MotionError> {
+        if !(window_s > 0.0 && window_s.is_finite()) {
+            return Err(MotionError::BadStillConfig);
+        }
+        let (mut n, mut sd, mut sp, mut sdd, mut sdp, mut spp) = (0u64, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for_each_window(
+            rate_dps,
+            temp_c,
+            sample_rate_hz,
+            window_s,
+            model.scaling.offset[1],
+            |x, d| {
+                let p = f64::from(model.eval(x));
+                let d = f64::from(d);
+                if p.is_finite() {
+                    n += 1;
+                    sd += d;
+                    sp += p;
+                    sdd += d * d;
+                    sdp += d * p;
+                    spp += p * p;
+                }
+            },
+        )?;
+        let mut one = Transfer::default();
+        if n > 0 {
+            let nf = n as f64;
+            one = Transfer {
+                windows: n,
+                records: 1,
+                dd: (sdd - sd * sd / nf).max(0.0),
+                dp: sdp - sd * sp / nf,
+                pp: (spp - sp * sp / nf).max(0.0),
+            };
+        }
+        self.windows += one.windows;
+        self.records += one.records;
+        self.dd += one.dd;
+        self.dp += one.dp;
+        self.pp += one.pp;
+        Ok(one)
+    }
+
+    /// The scale in `[0, 1]` that minimises the held-out error (0 with no model output).
+    pub fn alpha(&self) -> f32 {
+        if self.pp > 0.0 && self.dp.is_finite() {
+            (self.dp / self.pp).clamp(0.0, 1.0) as f32
+        } else {
+            0.0
+        }
+    }
+
+    /// Fraction of the error of `m = 0` removed by `alpha m` (negative: worse than 0;
+    /// NaN with no target variance).
+    pub fn gain(&self, alpha: f32) -> f64 {
+        let a = f64::from(alpha);
+        if self.dd > 0.0 {
+            (2.0 * a * self.dp - a * a * self.pp) / self.dd
+        } else {
+            f64::NAN
+        }
     }
 }
 
@@ -943,6 +1076,76 @@ mod tests {
             MotionModel::standard(1800.0).expect("test").eval(&x(10.0)),
             0.0
         );
+    }
+
+    /// Leave-one-record-out over `records` (600 s at 100 Hz): the pooled held-out
+    /// [`Transfer`] of models trained on the others (1 pass).
+    fn leave_one_out(records: &[Vec<f32>]) -> Transfer {
+        let mut cv = Transfer::default();
+        for held in 0..records.len() {
+            let model = MotionModel::standard(600.0).expect("test");
+            let mut tr = MotionTrainer::new(model, MOTION_DRLS, 1.0).expect("test");
+            for (i, r) in records.iter().enumerate() {
+                if i != held {
+                    tr.train_record(r, None, 100.0).expect("test");
+                }
+            }
+            cv.add_record(tr.model(), &records[held], None, 100.0, 1.0)
+                .expect("test");
+        }
+        cv
+    }
+
+    #[test]
+    fn shrinkage_keeps_a_shared_shape_and_drops_unit_specific_ones() {
+        let sigma = S.sample_var_dps2().sqrt();
+        let n = 60_000usize;
+        // Shared: every unit has the same 6 deg/h warm-up (tau 150 s) plus its own offset.
+        let shared: Vec<Vec<f32>> = (0..5u64)
+            .map(|r| {
+                let mut z = Noise(100 + r);
+                let bias = (r as f32 - 2.0) * 3.0 / 3600.0;
+                (0..n)
+                    .map(|k| {
+                        let t = k as f32 * 0.01;
+                        bias + 6.0 / 3600.0 * (-t / 150.0).exp() + sigma * z.normal()
+                    })
+                    .collect()
+            })
+            .collect();
+        let cv = leave_one_out(&shared);
+        assert_eq!(cv.records, 5);
+        assert!(cv.alpha() > 0.8, "shared alpha {}: {cv:?}", cv.alpha());
+        // The window means' white noise (about 4 deg/h, 1 sigma) dominates E(0): the
+        // shape's share of it is about 16 %, of which the held-out model removes most.
+        assert!(cv.gain(cv.alpha()) > 0.1, "{cv:?}");
+        // Unit-specific: each unit's shape is a sine of its own random phase, period and
+        // sign (6 deg/h): what one unit teaches mispredicts the next.
+        let specific: Vec<Vec<f32>> = (0..5u64)
+            .map(|r| {
+                let mut z = Noise(200 + r);
+                let phase = z.normal() * 3.0;
+                let period_s = 150.0 + 120.0 * r as f32;
+                let sign = if r % 2 == 0 { 1.0 } else { -1.0 };
+                (0..n)
+                    .map(|k| {
+                        let t = k as f32 * 0.01;
+                        let w = 2.0 * core::f32::consts::PI * t / period_s;
+                        sign * 6.0 / 3600.0 * (w + phase).sin() + sigma * z.normal()
+                    })
+                    .collect()
+            })
+            .collect();
+        let cv = leave_one_out(&specific);
+        assert!(cv.alpha() < 0.2, "specific alpha {}: {cv:?}", cv.alpha());
+        // The shrunk model never does worse than no model on the held-out records.
+        assert!(cv.gain(cv.alpha()) >= 0.0, "{cv:?}");
+        // Scaling folds into the weights.
+        let m = MotionModel::standard(600.0).expect("test");
+        let mut w = m;
+        w.weights = [1.0 / 3600.0; MOTION_L];
+        let x = [100.0, REFERENCE_TEMP_C, 0.0];
+        assert!((w.scaled(0.25).eval(&x) - 0.25 * w.eval(&x)).abs() < 1e-9);
     }
 
     #[test]
