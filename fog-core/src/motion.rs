@@ -22,11 +22,11 @@
 //!   before it, stays in the level), with a per-sample fast gate ([`FAST_GATE_K`]) that
 //!   stops the updates at the first sample of a drive. In motion the level is frozen while
 //!   its variance keeps growing, so it re-converges at the next stop. Optional, in the same
-//!   second-state slot ([`LevelUpdate::Sample`] only, off by default): a per-unit gain on
-//!   `m` ([`MotionEstimator::with_unit_gain`]: no gain measured) or a first-order
-//!   Gauss-Markov state beside the level ([`MotionEstimator::with_gauss_markov`]: below
-//!   the per-sample Kalman filter on static records, worse than the default on the
-//!   simulator's vehicles; docs/motion.md).
+//!   second-state slot (off by default): a per-unit gain on `m` ([`LevelUpdate::Sample`]
+//!   only, [`MotionEstimator::with_unit_gain`]: no gain measured) or a first-order
+//!   Gauss-Markov state beside the level ([`MotionEstimator::with_gauss_markov`], either
+//!   update: per sample with rollback, or per released window as a two-state Kalman step,
+//!   the "hybrid"; measured in docs/motion.md).
 //! - The clamp to the sensor's drift bound ([`SensorConfig::drift_bound_dps`]) means that
 //!   no state can subtract more than the bound from the rate.
 //!
@@ -319,14 +319,21 @@ pub struct MotionEstimator {
     stats: MotionStats,
 }
 
-/// What the level's second state is ([`LevelUpdate::Sample`] only).
+/// What the level's second state is (the gain: [`LevelUpdate::Sample`] only).
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Second {
     /// Per-unit gain on `m`: constant, observed through `m`.
     Gain,
     /// First-order Gauss-Markov state added to the level: `g <- a g + w`,
     /// `var w = q` per sample, observed with coefficient 1.
-    GaussMarkov { a: f32, q: f32, sigma2: f32 },
+    /// `a_window` = `a` to the power of the detector window's samples (the
+    /// [`LevelUpdate::Window`] prediction, once per window).
+    GaussMarkov {
+        a: f32,
+        a_window: f32,
+        q: f32,
+        sigma2: f32,
+    },
 }
 
 /// Fast gate of [`LevelUpdate::Sample`], in sigma of the innovation (ASSUMED: 5 sigma,
@@ -444,23 +451,27 @@ impl MotionEstimator {
         self
     }
 
-    /// A first-order Gauss-Markov state added to the level ([`LevelUpdate::Sample`] only;
-    /// replaces the unit gain, which uses the same slot): the drift is
-    /// `level + g + m(x)`, `g <- a g + w` at every sample (still or not), `a =
-    /// exp(-1 / (rate_hz tau_s))`, `var w = sigma^2 (1 - a^2)`; learned only from still
-    /// samples, rolled back with the level (propagated over the rolled-back samples). In
-    /// motion `g` decays toward 0 and the held estimate tends to the slow level. Models
-    /// the bias instability between stops better than a random walk alone.
-    /// `sigma_dps` = 0 or a `tau_s` that is not finite and > 0 turns it off. Adds per sample
-    /// 4 multiply/add (the prediction).
+    /// A first-order Gauss-Markov state added to the level (replaces the unit gain, which
+    /// uses the same slot): the drift is `level + g + m(x)`, `g <- a g + w`, `a =
+    /// exp(-1 / (rate_hz tau_s))` per sample, `var w = sigma^2 (1 - a^2)`.
+    /// [`LevelUpdate::Sample`]: predicted at every sample (still or not), learned only
+    /// from still samples, rolled back with the level (propagated over the rolled-back
+    /// samples); adds per sample 4 multiply/add. [`LevelUpdate::Window`] (the hybrid):
+    /// predicted once per window (still or not), learned with the level by one two-state
+    /// Kalman step per released window mean; adds about 20 flops per window, none per
+    /// sample. In motion `g` decays toward 0 and the held estimate tends to the slow
+    /// level. Models the bias instability between stops better than a random walk alone.
+    /// `sigma_dps` = 0 or a `tau_s` that is not finite and > 0 turns it off.
     pub fn with_gauss_markov(mut self, sigma_dps: f32, tau_s: f32) -> Self {
         self.gain_sigma0 = 0.0;
         self.second =
             if sigma_dps.is_finite() && sigma_dps != 0.0 && tau_s > 0.0 && tau_s.is_finite() {
                 let a = libm::expf(-1.0 / (self.cfg.sensor.sample_rate_hz * tau_s));
                 let sigma2 = sigma_dps * sigma_dps;
+                let n = self.still.window_samples() as f32;
                 Second::GaussMarkov {
                     a,
+                    a_window: libm::expf(-n / (self.cfg.sensor.sample_rate_hz * tau_s)),
                     q: sigma2 * (1.0 - a * a),
                     sigma2,
                 }
@@ -492,7 +503,7 @@ impl MotionEstimator {
     /// alone with the unit gain (as before it existed), the sum with the Gauss-Markov state.
     fn drift_var(&self) -> f32 {
         match (self.second, self.update) {
-            (Second::GaussMarkov { .. }, LevelUpdate::Sample) => {
+            (Second::GaussMarkov { .. }, _) => {
                 self.level_var + 2.0 * self.gain_cov + self.gain_var
             }
             _ => self.level_var,
@@ -506,6 +517,41 @@ impl MotionEstimator {
             self.gain *= an;
             self.gain_cov *= an;
             self.gain_var = an * an * self.gain_var + sigma2 * (1.0 - an * an);
+        }
+    }
+
+    /// [`LevelUpdate::Window`]: predicts the Gauss-Markov state over one detector window
+    /// (no-op without it).
+    fn predict_second_window(&mut self) {
+        if let Second::GaussMarkov {
+            a_window, sigma2, ..
+        } = self.second
+        {
+            self.gain *= a_window;
+            self.gain_cov *= a_window;
+            self.gain_var = a_window * a_window * self.gain_var + sigma2 * (1.0 - a_window * a_window);
+        }
+    }
+
+    /// [`LevelUpdate::Window`] with the Gauss-Markov state: one two-state Kalman step on a
+    /// released window mean `z` (= `rate - m`, variance `r`), observation `level + g`.
+    /// ASSUMED: the released window is one window old; its `g` is taken as today's (the
+    /// state moved by `1 - a_window`, under 1 % for `tau_s` > 100 s).
+    fn window_step_gm(&mut self, z: f32, r: f32) {
+        let innovation = z - self.level - self.gain;
+        let ph0 = self.level_var + self.gain_cov;
+        let ph1 = self.gain_cov + self.gain_var;
+        let s = ph0 + ph1 + r;
+        let k0 = ph0 / s;
+        let k1 = ph1 / s;
+        let level = self.level + k0 * innovation;
+        let g = self.gain + k1 * innovation;
+        if level.is_finite() && g.is_finite() {
+            self.level = level;
+            self.gain = g;
+            self.level_var -= k0 * ph0;
+            self.gain_cov -= k0 * ph1;
+            self.gain_var -= k1 * ph1;
         }
     }
 
@@ -589,6 +635,7 @@ impl MotionEstimator {
                 }
             } else {
                 self.level_var += self.window_q;
+                self.predict_second_window();
             }
             if let Some(mean) = w.confirmed_mean_dps {
                 if let Some(t) = self.refine.as_mut() {
@@ -603,11 +650,15 @@ impl MotionEstimator {
                     // model_prev (windows and evaluations coincide).
                     let z = mean - self.model_prev;
                     let r = self.still.window_mean_var_dps2();
-                    let gain = self.level_var / (self.level_var + r);
-                    let level = self.level + gain * (z - self.level);
-                    if level.is_finite() {
-                        self.level = level;
-                        self.level_var *= 1.0 - gain;
+                    if let Second::GaussMarkov { .. } = self.second {
+                        self.window_step_gm(z, r);
+                    } else {
+                        let gain = self.level_var / (self.level_var + r);
+                        let level = self.level + gain * (z - self.level);
+                        if level.is_finite() {
+                            self.level = level;
+                            self.level_var *= 1.0 - gain;
+                        }
                     }
                     self.stats.level_updates = self.stats.level_updates.wrapping_add(1);
                 }
@@ -1359,6 +1410,66 @@ mod tests {
             "{}",
             g_at_drive_start * 3600.0
         );
+        assert!(g_end.abs() < 0.01 * g_at_drive_start.abs());
+    }
+
+    #[test]
+    fn window_hybrid_tracks_a_wander_at_rest_and_ignores_rotation() {
+        // The hybrid: the random-walk level per released window plus the Gauss-Markov
+        // state. At rest, a bias wandering by 2 deg/h (period 250 s) beside a 3 deg/h
+        // offset: the hybrid follows it better than the window level alone (same q).
+        let model = MotionModel::standard(1800.0).expect("test");
+        let cfg = MotionConfig::for_sensor(S);
+        let make = |gm: bool| {
+            let e = MotionEstimator::new(model, cfg).expect("test");
+            if gm {
+                e.with_gauss_markov(2.0 / 3600.0, 60.0)
+            } else {
+                e
+            }
+        };
+        let (mut plain, mut hybrid) = (make(false), make(true));
+        assert_eq!(hybrid.level_update(), LevelUpdate::Window);
+        let mut z = Noise(23);
+        let sigma = S.sample_var_dps2().sqrt();
+        let (mut e_plain, mut e_hybrid) = (0.0f64, 0.0f64);
+        for k in 0..120_000usize {
+            let t = k as f32 * 0.01;
+            let drift = 3.0 / 3600.0 + 2.0 / 3600.0 * (t * 2.0 * core::f32::consts::PI / 250.0).sin();
+            let y = drift + sigma * z.normal();
+            let a = plain.push(y, f32::NAN, None).expect("test");
+            let b = hybrid.push(y, f32::NAN, None).expect("test");
+            if k >= 10_000 {
+                e_plain += f64::from(a.drift_dps - drift).powi(2);
+                e_hybrid += f64::from(b.drift_dps - drift).powi(2);
+            }
+        }
+        assert!(e_hybrid < 0.8 * e_plain, "{e_hybrid} vs {e_plain}");
+        let (g, g_var) = hybrid.gauss_markov();
+        assert!(g != 0.0 && g_var > 0.0);
+        // In motion: the same output with and without a 20 deg/s turn, and the
+        // Gauss-Markov part decays toward 0 (60 s of motion = 6 tau).
+        let make = || {
+            MotionEstimator::new(model, cfg)
+                .expect("test")
+                .with_gauss_markov(3.0 / 3600.0, 10.0)
+        };
+        let (mut a, mut b) = (make(), make());
+        let mut g_at_drive_start = 0.0;
+        for k in 0..12_000usize {
+            let moving = (6000..12_000).contains(&k);
+            let n = sigma * z.normal();
+            let drift = 4.0 / 3600.0 + if k < 5000 { 0.0 } else { 2.0 / 3600.0 };
+            let oa = a.push(drift + n, f32::NAN, Some(!moving)).expect("test");
+            let turn = if moving { 20.0 } else { 0.0 };
+            let ob = b.push(drift + n + turn, f32::NAN, Some(!moving)).expect("test");
+            assert_eq!(oa.drift_dps, ob.drift_dps, "{k}");
+            if k == 6000 {
+                g_at_drive_start = a.gauss_markov().0;
+            }
+        }
+        let g_end = a.gauss_markov().0;
+        assert!(g_at_drive_start.abs() > 0.3 / 3600.0, "{}", g_at_drive_start * 3600.0);
         assert!(g_end.abs() < 0.01 * g_at_drive_start.abs());
     }
 }

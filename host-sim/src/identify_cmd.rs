@@ -110,6 +110,10 @@ pub struct Args {
     /// 4, i.e. 2 deg/h/sqrt(h)).
     #[arg(long)]
     pub level_q_dph2_per_h: Option<f32>,
+    /// `--preset motion`: save the model as trained, without the leave-one-record-out
+    /// shrinkage (host_sim::motion::Shrinkage).
+    #[arg(long)]
+    pub no_shrink: bool,
     /// `--preset motion --validate`: the baselines' gated Kalman q, (deg/s)^2 per sample
     /// (default: tuned on the validation records).
     #[arg(long)]
@@ -236,10 +240,22 @@ fn run_motion(a: &Args) -> Result<()> {
     }
     let mut o = motion::TrainOptions::new(a.sensor.config());
     o.epochs = a.epochs;
+    o.shrink = !a.no_shrink;
     if let Some(q) = a.level_q_dph2_per_h {
         o.config.level_q_dps2_per_s = q / (3600.0 * 3600.0 * 3600.0);
     }
-    let (image, rows) = motion::train(&train, &o)?;
+    let (image, rows, shrink) = motion::train(&train, &o)?;
+    if shrink.cross_validated {
+        eprintln!(
+            "motion shrinkage (leave-one-record-out over {} records): alpha {:.3}, held-out gain {:.1} % (unscaled {:.1} %)",
+            shrink.records.len(),
+            shrink.alpha,
+            100.0 * shrink.heldout_gain,
+            100.0 * shrink.heldout_gain_unscaled
+        );
+    } else {
+        eprintln!("motion shrinkage: not run (alpha 1)");
+    }
     let validation = if a.validate.is_empty() {
         None
     } else {
@@ -254,6 +270,7 @@ fn run_motion(a: &Args) -> Result<()> {
             "sensor": a.sensor,
             "epochs": a.epochs,
             "records": rows,
+            "shrinkage": shrink,
             "weights_dps": image.model.weights,
             "validation": validation,
         }))

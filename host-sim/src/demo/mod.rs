@@ -163,7 +163,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         n: cfg.train_records,
         duration_s: cfg.duration_s,
     };
-    let (mut image, _) = motion::train(&set, &TrainOptions::new(sensor))?;
+    let (mut image, _, shrink) = motion::train(&set, &TrainOptions::new(sensor))?;
     let fogi = dir.join("identifier.fogi");
     eprintln!(
         "demo: trained the motion identifier on {} static {PRESET} records ({} s, unit spread {UNIT_SPREAD}, start {:?} C, self-heating {:?} C) -> {}",
@@ -172,6 +172,12 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         INITIAL_C_RANGE,
         WARMUP_RISE_C_RANGE,
         fogi.display()
+    );
+    eprintln!(
+        "demo: model shrinkage (leave-one-record-out): alpha {:.3}, held-out gain {:.1} % (unscaled {:.1} %)",
+        shrink.alpha,
+        100.0 * shrink.heldout_gain,
+        100.0 * shrink.heldout_gain_unscaled
     );
     let mut val = Vec::new();
     for i in 0..cfg.validate_records {

@@ -15,7 +15,8 @@ use crate::record;
 use anyhow::{anyhow, bail, Context, Result};
 use fog_core::image::{Image, IMAGE_LEN};
 use fog_core::motion::{
-    MotionConfig, MotionEstimator, MotionModel, MotionOutput, MotionTrainer, RecordFit, MOTION_DRLS,
+    MotionConfig, MotionEstimator, MotionModel, MotionOutput, MotionTrainer, RecordFit, Transfer,
+    MOTION_DRLS,
 };
 use fog_core::still::SensorConfig;
 use serde::Serialize;
@@ -52,6 +53,8 @@ pub struct TrainOptions {
     pub epochs: u32,
     /// Time range of the model, s.
     pub time_max_s: f32,
+    /// Shrink the model by leave-one-record-out cross-validation ([`Shrinkage`]).
+    pub shrink: bool,
 }
 
 impl TrainOptions {
@@ -61,6 +64,7 @@ impl TrainOptions {
             config: MotionConfig::for_sensor(sensor),
             epochs: 3,
             time_max_s: 1800.0,
+            shrink: true,
         }
     }
 }
@@ -91,15 +95,95 @@ pub fn check_rate(s: &Series, sensor: &SensorConfig) -> Result<f32> {
     Ok(hz)
 }
 
-/// Trains a model on `records` (each static, from power-on) and returns its image and the
-/// per-record figures of the last pass.
-pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<(Image, Vec<TrainedRecord>)> {
-    let mut tr = trainer(o)?;
-    let mut rows = Vec::new();
-    for pass in 0..o.epochs {
-        for i in 0..records.len() {
+/// Leave-one-record-out estimate of how well the family model transfers to an unseen unit,
+/// and the scale applied to the saved model.
+///
+/// For each training record: a model trained (same passes) on the OTHER records scores the
+/// held-out record's centred window means ([`Transfer`]). `alpha` = the scale in `[0, 1]`
+/// minimising the pooled held-out error; the saved model (trained on all records) has its
+/// output weights times `alpha` (folded into the weights: no image change). `alpha` = 0:
+/// the model does not transfer, the identifier is the gated level alone. ASSUMED: the
+/// training records are units of the family the identifier will meet (one record per unit;
+/// two records of one unit make the estimate optimistic). Fewer than 3 records: no
+/// cross-validation, `alpha` = 1.
+#[derive(Debug, Clone, Serialize)]
+pub struct Shrinkage {
+    /// The scale applied, in `[0, 1]`.
+    pub alpha: f32,
+    /// Pooled held-out gain at `alpha`: the fraction of the error of `m = 0` removed
+    /// (negative: worse than no model).
+    pub heldout_gain: f64,
+    /// Pooled held-out gain of the unscaled model (`alpha` = 1).
+    pub heldout_gain_unscaled: f64,
+    /// Per held-out record: (name, gain of the unscaled model, gain at `alpha`).
+    pub records: Vec<(String, f64, f64)>,
+    /// False when it was not run (`--no-shrink`, fewer than 3 records, or 0 passes).
+    pub cross_validated: bool,
+}
+
+impl Shrinkage {
+    fn none() -> Self {
+        Self {
+            alpha: 1.0,
+            heldout_gain: f64::NAN,
+            heldout_gain_unscaled: f64::NAN,
+            records: Vec::new(),
+            cross_validated: false,
+        }
+    }
+}
+
+/// Trains a model on `records` (each static, from power-on) and returns its image, the
+/// per-record figures of the last pass and the shrinkage ([`Shrinkage`], when
+/// `o.shrink`). The records are read once and held in memory.
+pub fn train(
+    records: &dyn Records,
+    o: &TrainOptions,
+) -> Result<(Image, Vec<TrainedRecord>, Shrinkage)> {
+    let all: Vec<Series> = (0..records.len())
+        .map(|i| {
             let s = records.get(i)?;
             check_rate(&s, &o.config.sensor)?;
+            Ok(s)
+        })
+        .collect::<Result<_>>()?;
+    let (tr, fits) = train_on(&all, None, o)?;
+    let rows = all
+        .iter()
+        .zip(fits)
+        .map(|(s, fit)| TrainedRecord {
+            name: s.name.clone(),
+            steps: fit.steps,
+            intercept_dph: f64::from(fit.intercept_dps) * 3600.0,
+            rms_error_dph: f64::from(fit.rms_error_dps) * 3600.0,
+        })
+        .collect();
+    let shrink = if o.shrink && all.len() >= 3 && o.epochs > 0 {
+        cross_validate(&all, o)?
+    } else {
+        Shrinkage::none()
+    };
+    let model = tr.model().scaled(shrink.alpha);
+    Ok((
+        Image::new(o.config, model, tr.drls(), tr.records()),
+        rows,
+        shrink,
+    ))
+}
+
+/// `o.epochs` passes over `all` except record `skip`; the fits of the last pass.
+fn train_on(
+    all: &[Series],
+    skip: Option<usize>,
+    o: &TrainOptions,
+) -> Result<(MotionTrainer, Vec<RecordFit>)> {
+    let mut tr = trainer(o)?;
+    let mut fits = Vec::new();
+    for pass in 0..o.epochs {
+        for (i, s) in all.iter().enumerate() {
+            if Some(i) == skip {
+                continue;
+            }
             let fit: RecordFit = tr
                 .train_record(
                     &s.rate_dps,
@@ -108,19 +192,40 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<(Image, Vec<Trai
                 )
                 .map_err(|e| anyhow!("{}: {e}", s.name))?;
             if pass + 1 == o.epochs {
-                rows.push(TrainedRecord {
-                    name: s.name.clone(),
-                    steps: fit.steps,
-                    intercept_dph: f64::from(fit.intercept_dps) * 3600.0,
-                    rms_error_dph: f64::from(fit.rms_error_dps) * 3600.0,
-                });
+                fits.push(fit);
             }
         }
     }
-    Ok((
-        Image::new(o.config, *tr.model(), tr.drls(), tr.records()),
-        rows,
-    ))
+    Ok((tr, fits))
+}
+
+fn cross_validate(all: &[Series], o: &TrainOptions) -> Result<Shrinkage> {
+    let mut pooled = Transfer::default();
+    let mut each = Vec::new();
+    for (i, s) in all.iter().enumerate() {
+        let (tr, _) = train_on(all, Some(i), o)?;
+        let one = pooled
+            .add_record(
+                tr.model(),
+                &s.rate_dps,
+                s.temp_c.as_deref(),
+                o.config.sensor.sample_rate_hz,
+                o.config.still.window_s,
+            )
+            .map_err(|e| anyhow!("{}: {e}", s.name))?;
+        each.push((s.name.clone(), one));
+    }
+    let alpha = pooled.alpha();
+    Ok(Shrinkage {
+        alpha,
+        heldout_gain: pooled.gain(alpha),
+        heldout_gain_unscaled: pooled.gain(1.0),
+        records: each
+            .into_iter()
+            .map(|(n, t)| (n, t.gain(1.0), t.gain(alpha)))
+            .collect(),
+        cross_validated: true,
+    })
 }
 
 fn trainer(o: &TrainOptions) -> Result<MotionTrainer> {
