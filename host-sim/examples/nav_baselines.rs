@@ -16,23 +16,26 @@
 //! vehicles over [`rwgm_grid`] (a pick at a grid end is marked `GRID END`).
 //!
 //! Then the firmware's preset `motion` (fog_core::motion), trained on the same 12 static
-//! records (3 DRLS passes), its level noise tuned on the same validation vehicles, with ITS
-//! OWN detector (no truth): both level updates ([`LevelUpdate::Window`], the window-mean
-//! update; [`LevelUpdate::Sample`], per sample with rollback), the same with the truth as
-//! external still flag, and an untrained model (the gated Kalman part alone); `Sample` with
-//! a Gauss-Markov state beside the level ([`MotionEstimator::with_gauss_markov`]) whose
-//! sigma and tau come from the RW+GM filter tuned on the validation vehicles
-//! (`vehicle-tuned`) or on the static validation units (`static-tuned`); the detector's
-//! false-still / missed-still rates. Finally static records (4 static test units per set):
-//! e_truth of the per-sample random-walk Kalman and RW+GM Kalman (every sample still,
-//! parameters tuned on 3 static validation units by e_truth) against `motion` (q tuned
-//! the same way, the GM state's sigma and tau from the static RW+GM tuning).
+//! records (3 DRLS passes) and shrunk by leave-one-record-out over them (alpha and the
+//! held-out gains printed; `unshrunk m` rows: the model as trained), its level noise
+//! tuned on the same validation vehicles (a pick at an end of the q grid is marked
+//! `GRID END`), with ITS OWN detector (no truth): the window-mean level
+//! ([`LevelUpdate::Window`], the default), the per-sample level with rollback
+//! ([`LevelUpdate::Sample`]), each with or without a Gauss-Markov state
+//! ([`MotionEstimator::with_gauss_markov`]; `Window` + GM is the "hybrid") whose sigma and
+//! tau come from the RW+GM filter tuned on the static validation units (`static-tuned`)
+//! or on the validation vehicles (`vehicle-tuned`); an untrained model (the gated level
+//! alone); the detector's false-still / missed-still rates. Finally static records (4
+//! static test units per set): e_truth of the per-sample random-walk Kalman and RW+GM
+//! Kalman (every sample still, parameters tuned on 3 static validation units by e_truth)
+//! against `motion` (q tuned the same way, the GM state's sigma and tau from the static
+//! RW+GM tuning).
 //! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
 //! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
 use anyhow::{bail, Result};
 use fog_core::motion::{
-    LevelUpdate, MotionConfig, MotionEstimator, MotionModel, MotionTrainer, MOTION_DRLS,
+    LevelUpdate, MotionConfig, MotionEstimator, MotionModel, MotionTrainer, Transfer, MOTION_DRLS,
 };
 use fog_core::still::SensorConfig;
 use host_sim::nav::{
@@ -334,6 +337,17 @@ fn q_grid_dph2_per_h() -> Vec<f64> {
     log_grid(0.25, 16384.0, 4)
 }
 
+/// ` (GRID END)` when `q` is an end of [`q_grid_dph2_per_h`].
+fn q_end(q: f64) -> &'static str {
+    let g = q_grid_dph2_per_h();
+    let at = |v: Option<&f64>| v.is_some_and(|v| (q / v - 1.0).abs() < 1e-9);
+    if at(g.first()) || at(g.last()) {
+        " (GRID END)"
+    } else {
+        ""
+    }
+}
+
 fn q_dps2_per_s(q_dph2_per_h: f64) -> f32 {
     (q_dph2_per_h / 3600f64.powi(3)) as f32
 }
@@ -342,8 +356,6 @@ fn q_dps2_per_s(q_dph2_per_h: f64) -> f32 {
 #[derive(Clone, Copy)]
 enum Second {
     None,
-    /// Per-unit gain, prior sigma.
-    Gain(f32),
     /// Gauss-Markov state with the sigma and tau of this RW+GM configuration.
     Gm(RwGmConfig),
 }
@@ -363,7 +375,6 @@ fn motion_est(
         .with_level_update(update);
     let est = match second {
         Second::None => est,
-        Second::Gain(s) => est.with_unit_gain(s),
         Second::Gm(c) => est.with_gauss_markov(c.sigma_gm_dps as f32, c.tau_s as f32),
     };
     Ok(Motion {
@@ -373,21 +384,54 @@ fn motion_est(
     })
 }
 
-fn train_motion(recs: &[NavRecord], sensors: &[SensorConfig]) -> Result<MotionModel> {
+fn f32s(v: &[f64]) -> Vec<f32> {
+    v.iter().map(|&x| x as f32).collect()
+}
+
+/// 3 DRLS passes over `recs` except record `skip`.
+fn train_motion(
+    recs: &[NavRecord],
+    sensors: &[SensorConfig],
+    skip: Option<usize>,
+) -> Result<MotionModel> {
     let model = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut tr = MotionTrainer::new(model, MOTION_DRLS, 1.0).map_err(|e| anyhow::anyhow!("{e}"))?;
     for _ in 0..3 {
-        for (r, s) in recs.iter().zip(sensors) {
-            let rate: Vec<f32> = r.rate_dps.iter().map(|&x| x as f32).collect();
-            let temp: Option<Vec<f32>> = r
-                .temp_c
-                .as_ref()
-                .map(|t| t.iter().map(|&x| x as f32).collect());
-            tr.train_record(&rate, temp.as_deref(), s.sample_rate_hz)
+        for (i, (r, s)) in recs.iter().zip(sensors).enumerate() {
+            if Some(i) == skip {
+                continue;
+            }
+            let temp = r.temp_c.as_deref().map(f32s);
+            tr.train_record(&f32s(&r.rate_dps), temp.as_deref(), s.sample_rate_hz)
                 .map_err(|e| anyhow::anyhow!("{e}"))?;
         }
     }
     Ok(*tr.model())
+}
+
+/// The model trained on all `recs` and the same shrunk by leave-one-record-out
+/// ([`Transfer`], as `host-sim identify --preset motion` does); prints alpha and gains.
+fn train_shrunk(recs: &[NavRecord], sensors: &[SensorConfig]) -> Result<(MotionModel, MotionModel)> {
+    let full = train_motion(recs, sensors, None)?;
+    let mut cv = Transfer::default();
+    let mut each = Vec::new();
+    for (i, (r, s)) in recs.iter().zip(sensors).enumerate() {
+        let m = train_motion(recs, sensors, Some(i))?;
+        let temp = r.temp_c.as_deref().map(f32s);
+        let one = cv
+            .add_record(&m, &f32s(&r.rate_dps), temp.as_deref(), s.sample_rate_hz, 1.0)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        each.push(format!("{:.0}", 100.0 * one.gain(1.0)));
+    }
+    let alpha = cv.alpha();
+    println!(
+        "shrinkage (leave-one-record-out over {} static records): alpha {alpha:.3}, held-out gain {:.1} % (unscaled {:.1} %; per record unscaled, %: {})",
+        recs.len(),
+        100.0 * cv.gain(alpha),
+        100.0 * cv.gain(1.0),
+        each.join(" ")
+    );
+    Ok((full.scaled(alpha), full))
 }
 
 /// Pooled e_truth (RMS(estimate - truth) / RMS(truth)) from 10 s on, every sample still.
@@ -417,7 +461,7 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
     let nv = set.valid.len();
     let (s_train, rest) = set.sensors.split_at(nt);
     let (s_valid, s_test) = rest.split_at(nv);
-    let trained = train_motion(&set.train, s_train)?;
+    let (trained, unshrunk) = train_shrunk(&set.train, s_train)?;
     let untrained = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
     let score = |model: &MotionModel,
                  recs: &[NavRecord],
@@ -461,52 +505,19 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
     // tau from the bias instability at rest).
     let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
     let gmv = Second::Gm(gm_vehicle);
+    let gms = Second::Gm(gm);
     for (name, model, mode) in [
-        (
-            "motion, window update",
-            &trained,
-            (Window, false, Second::None),
-        ),
-        (
-            "motion, sample + rollback",
-            &trained,
-            (Sample, false, Second::None),
-        ),
-        (
-            "motion, sample + unit gain 0.5",
-            &trained,
-            (Sample, false, Second::Gain(0.5)),
-        ),
-        (
-            "motion, sample + GM (vehicle-tuned)",
-            &trained,
-            (Sample, false, gmv),
-        ),
-        (
-            "motion, sample + GM (static-tuned)",
-            &trained,
-            (Sample, false, Second::Gm(gm)),
-        ),
-        (
-            "untrained m, sample + GM (static-tuned)",
-            &untrained,
-            (Sample, false, Second::Gm(gm)),
-        ),
-        (
-            "untrained m, sample + rollback",
-            &untrained,
-            (Sample, false, Second::None),
-        ),
-        (
-            "motion, sample, truth flags",
-            &trained,
-            (Sample, true, Second::None),
-        ),
-        (
-            "motion, sample + GM (static-tuned), truth",
-            &trained,
-            (Sample, true, Second::Gm(gm)),
-        ),
+        ("motion, window update", &trained, (Window, false, Second::None)),
+        ("unshrunk m, window update", &unshrunk, (Window, false, Second::None)),
+        ("motion, sample + rollback", &trained, (Sample, false, Second::None)),
+        ("motion, sample + GM (static-tuned)", &trained, (Sample, false, gms)),
+        ("unshrunk m, sample + GM (static-tuned)", &unshrunk, (Sample, false, gms)),
+        ("motion, hybrid window + GM (static-tuned)", &trained, (Window, false, gms)),
+        ("motion, hybrid window + GM (vehicle-tuned)", &trained, (Window, false, gmv)),
+        ("unshrunk m, hybrid window + GM (static)", &unshrunk, (Window, false, gms)),
+        ("untrained m, window update", &untrained, (Window, false, Second::None)),
+        ("untrained m, hybrid window + GM (static)", &untrained, (Window, false, gms)),
+        ("untrained m, sample + rollback", &untrained, (Sample, false, Second::None)),
     ] {
         let mut best = (f64::INFINITY, 0.0);
         for q in q_grid_dph2_per_h() {
@@ -517,10 +528,11 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
         }
         let (a, b, e, fs, ms) = score(model, &set.test, s_test, best.1, mode)?;
         println!(
-            "{name:<42} {:>8.1} {a:>10.4} {b:>10.4} {e:>10.3} {:>8.2}% {:>8.2}%",
+            "{name:<42} {:>8.1} {a:>10.4} {b:>10.4} {e:>10.3} {:>8.2}% {:>8.2}%{}",
             best.1,
             100.0 * fs,
-            100.0 * ms
+            100.0 * ms,
+            q_end(best.1)
         );
     }
     // Static records.
@@ -547,26 +559,16 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
         rwgm_label(&gm),
         100.0 * (t / k_test - 1.0)
     );
-    let gms = Second::Gm(gm);
     for (name, model, (update, second)) in [
         ("motion, window update", &trained, (Window, Second::None)),
-        (
-            "motion, sample + rollback",
-            &trained,
-            (Sample, Second::None),
-        ),
-        (
-            "motion, sample + unit gain 0.5",
-            &trained,
-            (Sample, Second::Gain(0.5)),
-        ),
+        ("unshrunk m, window update", &unshrunk, (Window, Second::None)),
+        ("motion, sample + rollback", &trained, (Sample, Second::None)),
         ("motion, sample + GM", &trained, (Sample, gms)),
-        ("untrained m, sample + GM", &untrained, (Sample, gms)),
-        (
-            "untrained m, sample + rollback",
-            &untrained,
-            (Sample, Second::None),
-        ),
+        ("unshrunk m, sample + GM", &unshrunk, (Sample, gms)),
+        ("motion, hybrid window + GM", &trained, (Window, gms)),
+        ("unshrunk m, hybrid window + GM", &unshrunk, (Window, gms)),
+        ("untrained m, hybrid window + GM", &untrained, (Window, gms)),
+        ("untrained m, sample + rollback", &untrained, (Sample, Second::None)),
     ] {
         let mk = |q: f64| {
             move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
@@ -582,8 +584,9 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
         }
         let t = e_truth(&set.static_test, mk(best.1))?;
         println!(
-            "static: {name:<32} (q {:.1} (deg/h)^2/h) e_truth {t:.4} ({:+.1} % vs Kalman)",
+            "static: {name:<32} (q {:.1} (deg/h)^2/h{}) e_truth {t:.4} ({:+.1} % vs Kalman)",
             best.1,
+            q_end(best.1),
             100.0 * (t / k_test - 1.0)
         );
     }
