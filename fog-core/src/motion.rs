@@ -846,7 +846,7 @@ impl MotionTrainer {
             sample_rate_hz,
             self.window_s,
             ref_temp_c,
-            |x, d| {
+            |_, x, d| {
                 model.hidden(x, &mut h);
                 let e = drls.step(&mut model.weights, &h, d);
                 if e.is_finite() {
@@ -883,8 +883,8 @@ impl MotionTrainer {
     }
 }
 
-/// The training targets of one static record: calls `f(x, d)` for every full detector
-/// window without a non-finite rate, `x` the features at the window's first sample, `d` the
+/// The training targets of one static record: calls `f(j, x, d)` for every full detector
+/// window `j` (0-based) without a non-finite rate, `x` the features at the window's first sample, `d` the
 /// window's mean of the denoised rate minus the record's intercept (returned: the mean of
 /// the full windows' finite samples). See [`MotionTrainer`] for the steps.
 fn for_each_window(
@@ -893,7 +893,7 @@ fn for_each_window(
     sample_rate_hz: f32,
     window_s: f32,
     ref_temp_c: f32,
-    mut f: impl FnMut(&[f32; MOTION_N], f32),
+    mut f: impl FnMut(usize, &[f32; MOTION_N], f32),
 ) -> Result<f32, MotionError> {
     if !(sample_rate_hz > 0.0 && sample_rate_hz.is_finite()) {
         return Err(MotionError::BadSensor);
@@ -953,7 +953,7 @@ fn for_each_window(
             bad |= any_bad[i];
             if acc_n == w {
                 if !bad {
-                    f(&x_window, acc / w as f32 - intercept);
+                    f(k / w, &x_window, acc / w as f32 - intercept);
                 }
                 acc = 0.0;
                 acc_n = 0;
@@ -965,32 +965,42 @@ fn for_each_window(
     Ok(intercept)
 }
 
+/// Largest lag of [`Transfer::add_record`], windows.
+pub const TRANSFER_MAX_LAG: usize = 600;
+
 /// How well a model's shape transfers to records it was not trained on: sums over the
-/// windows of held-out static records of the centred targets `d` (the trainer's, see
-/// [`MotionTrainer`]) and the model's predictions `p`, each centred per record (the level
-/// absorbs any constant). Filled by [`Transfer::add_record`], one record at a time.
+/// windows of held-out static records of the targets `d` (the trainer's centred window
+/// means, see [`MotionTrainer`]) and the model's predictions `p`, compared the way the
+/// estimator uses them ([`Transfer::add_record`]'s `lag`).
 ///
-/// With `E(alpha) = sum (d - alpha p)^2` (centred per record), [`Transfer::alpha`] is the
-/// least-squares scale `sum d p / sum p p` clamped to `[0, 1]` (0 when the model does not
-/// transfer, 1 at most: the shrinkage never amplifies), and [`Transfer::gain`] the
-/// fraction of `E(0)` (the error of `m = 0`) a scale removes.
+/// With `E(alpha) = sum (d - alpha p)^2` over the compared quantities, [`Transfer::alpha`]
+/// is the least-squares scale `sum d p / sum p p` clamped to `[0, 1]` (0 when the model
+/// does not transfer, 1 at most: the shrinkage never amplifies), and [`Transfer::gain`]
+/// the fraction of `E(0)` (the error of `m = 0`) a scale removes.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Transfer {
-    /// Windows summed.
-    pub windows: u64,
+    /// Terms summed.
+    pub terms: u64,
     /// Records summed.
     pub records: u32,
-    /// Sum of centred `d^2`, deg^2/s^2.
+    /// Sum of `d^2`, deg^2/s^2.
     pub dd: f64,
-    /// Sum of centred `d p`, deg^2/s^2.
+    /// Sum of `d p`, deg^2/s^2.
     pub dp: f64,
-    /// Sum of centred `p^2`, deg^2/s^2.
+    /// Sum of `p^2`, deg^2/s^2.
     pub pp: f64,
 }
 
 impl Transfer {
     /// Adds one held-out record (the same arguments as [`MotionTrainer::train_record`])
     /// scored with `model`; returns the record's own sums.
+    ///
+    /// `lag` = 0: `d` and `p` each centred over the record (the whole shape, up to the
+    /// constant the level absorbs). `lag` = `H` windows (at most [`TRANSFER_MAX_LAG`]):
+    /// the changes `d(j) - d(j - H)` and `p(j) - p(j - H)`, what the model must predict
+    /// over a drive of `H` windows that starts when the level last learned (the
+    /// estimator's error in motion is `(d(t) - d(t0)) - (m(t) - m(t0))`). Pairs with a
+    /// skipped window are left out.
     pub fn add_record(
         &mut self,
         model: &MotionModel,
@@ -998,42 +1008,66 @@ impl Transfer {
         temp_c: Option<&[f32]>,
         sample_rate_hz: f32,
         window_s: f32,
+        lag: usize,
     ) -> Result<Transfer, MotionError> {
         if !(window_s > 0.0 && window_s.is_finite()) {
             return Err(MotionError::BadStillConfig);
         }
+        if lag > TRANSFER_MAX_LAG {
+            return Err(MotionError::BadTrainer);
+        }
         let (mut n, mut sd, mut sp, mut sdd, mut sdp, mut spp) = (0u64, 0.0, 0.0, 0.0, 0.0, 0.0);
+        // Ring of the last `lag` windows: (window index + 1, d, p); 0 = empty.
+        let mut ring = [(0usize, 0.0f64, 0.0f64); TRANSFER_MAX_LAG];
         for_each_window(
             rate_dps,
             temp_c,
             sample_rate_hz,
             window_s,
             model.scaling.offset[1],
-            |x, d| {
+            |j, x, d| {
                 let p = f64::from(model.eval(x));
                 let d = f64::from(d);
-                if p.is_finite() {
-                    n += 1;
-                    sd += d;
-                    sp += p;
-                    sdd += d * d;
-                    sdp += d * p;
-                    spp += p * p;
+                if !p.is_finite() {
+                    return;
                 }
+                let (d, p) = if lag == 0 {
+                    (d, p)
+                } else {
+                    let slot = &mut ring[j % lag];
+                    let old = *slot;
+                    *slot = (j + 1, d, p);
+                    if j < lag || old.0 != j + 1 - lag {
+                        return;
+                    }
+                    (d - old.1, p - old.2)
+                };
+                n += 1;
+                sd += d;
+                sp += p;
+                sdd += d * d;
+                sdp += d * p;
+                spp += p * p;
             },
         )?;
         let mut one = Transfer::default();
         if n > 0 {
+            // Centred (lag 0) or raw changes.
+            let (cd, cp) = if lag == 0 {
+                (sd / n as f64, sp / n as f64)
+            } else {
+                (0.0, 0.0)
+            };
             let nf = n as f64;
             one = Transfer {
-                windows: n,
+                terms: n,
                 records: 1,
-                dd: (sdd - sd * sd / nf).max(0.0),
-                dp: sdp - sd * sp / nf,
-                pp: (spp - sp * sp / nf).max(0.0),
+                dd: (sdd - nf * cd * cd).max(0.0),
+                dp: sdp - nf * cd * cp,
+                pp: (spp - nf * cp * cp).max(0.0),
             };
         }
-        self.windows += one.windows;
+        self.terms += one.terms;
         self.records += one.records;
         self.dd += one.dd;
         self.dp += one.dp;
@@ -1130,8 +1164,8 @@ mod tests {
     }
 
     /// Leave-one-record-out over `records` (600 s at 100 Hz): the pooled held-out
-    /// [`Transfer`] of models trained on the others (1 pass).
-    fn leave_one_out(records: &[Vec<f32>]) -> Transfer {
+    /// [`Transfer`] (lag `lag` windows) of models trained on the others (1 pass).
+    fn leave_one_out(records: &[Vec<f32>], lag: usize) -> Transfer {
         let mut cv = Transfer::default();
         for held in 0..records.len() {
             let model = MotionModel::standard(600.0).expect("test");
@@ -1141,7 +1175,7 @@ mod tests {
                     tr.train_record(r, None, 100.0).expect("test");
                 }
             }
-            cv.add_record(tr.model(), &records[held], None, 100.0, 1.0)
+            cv.add_record(tr.model(), &records[held], None, 100.0, 1.0, lag)
                 .expect("test");
         }
         cv
@@ -1151,7 +1185,7 @@ mod tests {
     fn shrinkage_keeps_a_shared_shape_and_drops_unit_specific_ones() {
         let sigma = S.sample_var_dps2().sqrt();
         let n = 60_000usize;
-        // Shared: every unit has the same 6 deg/h warm-up (tau 150 s) plus its own offset.
+        // Shared: every unit has the same 10 deg/h warm-up (tau 150 s) plus its own offset.
         let shared: Vec<Vec<f32>> = (0..5u64)
             .map(|r| {
                 let mut z = Noise(100 + r);
@@ -1159,17 +1193,21 @@ mod tests {
                 (0..n)
                     .map(|k| {
                         let t = k as f32 * 0.01;
-                        bias + 6.0 / 3600.0 * (-t / 150.0).exp() + sigma * z.normal()
+                        bias + 10.0 / 3600.0 * (-t / 150.0).exp() + sigma * z.normal()
                     })
                     .collect()
             })
             .collect();
-        let cv = leave_one_out(&shared);
-        assert_eq!(cv.records, 5);
-        assert!(cv.alpha() > 0.8, "shared alpha {}: {cv:?}", cv.alpha());
-        // The window means' white noise (about 4 deg/h, 1 sigma) dominates E(0): the
-        // shape's share of it is about 16 %, of which the held-out model removes most.
-        assert!(cv.gain(cv.alpha()) > 0.1, "{cv:?}");
+        for lag in [0, 60] {
+            let cv = leave_one_out(&shared, lag);
+            assert_eq!(cv.records, 5);
+            assert!(cv.alpha() > 0.8, "lag {lag}: shared alpha {}: {cv:?}", cv.alpha());
+            assert!(cv.gain(cv.alpha()) > 0.02, "lag {lag}: {cv:?}");
+        }
+        // The window means' white noise (about 4 deg/h, 1 sigma) dominates E(0); with
+        // lag 0 the shape's share of it is larger than with lag 60 (changes over 60 s).
+        let cv = leave_one_out(&shared, 0);
+        assert!(cv.gain(cv.alpha()) > 0.2, "{cv:?}");
         // Unit-specific: each unit's shape is a sine of its own random phase, period and
         // sign (6 deg/h): what one unit teaches mispredicts the next.
         let specific: Vec<Vec<f32>> = (0..5u64)
@@ -1187,10 +1225,12 @@ mod tests {
                     .collect()
             })
             .collect();
-        let cv = leave_one_out(&specific);
-        assert!(cv.alpha() < 0.2, "specific alpha {}: {cv:?}", cv.alpha());
-        // The shrunk model never does worse than no model on the held-out records.
-        assert!(cv.gain(cv.alpha()) >= 0.0, "{cv:?}");
+        for lag in [0, 60] {
+            let cv = leave_one_out(&specific, lag);
+            assert!(cv.alpha() < 0.2, "lag {lag}: specific alpha {}: {cv:?}", cv.alpha());
+            // The shrunk model never does worse than no model on the held-out records.
+            assert!(cv.gain(cv.alpha()) >= 0.0, "lag {lag}: {cv:?}");
+        }
         // Scaling folds into the weights.
         let m = MotionModel::standard(600.0).expect("test");
         let mut w = m;

@@ -16,8 +16,9 @@
 //! vehicles over [`rwgm_grid`] (a pick at a grid end is marked `GRID END`).
 //!
 //! Then the firmware's preset `motion` (fog_core::motion), trained on the same 12 static
-//! records (3 DRLS passes) and shrunk by leave-one-record-out over them (alpha and the
-//! held-out gains printed; `unshrunk m` rows: the model as trained), its level noise
+//! records (3 DRLS passes) and shrunk by leave-one-record-out over them (scored on the
+//! held-out records' window-mean changes over 60 windows; alpha and the held-out gains
+//! printed; `unshrunk m` rows: the model as trained), its level noise
 //! tuned on the same validation vehicles (a pick at an end of the q grid is marked
 //! `GRID END`), with ITS OWN detector (no truth): the window-mean level
 //! ([`LevelUpdate::Window`], the default), the per-sample level with rollback
@@ -42,6 +43,7 @@ use host_sim::nav::{
     fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, DriftEstimator, GatedKalman,
     GatedRwGm, NavRecord, NoCompensation, RwGmConfig, ThermalKalman, ThermalKalmanConfig,
 };
+use host_sim::motion::SHRINK_LAG_WINDOWS;
 use host_sim::report::{heading_error_svg, still_spans, HeadingSeries};
 use host_sim::sim::{self, Model, Simulator};
 use std::path::{Path, PathBuf};
@@ -306,8 +308,13 @@ fn evaluate(set: &Set, svg_dir: Option<&Path>) -> Result<RwGmConfig> {
 
 /// The motion estimator as a [`DriftEstimator`]: its own detector, or the run's still
 /// flags as its external flag (`truth`). Keeps its still calls for the detector scores.
+/// With `hold` (the "dual" row, measured here only, not in fog-core): `est` runs the
+/// per-sample level and `hold` the window level beside it on the same samples; the output
+/// is `est`'s drift while `est` flags the sample still and `hold`'s otherwise (in motion,
+/// and from the first sample the fast gate or the detector flags moving).
 struct Motion {
     est: MotionEstimator,
+    hold: Option<MotionEstimator>,
     truth: bool,
     calls: Vec<bool>,
 }
@@ -319,10 +326,17 @@ impl DriftEstimator for Motion {
     fn push(&mut self, _: f64, rate_dps: f64, temp_c: Option<f64>, still: bool) -> f64 {
         let temp = temp_c.map_or(f32::NAN, |t| t as f32);
         let ext = self.truth.then_some(still);
+        let held = self
+            .hold
+            .as_mut()
+            .and_then(|h| h.push(rate_dps as f32, temp, ext).ok());
         match self.est.push(rate_dps as f32, temp, ext) {
             Ok(o) => {
                 self.calls.push(o.still);
-                f64::from(o.drift_dps)
+                match held {
+                    Some(h) if !o.still => f64::from(h.drift_dps),
+                    _ => f64::from(o.drift_dps),
+                }
             }
             Err(_) => {
                 self.calls.push(false);
@@ -358,6 +372,10 @@ enum Second {
     None,
     /// Gauss-Markov state with the sigma and tau of this RW+GM configuration.
     Gm(RwGmConfig),
+    /// The dual ([`Motion::hold`]): per-sample level + GM at rest, window level + GM (the
+    /// hybrid) in motion, both with this configuration's sigma and tau and the row's q
+    /// (the row's update is ignored).
+    Dual(RwGmConfig),
 }
 
 fn motion_est(
@@ -373,12 +391,20 @@ fn motion_est(
     let est = MotionEstimator::new(*model, cfg)
         .map_err(|e| anyhow::anyhow!("estimator: {e}"))?
         .with_level_update(update);
-    let est = match second {
-        Second::None => est,
-        Second::Gm(c) => est.with_gauss_markov(c.sigma_gm_dps as f32, c.tau_s as f32),
+    let gm = |e: MotionEstimator, c: RwGmConfig| {
+        e.with_gauss_markov(c.sigma_gm_dps as f32, c.tau_s as f32)
+    };
+    let (est, hold) = match second {
+        Second::None => (est, None),
+        Second::Gm(c) => (gm(est, c), None),
+        Second::Dual(c) => (
+            gm(est.clone().with_level_update(LevelUpdate::Sample), c),
+            Some(gm(est.with_level_update(LevelUpdate::Window), c)),
+        ),
     };
     Ok(Motion {
         est,
+        hold,
         truth,
         calls: Vec::new(),
     })
@@ -410,26 +436,39 @@ fn train_motion(
 }
 
 /// The model trained on all `recs` and the same shrunk by leave-one-record-out
-/// ([`Transfer`], as `host-sim identify --preset motion` does); prints alpha and gains.
-fn train_shrunk(recs: &[NavRecord], sensors: &[SensorConfig]) -> Result<(MotionModel, MotionModel)> {
+/// ([`Transfer`] over changes across [`SHRINK_LAG_WINDOWS`] windows, as `host-sim
+/// identify --preset motion` does); prints alpha and the held-out gains, and the alpha the
+/// whole record's centred shape (lag 0) would give.
+fn train_shrunk(
+    recs: &[NavRecord],
+    sensors: &[SensorConfig],
+) -> Result<(MotionModel, MotionModel)> {
     let full = train_motion(recs, sensors, None)?;
-    let mut cv = Transfer::default();
+    let (mut cv, mut whole) = (Transfer::default(), Transfer::default());
     let mut each = Vec::new();
     for (i, (r, s)) in recs.iter().zip(sensors).enumerate() {
         let m = train_motion(recs, sensors, Some(i))?;
         let temp = r.temp_c.as_deref().map(f32s);
+        let rate = f32s(&r.rate_dps);
+        let e = |e| anyhow::anyhow!("{e}");
+        let fs = s.sample_rate_hz;
         let one = cv
-            .add_record(&m, &f32s(&r.rate_dps), temp.as_deref(), s.sample_rate_hz, 1.0)
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+            .add_record(&m, &rate, temp.as_deref(), fs, 1.0, SHRINK_LAG_WINDOWS)
+            .map_err(e)?;
+        whole
+            .add_record(&m, &rate, temp.as_deref(), fs, 1.0, 0)
+            .map_err(e)?;
         each.push(format!("{:.0}", 100.0 * one.gain(1.0)));
     }
     let alpha = cv.alpha();
     println!(
-        "shrinkage (leave-one-record-out over {} static records): alpha {alpha:.3}, held-out gain {:.1} % (unscaled {:.1} %; per record unscaled, %: {})",
+        "shrinkage (leave-one-record-out over {} static records, changes over {SHRINK_LAG_WINDOWS} windows): alpha {alpha:.3}, held-out gain {:.1} % (unscaled {:.1} %; per record unscaled, %: {}); whole-record shape: alpha {:.3}, gain {:.1} %",
         recs.len(),
         100.0 * cv.gain(alpha),
         100.0 * cv.gain(1.0),
-        each.join(" ")
+        each.join(" "),
+        whole.alpha(),
+        100.0 * whole.gain(whole.alpha())
     );
     Ok((full.scaled(alpha), full))
 }
@@ -515,6 +554,9 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
         ("motion, hybrid window + GM (static-tuned)", &trained, (Window, false, gms)),
         ("motion, hybrid window + GM (vehicle-tuned)", &trained, (Window, false, gmv)),
         ("unshrunk m, hybrid window + GM (static)", &unshrunk, (Window, false, gms)),
+        ("motion, dual sample+GM / hybrid (static)", &trained, (Window, false, Second::Dual(gm))),
+        ("unshrunk m, dual (static)", &unshrunk, (Window, false, Second::Dual(gm))),
+        ("untrained m, dual (static)", &untrained, (Window, false, Second::Dual(gm))),
         ("untrained m, window update", &untrained, (Window, false, Second::None)),
         ("untrained m, hybrid window + GM (static)", &untrained, (Window, false, gms)),
         ("untrained m, sample + rollback", &untrained, (Sample, false, Second::None)),
@@ -568,6 +610,8 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
         ("motion, hybrid window + GM", &trained, (Window, gms)),
         ("unshrunk m, hybrid window + GM", &unshrunk, (Window, gms)),
         ("untrained m, hybrid window + GM", &untrained, (Window, gms)),
+        ("motion, dual", &trained, (Window, Second::Dual(gm))),
+        ("unshrunk m, dual", &unshrunk, (Window, Second::Dual(gm))),
         ("untrained m, sample + rollback", &untrained, (Sample, Second::None)),
     ] {
         let mk = |q: f64| {

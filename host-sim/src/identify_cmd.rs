@@ -247,11 +247,13 @@ fn run_motion(a: &Args) -> Result<()> {
     let (image, rows, shrink) = motion::train(&train, &o)?;
     if shrink.cross_validated {
         eprintln!(
-            "motion shrinkage (leave-one-record-out over {} records): alpha {:.3}, held-out gain {:.1} % (unscaled {:.1} %)",
+            "motion shrinkage (leave-one-record-out over {} records, changes over {} windows): alpha {:.3}, held-out gain {:.1} % (unscaled {:.1} %); whole-record shape alpha {:.3}",
             shrink.records.len(),
+            shrink.lag_windows,
             shrink.alpha,
             100.0 * shrink.heldout_gain,
-            100.0 * shrink.heldout_gain_unscaled
+            100.0 * shrink.heldout_gain_unscaled,
+            shrink.alpha_whole_record
         );
     } else {
         eprintln!("motion shrinkage: not run (alpha 1)");

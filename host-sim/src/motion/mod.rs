@@ -55,7 +55,15 @@ pub struct TrainOptions {
     pub time_max_s: f32,
     /// Shrink the model by leave-one-record-out cross-validation ([`Shrinkage`]).
     pub shrink: bool,
+    /// The drive the shrinkage scores the model over, detector windows
+    /// ([`fog_core::motion::Transfer::add_record`]'s `lag`; 0: the whole record's shape).
+    pub shrink_lag_windows: usize,
 }
+
+/// Default drive of the shrinkage: 60 windows (60 s with the default 1-s window). ASSUMED:
+/// a typical time between stops of a land vehicle (the simulator's vehicle profile drives
+/// tens of seconds to a few minutes).
+pub const SHRINK_LAG_WINDOWS: usize = 60;
 
 impl TrainOptions {
     /// Defaults for `sensor`: 3 passes, 1800 s.
@@ -65,6 +73,7 @@ impl TrainOptions {
             epochs: 3,
             time_max_s: 1800.0,
             shrink: true,
+            shrink_lag_windows: SHRINK_LAG_WINDOWS,
         }
     }
 }
@@ -99,8 +108,10 @@ pub fn check_rate(s: &Series, sensor: &SensorConfig) -> Result<f32> {
 /// and the scale applied to the saved model.
 ///
 /// For each training record: a model trained (same passes) on the OTHER records scores the
-/// held-out record's centred window means ([`Transfer`]). `alpha` = the scale in `[0, 1]`
-/// minimising the pooled held-out error; the saved model (trained on all records) has its
+/// held-out record's window means ([`Transfer`]): how well it predicts their changes over a
+/// drive of `shrink_lag_windows` windows (what the estimator needs in motion: the level
+/// holds the drift of the last stop). `alpha` = the scale in `[0, 1]` minimising the
+/// pooled held-out error; the saved model (trained on all records) has its
 /// output weights times `alpha` (folded into the weights: no image change). `alpha` = 0:
 /// the model does not transfer, the identifier is the gated level alone. ASSUMED: the
 /// training records are units of the family the identifier will meet (one record per unit;
@@ -117,6 +128,10 @@ pub struct Shrinkage {
     pub heldout_gain_unscaled: f64,
     /// Per held-out record: (name, gain of the unscaled model, gain at `alpha`).
     pub records: Vec<(String, f64, f64)>,
+    /// The drive scored, windows (0: the whole record's centred shape).
+    pub lag_windows: usize,
+    /// For comparison: the scale the whole record's centred shape (lag 0) would give.
+    pub alpha_whole_record: f32,
     /// False when it was not run (`--no-shrink`, fewer than 3 records, or 0 passes).
     pub cross_validated: bool,
 }
@@ -128,6 +143,8 @@ impl Shrinkage {
             heldout_gain: f64::NAN,
             heldout_gain_unscaled: f64::NAN,
             records: Vec::new(),
+            lag_windows: 0,
+            alpha_whole_record: 1.0,
             cross_validated: false,
         }
     }
@@ -200,19 +217,27 @@ fn train_on(
 }
 
 fn cross_validate(all: &[Series], o: &TrainOptions) -> Result<Shrinkage> {
-    let mut pooled = Transfer::default();
+    let (mut pooled, mut whole) = (Transfer::default(), Transfer::default());
     let mut each = Vec::new();
+    let fs = o.config.sensor.sample_rate_hz;
+    let window_s = o.config.still.window_s;
     for (i, s) in all.iter().enumerate() {
         let (tr, _) = train_on(all, Some(i), o)?;
+        let temp = s.temp_c.as_deref();
+        let err = |e| anyhow!("{}: {e}", s.name);
         let one = pooled
             .add_record(
                 tr.model(),
                 &s.rate_dps,
-                s.temp_c.as_deref(),
-                o.config.sensor.sample_rate_hz,
-                o.config.still.window_s,
+                temp,
+                fs,
+                window_s,
+                o.shrink_lag_windows,
             )
-            .map_err(|e| anyhow!("{}: {e}", s.name))?;
+            .map_err(err)?;
+        whole
+            .add_record(tr.model(), &s.rate_dps, temp, fs, window_s, 0)
+            .map_err(err)?;
         each.push((s.name.clone(), one));
     }
     let alpha = pooled.alpha();
@@ -224,6 +249,8 @@ fn cross_validate(all: &[Series], o: &TrainOptions) -> Result<Shrinkage> {
             .into_iter()
             .map(|(n, t)| (n, t.gain(1.0), t.gain(alpha)))
             .collect(),
+        lag_windows: o.shrink_lag_windows,
+        alpha_whole_record: whole.alpha(),
         cross_validated: true,
     })
 }
