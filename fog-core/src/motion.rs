@@ -503,9 +503,7 @@ impl MotionEstimator {
     /// alone with the unit gain (as before it existed), the sum with the Gauss-Markov state.
     fn drift_var(&self) -> f32 {
         match (self.second, self.update) {
-            (Second::GaussMarkov { .. }, _) => {
-                self.level_var + 2.0 * self.gain_cov + self.gain_var
-            }
+            (Second::GaussMarkov { .. }, _) => self.level_var + 2.0 * self.gain_cov + self.gain_var,
             _ => self.level_var,
         }
     }
@@ -529,7 +527,8 @@ impl MotionEstimator {
         {
             self.gain *= a_window;
             self.gain_cov *= a_window;
-            self.gain_var = a_window * a_window * self.gain_var + sigma2 * (1.0 - a_window * a_window);
+            self.gain_var =
+                a_window * a_window * self.gain_var + sigma2 * (1.0 - a_window * a_window);
         }
     }
 
@@ -1201,7 +1200,11 @@ mod tests {
         for lag in [0, 60] {
             let cv = leave_one_out(&shared, lag);
             assert_eq!(cv.records, 5);
-            assert!(cv.alpha() > 0.8, "lag {lag}: shared alpha {}: {cv:?}", cv.alpha());
+            assert!(
+                cv.alpha() > 0.8,
+                "lag {lag}: shared alpha {}: {cv:?}",
+                cv.alpha()
+            );
             assert!(cv.gain(cv.alpha()) > 0.02, "lag {lag}: {cv:?}");
         }
         // The window means' white noise (about 4 deg/h, 1 sigma) dominates E(0); with
@@ -1227,7 +1230,11 @@ mod tests {
             .collect();
         for lag in [0, 60] {
             let cv = leave_one_out(&specific, lag);
-            assert!(cv.alpha() < 0.2, "lag {lag}: specific alpha {}: {cv:?}", cv.alpha());
+            assert!(
+                cv.alpha() < 0.2,
+                "lag {lag}: specific alpha {}: {cv:?}",
+                cv.alpha()
+            );
             // The shrunk model never does worse than no model on the held-out records.
             assert!(cv.gain(cv.alpha()) >= 0.0, "lag {lag}: {cv:?}");
         }
@@ -1475,7 +1482,8 @@ mod tests {
         let (mut e_plain, mut e_hybrid) = (0.0f64, 0.0f64);
         for k in 0..120_000usize {
             let t = k as f32 * 0.01;
-            let drift = 3.0 / 3600.0 + 2.0 / 3600.0 * (t * 2.0 * core::f32::consts::PI / 250.0).sin();
+            let drift =
+                3.0 / 3600.0 + 2.0 / 3600.0 * (t * 2.0 * core::f32::consts::PI / 250.0).sin();
             let y = drift + sigma * z.normal();
             let a = plain.push(y, f32::NAN, None).expect("test");
             let b = hybrid.push(y, f32::NAN, None).expect("test");
@@ -1502,14 +1510,20 @@ mod tests {
             let drift = 4.0 / 3600.0 + if k < 5000 { 0.0 } else { 2.0 / 3600.0 };
             let oa = a.push(drift + n, f32::NAN, Some(!moving)).expect("test");
             let turn = if moving { 20.0 } else { 0.0 };
-            let ob = b.push(drift + n + turn, f32::NAN, Some(!moving)).expect("test");
+            let ob = b
+                .push(drift + n + turn, f32::NAN, Some(!moving))
+                .expect("test");
             assert_eq!(oa.drift_dps, ob.drift_dps, "{k}");
             if k == 6000 {
                 g_at_drive_start = a.gauss_markov().0;
             }
         }
         let g_end = a.gauss_markov().0;
-        assert!(g_at_drive_start.abs() > 0.3 / 3600.0, "{}", g_at_drive_start * 3600.0);
+        assert!(
+            g_at_drive_start.abs() > 0.3 / 3600.0,
+            "{}",
+            g_at_drive_start * 3600.0
+        );
         assert!(g_end.abs() < 0.01 * g_at_drive_start.abs());
     }
 }

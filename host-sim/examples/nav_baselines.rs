@@ -39,11 +39,11 @@ use fog_core::motion::{
     LevelUpdate, MotionConfig, MotionEstimator, MotionModel, MotionTrainer, Transfer, MOTION_DRLS,
 };
 use fog_core::still::SensorConfig;
+use host_sim::motion::SHRINK_LAG_WINDOWS;
 use host_sim::nav::{
     fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, DriftEstimator, GatedKalman,
     GatedRwGm, NavRecord, NoCompensation, RwGmConfig, ThermalKalman, ThermalKalmanConfig,
 };
-use host_sim::motion::SHRINK_LAG_WINDOWS;
 use host_sim::report::{heading_error_svg, still_spans, HeadingSeries};
 use host_sim::sim::{self, Model, Simulator};
 use std::path::{Path, PathBuf};
@@ -546,20 +546,76 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
     let gmv = Second::Gm(gm_vehicle);
     let gms = Second::Gm(gm);
     for (name, model, mode) in [
-        ("motion, window update", &trained, (Window, false, Second::None)),
-        ("unshrunk m, window update", &unshrunk, (Window, false, Second::None)),
-        ("motion, sample + rollback", &trained, (Sample, false, Second::None)),
-        ("motion, sample + GM (static-tuned)", &trained, (Sample, false, gms)),
-        ("unshrunk m, sample + GM (static-tuned)", &unshrunk, (Sample, false, gms)),
-        ("motion, hybrid window + GM (static-tuned)", &trained, (Window, false, gms)),
-        ("motion, hybrid window + GM (vehicle-tuned)", &trained, (Window, false, gmv)),
-        ("unshrunk m, hybrid window + GM (static)", &unshrunk, (Window, false, gms)),
-        ("motion, dual sample+GM / hybrid (static)", &trained, (Window, false, Second::Dual(gm))),
-        ("unshrunk m, dual (static)", &unshrunk, (Window, false, Second::Dual(gm))),
-        ("untrained m, dual (static)", &untrained, (Window, false, Second::Dual(gm))),
-        ("untrained m, window update", &untrained, (Window, false, Second::None)),
-        ("untrained m, hybrid window + GM (static)", &untrained, (Window, false, gms)),
-        ("untrained m, sample + rollback", &untrained, (Sample, false, Second::None)),
+        (
+            "motion, window update",
+            &trained,
+            (Window, false, Second::None),
+        ),
+        (
+            "unshrunk m, window update",
+            &unshrunk,
+            (Window, false, Second::None),
+        ),
+        (
+            "motion, sample + rollback",
+            &trained,
+            (Sample, false, Second::None),
+        ),
+        (
+            "motion, sample + GM (static-tuned)",
+            &trained,
+            (Sample, false, gms),
+        ),
+        (
+            "unshrunk m, sample + GM (static-tuned)",
+            &unshrunk,
+            (Sample, false, gms),
+        ),
+        (
+            "motion, hybrid window + GM (static-tuned)",
+            &trained,
+            (Window, false, gms),
+        ),
+        (
+            "motion, hybrid window + GM (vehicle-tuned)",
+            &trained,
+            (Window, false, gmv),
+        ),
+        (
+            "unshrunk m, hybrid window + GM (static)",
+            &unshrunk,
+            (Window, false, gms),
+        ),
+        (
+            "motion, dual sample+GM / hybrid (static)",
+            &trained,
+            (Window, false, Second::Dual(gm)),
+        ),
+        (
+            "unshrunk m, dual (static)",
+            &unshrunk,
+            (Window, false, Second::Dual(gm)),
+        ),
+        (
+            "untrained m, dual (static)",
+            &untrained,
+            (Window, false, Second::Dual(gm)),
+        ),
+        (
+            "untrained m, window update",
+            &untrained,
+            (Window, false, Second::None),
+        ),
+        (
+            "untrained m, hybrid window + GM (static)",
+            &untrained,
+            (Window, false, gms),
+        ),
+        (
+            "untrained m, sample + rollback",
+            &untrained,
+            (Sample, false, Second::None),
+        ),
     ] {
         let mut best = (f64::INFINITY, 0.0);
         for q in q_grid_dph2_per_h() {
@@ -603,8 +659,16 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
     );
     for (name, model, (update, second)) in [
         ("motion, window update", &trained, (Window, Second::None)),
-        ("unshrunk m, window update", &unshrunk, (Window, Second::None)),
-        ("motion, sample + rollback", &trained, (Sample, Second::None)),
+        (
+            "unshrunk m, window update",
+            &unshrunk,
+            (Window, Second::None),
+        ),
+        (
+            "motion, sample + rollback",
+            &trained,
+            (Sample, Second::None),
+        ),
         ("motion, sample + GM", &trained, (Sample, gms)),
         ("unshrunk m, sample + GM", &unshrunk, (Sample, gms)),
         ("motion, hybrid window + GM", &trained, (Window, gms)),
@@ -612,7 +676,11 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
         ("untrained m, hybrid window + GM", &untrained, (Window, gms)),
         ("motion, dual", &trained, (Window, Second::Dual(gm))),
         ("unshrunk m, dual", &unshrunk, (Window, Second::Dual(gm))),
-        ("untrained m, sample + rollback", &untrained, (Sample, Second::None)),
+        (
+            "untrained m, sample + rollback",
+            &untrained,
+            (Sample, Second::None),
+        ),
     ] {
         let mk = |q: f64| {
             move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
