@@ -15,15 +15,20 @@ pub struct Args {
     /// Records of 600 s instead of 1800 s and one validation record (the CI test's variant).
     #[arg(long)]
     pub quick: bool,
+    /// Shrink the trained model by leave-one-record-out (`identify --preset motion
+    /// --shrink`; not the firmware's default).
+    #[arg(long)]
+    pub shrink: bool,
 }
 
 /// Runs the command; prints the path of `index.html` on stdout.
 pub fn run(args: &Args) -> Result<()> {
-    let cfg = if args.quick {
+    let mut cfg = if args.quick {
         DemoConfig::QUICK
     } else {
         DemoConfig::FULL
     };
+    cfg.shrink = args.shrink;
     let index = demo::run(&args.out, &cfg)?;
     println!("{}", index.display());
     Ok(())

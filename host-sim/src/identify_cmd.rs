@@ -110,10 +110,11 @@ pub struct Args {
     /// 4, i.e. 2 deg/h/sqrt(h)).
     #[arg(long)]
     pub level_q_dph2_per_h: Option<f32>,
-    /// `--preset motion`: save the model as trained, without the leave-one-record-out
-    /// shrinkage (host_sim::motion::Shrinkage).
+    /// `--preset motion`: shrink the model by leave-one-record-out cross-validation
+    /// (host_sim::motion::Shrinkage: alpha in [0, 1] folded into the output weights). Off
+    /// by default: it costs on the simulator's vehicles (docs/motion.md).
     #[arg(long)]
-    pub no_shrink: bool,
+    pub shrink: bool,
     /// `--preset motion --validate`: the baselines' gated Kalman q, (deg/s)^2 per sample
     /// (default: tuned on the validation records).
     #[arg(long)]
@@ -240,7 +241,7 @@ fn run_motion(a: &Args) -> Result<()> {
     }
     let mut o = motion::TrainOptions::new(a.sensor.config());
     o.epochs = a.epochs;
-    o.shrink = !a.no_shrink;
+    o.shrink = a.shrink;
     if let Some(q) = a.level_q_dph2_per_h {
         o.config.level_q_dps2_per_s = q / (3600.0 * 3600.0 * 3600.0);
     }
@@ -256,7 +257,7 @@ fn run_motion(a: &Args) -> Result<()> {
             shrink.alpha_whole_record
         );
     } else {
-        eprintln!("motion shrinkage: not run (alpha 1)");
+        eprintln!("motion shrinkage: not run (alpha 1; --shrink)");
     }
     let validation = if a.validate.is_empty() {
         None

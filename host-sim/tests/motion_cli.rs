@@ -302,8 +302,8 @@ fn kvh_log_rotation_is_not_drift() {
 }
 
 /// `identify --preset motion` shrinks the model by leave-one-record-out: the JSON names
-/// alpha and the held-out gains, and the saved weights are the unshrunk ones (`--no-shrink`)
-/// times alpha.
+/// alpha and the held-out gains, and the saved weights are the unshrunk ones (the default,
+/// no `--shrink`) times alpha.
 #[test]
 fn identify_shrinks_the_model_by_cross_validation() {
     let dir = tempfile::tempdir().expect("test");
@@ -324,8 +324,8 @@ fn identify_shrinks_the_model_by_cross_validation() {
             .arg(d.join(format!("m{shrink}.fogi")))
             .arg("--json")
             .arg(&json);
-        if !shrink {
-            c.arg("--no-shrink");
+        if shrink {
+            c.arg("--shrink");
         }
         c.assert().success();
         serde_json::from_str(&fs::read_to_string(&json).expect("test")).expect("test")

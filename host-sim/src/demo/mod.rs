@@ -76,6 +76,9 @@ pub struct DemoConfig {
     pub validate_records: u64,
     /// Length of every record, s.
     pub duration_s: f64,
+    /// Shrink the model by leave-one-record-out ([`motion::Shrinkage`]; off in the
+    /// firmware's preset).
+    pub shrink: bool,
 }
 
 impl DemoConfig {
@@ -84,12 +87,14 @@ impl DemoConfig {
         train_records: 12,
         validate_records: 8,
         duration_s: 1800.0,
+        shrink: false,
     };
     /// The CI variant (`--quick`): 12 training records, 2 validation records, 600 s each.
     pub const QUICK: Self = Self {
         train_records: 12,
         validate_records: 2,
         duration_s: 600.0,
+        shrink: false,
     };
 }
 
@@ -163,7 +168,9 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         n: cfg.train_records,
         duration_s: cfg.duration_s,
     };
-    let (mut image, _, shrink) = motion::train(&set, &TrainOptions::new(sensor))?;
+    let mut train_options = TrainOptions::new(sensor);
+    train_options.shrink = cfg.shrink;
+    let (mut image, _, shrink) = motion::train(&set, &train_options)?;
     let fogi = dir.join("identifier.fogi");
     eprintln!(
         "demo: trained the motion identifier on {} static {PRESET} records ({} s, unit spread {UNIT_SPREAD}, start {:?} C, self-heating {:?} C) -> {}",
@@ -173,12 +180,15 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         WARMUP_RISE_C_RANGE,
         fogi.display()
     );
-    eprintln!(
-        "demo: model shrinkage (leave-one-record-out): alpha {:.3}, held-out gain {:.1} % (unscaled {:.1} %)",
-        shrink.alpha,
-        100.0 * shrink.heldout_gain,
-        100.0 * shrink.heldout_gain_unscaled
-    );
+    if shrink.cross_validated {
+        eprintln!(
+            "demo: model shrunk by leave-one-record-out (changes over {} windows): alpha {:.3}, held-out gain {:.1} % (unscaled {:.1} %)",
+            shrink.lag_windows,
+            shrink.alpha,
+            100.0 * shrink.heldout_gain,
+            100.0 * shrink.heldout_gain_unscaled
+        );
+    }
     let mut val = Vec::new();
     for i in 0..cfg.validate_records {
         let x = samples(&family_model(800 + i, true)?, 201 + i, cfg.duration_s)?;

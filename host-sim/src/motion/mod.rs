@@ -53,7 +53,9 @@ pub struct TrainOptions {
     pub epochs: u32,
     /// Time range of the model, s.
     pub time_max_s: f32,
-    /// Shrink the model by leave-one-record-out cross-validation ([`Shrinkage`]).
+    /// Shrink the model by leave-one-record-out cross-validation ([`Shrinkage`]). Off by
+    /// default (the firmware's preset): measured to cost on the simulator's vehicles
+    /// (docs/motion.md).
     pub shrink: bool,
     /// The drive the shrinkage scores the model over, detector windows
     /// ([`fog_core::motion::Transfer::add_record`]'s `lag`; 0: the whole record's shape).
@@ -66,13 +68,13 @@ pub struct TrainOptions {
 pub const SHRINK_LAG_WINDOWS: usize = 60;
 
 impl TrainOptions {
-    /// Defaults for `sensor`: 3 passes, 1800 s.
+    /// Defaults for `sensor`: 3 passes, 1800 s, no shrinkage.
     pub fn new(sensor: SensorConfig) -> Self {
         Self {
             config: MotionConfig::for_sensor(sensor),
             epochs: 3,
             time_max_s: 1800.0,
-            shrink: true,
+            shrink: false,
             shrink_lag_windows: SHRINK_LAG_WINDOWS,
         }
     }
@@ -116,7 +118,7 @@ pub fn check_rate(s: &Series, sensor: &SensorConfig) -> Result<f32> {
 /// the model does not transfer, the identifier is the gated level alone. ASSUMED: the
 /// training records are units of the family the identifier will meet (one record per unit;
 /// two records of one unit make the estimate optimistic). Fewer than 3 records: no
-/// cross-validation, `alpha` = 1.
+/// cross-validation, `alpha` = 1. Opt-in (`identify --preset motion --shrink`).
 #[derive(Debug, Clone, Serialize)]
 pub struct Shrinkage {
     /// The scale applied, in `[0, 1]`.
@@ -132,7 +134,7 @@ pub struct Shrinkage {
     pub lag_windows: usize,
     /// For comparison: the scale the whole record's centred shape (lag 0) would give.
     pub alpha_whole_record: f32,
-    /// False when it was not run (`--no-shrink`, fewer than 3 records, or 0 passes).
+    /// False when it was not run (no `--shrink`, fewer than 3 records, or 0 passes).
     pub cross_validated: bool,
 }
 
