@@ -350,6 +350,9 @@ fn identify_shrinks_the_model_by_cross_validation() {
     let (ws, wu) = (w(&on), w(&off));
     assert!(wu.iter().any(|x| *x != 0.0), "trained weights");
     for (a, b) in ws.iter().zip(&wu) {
-        assert!((a - alpha * b).abs() <= 1e-6 * b.abs() + 1e-12, "{a} vs {alpha} x {b}");
+        assert!(
+            (a - alpha * b).abs() <= 1e-6 * b.abs() + 1e-12,
+            "{a} vs {alpha} x {b}"
+        );
     }
 }
