@@ -23,6 +23,9 @@
 //!   reference]`: `ln(SSE without / with the reference)`, AR(1) errors (Cochrane-Orcutt)
 //!   so that a slow noise term (a Gauss-Markov wander) does not pass for a slow motion.
 //!
+//! - `dropouts`: the time stamps: missing sample slots in the whole record against the
+//!   simulations' ([`dropouts_outcome`]); not run when the time stamps are bursty.
+//!
 //! The drift tests are nested (temperature > warmup > rate_ramp when several pass; the
 //! decision is in `mod.rs`). Each test gives `z = (real - mean_null) / sd_null` (sd floored at a tenth of the null
 //! mean and at [`SD_FLOOR`]); it *passes* when `z` exceeds its threshold ([`THRESHOLDS`],
@@ -39,8 +42,9 @@ use serde::Serialize;
 pub const WINDOW_S: f64 = 5.0;
 
 /// z thresholds per test.
-pub const THRESHOLDS: [(Effect, f64); 5] = [
+pub const THRESHOLDS: [(Effect, f64); 6] = [
     (Effect::Temperature, 2.5),
+    (Effect::Dropouts, 3.0),
     (Effect::RateRamp, 3.0),
     (Effect::ScaleFactor, 3.0),
     (Effect::Sinusoid, 2.5),
@@ -501,6 +505,29 @@ pub fn stats(
     }
 }
 
+/// Floor of the dropouts test's null standard deviation, sample slots: with simulations
+/// that never drop, one missing slot in regular time stamps gives z = 3.3 (> the threshold
+/// 3): a sample missing from a clock-driven record is evidence by itself.
+pub const DROPOUT_SD_FLOOR: f64 = 0.3;
+
+/// The dropouts test: missing sample slots in the whole record against the simulations'
+/// (a count: the null sd is floored at the Poisson sd `sqrt(mean)` and at
+/// [`DROPOUT_SD_FLOOR`]).
+pub fn dropouts_outcome(missing: f64, null: &[f64]) -> Test {
+    let mut t = outcome(
+        Effect::Dropouts,
+        "time stamps: missing sample slots (steps > 1.5 periods) in the whole record vs the simulations'",
+        missing,
+        null,
+        format!("{missing:.0} missing slots"),
+    );
+    let sd = t.null_sd.max(t.null_mean.max(0.0).sqrt()).max(DROPOUT_SD_FLOOR);
+    t.null_sd = sd;
+    t.z = (missing - t.null_mean) / sd;
+    t.passed = t.z > t.threshold;
+    t
+}
+
 /// The ramp test also needs `ln(1 + t^2) > ` this (`|t| > 3`).
 pub const RAMP_MIN_STAT: f64 = std::f64::consts::LN_10;
 
@@ -542,8 +569,19 @@ pub fn phase_randomised(x: &[f64], seed: u64) -> Vec<f64> {
 
 /// The tests: the real statistics against the simulations' (and, for temperature, against
 /// surrogate channels on the real record).
-pub fn run(real: &EvStats, sims: &[EvStats], temp_w: Option<&[f64]>) -> Vec<Test> {
+///
+/// `missing`: the whole record's missing sample slots (steps longer than 1.5 periods) and
+/// the simulations'; `None` when the time stamps are bursty (gaps not measurable).
+pub fn run(
+    real: &EvStats,
+    sims: &[EvStats],
+    temp_w: Option<&[f64]>,
+    missing: Option<(f64, &[f64])>,
+) -> Vec<Test> {
     let mut out = Vec::new();
+    if let Some((m, null)) = missing {
+        out.push(dropouts_outcome(m, null));
+    }
     if let (Some(tw), Some(r)) = (temp_w, real.temp) {
         let mut nulls: Vec<f64> = sims.iter().filter_map(|s| s.temp).collect();
         for k in 0..SURROGATES {
