@@ -21,7 +21,8 @@
 //!   ramp record then falls to the ramp test.
 //! - `scale_factor`: 5-s means of the rate less the reference regressed on `[1, t,
 //!   reference]`: `ln(SSE without / with the reference)`, AR(1) errors (Cochrane-Orcutt)
-//!   so that a slow noise term (a Gauss-Markov wander) does not pass for a slow motion.
+//!   so that a slow noise term (a Gauss-Markov wander) does not pass for a slow motion; it
+//!   also needs the reference coefficient's `|t| > 3` ([`SF_MIN_T`]).
 //!
 //! - `dropouts`: the time stamps: missing sample slots in the whole record against the
 //!   simulations' ([`dropouts_outcome`]); not run when the time stamps are bursty.
@@ -465,9 +466,8 @@ pub fn line_stat(t_s: &[f64], y: &[f64], dt_s: f64, f_min_hz: f64) -> (f64, f64)
 pub struct EvStats {
     /// Window means of the rate, deg/s.
     pub y_w: Vec<f64>,
-    /// Temperature statistics (when the record has `temp_c`): beyond `[1, t, exp(-t/tau)]`
-    /// (tau: this series' warm-up tau) and beyond `[1, t]` alone.
-    pub temp: Option<(f64, f64)>,
+    /// Temperature statistic (when the record has `temp_c`).
+    pub temp: Option<f64>,
     /// Warm-up statistic and its tau, s.
     pub warm: (f64, f64),
     /// Line statistic and its frequency, Hz.
@@ -498,12 +498,7 @@ pub fn stats(
             let t_n: Vec<f64> = t_w.iter().map(|t| t / t_total.max(WINDOW_S)).collect();
             ar1_nested(&y_w, &[&one, &t_n], &[r])
         }),
-        temp: temp.map(|(tw, dw)| {
-            (
-                temperature_stat(&y_w, tw, dw, warmup_tau(warm.1, t_total)),
-                temperature_stat(&y_w, tw, dw, 0.0),
-            )
-        }),
+        temp: temp.map(|(tw, dw)| temperature_stat(&y_w, tw, dw, warmup_tau(warm.1, t_total))),
         warm,
         line: line_stat(t_s, y, dt_s, 4.0 / block_s),
         ramp: ramp_stat(&y_w),
@@ -527,12 +522,19 @@ pub fn dropouts_outcome(missing: f64, null: &[f64]) -> Test {
         null,
         format!("{missing:.0} missing slots"),
     );
-    let sd = t.null_sd.max(t.null_mean.max(0.0).sqrt()).max(DROPOUT_SD_FLOOR);
+    let sd = t
+        .null_sd
+        .max(t.null_mean.max(0.0).sqrt())
+        .max(DROPOUT_SD_FLOOR);
     t.null_sd = sd;
     t.z = (missing - t.null_mean) / sd;
     t.passed = t.z > t.threshold;
     t
 }
+
+/// The scale-factor test also needs the reference coefficient's `|t|` (AR(1) errors) above
+/// this.
+pub const SF_MIN_T: f64 = 3.0;
 
 /// The ramp test also needs `ln(1 + t^2) > ` this (`|t| > 3`).
 pub const RAMP_MIN_STAT: f64 = std::f64::consts::LN_10;
@@ -582,12 +584,70 @@ pub fn run(
     real: &EvStats,
     sims: &[EvStats],
     temp_w: Option<&[f64]>,
-    ref_w: Option<&[f64]>,
     missing: Option<(f64, &[f64])>,
 ) -> Vec<Test> {
     let mut out = Vec::new();
     if let Some((m, null)) = missing {
         out.push(dropouts_outcome(m, null));
+    }
+    if let (Some(tw), Some(r)) = (temp_w, real.temp) {
+        let mut nulls: Vec<f64> = sims.iter().filter_map(|s| s.temp).collect();
+        for k in 0..SURROGATES {
+            let sg = phase_randomised(tw, 0x7e3a_5c01 + k as u64);
+            let dsg = rate_of_change(&sg, WINDOW_S, 6);
+            let t_total = real.y_w.len() as f64 * WINDOW_S;
+            nulls.push(temperature_stat(
+                &real.y_w,
+                &sg,
+                &dsg,
+                warmup_tau(real.warm.1, t_total),
+            ));
+        }
+        out.push(outcome(
+            Effect::Temperature,
+            "5-s means regressed on [1, t, exp(-t/tau), temp_c, d temp_c/dt] (tau: the warm-up test's): ln(SSE without / with the temperature terms); null: simulations with the same channel + the real rate against 8 phase-randomised surrogate channels",
+            r,
+            &nulls,
+            String::new(),
+        ));
+    }
+    let nulls: Vec<f64> = sims.iter().map(|s| s.ramp).collect();
+    let mut ramp = outcome(
+        Effect::RateRamp,
+        "30-s means: OLS slope t-statistic with an AR(1) variance from the residuals, ln(1 + t^2); passes when z exceeds the threshold and |t| > 3",
+        real.ramp,
+        &nulls,
+        format!("|t| {:.1}", (real.ramp.exp() - 1.0).max(0.0).sqrt()),
+    );
+    // The simulations' null can be narrow (a dozen draws of a noise mix whose walk the AR(1)
+    // variance discounts strongly): the slope must also be significant on its own.
+    ramp.passed &= real.ramp > RAMP_MIN_STAT;
+    out.push(ramp);
+    if let Some(r) = real.sf {
+        let nulls: Vec<f64> = sims.iter().filter_map(|s| s.sf).collect();
+        // F = (rows - 3)(SSE ratio - 1) of one added column is the reference coefficient's
+        // t squared under the AR(1) errors.
+        let rows = real
+            .y_w
+            .iter()
+            .filter(|v| v.is_finite())
+            .count()
+            .saturating_sub(4) as f64;
+        let t_sf = (rows * (r.exp() - 1.0)).max(0.0).sqrt();
+        let mut sf = outcome(
+            Effect::ScaleFactor,
+            "5-s means of the rate less the reference, AR(1) errors (Cochrane-Orcutt): ln(SSE[1, t] / SSE[1, t, reference]); passes when z exceeds the threshold and the reference's |t| > 3",
+            r,
+            &nulls,
+            format!("|t| {t_sf:.1}"),
+        );
+        // As for the ramp: the simulations' null lacks any slow noise term the baseline
+        // missed (a Gauss-Markov wander, a warm-up), which correlates by chance with a slow
+        // motion; the coefficient must also be significant on its own (markov-203004,
+        // warmup-206001, dropouts-208002 of the calibration set 200001 passed with |t| 1.6,
+        // 2.2, 2.7 without this).
+        sf.passed &= t_sf > SF_MIN_T;
+        out.push(sf);
     }
     let nulls: Vec<f64> = sims.iter().map(|s| s.warm.0).collect();
     let t_total = real.y_w.len() as f64 * WINDOW_S;
@@ -608,72 +668,6 @@ pub fn run(
         ),
     );
     warm.passed &= !slow;
-    // The temperature test is nested beyond a warm-up exponential only when the warm-up
-    // test passed (evidence of a transient the channel's own rise could mimic); otherwise
-    // beyond `[1, t]`, which keeps the power for a channel whose rise looks like a warm-up
-    // (temperature-205006 of the calibration set 200001).
-    let with_exp = warm.passed;
-    if let (Some(tw), Some(r)) = (temp_w, real.temp) {
-        let pick = |v: (f64, f64)| if with_exp { v.0 } else { v.1 };
-        let mut nulls: Vec<f64> = sims.iter().filter_map(|s| s.temp.map(pick)).collect();
-        let tau = if with_exp {
-            warmup_tau(real.warm.1, t_total)
-        } else {
-            0.0
-        };
-        for k in 0..SURROGATES {
-            let sg = phase_randomised(tw, 0x7e3a_5c01 + k as u64);
-            let dsg = rate_of_change(&sg, WINDOW_S, 6);
-            nulls.push(temperature_stat(&real.y_w, &sg, &dsg, tau));
-        }
-        out.push(outcome(
-            Effect::Temperature,
-            if with_exp {
-                "30-s means, AR(1) errors, regressed on [1, t, exp(-t/tau), temp_c, d temp_c/dt] (tau: the warm-up test's, which passed): ln(SSE without / with the temperature terms); null: simulations with the same channel + the real rate against 8 phase-randomised surrogate channels"
-            } else {
-                "30-s means, AR(1) errors, regressed on [1, t, temp_c, d temp_c/dt] (the warm-up test did not pass): ln(SSE without / with the temperature terms); null: simulations with the same channel + the real rate against 8 phase-randomised surrogate channels"
-            },
-            pick(r),
-            &nulls,
-            String::new(),
-        ));
-    }
-    let nulls: Vec<f64> = sims.iter().map(|s| s.ramp).collect();
-    let mut ramp = outcome(
-        Effect::RateRamp,
-        "30-s means: OLS slope t-statistic with an AR(1) variance from the residuals, ln(1 + t^2); passes when z exceeds the threshold and |t| > 3",
-        real.ramp,
-        &nulls,
-        format!("|t| {:.1}", (real.ramp.exp() - 1.0).max(0.0).sqrt()),
-    );
-    // The simulations' null can be narrow (a dozen draws of a noise mix whose walk the AR(1)
-    // variance discounts strongly): the slope must also be significant on its own.
-    ramp.passed &= real.ramp > RAMP_MIN_STAT;
-    out.push(ramp);
-    if let Some(r) = real.sf {
-        let mut nulls: Vec<f64> = sims.iter().filter_map(|s| s.sf).collect();
-        // The real residual against phase-randomised copies of the reference (same spectrum,
-        // cannot carry a scale-factor error): a slow noise term the baseline lacks (a
-        // Gauss-Markov wander, a warm-up) correlates by chance with a slow motion, which
-        // the simulations' null alone misses (markov-203004 and dropouts-208002 of the
-        // calibration set 200001 passed without these surrogates).
-        if let Some(rw) = ref_w {
-            let n = real.y_w.len();
-            let one = vec![1.0; n];
-            let t_n: Vec<f64> = (0..n).map(|i| (i as f64 + 0.5) / n as f64).collect();
-            for k in 0..SURROGATES {
-                let sg = phase_randomised(rw, 0x5f3c_a901 + k as u64);
-                nulls.push(ar1_nested(&real.y_w, &[&one, &t_n], &[&sg]));
-            }
-        }
-        out.push(outcome(
-            Effect::ScaleFactor,
-            "5-s means of the rate less the reference, AR(1) errors (Cochrane-Orcutt): ln(SSE[1, t] / SSE[1, t, reference]); null: simulations + the real residual against 8 phase-randomised copies of the reference",
-            r,
-            &nulls,
-            String::new(),
-        ));
-    }
     out.push(warm);
     let nulls: Vec<f64> = sims.iter().map(|s| s.line.0).collect();
     out.push(outcome(

@@ -690,7 +690,6 @@ pub fn diagnose(
         &real_stats,
         &null_stats,
         temp_w.as_deref(),
-        ref_w.as_deref(),
         (!time.bursty).then_some((real_missing_all, sim_missing_all.as_slice())),
     );
 
