@@ -23,15 +23,16 @@
 //!   reference]`: `ln(SSE without / with the reference)`, AR(1) errors (Cochrane-Orcutt)
 //!   so that a slow noise term (a Gauss-Markov wander) does not pass for a slow motion; it
 //!   also needs the reference coefficient's `|t| > 3` ([`SF_MIN_T`]).
-//!
 //! - `dropouts`: the time stamps: missing sample slots in the whole record against the
 //!   simulations' ([`dropouts_outcome`]); not run when the time stamps are bursty.
 //!
-//! The drift tests are nested (temperature > warmup > rate_ramp when several pass; the
-//! decision is in `mod.rs`). Each test gives `z = (real - mean_null) / sd_null` (sd floored at a tenth of the null
-//! mean and at [`SD_FLOOR`]); it *passes* when `z` exceeds its threshold ([`THRESHOLDS`],
-//! calibrated on the calibration records of `scripts/gap_indep_gen.py`, first seed 1, not
-//! on the evaluation records; see docs/gap.md). Short Gauss-Markov correlation times have
+//! The drift tests are nested (a passed temperature test first; then warm-up or ramp,
+//! whichever is further past its threshold; the decision is in `mod.rs`). Each test gives
+//! `z = (real - mean_null) / sd_null` (sd floored at a tenth of the null mean and at
+//! [`SD_FLOOR`]); it *passes* when `z` exceeds its threshold ([`THRESHOLDS`], calibrated on
+//! the calibration records of `scripts/gap_indep_gen.py`, first seeds 1, 700001, 720001,
+//! and for the AR(1) warm-up and scale-factor tests, the dropouts test and the `|t|` floor
+//! 200001 and 300001; never on the evaluation records; see docs/gap.md). Short Gauss-Markov correlation times have
 //! no test of their own: the PSD group of the gap measure sees them, and without a user
 //! model the `markov` candidate is the baseline refitted jointly with the GM term.
 
