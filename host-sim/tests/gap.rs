@@ -333,3 +333,21 @@ fn warmup_statistic_tells_a_transient_from_a_ramp() {
     assert_eq!(warmup_tau(t_total / 3.0, t_total), t_total / 3.0);
     let _ = tau_ramp;
 }
+
+/// The dropouts test on the time stamps: one missing slot against simulations that never
+/// drop passes; none does not; a count inside the simulations' own spread does not.
+#[test]
+fn dropouts_test_counts_missing_slots() {
+    use host_sim::gap::evidence::dropouts_outcome;
+    let never = [0.0; 12];
+    assert!(dropouts_outcome(1.0, &never).passed);
+    assert!(!dropouts_outcome(0.0, &never).passed);
+    let some = [4.0, 6.0, 5.0, 3.0, 7.0, 5.0, 4.0, 6.0];
+    let t = dropouts_outcome(8.0, &some);
+    assert!(
+        !t.passed,
+        "z {} (null mean {}, sd {})",
+        t.z, t.null_mean, t.null_sd
+    );
+    assert!(dropouts_outcome(40.0, &some).passed);
+}
