@@ -9,7 +9,8 @@ For every record in DIR/manifest.jsonl (optionally only --classes), runs
 (`--sim` in --mode sim), then prints and writes (OUT/summary.json, OUT/summary.md):
 - the confusion table (truth x named), right-effect rate over the effect records, the rate
   at which `none` records are wrongly flagged, the median held-out shrink of the true
-  effect's candidate (over the effect records), CPU seconds per record;
+  effect's candidate (over the effect records; and, as a diagnostic, over those whose
+  held-out gap is significant, gap_before > null_gap_95), CPU seconds per record;
 - a detection-power curve per effect: P(named right | strength) from a logistic fit in
   ln(strength), the strength where it reaches 90 %, and an SVG plot (OUT/power.svg).
 
