@@ -281,3 +281,73 @@ fn ramp_statistic_and_phase_randomised_surrogates() {
     );
     assert!(real > sur + 2.0, "channel {real} vs surrogate {sur}");
 }
+
+/// The warm-up test tells a transient from a ramp over a wander (issue 13): on 1800 s of
+/// 5-s means, a 1/e = 150 s exponential beside a random walk gives a large statistic with a
+/// tau near 150 s (inside the third of the record a warm-up may take); a strong ramp over
+/// the same walk gives a small statistic, or a best tau beyond a third of the record, which
+/// [`warmup_tau`] rejects (the test then does not pass and the ramp test decides).
+#[test]
+fn warmup_statistic_tells_a_transient_from_a_ramp() {
+    use host_sim::gap::evidence::{warmup_stat, warmup_tau, WINDOW_S};
+    use rand::{Rng, SeedableRng};
+    let n = 360;
+    let t_total = n as f64 * WINDOW_S;
+    let t_w: Vec<f64> = (0..n).map(|i| (i as f64 + 0.5) * WINDOW_S).collect();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let mut gauss = move || {
+        let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    };
+    let mut walk = vec![0.0; n];
+    let mut white = vec![0.0; n];
+    for i in 0..n {
+        white[i] = gauss();
+        walk[i] = if i > 0 { walk[i - 1] } else { 0.0 } + 0.05 * gauss();
+    }
+    let base: Vec<f64> = (0..n).map(|i| walk[i] + white[i]).collect();
+    let warm: Vec<f64> = (0..n)
+        .map(|i| base[i] + 6.0 * (-t_w[i] / 150.0).exp())
+        .collect();
+    let ramp: Vec<f64> = (0..n).map(|i| base[i] + 8.0 * t_w[i] / t_total).collect();
+    let (s_warm, tau_warm) = warmup_stat(&warm, &t_w, t_total);
+    let (s_ramp, tau_ramp) = warmup_stat(&ramp, &t_w, t_total);
+    let (s_base, _) = warmup_stat(&base, &t_w, t_total);
+    assert!(s_warm > 0.3, "warm-up statistic {s_warm}");
+    assert!(
+        (75.0..=300.0).contains(&tau_warm),
+        "warm-up tau {tau_warm} s (truth 150 s)"
+    );
+    assert_eq!(warmup_tau(tau_warm, t_total), tau_warm);
+    // The ramp adds nothing beyond the line the statistic removes in both models.
+    assert!(
+        (s_ramp - s_base).abs() < 0.02,
+        "ramp {s_ramp} vs the same series without it {s_base}"
+    );
+    assert!(
+        s_warm > 5.0 * s_ramp.max(0.01),
+        "warm {s_warm} vs ramp {s_ramp}"
+    );
+    // A best tau past a third of the record is no warm-up's.
+    assert_eq!(warmup_tau(0.5 * t_total, t_total), 0.0);
+    assert_eq!(warmup_tau(t_total / 3.0, t_total), t_total / 3.0);
+    let _ = tau_ramp;
+}
+
+/// The dropouts test on the time stamps: one missing slot against simulations that never
+/// drop passes; none does not; a count inside the simulations' own spread does not.
+#[test]
+fn dropouts_test_counts_missing_slots() {
+    use host_sim::gap::evidence::dropouts_outcome;
+    let never = [0.0; 12];
+    assert!(dropouts_outcome(1.0, &never).passed);
+    assert!(!dropouts_outcome(0.0, &never).passed);
+    let some = [4.0, 6.0, 5.0, 3.0, 7.0, 5.0, 4.0, 6.0];
+    let t = dropouts_outcome(8.0, &some);
+    assert!(
+        !t.passed,
+        "z {} (null mean {}, sd {})",
+        t.z, t.null_mean, t.null_sd
+    );
+    assert!(dropouts_outcome(40.0, &some).passed);
+}

@@ -48,6 +48,15 @@ pub const NONE_MARGIN: f64 = 1.5;
 /// (a gross mismatch, e.g. quantization, that the tested effect does not explain).
 pub const OVERRIDE_RATIO: f64 = 10.0;
 
+/// A passed `temperature` test is never overridden by the gap rule: it ties the drift to a
+/// recorded channel against surrogate channels, the strongest evidence a record carries,
+/// while the gap's shrink favours whichever candidate matches the distribution (calibration
+/// record temperature-205001, first seed 200001: temperature z 4.8, but its edge bursts
+/// make `spikes` shrink the gross gap by 0.55). A floor on the overriding candidate's own
+/// shrink (0.8) was tried instead and dropped: spikes-307005 (first seed 300001) needs the
+/// override at the same 0.56.
+pub const OVERRIDE_SPARES_TEMPERATURE: bool = true;
+
 /// A record as the diagnosis sees it.
 #[derive(Debug, Clone)]
 pub struct Rec {
@@ -604,6 +613,7 @@ pub fn diagnose(
     let mut sim_drifts = Vec::new();
     let mut sim_spikes = Vec::new();
     let mut sim_missing = Vec::new();
+    let mut sim_missing_all = Vec::new();
     let mut task_sims = Vec::new();
     let mut null_stats: Vec<evidence::EvStats> = Vec::new();
     for (i, &s) in seeds.iter().enumerate() {
@@ -623,6 +633,11 @@ pub fn diagnose(
         sim_drifts.push(layout.drift_variogram(&sim.t, &sim.res, &sel_fit));
         sim_spikes.push(effects::spike_stats(&sim.res, &fr).0);
         sim_missing.push(effects::missing_slots(&sim.t, &fr, real.dt_s));
+        sim_missing_all.push(effects::missing_slots(
+            &sim.t,
+            &[(0, sim.t.len())],
+            real.dt_s,
+        ));
         base_outs.push(analyse(&layout, &sim, &sel_score, Some(&sel_all), &mut fft));
         if o.task && i < 2 {
             task_sims.push((sim.t, sim.raw));
@@ -672,7 +687,13 @@ pub fn diagnose(
         temp_w.as_deref().zip(dtemp_w.as_deref()),
         ref_w.as_deref(),
     );
-    let tests = evidence::run(&real_stats, &null_stats, temp_w.as_deref());
+    let real_missing_all = effects::missing_slots(&real.t_s, &[(0, real.t_s.len())], real.dt_s);
+    let tests = evidence::run(
+        &real_stats,
+        &null_stats,
+        temp_w.as_deref(),
+        (!time.bursty).then_some((real_missing_all, sim_missing_all.as_slice())),
+    );
 
     // Where (full record).
     let st_all = features::stats(
@@ -814,20 +835,26 @@ pub fn diagnose(
             .total_cmp(&b.gap_after.unwrap_or(f64::INFINITY))
     };
     // Among passed tests, the one furthest past its threshold; the drift tests are nested
-    // (temperature is tested beyond a ramp and a warm-up, warm-up beyond a ramp, and a
-    // warm-up or temperature drift also passes the ramp test), so among them the most
-    // specific passed one stands for the three.
+    // (temperature is tested beyond a ramp and a warm-up, and a warm-up or temperature drift
+    // also passes the ramp test), so a passed temperature test (tied to a recorded channel,
+    // with surrogate channels in its null) stands for the three. Between warm-up and ramp
+    // the one further past its threshold: a ramp over a wander can also pass the warm-up
+    // test (an exponential fits the wander, rate_ramp-202006 of the calibration set
+    // 200001: ramp z 5.5, warm-up z 3.1), and a warm-up's transient gives an apparent
+    // slope.
     let drift_rank = |e: Effect| match e {
         Effect::Temperature => Some(0),
-        Effect::Warmup => Some(1),
-        Effect::RateRamp => Some(2),
+        Effect::Warmup | Effect::RateRamp => Some(1),
         _ => None,
     };
     let drift_pick = tests
         .iter()
         .filter(|t| t.passed)
         .filter_map(|t| drift_rank(t.effect).map(|r| (r, t)))
-        .min_by_key(|(r, _)| *r)
+        .min_by(|(ra, a), (rb, b)| {
+            ra.cmp(rb)
+                .then((b.z / b.threshold).total_cmp(&(a.z / a.threshold)))
+        })
         .map(|(_, t)| t);
     let tested = tests
         .iter()
@@ -847,6 +874,7 @@ pub fn diagnose(
         (Some(t), Some(g)) => {
             gap_before > OVERRIDE_RATIO * g95
                 && g.shrink.unwrap_or(0.0) > t.shrink.unwrap_or(0.0) + 0.5
+                && !(OVERRIDE_SPARES_TEMPERATURE && t.effect == Effect::Temperature)
         }
         _ => false,
     };
