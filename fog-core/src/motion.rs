@@ -587,13 +587,34 @@ impl MotionEstimator {
         temp_c: f32,
         external_still: Option<bool>,
     ) -> Result<MotionOutput, MotionError> {
+        self.push_shared(rate_dps, temp_c, external_still, None)
+            .map(|(o, _)| o)
+    }
+
+    /// [`MotionEstimator::push`], also returning the sample's model inputs `x`; with
+    /// `given` = `(x, m(x))` of a twin estimator (same model, configuration and sample
+    /// count: [`crate::preset::PresetEstimator`]'s dual), its inputs and model term are
+    /// taken instead of computed (the same bits: the twin computed them from the same
+    /// samples; this estimator's own input state is then not advanced).
+    pub(crate) fn push_shared(
+        &mut self,
+        rate_dps: f32,
+        temp_c: f32,
+        external_still: Option<bool>,
+        given: Option<([f32; MOTION_N], f32)>,
+    ) -> Result<(MotionOutput, [f32; MOTION_N]), MotionError> {
         if !rate_dps.is_finite() {
             self.stats.rejected = self.stats.rejected.wrapping_add(1);
             return Err(MotionError::NonFinite);
         }
         let k = self.stats.samples;
-        let t_s = k as f32 / self.cfg.sensor.sample_rate_hz;
-        let x = self.inputs.next(t_s, temp_c);
+        let x = match given {
+            Some((x, _)) => x,
+            None => {
+                let t_s = k as f32 / self.cfg.sensor.sample_rate_hz;
+                self.inputs.next(t_s, temp_c)
+            }
+        };
         if k.is_multiple_of(self.still.window_samples()) {
             self.checkpoint_prev = self.checkpoint_now;
             self.checkpoint_now = self.level_state();
@@ -604,7 +625,10 @@ impl MotionEstimator {
             self.model_prev = self.model_now;
             self.x_prev = self.x_now;
             self.x_now = x;
-            self.model_now = self.model.eval(&x);
+            self.model_now = match given {
+                Some((_, m)) => m,
+                None => self.model.eval(&x),
+            };
             if !self.model_now.is_finite() {
                 self.model_now = 0.0;
             }
@@ -667,13 +691,16 @@ impl MotionEstimator {
         if still {
             self.stats.still_samples = self.stats.still_samples.wrapping_add(1);
         }
-        Ok(MotionOutput {
-            drift_dps: drift,
-            compensated_dps: rate_dps - drift,
-            still,
-            level_dps: self.level,
-            model_dps: self.model_now,
-        })
+        Ok((
+            MotionOutput {
+                drift_dps: drift,
+                compensated_dps: rate_dps - drift,
+                still,
+                level_dps: self.level,
+                model_dps: self.model_now,
+            },
+            x,
+        ))
     }
 
     /// Per-sample level step ([`LevelUpdate::Sample`]): the random walk always; when the

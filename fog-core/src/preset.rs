@@ -10,8 +10,9 @@
 //! `hold`'s otherwise: at rest the per-sample level follows the bias wander; from the
 //! first sample `rest` sees as moving, the output is the window level, which no sample of
 //! an unreleased window ever reached. Neither estimator learns from a moving sample, so a
-//! rotation in motion never moves the estimate (tested). Cost: two estimators per sample
-//! (about 2x the single estimator's instructions and state).
+//! rotation in motion never moves the estimate (tested). Cost: two estimators' state, two
+//! detectors and level steps per sample; the model inputs and the network (once per
+//! window) are computed once and shared (the two estimators hold the same model).
 
 use crate::motion::{LevelUpdate, MotionConfig, MotionError, MotionEstimator, MotionModel};
 use crate::motion::{MotionOutput, MotionStats};
@@ -98,25 +99,20 @@ impl PresetEstimator {
         arrangement: Arrangement,
         gm: GaussMarkov,
     ) -> Result<Self, MotionError> {
-        let base = MotionEstimator::new(model, cfg)?;
-        let with = |e: MotionEstimator, u: LevelUpdate| {
-            e.with_level_update(u)
-                .with_gauss_markov(gm.sigma_dps, gm.tau_s)
+        // Each estimator built in place (no clone of a finished one: fewer stack copies at
+        // the firmware's setup).
+        let make = |u: LevelUpdate| {
+            MotionEstimator::new(model, cfg).map(|e| {
+                e.with_level_update(u)
+                    .with_gauss_markov(gm.sigma_dps, gm.tau_s)
+            })
         };
-        Ok(match arrangement {
-            Arrangement::Window => Self {
-                rest: with(base, LevelUpdate::Window),
-                hold: None,
-            },
-            Arrangement::Sample => Self {
-                rest: with(base, LevelUpdate::Sample),
-                hold: None,
-            },
-            Arrangement::Dual => Self {
-                rest: with(base.clone(), LevelUpdate::Sample),
-                hold: Some(with(base, LevelUpdate::Window)),
-            },
-        })
+        let (rest, hold) = match arrangement {
+            Arrangement::Window => (make(LevelUpdate::Window)?, None),
+            Arrangement::Sample => (make(LevelUpdate::Sample)?, None),
+            Arrangement::Dual => (make(LevelUpdate::Sample)?, Some(make(LevelUpdate::Window)?)),
+        };
+        Ok(Self { rest, hold })
     }
 
     /// Which arrangement this is.
@@ -147,13 +143,27 @@ impl PresetEstimator {
         temp_c: f32,
         external_still: Option<bool>,
     ) -> Result<MotionOutput, MotionError> {
-        let held = self
-            .hold
-            .as_mut()
-            .map(|h| h.push(rate_dps, temp_c, external_still));
-        let o = self.rest.push(rate_dps, temp_c, external_still)?;
+        let (o, x) = match self
+            .rest
+            .push_shared(rate_dps, temp_c, external_still, None)
+        {
+            Ok(v) => v,
+            Err(e) => {
+                // Counted by both (the same check refuses it in both).
+                if let Some(h) = self.hold.as_mut() {
+                    let _ = h.push(rate_dps, temp_c, external_still);
+                }
+                return Err(e);
+            }
+        };
+        let Some(h) = self.hold.as_mut() else {
+            return Ok(o);
+        };
+        // The twin's inputs and model term (the same model, evaluated at the same window
+        // starts): the window estimator does not evaluate the network again.
+        let held = h.push_shared(rate_dps, temp_c, external_still, Some((x, o.model_dps)));
         Ok(match held {
-            Some(Ok(h)) if !o.still => MotionOutput { still: false, ..h },
+            Ok((h, _)) if !o.still => MotionOutput { still: false, ..h },
             _ => o,
         })
     }

@@ -135,11 +135,14 @@ impl Stage {
 /// Builds the stage from an identifier image (`fog_core::image` format), checked against
 /// [`SAMPLE_RATE_HZ`].
 pub fn new_stage(image: &[u8]) -> Result<Stage, SetupError> {
-    let image = Image::parse(image).map_err(SetupError::Image)?;
-    image
-        .check_rate(SAMPLE_RATE_HZ)
-        .map_err(SetupError::Image)?;
-    let estimator = image.estimator().map_err(SetupError::Estimator)?;
+    // The parsed image only lives in this block (its stack slot is free after it).
+    let estimator = {
+        let image = Image::parse(image).map_err(SetupError::Image)?;
+        image
+            .check_rate(SAMPLE_RATE_HZ)
+            .map_err(SetupError::Image)?;
+        image.estimator().map_err(SetupError::Estimator)?
+    };
     let denoiser = ResumableDenoiser::new(DenoiseConfig::PAPER).map_err(SetupError::Denoiser)?;
     Ok(Stage {
         estimator,
