@@ -363,7 +363,9 @@ pub enum LevelUpdate {
 }
 
 impl MotionEstimator {
-    /// An estimator at power-on.
+    /// An estimator at power-on. Always inlined: built in its caller's slot (the dual
+    /// builds two; a call would return each through a stack temporary).
+    #[inline(always)]
     pub fn new(model: MotionModel, cfg: MotionConfig) -> Result<Self, MotionError> {
         cfg.check()?;
         let still = Stillness::new(&cfg.sensor, &cfg.still).ok_or(MotionError::BadStillConfig)?;
@@ -430,6 +432,11 @@ impl MotionEstimator {
         self
     }
 
+    /// [`MotionEstimator::with_level_update`] in place.
+    pub fn set_level_update(&mut self, update: LevelUpdate) {
+        self.update = update;
+    }
+
     /// How the level learns.
     pub fn level_update(&self) -> LevelUpdate {
         self.update
@@ -463,6 +470,12 @@ impl MotionEstimator {
     /// level. Models the bias instability between stops better than a random walk alone.
     /// `sigma_dps` = 0 or a `tau_s` that is not finite and > 0 turns it off.
     pub fn with_gauss_markov(mut self, sigma_dps: f32, tau_s: f32) -> Self {
+        self.set_gauss_markov(sigma_dps, tau_s);
+        self
+    }
+
+    /// [`MotionEstimator::with_gauss_markov`] in place (restarts the estimator).
+    pub fn set_gauss_markov(&mut self, sigma_dps: f32, tau_s: f32) {
         self.gain_sigma0 = 0.0;
         self.second =
             if sigma_dps.is_finite() && sigma_dps != 0.0 && tau_s > 0.0 && tau_s.is_finite() {
@@ -479,7 +492,6 @@ impl MotionEstimator {
                 Second::Gain
             };
         self.restart();
-        self
     }
 
     /// The Gauss-Markov state of the level and its variance (0, 0 when off).

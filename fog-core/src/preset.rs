@@ -99,20 +99,24 @@ impl PresetEstimator {
         arrangement: Arrangement,
         gm: GaussMarkov,
     ) -> Result<Self, MotionError> {
-        // Each estimator built in place (no clone of a finished one: fewer stack copies at
-        // the firmware's setup).
-        let make = |u: LevelUpdate| {
-            MotionEstimator::new(model, cfg).map(|e| {
-                e.with_level_update(u)
-                    .with_gauss_markov(gm.sigma_dps, gm.tau_s)
-            })
+        // Built in place (setters, no builder moves, no clone): the firmware's setup
+        // holds no extra copy of an estimator on its stack.
+        let mut p = Self {
+            rest: MotionEstimator::new(model, cfg)?,
+            hold: None,
         };
-        let (rest, hold) = match arrangement {
-            Arrangement::Window => (make(LevelUpdate::Window)?, None),
-            Arrangement::Sample => (make(LevelUpdate::Sample)?, None),
-            Arrangement::Dual => (make(LevelUpdate::Sample)?, Some(make(LevelUpdate::Window)?)),
+        let update = match arrangement {
+            Arrangement::Window => LevelUpdate::Window,
+            Arrangement::Sample | Arrangement::Dual => LevelUpdate::Sample,
         };
-        Ok(Self { rest, hold })
+        p.rest.set_level_update(update);
+        p.rest.set_gauss_markov(gm.sigma_dps, gm.tau_s);
+        if arrangement == Arrangement::Dual {
+            let h = p.hold.insert(MotionEstimator::new(model, cfg)?);
+            h.set_level_update(LevelUpdate::Window);
+            h.set_gauss_markov(gm.sigma_dps, gm.tau_s);
+        }
+        Ok(p)
     }
 
     /// Which arrangement this is.

@@ -134,6 +134,9 @@ impl Stage {
 
 /// Builds the stage from an identifier image (`fog_core::image` format), checked against
 /// [`SAMPLE_RATE_HZ`].
+///
+/// Stack: the caller should use the result where it is (`match &mut result`), not move the
+/// stage out of it (a second copy of about 9 KiB).
 pub fn new_stage(image: &[u8]) -> Result<Stage, SetupError> {
     // The parsed image only lives in this block (its stack slot is free after it).
     let estimator = {
