@@ -191,7 +191,7 @@ where
             defmt::error!(
                 "identifier image refused ({=usize} bytes embedded): {=str}: {}",
                 IDENTIFIER_IMAGE.len(),
-                image_error_reason(&e),
+                image_error_reason(e),
                 e
             );
             return Stop::Setup;
