@@ -119,6 +119,18 @@ impl PresetEstimator {
         Ok(p)
     }
 
+    /// On-line refinement of the model ([`MotionEstimator::with_online_refinement`]) in
+    /// the per-sample (or only) estimator. In the dual the window estimator takes that
+    /// estimator's `m(x)` (shared, [`PresetEstimator::push`]), so both use the refined
+    /// model. Off by default.
+    pub fn with_online_refinement(
+        mut self,
+        trainer: crate::train::Drls<{ crate::motion::MOTION_L }>,
+    ) -> Self {
+        self.rest = self.rest.with_online_refinement(trainer);
+        self
+    }
+
     /// Which arrangement this is.
     pub fn arrangement(&self) -> Arrangement {
         match (&self.hold, self.rest.level_update()) {
