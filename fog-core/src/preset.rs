@@ -244,7 +244,7 @@ mod tests {
 
     /// Rest 60 s, then turns of `turn_dps` for 30 s and stops of 30 s; a drifting bias.
     fn rate(k: usize, turn_dps: f32, z: &mut Noise) -> (f32, bool) {
-        let moving = k >= 6000 && (k / 3000) % 2 == 0;
+        let moving = k >= 6000 && (k / 3000).is_multiple_of(2);
         let t = k as f32 * 0.01;
         let bias = (3.0 + 1.5 * (t / 40.0).sin()) / 3600.0;
         let turn = if moving { turn_dps } else { 0.0 };
