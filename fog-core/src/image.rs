@@ -1,7 +1,7 @@
 //! The identifier image: a trained [`crate::motion`] identifier as a versioned binary file
 //! (train once on the bench, flash the result).
 //!
-//! Little-endian, fixed layout for format version 1 ([`IMAGE_LEN`] = 560 bytes for
+//! Little-endian, fixed layout for format version 2 ([`IMAGE_LEN`] = 572 bytes for
 //! `N` = [`MOTION_N`], `L` = [`MOTION_L`]):
 //!
 //! | offset | size | field |
@@ -20,29 +20,40 @@
 //! | 468 | 4 x f32 + 4 | trainer (DRLS): lambda, u0, u_max, w_max, mode (0 parallel, 1 sequential), form (0 gain, 1 energy), 0, 0 |
 //! | 488 | L x f32 | trainer state (`U` or `S` per weight) |
 //! | 552 | u32 | records trained on (passes included) |
-//! | 556 | u32 | CRC-32/ISO-HDLC of bytes 0..556 |
+//! | 556 | 1+3 | level arrangement ([`Arrangement`]: 0 window, 1 sample, 2 dual), 0, 0, 0 |
+//! | 560 | 2 x f32 | Gauss-Markov state: sigma deg/s (0 = off), tau s (0 when off) |
+//! | 568 | u32 | CRC-32/ISO-HDLC of bytes 0..568 |
+//!
+//! Version 1 ([`IMAGE_LEN_V1`] = 560 bytes) is version 2 without bytes 556..568 (its CRC at
+//! 556 covers 0..556): it still loads, as [`Arrangement::Window`] without a Gauss-Markov
+//! state (what a version-1 image ran). [`Image::to_bytes`] writes version 2 only.
 //!
 //! [`Image::parse`] never panics (fuzzed by a proptest) and returns a typed [`ImageError`]:
 //! the magic and version are checked first (so that another version's layout is named as
 //! such), then the length, the checksum, then the content.
 
-use crate::motion::{MotionConfig, MotionError, MotionEstimator, MotionModel, MOTION_L, MOTION_N};
+use crate::motion::{MotionConfig, MotionError, MotionModel, MOTION_L, MOTION_N};
+use crate::preset::{Arrangement, GaussMarkov, PresetEstimator};
 use crate::still::{SensorConfig, StillConfig};
 use crate::train::{Drls, DrlsConfig, DrlsForm, DrlsMode};
 use crate::wnn::{Activation, Evaluation, Neuron, WnnShape};
 
 /// `FOGI`.
 pub const MAGIC: [u8; 4] = *b"FOGI";
-/// The format this code writes and reads.
-pub const FORMAT_VERSION: u16 = 1;
+/// The format this code writes (it reads this one and version 1).
+pub const FORMAT_VERSION: u16 = 2;
 /// Preset id of [`crate::motion`].
 pub const PRESET_MOTION: u16 = 1;
-/// Bytes of a version-1 image.
-pub const IMAGE_LEN: usize = 560;
+/// Bytes of a version-2 image.
+pub const IMAGE_LEN: usize = 572;
+/// Bytes of a version-1 image (still read: module docs).
+pub const IMAGE_LEN_V1: usize = 560;
 /// A stream's rate may differ from the image's by this fraction (timing of a real unit).
 pub const RATE_TOLERANCE: f32 = 0.01;
 
 const CRC_AT: usize = IMAGE_LEN - 4;
+/// Offset of the arrangement byte (version 2).
+const ARRANGEMENT_AT: usize = 556;
 
 /// Why an image was refused.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -99,7 +110,7 @@ impl core::fmt::Display for ImageError {
             Self::UnsupportedVersion(v) => {
                 write!(
                     f,
-                    "format version {v} unsupported (this build reads {FORMAT_VERSION})"
+                    "format version {v} unsupported (this build reads 1 and {FORMAT_VERSION})"
                 )
             }
             Self::TrailingBytes(n) => write!(f, "{n} bytes after the end of the image"),
@@ -169,6 +180,10 @@ pub struct Image {
     pub drls_state: [f32; MOTION_L],
     /// Records trained on (passes included).
     pub records_trained: u32,
+    /// How the level learns (version 1: [`Arrangement::Window`]).
+    pub arrangement: Arrangement,
+    /// The Gauss-Markov state beside the level (version 1: off).
+    pub gauss_markov: GaussMarkov,
 }
 
 struct Writer<'a> {
@@ -235,7 +250,8 @@ impl Reader<'_> {
 }
 
 impl Image {
-    /// An image of `model` trained by `drls` (state included) for `config`.
+    /// An image of `model` trained by `drls` (state included) for `config`, with the
+    /// window arrangement and no Gauss-Markov state ([`Image::with_arrangement`]).
     pub fn new(
         config: MotionConfig,
         model: MotionModel,
@@ -248,7 +264,16 @@ impl Image {
             drls: *drls.config(),
             drls_state: *drls.state(),
             records_trained,
+            arrangement: Arrangement::Window,
+            gauss_markov: GaussMarkov::OFF,
         }
+    }
+
+    /// The same image with `arrangement` and the Gauss-Markov state `gm`.
+    pub fn with_arrangement(mut self, arrangement: Arrangement, gm: GaussMarkov) -> Self {
+        self.arrangement = arrangement;
+        self.gauss_markov = gm;
+        self
     }
 
     /// Writes the image into `out` (at least [`IMAGE_LEN`] bytes); returns the bytes
@@ -324,6 +349,9 @@ impl Image {
             w.f32(v);
         }
         w.bytes(&self.records_trained.to_le_bytes());
+        w.bytes(&[self.arrangement.to_byte(), 0, 0, 0]);
+        w.f32(self.gauss_markov.sigma_dps);
+        w.f32(self.gauss_markov.tau_s);
         let crc = crc32(w.out.get(..CRC_AT).unwrap_or(&[]));
         w.bytes(&crc.to_le_bytes());
         Ok(w.at)
@@ -343,16 +371,19 @@ impl Image {
         }
         let v = head(6)?;
         let version = u16::from_le_bytes([v[4], v[5]]);
-        if version != FORMAT_VERSION {
-            return Err(ImageError::UnsupportedVersion(version));
-        }
-        let body = head(IMAGE_LEN)?;
-        if bytes.len() > IMAGE_LEN {
-            return Err(ImageError::TrailingBytes(bytes.len() - IMAGE_LEN));
+        let len = match version {
+            1 => IMAGE_LEN_V1,
+            FORMAT_VERSION => IMAGE_LEN,
+            _ => return Err(ImageError::UnsupportedVersion(version)),
+        };
+        let crc_at = len - 4;
+        let body = head(len)?;
+        if bytes.len() > len {
+            return Err(ImageError::TrailingBytes(bytes.len() - len));
         }
         let mut r = Reader { b: body, at: 0 };
-        let computed = crc32(body.get(..CRC_AT).unwrap_or(&[]));
-        r.at = CRC_AT;
+        let computed = crc32(body.get(..crc_at).unwrap_or(&[]));
+        r.at = crc_at;
         let stored = r.u32();
         if stored != computed {
             return Err(ImageError::Checksum { stored, computed });
@@ -481,12 +512,32 @@ impl Image {
             }
         }
         let records_trained = r.u32();
+        let (arrangement, gauss_markov) = if version == 1 {
+            (Arrangement::Window, GaussMarkov::OFF)
+        } else {
+            let [a, _, _, _] = r.take::<4>();
+            let arrangement = Arrangement::from_byte(a).ok_or(ImageError::BadValue {
+                offset: ARRANGEMENT_AT,
+            })?;
+            let gm = GaussMarkov {
+                sigma_dps: r.f32()?,
+                tau_s: r.f32()?,
+            };
+            if !gm.is_valid() {
+                return Err(ImageError::BadValue {
+                    offset: ARRANGEMENT_AT + 4,
+                });
+            }
+            (arrangement, gm)
+        };
         Ok(Self {
             config,
             model,
             drls,
             drls_state,
             records_trained,
+            arrangement,
+            gauss_markov,
         })
     }
 
@@ -504,9 +555,9 @@ impl Image {
         }
     }
 
-    /// The estimator at power-on.
-    pub fn estimator(&self) -> Result<MotionEstimator, MotionError> {
-        MotionEstimator::new(self.model, self.config)
+    /// The estimator at power-on: the image's arrangement and Gauss-Markov state.
+    pub fn estimator(&self) -> Result<PresetEstimator, MotionError> {
+        PresetEstimator::new(self.model, self.config, self.arrangement, self.gauss_markov)
     }
 
     /// The trainer's state, to continue training (on line, or on more records).
@@ -534,6 +585,24 @@ mod tests {
             tr.drls(),
             12,
         )
+        .with_arrangement(
+            Arrangement::Dual,
+            GaussMarkov {
+                sigma_dps: 3.0 / 3600.0,
+                tau_s: 4.0,
+            },
+        )
+    }
+
+    /// The version-1 image of the same content: bytes 0..556 with version 1, and its CRC.
+    fn bytes_v1(img: &Image) -> [u8; IMAGE_LEN_V1] {
+        let b = bytes(img);
+        let mut v1 = [0u8; IMAGE_LEN_V1];
+        v1[..556].copy_from_slice(&b[..556]);
+        v1[4..6].copy_from_slice(&1u16.to_le_bytes());
+        let crc = crc32(&v1[..556]);
+        v1[556..].copy_from_slice(&crc.to_le_bytes());
+        v1
     }
 
     fn bytes(img: &Image) -> [u8; IMAGE_LEN] {
@@ -564,6 +633,43 @@ mod tests {
         ));
         let mut small = [0u8; IMAGE_LEN - 1];
         assert_eq!(img.to_bytes(&mut small), Err(ImageError::BufferTooSmall));
+        assert_eq!(
+            back.estimator().map(|e| e.arrangement()),
+            Ok(Arrangement::Dual)
+        );
+    }
+
+    #[test]
+    fn version_1_loads_as_window_without_gauss_markov() {
+        let img = sample();
+        let v1 = Image::parse(&bytes_v1(&img)).expect("test");
+        assert_eq!(v1.arrangement, Arrangement::Window);
+        assert_eq!(v1.gauss_markov, GaussMarkov::OFF);
+        let as_v1 = img
+            .clone()
+            .with_arrangement(Arrangement::Window, GaussMarkov::OFF);
+        assert_eq!(v1, as_v1);
+        // Written back as version 2.
+        assert_eq!(bytes(&v1), bytes(&as_v1));
+        assert_eq!(
+            v1.estimator().map(|e| e.arrangement()),
+            Ok(Arrangement::Window)
+        );
+        let b = bytes_v1(&img);
+        for i in 0..IMAGE_LEN_V1 {
+            let mut c = b;
+            c[i] ^= 0x01;
+            assert!(Image::parse(&c).is_err(), "v1 byte {i} accepted");
+        }
+        for n in 6..IMAGE_LEN_V1 {
+            assert_eq!(
+                Image::parse(&b[..n]),
+                Err(ImageError::Truncated { offset: n })
+            );
+        }
+        let mut long = [0u8; IMAGE_LEN_V1 + 1];
+        long[..IMAGE_LEN_V1].copy_from_slice(&b);
+        assert_eq!(Image::parse(&long), Err(ImageError::TrailingBytes(1)));
     }
 
     #[test]
@@ -616,8 +722,8 @@ mod tests {
         c[0] = b'X';
         assert_eq!(Image::parse(&c), Err(ImageError::BadMagic));
         let mut c = b;
-        c[4] = 2;
-        assert_eq!(Image::parse(&c), Err(ImageError::UnsupportedVersion(2)));
+        c[4] = 3;
+        assert_eq!(Image::parse(&c), Err(ImageError::UnsupportedVersion(3)));
         let mut c = b;
         c[100] ^= 1;
         assert!(matches!(Image::parse(&c), Err(ImageError::Checksum { .. })));
@@ -633,12 +739,39 @@ mod tests {
         let crc = crc32(&c[..CRC_AT]);
         c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
         assert_eq!(Image::parse(&c), Err(ImageError::BadValue { offset: 404 }));
+        // An unknown arrangement, a NaN and a negative Gauss-Markov value behind a valid
+        // checksum.
+        for (at, v, want) in [
+            (ARRANGEMENT_AT, [3u8, 0, 0, 0], ARRANGEMENT_AT),
+            (560, f32::NAN.to_le_bytes(), 560),
+            (564, (-1.0f32).to_le_bytes(), 560),
+            (560, 0.0f32.to_le_bytes(), 560),
+        ] {
+            let mut c = b;
+            c[at..at + 4].copy_from_slice(&v);
+            let crc = crc32(&c[..CRC_AT]);
+            c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+            assert_eq!(
+                Image::parse(&c),
+                Err(ImageError::BadValue { offset: want }),
+                "{at}"
+            );
+        }
     }
 
     proptest! {
         #[test]
         fn parse_never_panics(data in proptest::collection::vec(any::<u8>(), 0..700)) {
             let _ = Image::parse(&data);
+        }
+
+        #[test]
+        fn parse_never_panics_near_valid_v1(i in 0usize..IMAGE_LEN_V1, v in any::<u8>(), cut in 0usize..=IMAGE_LEN_V1) {
+            let mut b = bytes_v1(&sample());
+            b[i] = v;
+            let crc = crc32(&b[..556]);
+            b[556..].copy_from_slice(&crc.to_le_bytes());
+            let _ = Image::parse(&b[..cut]);
         }
 
         #[test]

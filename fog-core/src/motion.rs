@@ -363,7 +363,9 @@ pub enum LevelUpdate {
 }
 
 impl MotionEstimator {
-    /// An estimator at power-on.
+    /// An estimator at power-on. Always inlined: built in its caller's slot (the dual
+    /// builds two; a call would return each through a stack temporary).
+    #[inline(always)]
     pub fn new(model: MotionModel, cfg: MotionConfig) -> Result<Self, MotionError> {
         cfg.check()?;
         let still = Stillness::new(&cfg.sensor, &cfg.still).ok_or(MotionError::BadStillConfig)?;
@@ -430,6 +432,11 @@ impl MotionEstimator {
         self
     }
 
+    /// [`MotionEstimator::with_level_update`] in place.
+    pub fn set_level_update(&mut self, update: LevelUpdate) {
+        self.update = update;
+    }
+
     /// How the level learns.
     pub fn level_update(&self) -> LevelUpdate {
         self.update
@@ -463,6 +470,12 @@ impl MotionEstimator {
     /// level. Models the bias instability between stops better than a random walk alone.
     /// `sigma_dps` = 0 or a `tau_s` that is not finite and > 0 turns it off.
     pub fn with_gauss_markov(mut self, sigma_dps: f32, tau_s: f32) -> Self {
+        self.set_gauss_markov(sigma_dps, tau_s);
+        self
+    }
+
+    /// [`MotionEstimator::with_gauss_markov`] in place (restarts the estimator).
+    pub fn set_gauss_markov(&mut self, sigma_dps: f32, tau_s: f32) {
         self.gain_sigma0 = 0.0;
         self.second =
             if sigma_dps.is_finite() && sigma_dps != 0.0 && tau_s > 0.0 && tau_s.is_finite() {
@@ -479,7 +492,6 @@ impl MotionEstimator {
                 Second::Gain
             };
         self.restart();
-        self
     }
 
     /// The Gauss-Markov state of the level and its variance (0, 0 when off).
@@ -587,13 +599,34 @@ impl MotionEstimator {
         temp_c: f32,
         external_still: Option<bool>,
     ) -> Result<MotionOutput, MotionError> {
+        self.push_shared(rate_dps, temp_c, external_still, None)
+            .map(|(o, _)| o)
+    }
+
+    /// [`MotionEstimator::push`], also returning the sample's model inputs `x`; with
+    /// `given` = `(x, m(x))` of a twin estimator (same model, configuration and sample
+    /// count: [`crate::preset::PresetEstimator`]'s dual), its inputs and model term are
+    /// taken instead of computed (the same bits: the twin computed them from the same
+    /// samples; this estimator's own input state is then not advanced).
+    pub(crate) fn push_shared(
+        &mut self,
+        rate_dps: f32,
+        temp_c: f32,
+        external_still: Option<bool>,
+        given: Option<([f32; MOTION_N], f32)>,
+    ) -> Result<(MotionOutput, [f32; MOTION_N]), MotionError> {
         if !rate_dps.is_finite() {
             self.stats.rejected = self.stats.rejected.wrapping_add(1);
             return Err(MotionError::NonFinite);
         }
         let k = self.stats.samples;
-        let t_s = k as f32 / self.cfg.sensor.sample_rate_hz;
-        let x = self.inputs.next(t_s, temp_c);
+        let x = match given {
+            Some((x, _)) => x,
+            None => {
+                let t_s = k as f32 / self.cfg.sensor.sample_rate_hz;
+                self.inputs.next(t_s, temp_c)
+            }
+        };
         if k.is_multiple_of(self.still.window_samples()) {
             self.checkpoint_prev = self.checkpoint_now;
             self.checkpoint_now = self.level_state();
@@ -604,7 +637,10 @@ impl MotionEstimator {
             self.model_prev = self.model_now;
             self.x_prev = self.x_now;
             self.x_now = x;
-            self.model_now = self.model.eval(&x);
+            self.model_now = match given {
+                Some((_, m)) => m,
+                None => self.model.eval(&x),
+            };
             if !self.model_now.is_finite() {
                 self.model_now = 0.0;
             }
@@ -667,13 +703,16 @@ impl MotionEstimator {
         if still {
             self.stats.still_samples = self.stats.still_samples.wrapping_add(1);
         }
-        Ok(MotionOutput {
-            drift_dps: drift,
-            compensated_dps: rate_dps - drift,
-            still,
-            level_dps: self.level,
-            model_dps: self.model_now,
-        })
+        Ok((
+            MotionOutput {
+                drift_dps: drift,
+                compensated_dps: rate_dps - drift,
+                still,
+                level_dps: self.level,
+                model_dps: self.model_now,
+            },
+            x,
+        ))
     }
 
     /// Per-sample level step ([`LevelUpdate::Sample`]): the random walk always; when the

@@ -182,13 +182,16 @@ where
         defmt::error!("decoder configuration refused");
         return Stop::Setup;
     };
-    let mut stage = match pipeline::new_stage(IDENTIFIER_IMAGE) {
+    // The stage is used where `new_stage` wrote it (a borrow of the result, not a move out
+    // of it): moving it out would keep a second copy of it (about 9 KiB) on the stack.
+    let mut built = pipeline::new_stage(IDENTIFIER_IMAGE);
+    let stage = match &mut built {
         Ok(s) => s,
         Err(pipeline::SetupError::Image(e)) => {
             defmt::error!(
                 "identifier image refused ({=usize} bytes embedded): {=str}: {}",
                 IDENTIFIER_IMAGE.len(),
-                image_error_reason(&e),
+                image_error_reason(e),
                 e
             );
             return Stop::Setup;
@@ -226,7 +229,7 @@ where
                 let temp_c = temperature.sample();
                 let external = commands.get().still.or_else(still_input);
                 let t0 = counter.stamp();
-                let (out, status) = pipeline::process(&mut stage, frame.rate_dps, temp_c, external);
+                let (out, status) = pipeline::process(stage, frame.rate_dps, temp_c, external);
                 let record = pipeline::sample_record(totals.samples, frame.rate_dps, &out, status);
                 let ticks = counter.ticks_since(t0);
                 write_all(tx, &record);

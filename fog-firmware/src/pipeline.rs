@@ -7,9 +7,12 @@
 //! records to be bit-identical.
 //!
 //! # The estimation stage
-//! [`Stage`] is the motion-safe estimator `fog_core::motion::MotionEstimator` (drift =
-//! clamp(level + m(time since power-on, temperature, its rate)), the level a stillness-gated
-//! random-walk Kalman state; see `docs/motion.md`) loaded from an identifier image
+//! [`Stage`] is the motion-safe estimator the identifier image names,
+//! `fog_core::preset::PresetEstimator` (drift = clamp(level + g + m(time since power-on,
+//! temperature, its rate)), the level a stillness-gated random-walk Kalman state, `g` an
+//! optional Gauss-Markov state; the image's arrangement: window level, per-sample level, or
+//! the dual = both side by side, the per-sample one's output while it flags the sample
+//! still, the window one's otherwise; see `docs/motion.md`) loaded from an identifier image
 //! ([`new_stage`]: `fog_core::image::Image::parse` + `check_rate`), plus the paper's block
 //! denoiser (db4, 3 levels, `B` = 512) in its resumable form
 //! (`fog_core::denoise::ResumableDenoiser`: block `j`'s transform spread over the pushes of
@@ -25,7 +28,8 @@
 use fog_core::denoise::{DenoiseConfig, DenoiseError, ResumableDenoiser, MAX_ABS_INPUT};
 use fog_core::frame::ByteStats;
 use fog_core::image::{Image, ImageError};
-use fog_core::motion::{MotionError, MotionEstimator};
+use fog_core::motion::MotionError;
+use fog_core::preset::PresetEstimator;
 
 /// Full scale of the E-Core 2000 unit the firmware decodes, deg/s.
 pub const FULL_SCALE_DPS: f32 = 60.0;
@@ -69,7 +73,9 @@ pub const STATUS_STILL: u8 = 1 << 0;
 pub const STATUS_BLOCK_DONE: u8 = 1 << 1;
 /// Status bit: an external still flag was given for this sample (it overrides the detector).
 pub const STATUS_EXTERNAL: u8 = 1 << 2;
-/// Status bit: a still window was released into the level at this sample (level update).
+/// Status bit: the level learned at this sample: a still window released into it (window
+/// arrangement) or a still sample (sample arrangement, and the dual's per-sample level,
+/// whose counters the status follows).
 pub const STATUS_LEVEL_UPDATE: u8 = 1 << 3;
 /// Status bit: a temperature reading went into the estimator with this sample.
 pub const STATUS_TEMPERATURE: u8 = 1 << 4;
@@ -115,25 +121,31 @@ pub enum SetupError {
 
 /// The per-sample stage: the estimator from the image, and the resumable block denoiser.
 pub struct Stage {
-    estimator: MotionEstimator,
+    estimator: PresetEstimator,
     denoiser: ResumableDenoiser<BLOCK>,
 }
 
 impl Stage {
     /// The estimator (its counters, level and configuration).
-    pub fn estimator(&self) -> &MotionEstimator {
+    pub fn estimator(&self) -> &PresetEstimator {
         &self.estimator
     }
 }
 
 /// Builds the stage from an identifier image (`fog_core::image` format), checked against
 /// [`SAMPLE_RATE_HZ`].
+///
+/// Stack: the caller should use the result where it is (`match &mut result`), not move the
+/// stage out of it (a second copy of about 9 KiB).
 pub fn new_stage(image: &[u8]) -> Result<Stage, SetupError> {
-    let image = Image::parse(image).map_err(SetupError::Image)?;
-    image
-        .check_rate(SAMPLE_RATE_HZ)
-        .map_err(SetupError::Image)?;
-    let estimator = image.estimator().map_err(SetupError::Estimator)?;
+    // The parsed image only lives in this block (its stack slot is free after it).
+    let estimator = {
+        let image = Image::parse(image).map_err(SetupError::Image)?;
+        image
+            .check_rate(SAMPLE_RATE_HZ)
+            .map_err(SetupError::Image)?;
+        image.estimator().map_err(SetupError::Estimator)?
+    };
     let denoiser = ResumableDenoiser::new(DenoiseConfig::PAPER).map_err(SetupError::Denoiser)?;
     Ok(Stage {
         estimator,

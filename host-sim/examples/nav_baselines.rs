@@ -23,7 +23,8 @@
 //! `GRID END`), with ITS OWN detector (no truth): the window-mean level
 //! ([`LevelUpdate::Window`], the default), the per-sample level with rollback
 //! ([`LevelUpdate::Sample`]), each with or without a Gauss-Markov state
-//! ([`MotionEstimator::with_gauss_markov`]; `Window` + GM is the "hybrid") whose sigma and
+//! ([`fog_core::motion::MotionEstimator::with_gauss_markov`]; `Window` + GM is the "hybrid";
+//! the dual: [`Arrangement::Dual`]) whose sigma and
 //! tau come from the RW+GM filter tuned on the static validation units (`static-tuned`)
 //! or on the validation vehicles (`vehicle-tuned`); an untrained model (the gated level
 //! alone); the detector's false-still / missed-still rates. Finally static records (4
@@ -36,8 +37,9 @@
 
 use anyhow::{bail, Result};
 use fog_core::motion::{
-    LevelUpdate, MotionConfig, MotionEstimator, MotionModel, MotionTrainer, Transfer, MOTION_DRLS,
+    LevelUpdate, MotionConfig, MotionModel, MotionTrainer, Transfer, MOTION_DRLS,
 };
+use fog_core::preset::{Arrangement, GaussMarkov, PresetEstimator};
 use fog_core::still::SensorConfig;
 use host_sim::motion::SHRINK_LAG_WINDOWS;
 use host_sim::nav::{
@@ -308,13 +310,13 @@ fn evaluate(set: &Set, svg_dir: Option<&Path>) -> Result<RwGmConfig> {
 
 /// The motion estimator as a [`DriftEstimator`]: its own detector, or the run's still
 /// flags as its external flag (`truth`). Keeps its still calls for the detector scores.
-/// With `hold` (the "dual" row, measured here only, not in fog-core): `est` runs the
-/// per-sample level and `hold` the window level beside it on the same samples; the output
-/// is `est`'s drift while `est` flags the sample still and `hold`'s otherwise (in motion,
-/// and from the first sample the fast gate or the detector flags moving).
+/// The "dual" rows run [`Arrangement::Dual`] (fog-core's [`PresetEstimator`], what the
+/// firmware runs): the per-sample level + GM beside the window level + GM on the same
+/// samples; the output is the per-sample one's drift while it flags the sample still and
+/// the window one's otherwise (in motion, and from the first sample the fast gate or the
+/// detector flags moving).
 struct Motion {
-    est: MotionEstimator,
-    hold: Option<MotionEstimator>,
+    est: PresetEstimator,
     truth: bool,
     calls: Vec<bool>,
 }
@@ -326,17 +328,10 @@ impl DriftEstimator for Motion {
     fn push(&mut self, _: f64, rate_dps: f64, temp_c: Option<f64>, still: bool) -> f64 {
         let temp = temp_c.map_or(f32::NAN, |t| t as f32);
         let ext = self.truth.then_some(still);
-        let held = self
-            .hold
-            .as_mut()
-            .and_then(|h| h.push(rate_dps as f32, temp, ext).ok());
         match self.est.push(rate_dps as f32, temp, ext) {
             Ok(o) => {
                 self.calls.push(o.still);
-                match held {
-                    Some(h) if !o.still => f64::from(h.drift_dps),
-                    _ => f64::from(o.drift_dps),
-                }
+                f64::from(o.drift_dps)
             }
             Err(_) => {
                 self.calls.push(false);
@@ -372,8 +367,8 @@ enum Second {
     None,
     /// Gauss-Markov state with the sigma and tau of this RW+GM configuration.
     Gm(RwGmConfig),
-    /// The dual ([`Motion::hold`]): per-sample level + GM at rest, window level + GM (the
-    /// hybrid) in motion, both with this configuration's sigma and tau and the row's q
+    /// The dual ([`Arrangement::Dual`]): per-sample level + GM at rest, window level + GM
+    /// (the hybrid) in motion, both with this configuration's sigma and tau and the row's q
     /// (the row's update is ignored).
     Dual(RwGmConfig),
 }
@@ -388,23 +383,23 @@ fn motion_est(
 ) -> Result<Motion> {
     let mut cfg = MotionConfig::for_sensor(sensor);
     cfg.level_q_dps2_per_s = q_dps2_per_s(q);
-    let est = MotionEstimator::new(*model, cfg)
-        .map_err(|e| anyhow::anyhow!("estimator: {e}"))?
-        .with_level_update(update);
-    let gm = |e: MotionEstimator, c: RwGmConfig| {
-        e.with_gauss_markov(c.sigma_gm_dps as f32, c.tau_s as f32)
+    let gm = |c: RwGmConfig| GaussMarkov {
+        sigma_dps: c.sigma_gm_dps as f32,
+        tau_s: c.tau_s as f32,
     };
-    let (est, hold) = match second {
-        Second::None => (est, None),
-        Second::Gm(c) => (gm(est, c), None),
-        Second::Dual(c) => (
-            gm(est.clone().with_level_update(LevelUpdate::Sample), c),
-            Some(gm(est.with_level_update(LevelUpdate::Window), c)),
-        ),
+    let single = match update {
+        LevelUpdate::Window => Arrangement::Window,
+        LevelUpdate::Sample => Arrangement::Sample,
     };
+    let (arrangement, gm) = match second {
+        Second::None => (single, GaussMarkov::OFF),
+        Second::Gm(c) => (single, gm(c)),
+        Second::Dual(c) => (Arrangement::Dual, gm(c)),
+    };
+    let est = PresetEstimator::new(*model, cfg, arrangement, gm)
+        .map_err(|e| anyhow::anyhow!("estimator: {e}"))?;
     Ok(Motion {
         est,
-        hold,
         truth,
         calls: Vec::new(),
     })

@@ -115,6 +115,18 @@ pub struct Args {
     /// by default: it costs on the simulator's vehicles (docs/motion.md).
     #[arg(long)]
     pub shrink: bool,
+    /// `--preset motion`: how the saved image's level learns (default dual: per-sample
+    /// level at rest, window level in motion; fog_core::preset).
+    #[arg(long, value_enum, default_value_t = motion::LevelUpdateArg::Dual)]
+    pub level_update: motion::LevelUpdateArg,
+    /// `--preset motion`: Gauss-Markov sigma of the level, deg/h (0: off; default
+    /// host_sim::motion::GAUSS_MARKOV_SIGMA_DPH = 2, ASSUMED from the static tuning).
+    #[arg(long)]
+    pub gm_sigma_dph: Option<f32>,
+    /// `--preset motion`: Gauss-Markov correlation time, s (default
+    /// host_sim::motion::GAUSS_MARKOV_TAU_S = 10).
+    #[arg(long)]
+    pub gm_tau_s: Option<f32>,
     /// `--preset motion --validate`: the baselines' gated Kalman q, (deg/s)^2 per sample
     /// (default: tuned on the validation records).
     #[arg(long)]
@@ -244,6 +256,22 @@ fn run_motion(a: &Args) -> Result<()> {
     o.shrink = a.shrink;
     if let Some(q) = a.level_q_dph2_per_h {
         o.config.level_q_dps2_per_s = q / (3600.0 * 3600.0 * 3600.0);
+    }
+    o.arrangement = a.level_update.arrangement();
+    let d = motion::DEFAULT_GAUSS_MARKOV;
+    o.gauss_markov = fog_core::preset::GaussMarkov {
+        sigma_dps: a.gm_sigma_dph.map_or(d.sigma_dps, |s| s / 3600.0),
+        tau_s: a.gm_tau_s.unwrap_or(d.tau_s),
+    };
+    if o.gauss_markov.sigma_dps == 0.0 {
+        o.gauss_markov = fog_core::preset::GaussMarkov::OFF;
+    }
+    if !o.gauss_markov.is_valid() {
+        anyhow::bail!(
+            "--gm-sigma-dph {} --gm-tau-s {}: sigma must be >= 0 and tau > 0, both finite",
+            o.gauss_markov.sigma_dps * 3600.0,
+            o.gauss_markov.tau_s
+        );
     }
     let (image, rows, shrink) = motion::train(&train, &o)?;
     if shrink.cross_validated {

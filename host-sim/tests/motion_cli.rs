@@ -169,9 +169,9 @@ fn bad_identifiers_are_refused() {
     flipped[300] ^= 0x10;
     refused(&flipped, &rec, d, "checksum mismatch");
     refused(&good[..200], &rec, d, "truncated at byte offset 200");
-    let mut v2 = good.clone();
-    v2[4] = 2;
-    refused(&v2, &rec, d, "format version 2 unsupported");
+    let mut v3 = good.clone();
+    v3[4] = 3;
+    refused(&v3, &rec, d, "format version 3 unsupported");
     refused(b"hello, world", &rec, d, "bad magic");
     // The right image, a record at another rate.
     let slow = d.join("slow.csv");

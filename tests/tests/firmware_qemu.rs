@@ -184,7 +184,7 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
         assert_eq!(
             [r.bits[1], r.bits[2]],
             [m.drift_dps.to_bits(), m.compensated_dps.to_bits()],
-            "record {k}: drift, compensated vs MotionEstimator"
+            "record {k}: drift, compensated vs PresetEstimator"
         );
         assert_eq!(
             r.status & pipeline::STATUS_STILL != 0,
@@ -444,6 +444,9 @@ fn the_default_image_parses_and_says_how_it_was_made() {
         image.model.weights.iter().any(|w| *w != 0.0),
         "trained weights"
     );
+    // The product's arrangement: the dual with a Gauss-Markov state.
+    assert_eq!(image.arrangement, fog_core::preset::Arrangement::Dual);
+    assert!(image.gauss_markov.sigma_dps > 0.0 && image.gauss_markov.is_valid());
     let readme =
         std::fs::read_to_string(fog_system_tests::firmware_dir().join("identifier/README.md"))
             .expect("identifier/README.md");

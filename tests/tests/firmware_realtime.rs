@@ -43,12 +43,14 @@ const BAUD: &str = "115200";
 /// instructions, no sample of the stage outlasts a byte since the denoiser is resumable:
 /// polling would lose nothing there, and the control could not fail.)
 const POLL_BAUD: &str = "1000000";
-/// A line rate at which the main loop cannot keep up on average (a byte every 210
-/// instructions, a frame every 1,680, less than a sample with its record and the receive
-/// interrupts cost): the queue fills, the receive interrupt pauses (back-pressure) and bytes
-/// are overwritten. (At 4,000,000 baud it keeps up and nothing is lost; at 10,000,000 the
-/// feed's and the receive interrupts take all of the time and the run never ends.)
-const FAST_BAUD: &str = "8000000";
+/// A line rate at which the main loop cannot keep up on average (a byte every 280
+/// instructions, a frame every 2,240, less than a sample with its record and the receive
+/// interrupts cost with the dual image, 1,257 mean for the pipeline alone): the queue fills,
+/// the receive interrupt pauses (back-pressure) and bytes are overwritten. (With the dual
+/// image, at 8,000,000 baud the feed's and the receive interrupts leave the main loop too
+/// little time and the run does not end within the deadline; with the window image that
+/// happened at 10,000,000 and 4,000,000 kept up.)
+const FAST_BAUD: &str = "6000000";
 
 /// Line idle before the end marker (bytes without the sync flag, skipped by the decoder as
 /// `no_sync`): the main loop drains its backlog meanwhile, so that the end marker itself is

@@ -15,9 +15,9 @@ use crate::record;
 use anyhow::{anyhow, bail, Context, Result};
 use fog_core::image::{Image, IMAGE_LEN};
 use fog_core::motion::{
-    MotionConfig, MotionEstimator, MotionModel, MotionOutput, MotionTrainer, RecordFit, Transfer,
-    MOTION_DRLS,
+    MotionConfig, MotionModel, MotionOutput, MotionTrainer, RecordFit, Transfer, MOTION_DRLS,
 };
+use fog_core::preset::{Arrangement, GaussMarkov, PresetEstimator};
 use fog_core::still::SensorConfig;
 use serde::Serialize;
 use std::io::Write;
@@ -43,6 +43,45 @@ impl SensorArg {
     }
 }
 
+/// Default Gauss-Markov sigma of the level, deg/h. ASSUMED from the static tuning: the
+/// per-sample RW+GM Kalman filter tuned by truth error on host-sim's 3 static validation
+/// units picks 2 deg/h, 10 s (the Python generator's nominal units 2 deg/h, 3 s; its OOD
+/// units 4 deg/h, 1 s at the grid end), measured by
+/// `cargo run --release -p host-sim --example nav_baselines` (docs/motion.md).
+pub const GAUSS_MARKOV_SIGMA_DPH: f32 = 2.0;
+/// Default Gauss-Markov correlation time, s (ASSUMED: see [`GAUSS_MARKOV_SIGMA_DPH`]).
+pub const GAUSS_MARKOV_TAU_S: f32 = 10.0;
+/// The Gauss-Markov state a saved image carries by default, for every sensor (ASSUMED for
+/// the DSP-1750 too, which has no static validation records here).
+pub const DEFAULT_GAUSS_MARKOV: GaussMarkov = GaussMarkov {
+    sigma_dps: GAUSS_MARKOV_SIGMA_DPH / 3600.0,
+    tau_s: GAUSS_MARKOV_TAU_S,
+};
+
+/// How the saved image's level learns (`--level-update`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum LevelUpdateArg {
+    /// Level per released still window.
+    Window,
+    /// Level per still sample with rollback.
+    Sample,
+    /// Per-sample level at rest, window level in motion (the default).
+    #[default]
+    Dual,
+}
+
+impl LevelUpdateArg {
+    /// The image's arrangement.
+    pub fn arrangement(self) -> Arrangement {
+        match self {
+            Self::Window => Arrangement::Window,
+            Self::Sample => Arrangement::Sample,
+            Self::Dual => Arrangement::Dual,
+        }
+    }
+}
+
 /// How to train.
 #[derive(Debug, Clone, Copy)]
 pub struct TrainOptions {
@@ -60,6 +99,11 @@ pub struct TrainOptions {
     /// The drive the shrinkage scores the model over, detector windows
     /// ([`fog_core::motion::Transfer::add_record`]'s `lag`; 0: the whole record's shape).
     pub shrink_lag_windows: usize,
+    /// How the image's level learns (default [`Arrangement::Dual`]).
+    pub arrangement: Arrangement,
+    /// The image's Gauss-Markov state (default [`GAUSS_MARKOV_SIGMA_DPH`],
+    /// [`GAUSS_MARKOV_TAU_S`]).
+    pub gauss_markov: GaussMarkov,
 }
 
 /// Default drive of the shrinkage: 60 windows (60 s with the default 1-s window). ASSUMED:
@@ -68,7 +112,8 @@ pub struct TrainOptions {
 pub const SHRINK_LAG_WINDOWS: usize = 60;
 
 impl TrainOptions {
-    /// Defaults for `sensor`: 3 passes, 1800 s, no shrinkage.
+    /// Defaults for `sensor`: 3 passes, 1800 s, no shrinkage, the dual with the default
+    /// Gauss-Markov state.
     pub fn new(sensor: SensorConfig) -> Self {
         Self {
             config: MotionConfig::for_sensor(sensor),
@@ -76,6 +121,8 @@ impl TrainOptions {
             time_max_s: 1800.0,
             shrink: false,
             shrink_lag_windows: SHRINK_LAG_WINDOWS,
+            arrangement: Arrangement::Dual,
+            gauss_markov: DEFAULT_GAUSS_MARKOV,
         }
     }
 }
@@ -184,7 +231,8 @@ pub fn train(
     };
     let model = tr.model().scaled(shrink.alpha);
     Ok((
-        Image::new(o.config, model, tr.drls(), tr.records()),
+        Image::new(o.config, model, tr.drls(), tr.records())
+            .with_arrangement(o.arrangement, o.gauss_markov),
         rows,
         shrink,
     ))
@@ -270,7 +318,8 @@ fn trainer(o: &TrainOptions) -> Result<MotionTrainer> {
 /// stillness-gated level alone (the built-in default of `host-sim replay`).
 pub fn untrained(o: &TrainOptions) -> Result<Image> {
     let tr = trainer(o)?;
-    Ok(Image::new(o.config, *tr.model(), tr.drls(), 0))
+    Ok(Image::new(o.config, *tr.model(), tr.drls(), 0)
+        .with_arrangement(o.arrangement, o.gauss_markov))
 }
 
 /// Writes `image` to `path` atomically.
@@ -316,7 +365,7 @@ pub fn read_record(path: &Path, still_column: Option<&str>) -> Result<MotionReco
 }
 
 /// Runs `estimator` over a record from power-on: one output per row.
-pub fn run(estimator: &mut MotionEstimator, r: &MotionRecord) -> Vec<MotionOutput> {
+pub fn run(estimator: &mut PresetEstimator, r: &MotionRecord) -> Vec<MotionOutput> {
     estimator.restart();
     let s = &r.series;
     (0..s.rate_dps.len())

@@ -84,6 +84,12 @@ pub struct MotionSummary {
     pub output: String,
     /// The identifier image, or the built-in default.
     pub identifier: String,
+    /// The image's level arrangement: `window`, `sample` or `dual` (fog_core::preset).
+    pub level_update: String,
+    /// The image's Gauss-Markov sigma, deg/h (0: off).
+    pub gm_sigma_dph: f32,
+    /// The image's Gauss-Markov correlation time, s (0: off).
+    pub gm_tau_s: f32,
     /// Record passes trained into the image (12 records x 3 passes = 36; 0: untrained, the
     /// gated level alone).
     pub records_trained: u32,
@@ -321,6 +327,9 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         format: rec.format.name(),
         output: output.display().to_string(),
         identifier,
+        level_update: format!("{:?}", image.arrangement).to_lowercase(),
+        gm_sigma_dph: image.gauss_markov.sigma_dps * 3600.0,
+        gm_tau_s: image.gauss_markov.tau_s,
         records_trained: image.records_trained,
         sensor: sensor.into(),
         t_s_source: rec.t_s_source,
@@ -365,11 +374,14 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
     let mut err = std::io::stderr().lock();
     writeln!(
         err,
-        "{}: {} rows ({}) through the motion identifier ({}); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still, {} level updates; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
+        "{}: {} rows ({}) through the motion identifier ({}; level {}, GM {} deg/h {} s); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still, {} level updates; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
         s.input,
         s.rows,
         s.format,
         s.identifier,
+        s.level_update,
+        s.gm_sigma_dph,
+        s.gm_tau_s,
         s.sensor.full_scale_dps,
         s.sensor.sample_rate_hz,
         s.sensor.drift_bound_dph,

@@ -1,0 +1,384 @@
+//! The estimator an identifier image names: one [`MotionEstimator`] (window or per-sample
+//! level) or the dual ([`Arrangement::Dual`]), with an optional Gauss-Markov state.
+//!
+//! The dual runs two estimators of the same model and configuration side by side on the
+//! same samples, each with its own stillness detector:
+//! - `rest` = per-sample level with rollback + Gauss-Markov ([`LevelUpdate::Sample`]),
+//! - `hold` = window level + Gauss-Markov (the "hybrid", [`LevelUpdate::Window`]).
+//!
+//! Its drift is `rest`'s while `rest` flags the sample still (after its fast gate), and
+//! `hold`'s otherwise: at rest the per-sample level follows the bias wander; from the
+//! first sample `rest` sees as moving, the output is the window level, which no sample of
+//! an unreleased window ever reached. Neither estimator learns from a moving sample, so a
+//! rotation in motion never moves the estimate (tested). Cost: two estimators' state, two
+//! detectors and level steps per sample; the model inputs and the network (once per
+//! window) are computed once and shared (the two estimators hold the same model).
+
+use crate::motion::{LevelUpdate, MotionConfig, MotionError, MotionEstimator, MotionModel};
+use crate::motion::{MotionOutput, MotionStats};
+
+/// How the level learns: the image's update-mode byte (format version 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Arrangement {
+    /// One estimator, level per released window ([`LevelUpdate::Window`]); the
+    /// arrangement of a version-1 image.
+    #[default]
+    Window,
+    /// One estimator, level per still sample with rollback ([`LevelUpdate::Sample`]).
+    Sample,
+    /// Per-sample level at rest, window level in motion (module docs).
+    Dual,
+}
+
+impl Arrangement {
+    /// The image's byte: 0 window, 1 sample, 2 dual.
+    pub const fn to_byte(self) -> u8 {
+        match self {
+            Self::Window => 0,
+            Self::Sample => 1,
+            Self::Dual => 2,
+        }
+    }
+
+    /// The arrangement of an image byte (`None`: not one).
+    pub const fn from_byte(b: u8) -> Option<Self> {
+        match b {
+            0 => Some(Self::Window),
+            1 => Some(Self::Sample),
+            2 => Some(Self::Dual),
+            _ => None,
+        }
+    }
+}
+
+/// The Gauss-Markov state beside the level ([`MotionEstimator::with_gauss_markov`]):
+/// `sigma_dps` = 0 is off.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GaussMarkov {
+    /// Standard deviation of the state, deg/s (>= 0, finite; 0 = off).
+    pub sigma_dps: f32,
+    /// Correlation time, s (> 0, finite, when `sigma_dps` > 0).
+    pub tau_s: f32,
+}
+
+impl GaussMarkov {
+    /// No Gauss-Markov state.
+    pub const OFF: Self = Self {
+        sigma_dps: 0.0,
+        tau_s: 0.0,
+    };
+
+    /// Off, or a finite sigma > 0 with a finite tau > 0.
+    pub fn is_valid(&self) -> bool {
+        (self.sigma_dps == 0.0 && self.tau_s == 0.0)
+            || (self.sigma_dps.is_finite()
+                && self.sigma_dps > 0.0
+                && self.tau_s.is_finite()
+                && self.tau_s > 0.0)
+    }
+}
+
+/// The estimator of an [`Arrangement`] (module docs). No heap; the dual holds two
+/// [`MotionEstimator`]s.
+#[derive(Debug, Clone)]
+pub struct PresetEstimator {
+    /// The only estimator (window or sample), or the dual's per-sample one.
+    rest: MotionEstimator,
+    /// The dual's window estimator.
+    hold: Option<MotionEstimator>,
+}
+
+impl PresetEstimator {
+    /// An estimator at power-on for `arrangement`, with the Gauss-Markov state `gm` in
+    /// each of its estimators.
+    pub fn new(
+        model: MotionModel,
+        cfg: MotionConfig,
+        arrangement: Arrangement,
+        gm: GaussMarkov,
+    ) -> Result<Self, MotionError> {
+        // Built in place (setters, no builder moves, no clone): the firmware's setup
+        // holds no extra copy of an estimator on its stack.
+        let mut p = Self {
+            rest: MotionEstimator::new(model, cfg)?,
+            hold: None,
+        };
+        let update = match arrangement {
+            Arrangement::Window => LevelUpdate::Window,
+            Arrangement::Sample | Arrangement::Dual => LevelUpdate::Sample,
+        };
+        p.rest.set_level_update(update);
+        p.rest.set_gauss_markov(gm.sigma_dps, gm.tau_s);
+        if arrangement == Arrangement::Dual {
+            let h = p.hold.insert(MotionEstimator::new(model, cfg)?);
+            h.set_level_update(LevelUpdate::Window);
+            h.set_gauss_markov(gm.sigma_dps, gm.tau_s);
+        }
+        Ok(p)
+    }
+
+    /// On-line refinement of the model ([`MotionEstimator::with_online_refinement`]) in
+    /// the per-sample (or only) estimator. In the dual the window estimator takes that
+    /// estimator's `m(x)` (shared, [`PresetEstimator::push`]), so both use the refined
+    /// model. Off by default.
+    pub fn with_online_refinement(
+        mut self,
+        trainer: crate::train::Drls<{ crate::motion::MOTION_L }>,
+    ) -> Self {
+        self.rest = self.rest.with_online_refinement(trainer);
+        self
+    }
+
+    /// Which arrangement this is.
+    pub fn arrangement(&self) -> Arrangement {
+        match (&self.hold, self.rest.level_update()) {
+            (Some(_), _) => Arrangement::Dual,
+            (None, LevelUpdate::Window) => Arrangement::Window,
+            (None, LevelUpdate::Sample) => Arrangement::Sample,
+        }
+    }
+
+    /// Back to power-on (both estimators). Keeps the model.
+    pub fn restart(&mut self) {
+        self.rest.restart();
+        if let Some(h) = self.hold.as_mut() {
+            h.restart();
+        }
+    }
+
+    /// One sample (as [`MotionEstimator::push`]): `rate_dps`, `temp_c` (NaN: none),
+    /// `external_still` (overrides both detectors when `Some`). In the dual, the output is
+    /// `rest`'s when it flags the sample still, else `hold`'s drift, compensated rate,
+    /// level and model term (with `rest`'s still flag). A non-finite rate is refused by
+    /// both and counted.
+    pub fn push(
+        &mut self,
+        rate_dps: f32,
+        temp_c: f32,
+        external_still: Option<bool>,
+    ) -> Result<MotionOutput, MotionError> {
+        let (o, x) = match self
+            .rest
+            .push_shared(rate_dps, temp_c, external_still, None)
+        {
+            Ok(v) => v,
+            Err(e) => {
+                // Counted by both (the same check refuses it in both).
+                if let Some(h) = self.hold.as_mut() {
+                    let _ = h.push(rate_dps, temp_c, external_still);
+                }
+                return Err(e);
+            }
+        };
+        let Some(h) = self.hold.as_mut() else {
+            return Ok(o);
+        };
+        // The twin's inputs and model term (the same model, evaluated at the same window
+        // starts): the window estimator does not evaluate the network again.
+        let held = h.push_shared(rate_dps, temp_c, external_still, Some((x, o.model_dps)));
+        Ok(match held {
+            Ok((h, _)) if !o.still => MotionOutput { still: false, ..h },
+            _ => o,
+        })
+    }
+
+    /// The configuration (the same for both estimators).
+    pub fn config(&self) -> &MotionConfig {
+        self.rest.config()
+    }
+
+    /// The model (the same for both estimators).
+    pub fn model(&self) -> &MotionModel {
+        self.rest.model()
+    }
+
+    /// Counters of the per-sample (or only) estimator: its still flags are the output's.
+    pub fn stats(&self) -> &MotionStats {
+        self.rest.stats()
+    }
+
+    /// The per-sample (or only) estimator.
+    pub fn rest(&self) -> &MotionEstimator {
+        &self.rest
+    }
+
+    /// The dual's window estimator (`None` unless [`Arrangement::Dual`]).
+    pub fn hold(&self) -> Option<&MotionEstimator> {
+        self.hold.as_ref()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::still::SensorConfig;
+
+    const S: SensorConfig = SensorConfig::ECORE_2000;
+    const GM: GaussMarkov = GaussMarkov {
+        sigma_dps: 3.0 / 3600.0,
+        tau_s: 4.0,
+    };
+
+    struct Noise(u64);
+    impl Noise {
+        fn normal(&mut self) -> f32 {
+            // Sum of 12 uniforms (approximately normal, variance 1).
+            let mut s = 0.0f32;
+            for _ in 0..12 {
+                self.0 = self
+                    .0
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
+                s += (self.0 >> 40) as f32 / (1u64 << 24) as f32;
+            }
+            s - 6.0
+        }
+    }
+
+    fn make(a: Arrangement, gm: GaussMarkov) -> PresetEstimator {
+        let model = MotionModel::standard(1800.0).expect("test");
+        PresetEstimator::new(model, MotionConfig::for_sensor(S), a, gm).expect("test")
+    }
+
+    /// Rest 60 s, then turns of `turn_dps` for 30 s and stops of 30 s; a drifting bias.
+    fn rate(k: usize, turn_dps: f32, z: &mut Noise) -> (f32, bool) {
+        let moving = k >= 6000 && (k / 3000).is_multiple_of(2);
+        let t = k as f32 * 0.01;
+        let bias = (3.0 + 1.5 * (t / 40.0).sin()) / 3600.0;
+        let turn = if moving { turn_dps } else { 0.0 };
+        (
+            bias + turn + S.sample_var_dps2().sqrt() * z.normal(),
+            moving,
+        )
+    }
+
+    #[test]
+    fn dual_is_the_two_estimators_switched_by_the_rest_flag() {
+        // The reference: the two estimators built by hand (what host-sim's nav_baselines
+        // example ran before this type existed), output switched on the per-sample one's
+        // still flag.
+        let model = MotionModel::standard(1800.0).expect("test");
+        let cfg = MotionConfig::for_sensor(S);
+        let base = MotionEstimator::new(model, cfg).expect("test");
+        let mut est = base
+            .clone()
+            .with_level_update(LevelUpdate::Sample)
+            .with_gauss_markov(GM.sigma_dps, GM.tau_s);
+        let mut hold = base
+            .with_level_update(LevelUpdate::Window)
+            .with_gauss_markov(GM.sigma_dps, GM.tau_s);
+        let mut dual = make(Arrangement::Dual, GM);
+        assert_eq!(dual.arrangement(), Arrangement::Dual);
+        let mut z = Noise(3);
+        let (mut from_hold, mut from_rest) = (0, 0);
+        for k in 0..40_000usize {
+            let (x, _) = rate(k, 15.0, &mut z);
+            let temp = 25.0 + k as f32 * 1.0e-4;
+            let h = hold.push(x, temp, None).expect("test");
+            let e = est.push(x, temp, None).expect("test");
+            let want = if e.still { e.drift_dps } else { h.drift_dps };
+            if e.still {
+                from_rest += 1;
+            } else if h.drift_dps != e.drift_dps {
+                from_hold += 1;
+            }
+            let o = dual.push(x, temp, None).expect("test");
+            assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
+            assert_eq!(o.still, e.still);
+        }
+        // Both branches were taken, with different values.
+        assert!(
+            from_rest > 10_000 && from_hold > 1_000,
+            "{from_rest} {from_hold}"
+        );
+        assert!(dual.push(f32::NAN, 0.0, None).is_err());
+        assert_eq!(dual.stats().rejected, 1);
+        assert_eq!(dual.hold().map(|h| h.stats().rejected), Some(1));
+    }
+
+    #[test]
+    fn single_arrangements_are_the_plain_estimator() {
+        let model = MotionModel::standard(1800.0).expect("test");
+        let cfg = MotionConfig::for_sensor(S);
+        for (a, u) in [
+            (Arrangement::Window, LevelUpdate::Window),
+            (Arrangement::Sample, LevelUpdate::Sample),
+        ] {
+            let mut p = make(a, GaussMarkov::OFF);
+            assert_eq!(p.arrangement(), a);
+            assert!(p.hold().is_none());
+            let mut e = MotionEstimator::new(model, cfg)
+                .expect("test")
+                .with_level_update(u);
+            let mut z = Noise(9);
+            for k in 0..20_000usize {
+                let (x, _) = rate(k, 10.0, &mut z);
+                let (o, r) = (p.push(x, f32::NAN, None), e.push(x, f32::NAN, None));
+                assert_eq!(o, r, "{a:?} {k}");
+            }
+        }
+    }
+
+    #[test]
+    fn dual_rotation_in_motion_never_moves_the_estimate() {
+        // With the still flags given (as the motion module's tests do): identical outputs,
+        // bit for bit, with and without turns of 20 deg/s in the drives.
+        let (mut a, mut b) = (make(Arrangement::Dual, GM), make(Arrangement::Dual, GM));
+        let mut z = Noise(17);
+        for k in 0..40_000usize {
+            let (x, moving) = rate(k, 0.0, &mut z);
+            let turn = if moving { 20.0 } else { 0.0 };
+            let oa = a.push(x, f32::NAN, Some(!moving)).expect("test");
+            let ob = b.push(x + turn, f32::NAN, Some(!moving)).expect("test");
+            assert_eq!(oa.drift_dps.to_bits(), ob.drift_dps.to_bits(), "{k}");
+        }
+        // With its own detectors: bounded, and at rest (from 10 s into each stop) within
+        // 1.5 deg/h RMS of the wandering bias (the untrained model: the level does it all).
+        let mut d = make(Arrangement::Dual, GM);
+        let mut z = Noise(5);
+        let (mut e2, mut n) = (0.0f64, 0u32);
+        for k in 0..60_000usize {
+            let (x, moving) = rate(k, 10.0, &mut z);
+            let o = d.push(x, f32::NAN, None).expect("test");
+            assert!(o.drift_dps.abs() <= S.drift_bound_dps);
+            let t = k as f32 * 0.01;
+            let bias = (3.0 + 1.5 * (t / 40.0).sin()) / 3600.0;
+            if !moving && k % 3000 > 1000 && k > 5000 {
+                e2 += f64::from((o.drift_dps - bias) * 3600.0).powi(2);
+                n += 1;
+            }
+            if moving {
+                // In motion the output is the window estimator's, which learns only from
+                // released still windows.
+                assert!(!o.still, "{k}");
+            }
+        }
+        let rms_dph = (e2 / f64::from(n)).sqrt();
+        assert!(rms_dph < 1.5, "{rms_dph}");
+    }
+
+    #[test]
+    fn gauss_markov_validity() {
+        assert!(GaussMarkov::OFF.is_valid());
+        assert!(GM.is_valid());
+        for (s, t) in [
+            (-1.0, 1.0),
+            (1.0, 0.0),
+            (f32::NAN, 1.0),
+            (1.0, f32::INFINITY),
+            (0.0, 1.0),
+        ] {
+            let g = GaussMarkov {
+                sigma_dps: s,
+                tau_s: t,
+            };
+            assert!(!g.is_valid(), "{s} {t}");
+        }
+        for a in [Arrangement::Window, Arrangement::Sample, Arrangement::Dual] {
+            assert_eq!(Arrangement::from_byte(a.to_byte()), Some(a));
+        }
+        assert_eq!(Arrangement::from_byte(3), None);
+    }
+}
