@@ -29,6 +29,8 @@ pub mod image;
 pub mod motion;
 pub mod preset;
 pub mod still;
+#[cfg(test)]
+mod test_noise;
 pub mod threshold;
 pub mod tmp117;
 pub mod train;

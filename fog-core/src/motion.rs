@@ -1140,20 +1140,7 @@ mod tests {
     extern crate std;
     use std::vec::Vec;
 
-    struct Noise(u64);
-    impl Noise {
-        fn normal(&mut self) -> f32 {
-            let mut s = 0.0;
-            for _ in 0..4 {
-                self.0 = self
-                    .0
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                s += ((self.0 >> 40) as f32 / (1u64 << 24) as f32) - 0.5;
-            }
-            s * 3.0f32.sqrt()
-        }
-    }
+    use crate::test_noise::Noise;
 
     const S: SensorConfig = SensorConfig::ECORE_2000;
 
@@ -1457,18 +1444,20 @@ mod tests {
         assert!(g != 0.0 && g_var > 0.0 && g_var < sigma_gm * sigma_gm);
     }
 
-    #[test]
-    fn gauss_markov_level_ignores_rotation_in_motion_and_decays() {
+    /// Two estimators with `update` and a Gauss-Markov state (3 deg/h, 10 s), fed the same
+    /// noise `z` and drift, one of them turning at 20 deg/s during a 60-s drive: their
+    /// drifts are bit-identical, and the Gauss-Markov part decays toward 0 in motion
+    /// (60 s = 6 tau) from a start above 0.3 deg/h.
+    fn assert_rotation_ignored_and_gauss_markov_decays(update: LevelUpdate, z: &mut Noise) {
         let model = MotionModel::standard(1800.0).expect("test");
         let cfg = MotionConfig::for_sensor(S);
         let make = || {
             MotionEstimator::new(model, cfg)
                 .expect("test")
-                .with_level_update(LevelUpdate::Sample)
+                .with_level_update(update)
                 .with_gauss_markov(3.0 / 3600.0, 10.0)
         };
         let (mut a, mut b) = (make(), make());
-        let mut z = Noise(17);
         let sigma = S.sample_var_dps2().sqrt();
         let mut g_at_drive_start = 0.0;
         for k in 0..12_000usize {
@@ -1477,19 +1466,15 @@ mod tests {
             let drift = 4.0 / 3600.0 + if k < 5000 { 0.0 } else { 2.0 / 3600.0 };
             // `b` turns at 20 deg/s during the drive; `a` does not.
             let oa = a.push(drift + n, f32::NAN, Some(!moving)).expect("test");
+            let turn = if moving { 20.0 } else { 0.0 };
             let ob = b
-                .push(
-                    drift + n + if moving { 20.0 } else { 0.0 },
-                    f32::NAN,
-                    Some(!moving),
-                )
+                .push(drift + n + turn, f32::NAN, Some(!moving))
                 .expect("test");
             assert_eq!(oa.drift_dps, ob.drift_dps, "{k}");
             if k == 6000 {
                 g_at_drive_start = a.gauss_markov().0;
             }
         }
-        // After 60 s (6 tau) of motion the Gauss-Markov part has decayed toward 0.
         let g_end = a.gauss_markov().0;
         assert!(
             g_at_drive_start.abs() > 0.3 / 3600.0,
@@ -1497,6 +1482,11 @@ mod tests {
             g_at_drive_start * 3600.0
         );
         assert!(g_end.abs() < 0.01 * g_at_drive_start.abs());
+    }
+
+    #[test]
+    fn gauss_markov_level_ignores_rotation_in_motion_and_decays() {
+        assert_rotation_ignored_and_gauss_markov_decays(LevelUpdate::Sample, &mut Noise(17));
     }
 
     #[test]
@@ -1535,34 +1525,7 @@ mod tests {
         let (g, g_var) = hybrid.gauss_markov();
         assert!(g != 0.0 && g_var > 0.0);
         // In motion: the same output with and without a 20 deg/s turn, and the
-        // Gauss-Markov part decays toward 0 (60 s of motion = 6 tau).
-        let make = || {
-            MotionEstimator::new(model, cfg)
-                .expect("test")
-                .with_gauss_markov(3.0 / 3600.0, 10.0)
-        };
-        let (mut a, mut b) = (make(), make());
-        let mut g_at_drive_start = 0.0;
-        for k in 0..12_000usize {
-            let moving = (6000..12_000).contains(&k);
-            let n = sigma * z.normal();
-            let drift = 4.0 / 3600.0 + if k < 5000 { 0.0 } else { 2.0 / 3600.0 };
-            let oa = a.push(drift + n, f32::NAN, Some(!moving)).expect("test");
-            let turn = if moving { 20.0 } else { 0.0 };
-            let ob = b
-                .push(drift + n + turn, f32::NAN, Some(!moving))
-                .expect("test");
-            assert_eq!(oa.drift_dps, ob.drift_dps, "{k}");
-            if k == 6000 {
-                g_at_drive_start = a.gauss_markov().0;
-            }
-        }
-        let g_end = a.gauss_markov().0;
-        assert!(
-            g_at_drive_start.abs() > 0.3 / 3600.0,
-            "{}",
-            g_at_drive_start * 3600.0
-        );
-        assert!(g_end.abs() < 0.01 * g_at_drive_start.abs());
+        // Gauss-Markov part decays toward 0 (the window level, the noise continued).
+        assert_rotation_ignored_and_gauss_markov_decays(LevelUpdate::Window, &mut z);
     }
 }

@@ -221,21 +221,7 @@ mod tests {
         tau_s: 4.0,
     };
 
-    struct Noise(u64);
-    impl Noise {
-        fn normal(&mut self) -> f32 {
-            // Sum of 12 uniforms (approximately normal, variance 1).
-            let mut s = 0.0f32;
-            for _ in 0..12 {
-                self.0 = self
-                    .0
-                    .wrapping_mul(6_364_136_223_846_793_005)
-                    .wrapping_add(1_442_695_040_888_963_407);
-                s += (self.0 >> 40) as f32 / (1u64 << 24) as f32;
-            }
-            s - 6.0
-        }
-    }
+    use crate::test_noise::Noise;
 
     fn make(a: Arrangement, gm: GaussMarkov) -> PresetEstimator {
         let model = MotionModel::standard(1800.0).expect("test");
@@ -249,7 +235,7 @@ mod tests {
         let bias = (3.0 + 1.5 * (t / 40.0).sin()) / 3600.0;
         let turn = if moving { turn_dps } else { 0.0 };
         (
-            bias + turn + S.sample_var_dps2().sqrt() * z.normal(),
+            bias + turn + S.sample_var_dps2().sqrt() * z.normal12(),
             moving,
         )
     }

@@ -352,20 +352,7 @@ impl Stillness {
 mod tests {
     use super::*;
 
-    /// Deterministic Gaussian-ish noise (sum of 4 uniforms, variance scaled to 1).
-    struct Noise(u64);
-    impl Noise {
-        fn uniform(&mut self) -> f32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((self.0 >> 40) as f32 / (1u64 << 24) as f32) - 0.5
-        }
-        fn normal(&mut self) -> f32 {
-            (self.uniform() + self.uniform() + self.uniform() + self.uniform()) * 3.0f32.sqrt()
-        }
-    }
+    use crate::test_noise::Noise;
 
     const S: SensorConfig = SensorConfig::ECORE_2000;
 
