@@ -133,32 +133,30 @@ pub fn build(c: &Curves, features: &[FeatureRow], effect: &str) -> Plain {
         })
         .collect();
     let mut s = String::new();
-    if let Some(a) = &adev {
-        s.push_str(&format!(
-            "The Allan deviation departs from the model by up to {:+.0} % (at tau {:.3} s; median {:.0} %)",
-            a.percent, a.at, a.median_abs_percent
-        ));
-        if let Some(b) = &adev_after {
-            s.push_str(&format!(
-                ", with {effect} added by up to {:+.0} % (at {:.3} s; median {:.0} %)",
-                b.percent, b.at, b.median_abs_percent
-            ));
-        }
-        s.push_str(". ");
-    }
-    if let Some(a) = &psd {
-        s.push_str(&format!(
-            "The PSD departs by up to {:+.0} % (band at {:.3} Hz; median {:.0} %)",
-            a.percent, a.at, a.median_abs_percent
-        ));
-        if let Some(b) = &psd_after {
-            s.push_str(&format!(
-                ", with {effect} added by up to {:+.0} % (at {:.3} Hz; median {:.0} %)",
-                b.percent, b.at, b.median_abs_percent
-            ));
-        }
-        s.push_str(". ");
-    }
+    // One sentence per spectrum: where it departs most, and what is left with the effect.
+    let mut sentence =
+        |subject: &str, at: &str, before: &Option<Departure>, after: &Option<Departure>| {
+            if let Some(a) = before {
+                s.push_str(&format!(
+                    "{subject} by up to {:+.0} % ({at} {:.3} {}; median {:.0} %)",
+                    a.percent, a.at, a.at_unit, a.median_abs_percent
+                ));
+                if let Some(b) = after {
+                    s.push_str(&format!(
+                        ", with {effect} added by up to {:+.0} % (at {:.3} {}; median {:.0} %)",
+                        b.percent, b.at, b.at_unit, b.median_abs_percent
+                    ));
+                }
+                s.push_str(". ");
+            }
+        };
+    sentence(
+        "The Allan deviation departs from the model",
+        "at tau",
+        &adev,
+        &adev_after,
+    );
+    sentence("The PSD departs", "band at", &psd, &psd_after);
     if let Some((v, [a, b])) = mean_offset_dph {
         s.push_str(&format!(
             "The largest departure of a window mean is {v:+.2} deg/h (t = {a:.0}-{b:.0} s). "
