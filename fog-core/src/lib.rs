@@ -27,6 +27,7 @@ pub mod frame;
 pub mod identify;
 pub mod image;
 pub mod motion;
+pub mod motion_fit;
 pub mod preset;
 pub mod still;
 #[cfg(test)]

@@ -925,7 +925,7 @@ impl MotionTrainer {
 /// window `j` (0-based) without a non-finite rate, `x` the features at the window's first sample, `d` the
 /// window's mean of the denoised rate minus the record's intercept (returned: the mean of
 /// the full windows' finite samples). See [`MotionTrainer`] for the steps.
-fn for_each_window(
+pub(crate) fn for_each_window(
     rate_dps: &[f32],
     temp_c: Option<&[f32]>,
     sample_rate_hz: f32,

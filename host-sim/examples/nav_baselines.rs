@@ -32,6 +32,13 @@
 //! Kalman (every sample still, parameters tuned on 3 static validation units by e_truth)
 //! against `motion` (q tuned the same way, the GM state's sigma and tau from the static
 //! RW+GM tuning).
+//!
+//! `-- --trainers [OUT_DIR]`: instead of the rows above, the bench trainers side by side in
+//! one run: the model trained by the paper's DRLS (3 passes, as trained), by least squares
+//! with the ridge picked by leave-one-record-out (`fog_core::motion_fit`, what `host-sim
+//! identify --preset motion` trains by default), and untrained, each as the dual (the
+//! product) and the window level, on vehicles and static records, with the least-squares
+//! cross-validation printed.
 //! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
 //! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
@@ -39,6 +46,7 @@ use anyhow::{bail, Result};
 use fog_core::motion::{
     LevelUpdate, MotionConfig, MotionModel, MotionTrainer, Transfer, MOTION_DRLS,
 };
+use fog_core::motion_fit::{cross_validate, NormalEquations, RIDGE_GRID};
 use fog_core::preset::{Arrangement, GaussMarkov, PresetEstimator};
 use fog_core::still::SensorConfig;
 use host_sim::motion::SHRINK_LAG_WINDOWS;
@@ -430,6 +438,41 @@ fn train_motion(
     Ok(*tr.model())
 }
 
+/// Least squares over all `recs` (within-record centred), ridge by leave-one-record-out
+/// (`fog_core::motion_fit`); prints the cross-validation.
+fn train_least_squares(recs: &[NavRecord], sensors: &[SensorConfig]) -> Result<MotionModel> {
+    let mut model =
+        MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut eqs = Vec::new();
+    let mut all = NormalEquations::EMPTY;
+    for (r, s) in recs.iter().zip(sensors) {
+        let temp = r.temp_c.as_deref().map(f32s);
+        let (e, _) = NormalEquations::from_record(
+            &model,
+            &f32s(&r.rate_dps),
+            temp.as_deref(),
+            s.sample_rate_hz,
+            1.0,
+        )
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+        all.add(&e);
+        eqs.push(e);
+    }
+    let cv = cross_validate(&eqs, &RIDGE_GRID).ok_or_else(|| anyhow::anyhow!("no fold"))?;
+    println!(
+        "least squares over {} records ({} windows): ridge {}, held-out gain over m = 0 {:.2} % (smallest ridge {:.2} %)",
+        recs.len(),
+        all.windows(),
+        cv.rho.map_or("none (empty model)".to_string(), |r| format!("{r:.0e}")),
+        100.0 * cv.heldout_gain,
+        100.0 * cv.heldout_gain_least_ridge
+    );
+    if let Some(rho) = cv.rho {
+        model.weights = all.solve(rho).map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    Ok(model)
+}
+
 /// The model trained on all `recs` and the same shrunk by leave-one-record-out
 /// ([`Transfer`] over changes across [`SHRINK_LAG_WINDOWS`] windows, as `host-sim
 /// identify --preset motion` does); prints alpha and the held-out gains, and the alpha the
@@ -490,11 +533,14 @@ fn sample_var(s: &SensorConfig) -> f64 {
     f64::from(s.sample_var_dps2())
 }
 
-fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
+fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<()> {
     let nt = set.train.len();
     let nv = set.valid.len();
     let (s_train, rest) = set.sensors.split_at(nt);
     let (s_valid, s_test) = rest.split_at(nv);
+    if trainers {
+        return evaluate_trainers(set, s_train, s_valid, s_test);
+    }
     let (trained, unshrunk) = train_shrunk(&set.train, s_train)?;
     let untrained = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
     let score = |model: &MotionModel,
@@ -701,7 +747,11 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig) -> Result<()> {
 }
 
 fn main() -> Result<()> {
-    let svg_dir = std::env::args().nth(1).map(PathBuf::from);
+    let trainers = std::env::args().any(|a| a == "--trainers");
+    let svg_dir = std::env::args()
+        .skip(1)
+        .find(|a| a != "--trainers")
+        .map(PathBuf::from);
     let r_dps2 = 0.001_111_11f64.powi(2) * 100.0 + (60.0f64 / 32768.0).powi(2) / 12.0;
     let ecore = SensorConfig::ECORE_2000;
     let static_ours = |units: std::ops::RangeInclusive<u64>| -> Result<Vec<_>> {
@@ -726,7 +776,7 @@ fn main() -> Result<()> {
         static_test: static_ours(51..=54)?,
     };
     let gm = evaluate(&set, svg_dir.as_deref())?;
-    evaluate_motion(&set, gm)?;
+    evaluate_motion(&set, gm, trainers)?;
     let ok = Command::new("python3")
         .args(["-c", "import numpy"])
         .status()
@@ -773,7 +823,117 @@ fn main() -> Result<()> {
             static_test: stat(51..=54)?,
         };
         let gm = evaluate(&set, svg_dir.as_deref())?;
-        evaluate_motion(&set, gm)?;
+        evaluate_motion(&set, gm, trainers)?;
+    }
+    Ok(())
+}
+
+/// `--trainers`: DRLS vs least squares vs untrained, each as the dual and the window level;
+/// q tuned on the validation vehicles (vehicle rows) or the static validation units
+/// (static rows), GM from the RW+GM filter tuned on the static validation units.
+fn evaluate_trainers(
+    set: &Set,
+    s_train: &[SensorConfig],
+    s_valid: &[SensorConfig],
+    s_test: &[SensorConfig],
+) -> Result<()> {
+    let drls = train_motion(&set.train, s_train, None)?;
+    let ls = train_least_squares(&set.train, s_train)?;
+    let untrained = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let rwgm = |c: RwGmConfig| {
+        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+            Ok(Box::new(GatedRwGm::new(RwGmConfig {
+                r_dps2: sample_var(s),
+                ..c
+            })))
+        }
+    };
+    let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
+    let rows = [
+        ("DRLS m (paper trainer), dual", &drls, Second::Dual(gm)),
+        ("least-squares m, dual", &ls, Second::Dual(gm)),
+        ("untrained m, dual", &untrained, Second::Dual(gm)),
+        ("DRLS m (paper trainer), window", &drls, Second::None),
+        ("least-squares m, window", &ls, Second::None),
+        ("untrained m, window", &untrained, Second::None),
+    ];
+    let vehicle = |model: &MotionModel,
+                   recs: &[NavRecord],
+                   sensors: &[SensorConfig],
+                   q: f64,
+                   second: Second|
+     -> Result<(f64, f64)> {
+        let (mut a, mut b) = (0.0, 0.0);
+        for (r, s) in recs.iter().zip(sensors) {
+            let mut m = motion_est(model, *s, q, LevelUpdate::Window, false, second)?;
+            let out = run(r, &mut m, &r.still_truth());
+            a += out.scores.heading_rms_deg;
+            b += out.scores.heading_final_deg.abs();
+        }
+        let n = recs.len() as f64;
+        Ok((a / n, b / n))
+    };
+    println!(
+        "{:<36} {:>8} {:>10} {:>10}",
+        "vehicles (own detector)", "q dph2/h", "hdg RMS", "|hdg end|"
+    );
+    for (name, model, second) in rows {
+        let mut best = (f64::INFINITY, 0.0);
+        for q in q_grid_dph2_per_h() {
+            let v = vehicle(model, &set.valid, s_valid, q, second)?.0;
+            if v < best.0 {
+                best = (v, q);
+            }
+        }
+        let (a, b) = vehicle(model, &set.test, s_test, best.1, second)?;
+        println!("{name:<36} {:>8.1} {a:>10.4} {b:>10.4}{}", best.1, q_end(best.1));
+    }
+    let kalman = |q: f64| {
+        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+            Ok(Box::new(GatedKalman::new(q, sample_var(s))))
+        }
+    };
+    let mut kbest = (f64::INFINITY, 0.0);
+    for q in log_grid(1e-16, 1e-8, 4) {
+        let v = e_truth(&set.static_valid, kalman(q))?;
+        if v < kbest.0 {
+            kbest = (v, q);
+        }
+    }
+    let k_test = e_truth(&set.static_test, kalman(kbest.1))?;
+    let t = e_truth(&set.static_test, rwgm(gm))?;
+    println!(
+        "static: per-sample RW Kalman e_truth {k_test:.4}; RW+GM Kalman ({}) {t:.4} ({:+.1} %)",
+        rwgm_label(&gm),
+        100.0 * (t / k_test - 1.0)
+    );
+    for (name, model, second) in rows {
+        let mk = |q: f64| {
+            move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+                Ok(Box::new(motion_est(
+                    model,
+                    *s,
+                    q,
+                    LevelUpdate::Window,
+                    false,
+                    second,
+                )?))
+            }
+        };
+        let mut best = (f64::INFINITY, 0.0);
+        for q in q_grid_dph2_per_h() {
+            let v = e_truth(&set.static_valid, mk(q))?;
+            if v < best.0 {
+                best = (v, q);
+            }
+        }
+        let t = e_truth(&set.static_test, mk(best.1))?;
+        println!(
+            "static: {name:<36} (q {:.1}{}) e_truth {t:.4} ({:+.1} % vs Kalman)",
+            best.1,
+            q_end(best.1),
+            100.0 * (t / k_test - 1.0)
+        );
     }
     Ok(())
 }

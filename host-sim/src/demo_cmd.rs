@@ -19,6 +19,9 @@ pub struct Args {
     /// --shrink`; not the firmware's default).
     #[arg(long)]
     pub shrink: bool,
+    /// The bench trainer of the model (`identify --preset motion --trainer`).
+    #[arg(long, value_enum, default_value_t = crate::motion::TrainerArg::LeastSquares)]
+    pub trainer: crate::motion::TrainerArg,
 }
 
 /// Runs the command; prints the path of `index.html` on stdout.
@@ -29,6 +32,7 @@ pub fn run(args: &Args) -> Result<()> {
         DemoConfig::FULL
     };
     cfg.shrink = args.shrink;
+    cfg.trainer = args.trainer;
     let index = demo::run(&args.out, &cfg)?;
     println!("{}", index.display());
     Ok(())

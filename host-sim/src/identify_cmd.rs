@@ -115,6 +115,11 @@ pub struct Args {
     /// by default: it costs on the simulator's vehicles (docs/motion.md).
     #[arg(long)]
     pub shrink: bool,
+    /// `--preset motion`: the bench trainer of the model's output weights (least squares
+    /// over every record with a cross-validated ridge, the default; or the paper's DRLS,
+    /// `--epochs` passes).
+    #[arg(long, value_enum, default_value_t = motion::TrainerArg::LeastSquares)]
+    pub trainer: motion::TrainerArg,
     /// `--preset motion`: how the saved image's level learns (default dual: per-sample
     /// level at rest, window level in motion; fog_core::preset).
     #[arg(long, value_enum, default_value_t = motion::LevelUpdateArg::Dual)]
@@ -254,6 +259,7 @@ fn run_motion(a: &Args) -> Result<()> {
     let mut o = motion::TrainOptions::new(a.sensor.config());
     o.epochs = a.epochs;
     o.shrink = a.shrink;
+    o.trainer = a.trainer;
     if let Some(q) = a.level_q_dph2_per_h {
         o.config.level_q_dps2_per_s = q / (3600.0 * 3600.0 * 3600.0);
     }
@@ -273,7 +279,11 @@ fn run_motion(a: &Args) -> Result<()> {
             o.gauss_markov.tau_s
         );
     }
-    let (image, rows, shrink) = motion::train(&train, &o)?;
+    let trained = motion::train(&train, &o)?;
+    let (image, rows, shrink) = (trained.image, trained.records, trained.shrinkage);
+    if let Some(ls) = &trained.least_squares {
+        eprintln!("motion {}", motion::describe_least_squares(ls));
+    }
     if shrink.cross_validated {
         eprintln!(
             "motion shrinkage (leave-one-record-out over {} records, changes over {} windows): alpha {:.3}, held-out gain {:.1} % (unscaled {:.1} %); whole-record shape alpha {:.3}",
@@ -300,6 +310,8 @@ fn run_motion(a: &Args) -> Result<()> {
             "preset": "motion",
             "sensor": a.sensor,
             "epochs": a.epochs,
+            "trainer": a.trainer,
+            "least_squares": trained.least_squares,
             "records": rows,
             "shrinkage": shrink,
             "weights_dps": image.model.weights,
@@ -314,9 +326,13 @@ fn run_motion(a: &Args) -> Result<()> {
     }
     motion::write_image(out, &image)?;
     eprintln!(
-        "motion identifier: {} records x {} passes -> {}",
+        "motion identifier: {} records, {} -> {}",
         train.0.len(),
-        a.epochs,
+        match (a.trainer, a.epochs) {
+            (_, 0) => "untrained (0 epochs)".to_string(),
+            (motion::TrainerArg::LeastSquares, _) => "least squares".to_string(),
+            (motion::TrainerArg::Drls, e) => format!("DRLS x {e} passes"),
+        },
         out.display()
     );
     Ok(())

@@ -79,6 +79,8 @@ pub struct DemoConfig {
     /// Shrink the model by leave-one-record-out ([`motion::Shrinkage`]; off in the
     /// firmware's preset).
     pub shrink: bool,
+    /// The bench trainer (default least squares; DRLS is the paper's reference).
+    pub trainer: motion::TrainerArg,
 }
 
 impl DemoConfig {
@@ -88,6 +90,7 @@ impl DemoConfig {
         validate_records: 8,
         duration_s: 1800.0,
         shrink: false,
+        trainer: motion::TrainerArg::LeastSquares,
     };
     /// The CI variant (`--quick`): 12 training records, 2 validation records, 600 s each.
     pub const QUICK: Self = Self {
@@ -95,6 +98,7 @@ impl DemoConfig {
         validate_records: 2,
         duration_s: 600.0,
         shrink: false,
+        trainer: motion::TrainerArg::LeastSquares,
     };
 }
 
@@ -170,7 +174,9 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     };
     let mut train_options = TrainOptions::new(sensor);
     train_options.shrink = cfg.shrink;
-    let (mut image, _, shrink) = motion::train(&set, &train_options)?;
+    train_options.trainer = cfg.trainer;
+    let trained = motion::train(&set, &train_options)?;
+    let (mut image, shrink) = (trained.image, trained.shrinkage);
     let fogi = dir.join("identifier.fogi");
     eprintln!(
         "demo: trained the motion identifier on {} static {PRESET} records ({} s, unit spread {UNIT_SPREAD}, start {:?} C, self-heating {:?} C) -> {}",
@@ -180,6 +186,9 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         WARMUP_RISE_C_RANGE,
         fogi.display()
     );
+    if let Some(ls) = &trained.least_squares {
+        eprintln!("demo: {}", motion::describe_least_squares(ls));
+    }
     if shrink.cross_validated {
         eprintln!(
             "demo: model shrunk by leave-one-record-out (changes over {} windows): alpha {:.3}, held-out gain {:.1} % (unscaled {:.1} %)",

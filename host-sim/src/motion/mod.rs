@@ -17,6 +17,7 @@ use fog_core::image::{Image, IMAGE_LEN};
 use fog_core::motion::{
     MotionConfig, MotionModel, MotionOutput, MotionTrainer, RecordFit, Transfer, MOTION_DRLS,
 };
+use fog_core::motion_fit::{cross_validate, NormalEquations, RIDGE_GRID};
 use fog_core::preset::{Arrangement, GaussMarkov, PresetEstimator};
 use fog_core::still::SensorConfig;
 use serde::Serialize;
@@ -82,13 +83,29 @@ impl LevelUpdateArg {
     }
 }
 
+/// The bench trainer of the model's output weights (`--trainer`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum TrainerArg {
+    /// Least squares over every record at once, inputs and targets centred per record,
+    /// ridge picked by leave-one-record-out ([`fog_core::motion_fit`]); the empty model
+    /// when nothing transfers between units (the default).
+    #[default]
+    LeastSquares,
+    /// The paper's DRLS (sequential, lambda 0.9998, `epochs` passes): the reference.
+    Drls,
+}
+
 /// How to train.
 #[derive(Debug, Clone, Copy)]
 pub struct TrainOptions {
+    /// The bench trainer (default least squares).
+    pub trainer: TrainerArg,
     /// Estimator configuration stored in the image.
     pub config: MotionConfig,
-    /// Passes over the training records (0: an untrained model, i.e. the gated
-    /// random-walk Kalman filter alone).
+    /// Passes over the training records with DRLS (0: an untrained model, i.e. the gated
+    /// random-walk Kalman filter alone, with either trainer; least squares makes one pass
+    /// for any other value).
     pub epochs: u32,
     /// Time range of the model, s.
     pub time_max_s: f32,
@@ -116,6 +133,7 @@ impl TrainOptions {
     /// Gauss-Markov state.
     pub fn new(sensor: SensorConfig) -> Self {
         Self {
+            trainer: TrainerArg::LeastSquares,
             config: MotionConfig::for_sensor(sensor),
             epochs: 3,
             time_max_s: 1800.0,
@@ -199,13 +217,60 @@ impl Shrinkage {
     }
 }
 
-/// Trains a model on `records` (each static, from power-on) and returns its image, the
-/// per-record figures of the last pass and the shrinkage ([`Shrinkage`], when
-/// `o.shrink`). The records are read once and held in memory.
-pub fn train(
-    records: &dyn Records,
-    o: &TrainOptions,
-) -> Result<(Image, Vec<TrainedRecord>, Shrinkage)> {
+/// What the least-squares trainer found ([`fog_core::motion_fit`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct LeastSquaresFit {
+    /// The ridge picked by leave-one-record-out (relative to the Gram matrix's mean
+    /// diagonal); `None`: the empty model (nothing transfers between the records' units),
+    /// or fewer than 2 records (then [`FALLBACK_RIDGE`] is used and this is `Some`).
+    pub rho: Option<f64>,
+    /// Pooled held-out gain of the pick over the empty model, `1 - SSE / SSE(m = 0)` on the
+    /// records' centred 1-s window means (NaN without cross-validation).
+    pub heldout_gain: f64,
+    /// The same for the grid's smallest ridge.
+    pub heldout_gain_least_ridge: f64,
+    /// Windows (training equations) over all records.
+    pub windows: u64,
+    /// Whether the ridge was cross-validated (2 records or more).
+    pub cross_validated: bool,
+}
+
+/// Ridge used without cross-validation (a single record): 1e-3 of the Gram matrix's mean
+/// diagonal (ASSUMED: the middle of [`RIDGE_GRID`]).
+pub const FALLBACK_RIDGE: f64 = 1e-3;
+
+/// One line on what the least-squares trainer found.
+pub fn describe_least_squares(ls: &LeastSquaresFit) -> String {
+    let pick = match (ls.rho, ls.cross_validated) {
+        (Some(r), true) => format!("ridge {r:.0e} picked by leave-one-record-out"),
+        (Some(r), false) => format!("ridge {r:.0e} (one record: not cross-validated)"),
+        (None, _) => "EMPTY MODEL: no ridge predicted held-out records better than m = 0 (nothing transfers between units)".to_string(),
+    };
+    format!(
+        "least squares over {} windows: {pick}; held-out gain over m = 0 {:.2} % (smallest ridge {:.2} %)",
+        ls.windows,
+        100.0 * ls.heldout_gain,
+        100.0 * ls.heldout_gain_least_ridge
+    )
+}
+
+/// What [`train`] returns.
+#[derive(Debug, Clone)]
+pub struct Trained {
+    /// The identifier image.
+    pub image: Image,
+    /// Per record (the last DRLS pass, or the least-squares fit).
+    pub records: Vec<TrainedRecord>,
+    /// The opt-in shrinkage (`--shrink`).
+    pub shrinkage: Shrinkage,
+    /// The least-squares fit (`None` with `--trainer drls` or 0 epochs).
+    pub least_squares: Option<LeastSquaresFit>,
+}
+
+/// Trains a model on `records` (each static, from power-on) with `o.trainer` and returns
+/// its image, the per-record figures, the least-squares cross-validation and the shrinkage
+/// ([`Shrinkage`], when `o.shrink`). The records are read once and held in memory.
+pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
     let all: Vec<Series> = (0..records.len())
         .map(|i| {
             let s = records.get(i)?;
@@ -213,28 +278,138 @@ pub fn train(
             Ok(s)
         })
         .collect::<Result<_>>()?;
-    let (tr, fits) = train_on(&all, None, o)?;
-    let rows = all
-        .iter()
-        .zip(fits)
-        .map(|(s, fit)| TrainedRecord {
-            name: s.name.clone(),
-            steps: fit.steps,
-            intercept_dph: f64::from(fit.intercept_dps) * 3600.0,
-            rms_error_dph: f64::from(fit.rms_error_dps) * 3600.0,
-        })
-        .collect();
-    let shrink = if o.shrink && all.len() >= 3 && o.epochs > 0 {
-        cross_validate(&all, o)?
+    let base = trainer(o)?;
+    let (model, drls, rows, ls) = if o.epochs == 0 {
+        let rows = all.iter().map(|s| TrainedRecord::untrained(&s.name)).collect();
+        (*base.model(), base.drls().clone(), rows, None)
+    } else {
+        match o.trainer {
+            TrainerArg::Drls => {
+                let (tr, fits) = train_on(&all, None, o)?;
+                let rows = all
+                    .iter()
+                    .zip(fits)
+                    .map(|(s, fit)| TrainedRecord {
+                        name: s.name.clone(),
+                        steps: fit.steps,
+                        intercept_dph: f64::from(fit.intercept_dps) * 3600.0,
+                        rms_error_dph: f64::from(fit.rms_error_dps) * 3600.0,
+                    })
+                    .collect();
+                (*tr.model(), tr.drls().clone(), rows, None)
+            }
+            TrainerArg::LeastSquares => {
+                let eqs = equations(&all, o)?;
+                let (model, fit) = least_squares(&eqs, None, o)?;
+                let rows = all
+                    .iter()
+                    .zip(&eqs)
+                    .map(|(s, (e, intercept))| TrainedRecord {
+                        name: s.name.clone(),
+                        steps: e.windows() as u32,
+                        intercept_dph: f64::from(*intercept) * 3600.0,
+                        rms_error_dph: (e.sse(&model.weights) / e.windows().max(1) as f64)
+                            .sqrt()
+                            * 3600.0,
+                    })
+                    .collect();
+                (model, base.drls().clone(), rows, Some(fit))
+            }
+        }
+    };
+    let shrinkage = if o.shrink && all.len() >= 3 && o.epochs > 0 {
+        shrink_by_cross_validation(&all, o)?
     } else {
         Shrinkage::none()
     };
-    let model = tr.model().scaled(shrink.alpha);
+    let records_trained = match o.trainer {
+        TrainerArg::Drls => o.epochs.saturating_mul(all.len() as u32),
+        TrainerArg::LeastSquares if o.epochs > 0 => all.len() as u32,
+        TrainerArg::LeastSquares => 0,
+    };
+    Ok(Trained {
+        image: Image::new(
+            o.config,
+            model.scaled(shrinkage.alpha),
+            &drls,
+            records_trained,
+        )
+        .with_arrangement(o.arrangement, o.gauss_markov),
+        records: rows,
+        shrinkage,
+        least_squares: ls,
+    })
+}
+
+impl TrainedRecord {
+    fn untrained(name: &str) -> Self {
+        Self {
+            name: name.to_string(),
+            steps: 0,
+            intercept_dph: f64::NAN,
+            rms_error_dph: f64::NAN,
+        }
+    }
+}
+
+/// Each record's within-record normal equations and intercept.
+fn equations(all: &[Series], o: &TrainOptions) -> Result<Vec<(NormalEquations, f32)>> {
+    let model = MotionModel::standard(o.time_max_s).map_err(|e| anyhow!("model: {e}"))?;
+    all.iter()
+        .map(|s| {
+            NormalEquations::from_record(
+                &model,
+                &s.rate_dps,
+                s.temp_c.as_deref(),
+                o.config.sensor.sample_rate_hz,
+                o.config.still.window_s,
+            )
+            .map_err(|e| anyhow!("{}: {e}", s.name))
+        })
+        .collect()
+}
+
+/// The least-squares model on `eqs` except record `skip`, its ridge picked by
+/// leave-one-record-out over the records used.
+fn least_squares(
+    eqs: &[(NormalEquations, f32)],
+    skip: Option<usize>,
+    o: &TrainOptions,
+) -> Result<(MotionModel, LeastSquaresFit)> {
+    let used: Vec<NormalEquations> = eqs
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| Some(*i) != skip)
+        .map(|(_, e)| e.0)
+        .collect();
+    let mut sum = NormalEquations::EMPTY;
+    for e in &used {
+        sum.add(e);
+    }
+    let mut model = MotionModel::standard(o.time_max_s).map_err(|e| anyhow!("model: {e}"))?;
+    let cv = cross_validate(&used, &RIDGE_GRID);
+    let rho = match cv {
+        Some(c) => c.rho,
+        None => Some(FALLBACK_RIDGE),
+    };
+    if let Some(rho) = rho {
+        model.weights = sum.solve(rho).map_err(|e| {
+            anyhow!(
+                "least squares over {} records ({} windows): {e}",
+                used.len(),
+                sum.windows()
+            )
+        })?;
+    }
     Ok((
-        Image::new(o.config, model, tr.drls(), tr.records())
-            .with_arrangement(o.arrangement, o.gauss_markov),
-        rows,
-        shrink,
+        model,
+        LeastSquaresFit {
+            rho,
+            heldout_gain: cv.map_or(f64::NAN, |c| c.heldout_gain),
+            heldout_gain_least_ridge: cv.map_or(f64::NAN, |c| c.heldout_gain_least_ridge),
+            windows: sum.windows(),
+            cross_validated: cv.is_some(),
+        },
     ))
 }
 
@@ -266,27 +441,27 @@ fn train_on(
     Ok((tr, fits))
 }
 
-fn cross_validate(all: &[Series], o: &TrainOptions) -> Result<Shrinkage> {
+fn shrink_by_cross_validation(all: &[Series], o: &TrainOptions) -> Result<Shrinkage> {
     let (mut pooled, mut whole) = (Transfer::default(), Transfer::default());
     let mut each = Vec::new();
     let fs = o.config.sensor.sample_rate_hz;
     let window_s = o.config.still.window_s;
+    let eqs = match o.trainer {
+        TrainerArg::LeastSquares => Some(equations(all, o)?),
+        TrainerArg::Drls => None,
+    };
     for (i, s) in all.iter().enumerate() {
-        let (tr, _) = train_on(all, Some(i), o)?;
+        let model = match &eqs {
+            Some(eqs) => least_squares(eqs, Some(i), o)?.0,
+            None => *train_on(all, Some(i), o)?.0.model(),
+        };
         let temp = s.temp_c.as_deref();
         let err = |e| anyhow!("{}: {e}", s.name);
         let one = pooled
-            .add_record(
-                tr.model(),
-                &s.rate_dps,
-                temp,
-                fs,
-                window_s,
-                o.shrink_lag_windows,
-            )
+            .add_record(&model, &s.rate_dps, temp, fs, window_s, o.shrink_lag_windows)
             .map_err(err)?;
         whole
-            .add_record(tr.model(), &s.rate_dps, temp, fs, window_s, 0)
+            .add_record(&model, &s.rate_dps, temp, fs, window_s, 0)
             .map_err(err)?;
         each.push((s.name.clone(), one));
     }
