@@ -25,6 +25,9 @@
 //! f64 (sums over 10^4..10^5 windows of values near 1e-3 deg/s) and solved by Cholesky.
 //! Fixed sizes, no heap: [`NormalEquations`] is 2.2 KiB.
 
+// Dense 16 x 16 linear algebra: index loops read as the formulas they implement.
+#![allow(clippy::needless_range_loop)]
+
 use crate::motion::{for_each_window, MotionError, MotionModel, MOTION_L};
 
 /// Ridge values (`rho`, relative to the mean diagonal of the Gram matrix) tried by
@@ -218,7 +221,7 @@ impl NormalEquations {
             for k in 0..j {
                 diag -= a[j][k] * a[j][k];
             }
-            if !(diag > 1e-14 * trace) {
+            if diag.is_nan() || diag <= 1e-14 * trace {
                 return Err(MotionError::BadTrainer);
             }
             let l = libm::sqrt(diag);
@@ -283,7 +286,7 @@ pub fn cross_validate(records: &[NormalEquations], grid: &[f64]) -> Option<Cross
         all.add(r);
     }
     let zero: f64 = records.iter().map(|r| r.target_ss).sum();
-    if !(zero > 0.0) {
+    if zero.is_nan() || zero <= 0.0 {
         return None;
     }
     let mut best: Option<(f64, f64)> = None;
@@ -412,7 +415,11 @@ mod tests {
             let bias = (r as f32 - 3.5) * 2.0 / 3600.0;
             let shape: &dyn Fn(f32) -> f32 = if r < 6 { &warmup } else { &rise };
             let rate = record(50 + r, bias, shape, 180_000);
-            all.add(&NormalEquations::from_record(&model, &rate, None, 100.0, 1.0).expect("test").0);
+            all.add(
+                &NormalEquations::from_record(&model, &rate, None, 100.0, 1.0)
+                    .expect("test")
+                    .0,
+            );
         }
         let mut m = model;
         m.weights = all.solve(1e-4).expect("test");
@@ -428,12 +435,21 @@ mod tests {
     fn cross_validation_keeps_a_shared_shape_and_drops_unit_specific_ones() {
         let model = MotionModel::standard(600.0).expect("test");
         let eq = |rate: &[f32]| {
-            NormalEquations::from_record(&model, rate, None, 100.0, 1.0).expect("test").0
+            NormalEquations::from_record(&model, rate, None, 100.0, 1.0)
+                .expect("test")
+                .0
         };
         // Shared: every unit has the same 10 deg/h warm-up (tau 150 s) plus its offset.
         let shared_shape = |t: f32| 10.0 / 3600.0 * libm::expf(-t / 150.0);
         let shared: Vec<_> = (0..5u64)
-            .map(|r| eq(&record(100 + r, (r as f32 - 2.0) * 3.0 / 3600.0, &shared_shape, 60_000)))
+            .map(|r| {
+                eq(&record(
+                    100 + r,
+                    (r as f32 - 2.0) * 3.0 / 3600.0,
+                    &shared_shape,
+                    60_000,
+                ))
+            })
             .collect();
         let cv = cross_validate(&shared, &RIDGE_GRID).expect("test");
         assert!(cv.rho.is_some() && cv.heldout_gain > 0.1, "{cv:?}");
@@ -442,7 +458,12 @@ mod tests {
         let own: Vec<_> = (0..5u64)
             .map(|r| {
                 let a = [8.0f32, -10.0, 6.0, -7.0, 3.0][r as usize] / 3600.0;
-                eq(&record(200 + r, 0.0, &|t| a * libm::expf(-t / 150.0), 60_000))
+                eq(&record(
+                    200 + r,
+                    0.0,
+                    &|t| a * libm::expf(-t / 150.0),
+                    60_000,
+                ))
             })
             .collect();
         let cv = cross_validate(&own, &RIDGE_GRID).expect("test");
@@ -453,7 +474,10 @@ mod tests {
     #[test]
     fn bad_inputs_are_errors_not_panics() {
         let model = MotionModel::standard(600.0).expect("test");
-        assert_eq!(NormalEquations::EMPTY.solve(1e-3), Err(MotionError::BadTrainer));
+        assert_eq!(
+            NormalEquations::EMPTY.solve(1e-3),
+            Err(MotionError::BadTrainer)
+        );
         let rate = record(1, 0.0, &warmup, 1000);
         let (ne, _) = NormalEquations::from_record(&model, &rate, None, 100.0, 1.0).expect("test");
         assert_eq!(ne.solve(f64::NAN), Err(MotionError::BadTrainer));

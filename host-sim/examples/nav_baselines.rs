@@ -441,8 +441,7 @@ fn train_motion(
 /// Least squares over all `recs` (within-record centred), ridge by leave-one-record-out
 /// (`fog_core::motion_fit`); prints the cross-validation.
 fn train_least_squares(recs: &[NavRecord], sensors: &[SensorConfig]) -> Result<MotionModel> {
-    let mut model =
-        MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut model = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut eqs = Vec::new();
     let mut all = NormalEquations::EMPTY;
     for (r, s) in recs.iter().zip(sensors) {
@@ -886,7 +885,11 @@ fn evaluate_trainers(
             }
         }
         let (a, b) = vehicle(model, &set.test, s_test, best.1, second)?;
-        println!("{name:<36} {:>8.1} {a:>10.4} {b:>10.4}{}", best.1, q_end(best.1));
+        println!(
+            "{name:<36} {:>8.1} {a:>10.4} {b:>10.4}{}",
+            best.1,
+            q_end(best.1)
+        );
     }
     let kalman = |q: f64| {
         move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {

@@ -332,7 +332,9 @@ fn static_level_q_sweep() {
     let files =
         host_sim::identify::series::CsvFiles::from_args(&[train], "rate_dps").expect("test");
     let sensor = fog_core::still::SensorConfig::ECORE_2000;
-    let trained = motion::train(&files, &motion::TrainOptions::new(sensor)).expect("test").image;
+    let trained = motion::train(&files, &motion::TrainOptions::new(sensor))
+        .expect("test")
+        .image;
     let mut o = motion::TrainOptions::new(sensor);
     o.epochs = 0;
     let gated = motion::train(&files, &o).expect("test").image;

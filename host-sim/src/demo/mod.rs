@@ -19,15 +19,17 @@
 
 use crate::identify::series::{Records, Series};
 use crate::motion::{self, TrainOptions};
+use crate::nav::BaselineConfig;
 use crate::nav::{self, NavRecord};
 use crate::record;
 use crate::replay::input::RateSpec;
-use crate::replay::motion::{replay, MotionOptions};
+use crate::replay::motion::{replay, MotionOptions, TestSet};
 use crate::replay::stream::{IdPreset, InputFormat, Options};
 use crate::report;
 use crate::sim::{self, Model, Profile, Simulator};
 use crate::simulate_cmd::{write_csv_row, CSV_HEADER_MOVING};
 use anyhow::{Context, Result};
+use fog_core::image::Image;
 use fog_core::still::SensorConfig;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -81,6 +83,9 @@ pub struct DemoConfig {
     pub shrink: bool,
     /// The bench trainer (default least squares; DRLS is the paper's reference).
     pub trainer: motion::TrainerArg,
+    /// Test vehicle records (units [`VEHICLE_UNIT`].., seeds [`VEHICLE_SEED`]..; the first
+    /// is the replayed record) scored beside the baselines.
+    pub test_records: u64,
 }
 
 impl DemoConfig {
@@ -91,6 +96,7 @@ impl DemoConfig {
         duration_s: 1800.0,
         shrink: false,
         trainer: motion::TrainerArg::LeastSquares,
+        test_records: 8,
     };
     /// The CI variant (`--quick`): 12 training records, 2 validation records, 600 s each.
     pub const QUICK: Self = Self {
@@ -99,6 +105,7 @@ impl DemoConfig {
         duration_s: 600.0,
         shrink: false,
         trainer: motion::TrainerArg::LeastSquares,
+        test_records: 2,
     };
 }
 
@@ -291,9 +298,70 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         )),
         validate: Vec::new(),
     };
-    let out = replay(&vehicle, &dir.join("replay.csv"), &o)?;
+    let mut out = replay(&vehicle, &dir.join("replay.csv"), &o)?;
     crate::replay::motion::print_summary(&out.summary)?;
+    let cmp = BaselineConfig {
+        q_dps2: tuned.q_dps2,
+        q_source: format!(
+            "tuned on {} validation vehicle records (units 800.., truth still flags){baseline_note}",
+            val.len()
+        ),
+        r_dps2,
+        release_samples: crate::replay::motion::release_samples(&image),
+    };
+    let set = test_set(&image, cfg, &cmp)?;
+    print_test_set(&set);
+    out.summary.test_set = Some(set);
     report::motion::write(dir, &out)
+}
+
+/// The identifier and the baselines on `cfg.test_records` vehicle records (units
+/// [`VEHICLE_UNIT`].., seeds [`VEHICLE_SEED`]..), each with the identifier's still flags as
+/// in the replay.
+fn test_set(image: &Image, cfg: &DemoConfig, cmp: &BaselineConfig) -> Result<TestSet> {
+    let mut tables = Vec::new();
+    for i in 0..cfg.test_records {
+        let x = samples(
+            &family_model(VEHICLE_UNIT + i, true)?,
+            VEHICLE_SEED + i,
+            cfg.duration_s,
+        )?;
+        let rec = NavRecord::from_samples(&x);
+        let mut est = image
+            .estimator()
+            .map_err(|e| anyhow::anyhow!("demo: {e}"))?;
+        let (mut drift, mut still) = (Vec::new(), Vec::new());
+        for k in 0..rec.len() {
+            let temp = rec.temp_c.as_ref().map_or(f32::NAN, |t| t[k] as f32);
+            let o = est.push(rec.rate_dps[k] as f32, temp, None);
+            drift.push(o.map_or(0.0, |o| f64::from(o.drift_dps)));
+            still.push(o.is_ok_and(|o| o.still));
+        }
+        tables
+            .push(nav::compare(&rec, "motion identifier", &drift, &still, true, cmp.clone()).table);
+    }
+    Ok(TestSet::new(
+        format!(
+            "{} vehicle records of {} s (units {VEHICLE_UNIT}..{}, seeds {VEHICLE_SEED}..{}; the first is the replayed record)",
+            cfg.test_records,
+            cfg.duration_s,
+            VEHICLE_UNIT + cfg.test_records.saturating_sub(1),
+            VEHICLE_SEED + cfg.test_records.saturating_sub(1)
+        ),
+        &tables,
+    ))
+}
+
+fn print_test_set(set: &TestSet) {
+    eprintln!("demo: mean heading error RMS over {}:", set.records);
+    for (name, v) in &set.mean_heading_rms_deg {
+        eprintln!("  {name:<44} {v:>8.4} deg");
+    }
+    eprintln!(
+        "demo: the identifier is below every baseline on {} of {} records",
+        set.identifier_best,
+        set.heading_rms_deg.len()
+    );
 }
 
 #[cfg(test)]

@@ -280,7 +280,10 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
         .collect::<Result<_>>()?;
     let base = trainer(o)?;
     let (model, drls, rows, ls) = if o.epochs == 0 {
-        let rows = all.iter().map(|s| TrainedRecord::untrained(&s.name)).collect();
+        let rows = all
+            .iter()
+            .map(|s| TrainedRecord::untrained(&s.name))
+            .collect();
         (*base.model(), base.drls().clone(), rows, None)
     } else {
         match o.trainer {
@@ -308,8 +311,7 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
                         name: s.name.clone(),
                         steps: e.windows() as u32,
                         intercept_dph: f64::from(*intercept) * 3600.0,
-                        rms_error_dph: (e.sse(&model.weights) / e.windows().max(1) as f64)
-                            .sqrt()
+                        rms_error_dph: (e.sse(&model.weights) / e.windows().max(1) as f64).sqrt()
                             * 3600.0,
                     })
                     .collect();
@@ -458,7 +460,14 @@ fn shrink_by_cross_validation(all: &[Series], o: &TrainOptions) -> Result<Shrink
         let temp = s.temp_c.as_deref();
         let err = |e| anyhow!("{}: {e}", s.name);
         let one = pooled
-            .add_record(&model, &s.rate_dps, temp, fs, window_s, o.shrink_lag_windows)
+            .add_record(
+                &model,
+                &s.rate_dps,
+                temp,
+                fs,
+                window_s,
+                o.shrink_lag_windows,
+            )
             .map_err(err)?;
         whole
             .add_record(&model, &s.rate_dps, temp, fs, window_s, 0)

@@ -123,6 +123,64 @@ pub struct MotionSummary {
     pub bytes: Option<BytesSummary>,
     /// Scores against the truth, identifier beside the baselines.
     pub scores: Option<nav::Comparison>,
+    /// Scores over a set of test records beside this one (`host-sim demo`), when given.
+    pub test_set: Option<TestSet>,
+}
+
+/// Mean scores over several test records with truth, the identifier beside the baselines
+/// (`host-sim demo`: the replayed record is one draw; the set says whether its outcome is
+/// typical).
+#[derive(Debug, Clone, Serialize)]
+pub struct TestSet {
+    /// What the records are.
+    pub records: String,
+    /// Per record, heading-error RMS per estimator, deg (rows' order).
+    pub heading_rms_deg: Vec<Vec<(String, f64)>>,
+    /// Mean over the records per estimator, deg (rows' order).
+    pub mean_heading_rms_deg: Vec<(String, f64)>,
+    /// Records on which the identifier's heading-error RMS is below every baseline's.
+    pub identifier_best: usize,
+}
+
+impl TestSet {
+    /// From per-record comparisons (the identifier first in each, as [`nav::compare`]
+    /// writes them).
+    pub fn new(records: String, tables: &[nav::Comparison]) -> Self {
+        let per: Vec<Vec<(String, f64)>> = tables
+            .iter()
+            .map(|t| {
+                t.rows
+                    .iter()
+                    .map(|r| (r.name.clone(), r.scores.heading_rms_deg))
+                    .collect()
+            })
+            .collect();
+        let mut mean: Vec<(String, f64)> = per
+            .first()
+            .map(|f| f.iter().map(|(n, _)| (n.clone(), 0.0)).collect())
+            .unwrap_or_default();
+        for rec in &per {
+            for (m, (_, v)) in mean.iter_mut().zip(rec) {
+                m.1 += v / per.len() as f64;
+            }
+        }
+        let identifier_best = per
+            .iter()
+            .filter(|rec| {
+                rec.split_first().is_some_and(|((_, id), rest)| {
+                    rest.iter()
+                        .filter(|(n, _)| n != nav::NO_COMPENSATION)
+                        .all(|(_, b)| id < b)
+                })
+            })
+            .count();
+        Self {
+            records,
+            heading_rms_deg: per,
+            mean_heading_rms_deg: mean,
+            identifier_best,
+        }
+    }
 }
 
 /// A replay's summary and per-sample data (for the report).
@@ -159,7 +217,7 @@ pub fn sensor_for_rate(hz: f32) -> SensorConfig {
 }
 
 /// The identifier's release delay: its detector window, samples.
-fn release_samples(image: &Image) -> usize {
+pub fn release_samples(image: &Image) -> usize {
     let c = &image.config;
     (c.still.window_s * c.sensor.sample_rate_hz)
         .round()
@@ -349,6 +407,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         fault_lines: rec.fault_lines,
         bytes: rec.bytes.clone(),
         scores: compared.as_ref().map(|c| c.table.clone()),
+        test_set: None,
     };
     Ok(MotionOutcome {
         summary,
