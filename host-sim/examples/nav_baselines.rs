@@ -38,7 +38,9 @@
 //! with the ridge picked by leave-one-record-out (`fog_core::motion_fit`, what `host-sim
 //! identify --preset motion` trains by default), and untrained, each as the dual (the
 //! product) and the window level, on vehicles and static records, with the least-squares
-//! cross-validation printed.
+//! cross-validation printed, and each row's test score at every other q of the grid
+//! (how much the pick from 3 validation vehicles matters). `--host-sim-only`: the first
+//! set alone.
 //! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
 //! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
@@ -749,7 +751,7 @@ fn main() -> Result<()> {
     let trainers = std::env::args().any(|a| a == "--trainers");
     let svg_dir = std::env::args()
         .skip(1)
-        .find(|a| a != "--trainers")
+        .find(|a| !a.starts_with("--"))
         .map(PathBuf::from);
     let r_dps2 = 0.001_111_11f64.powi(2) * 100.0 + (60.0f64 / 32768.0).powi(2) / 12.0;
     let ecore = SensorConfig::ECORE_2000;
@@ -781,6 +783,9 @@ fn main() -> Result<()> {
         .status()
         .map(|s| s.success())
         .unwrap_or(false);
+    if std::env::args().any(|a| a == "--host-sim-only") {
+        return Ok(());
+    }
     if !ok {
         println!("\nsecond generator SKIPPED: python3 with numpy not found");
         return Ok(());
@@ -890,6 +895,16 @@ fn evaluate_trainers(
             best.1,
             q_end(best.1)
         );
+        // How much the pick from 3 validation vehicles matters: test score by q.
+        let sweep = q_grid_dph2_per_h()
+            .into_iter()
+            .step_by(2)
+            .map(|q| {
+                let v = vehicle(model, &set.test, s_test, q, second)?.0;
+                Ok(format!("{q:.0}:{v:.4}"))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        println!("    test RMS by q: {}", sweep.join(" "));
     }
     let kalman = |q: f64| {
         move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
