@@ -119,7 +119,7 @@ pub struct Args {
     /// over every record with a cross-validated ridge, the default; or the paper's DRLS,
     /// `--epochs` passes).
     #[arg(long, value_enum, default_value_t = motion::TrainerArg::LeastSquares)]
-    pub trainer: motion::TrainerArg,
+    pub motion_trainer: motion::TrainerArg,
     /// `--preset motion`: how the saved image's level learns (default dual: per-sample
     /// level at rest, window level in motion; fog_core::preset).
     #[arg(long, value_enum, default_value_t = motion::LevelUpdateArg::Dual)]
@@ -259,7 +259,7 @@ fn run_motion(a: &Args) -> Result<()> {
     let mut o = motion::TrainOptions::new(a.sensor.config());
     o.epochs = a.epochs;
     o.shrink = a.shrink;
-    o.trainer = a.trainer;
+    o.trainer = a.motion_trainer;
     if let Some(q) = a.level_q_dph2_per_h {
         o.config.level_q_dps2_per_s = q / (3600.0 * 3600.0 * 3600.0);
     }
@@ -310,7 +310,7 @@ fn run_motion(a: &Args) -> Result<()> {
             "preset": "motion",
             "sensor": a.sensor,
             "epochs": a.epochs,
-            "trainer": a.trainer,
+            "trainer": a.motion_trainer,
             "least_squares": trained.least_squares,
             "records": rows,
             "shrinkage": shrink,
@@ -328,7 +328,7 @@ fn run_motion(a: &Args) -> Result<()> {
     eprintln!(
         "motion identifier: {} records, {} -> {}",
         train.0.len(),
-        match (a.trainer, a.epochs) {
+        match (a.motion_trainer, a.epochs) {
             (_, 0) => "untrained (0 epochs)".to_string(),
             (motion::TrainerArg::LeastSquares, _) => "least squares".to_string(),
             (motion::TrainerArg::Drls, e) => format!("DRLS x {e} passes"),
