@@ -229,8 +229,12 @@ pub struct FitCtx<'a> {
     pub base: &'a Spec,
     /// Sample ranges of the fit blocks in the real record.
     pub fit_ranges: Vec<(usize, usize)>,
-    /// The fit blocks' AVAR and drift variogram, real vs the baseline simulations.
-    pub slow: SlowFeatures,
+    /// Averaging factors.
+    pub ms: Vec<usize>,
+    /// Real pooled AVAR on the fit blocks.
+    pub real_avar: Vec<(f64, usize)>,
+    /// Median over the baseline simulations of the same.
+    pub sim_avar: Vec<f64>,
     /// Spike count on the fit blocks: real, median of the baseline simulations.
     pub spikes: (f64, f64),
     /// Median spike size in the real fit blocks, deg/s.
@@ -239,21 +243,6 @@ pub struct FitCtx<'a> {
     pub missing: (f64, f64),
     /// Time stamps are bursty (gaps are not measurable).
     pub bursty: bool,
-    /// Without a user model: the baseline refitted with a Gauss-Markov term (N, B, K,
-    /// sigma, T jointly on the fit blocks' AVAR).
-    pub joint_markov: Option<Model>,
-}
-
-/// The fit blocks' slow-noise features, real record vs the median of the baseline
-/// simulations: what [`drift_fit`] fits an added drift term to.
-#[derive(Debug, Clone)]
-pub struct SlowFeatures {
-    /// Averaging factors.
-    pub ms: Vec<usize>,
-    /// Real pooled AVAR on the fit blocks, (deg/s)^2, and its difference count.
-    pub real_avar: Vec<(f64, usize)>,
-    /// Median over the baseline simulations of the same.
-    pub sim_avar: Vec<f64>,
     /// ln-spread (seed-to-seed standard deviation of ln AVAR) of the baseline simulations
     /// on the fit blocks, per `ms`.
     pub avar_ln_sd: Vec<f64>,
@@ -268,46 +257,9 @@ pub struct SlowFeatures {
     pub drift_lags_s: Vec<Vec<f64>>,
     /// Drift window length, s.
     pub drift_window_s: f64,
-}
-
-impl SlowFeatures {
-    /// From the real record's features and each baseline simulation's (`sim_avars[i]`:
-    /// pooled AVAR per `ms`, `sim_drifts[i]`: variogram per lag bin of the fit selection).
-    pub fn new(
-        ms: &[usize],
-        real_avar: Vec<(f64, usize)>,
-        real_drift: Vec<f64>,
-        sim_avars: &[Vec<(f64, usize)>],
-        sim_drifts: &[Vec<f64>],
-        drift_lags_s: Vec<Vec<f64>>,
-        drift_window_s: f64,
-    ) -> Self {
-        use super::features::{mean, median};
-        let ln_sd = |v: &[f64]| -> f64 {
-            let l: Vec<f64> = v
-                .iter()
-                .filter(|x| x.is_finite() && **x > 0.0)
-                .map(|x| x.ln())
-                .collect();
-            let m = mean(&l);
-            (l.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (l.len().max(2) - 1) as f64).sqrt()
-        };
-        let avar_col =
-            |j: usize| -> Vec<f64> { sim_avars.iter().map(|a| a[j].0).collect::<Vec<_>>() };
-        let drift_col = |k: usize| -> Vec<f64> { sim_drifts.iter().map(|a| a[k]).collect() };
-        let bins = real_drift.len();
-        Self {
-            ms: ms.to_vec(),
-            real_avar,
-            sim_avar: (0..ms.len()).map(|j| median(&avar_col(j))).collect(),
-            avar_ln_sd: (0..ms.len()).map(|j| ln_sd(&avar_col(j))).collect(),
-            real_drift,
-            sim_drift: (0..bins).map(|k| median(&drift_col(k))).collect(),
-            drift_ln_sd: (0..bins).map(|k| ln_sd(&drift_col(k))).collect(),
-            drift_lags_s,
-            drift_window_s,
-        }
-    }
+    /// Without a user model: the baseline refitted with a Gauss-Markov term (N, B, K,
+    /// sigma, T jointly on the fit blocks' AVAR).
+    pub joint_markov: Option<Model>,
 }
 
 /// Variogram of `W`-s window means at lag `L >= W` (start to start) of a unit rate random
@@ -335,7 +287,7 @@ pub fn gm_variogram(t_s: f64, lag_s: f64, w_s: f64) -> f64 {
 /// Unlike the linear excess fit this weighs the long-lag variogram (lags up to the record
 /// length) by its own scatter, so a bounded and an unbounded drift get different fits.
 pub fn drift_fit(
-    ctx: &SlowFeatures,
+    ctx: &FitCtx,
     dt_s: f64,
     avar_basis: &dyn Fn(f64) -> f64,
     drift_basis: &dyn Fn(f64) -> f64,
@@ -450,7 +402,7 @@ pub fn missing_slots(t: &[f64], ranges: &[(usize, usize)], dt_s: f64) -> f64 {
 
 /// Weighted one-term fit of the AVAR excess `real - sim` on `basis(tau)`: (coefficient >= 0,
 /// weighted residual).
-fn excess_fit(ctx: &SlowFeatures, dt_s: f64, basis: &dyn Fn(f64) -> f64) -> (f64, f64) {
+fn excess_fit(ctx: &FitCtx, dt_s: f64, basis: &dyn Fn(f64) -> f64) -> (f64, f64) {
     let mut sxy = 0.0;
     let mut sxx = 0.0;
     let pts: Vec<(f64, f64, f64)> = ctx
@@ -562,19 +514,19 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             p.insert("quantum_dps".into(), q);
         }
         Effect::WhiteNoise => {
-            let (c, _) = excess_fit(&ctx.slow, dt, &|tau| 1.0 / tau);
+            let (c, _) = excess_fit(ctx, dt, &|tau| 1.0 / tau);
             n.arw_dps_per_rthz = (n.arw_dps_per_rthz.powi(2) + c).sqrt();
             p.insert("added_arw_dps_per_rthz".into(), c.sqrt());
         }
         Effect::BiasInstability => {
             let (lo, hi) = (n.flicker_tau_min_s, n.flicker_tau_max_s);
-            let (c, _) = excess_fit(&ctx.slow, dt, &|tau| flicker_adev(1.0, lo, hi, tau).powi(2));
+            let (c, _) = excess_fit(ctx, dt, &|tau| flicker_adev(1.0, lo, hi, tau).powi(2));
             n.bias_instability_dps = (n.bias_instability_dps.powi(2) + c).sqrt();
             p.insert("added_bias_instability_dps".into(), c.sqrt());
         }
         Effect::RateRandomWalk => {
-            let w = ctx.slow.drift_window_s;
-            let (c, chi2, _) = drift_fit(&ctx.slow, dt, &|tau| tau / 3.0, &|l| rrw_variogram(l, w));
+            let w = ctx.drift_window_s;
+            let (c, chi2, _) = drift_fit(ctx, dt, &|tau| tau / 3.0, &|l| rrw_variogram(l, w));
             n.rrw_dps_per_s_rthz = (n.rrw_dps_per_s_rthz.powi(2) + c).sqrt();
             p.insert("added_rrw_dps_per_s_rthz".into(), c.sqrt());
             p.insert("fit_chi2".into(), chi2);
@@ -609,12 +561,12 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
         Effect::Markov => {
             // Correlation time on an 8-per-decade grid from 4 samples to 3 record lengths,
             // fitted jointly to the fit blocks' AVAR and their long-lag drift variogram.
-            let w = ctx.slow.drift_window_s;
+            let w = ctx.drift_window_s;
             let t_hi = 3.0 * t_rec;
             let mut best = (f64::INFINITY, 0.0, 1.0);
             let mut tc = (4.0 * dt).max(1e-3);
             while tc <= t_hi {
-                let (c, chi2, _) = drift_fit(&ctx.slow, dt, &|tau| gm_avar(1.0, tc, tau), &|l| {
+                let (c, chi2, _) = drift_fit(ctx, dt, &|tau| gm_avar(1.0, tc, tau), &|l| {
                     gm_variogram(tc, l, w)
                 });
                 if chi2 < best.0 {
@@ -624,7 +576,7 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             }
             let (chi2, c, tc) = best;
             let (_, chi2_rrw, npts) =
-                drift_fit(&ctx.slow, dt, &|tau| tau / 3.0, &|l| rrw_variogram(l, w));
+                drift_fit(ctx, dt, &|tau| tau / 3.0, &|l| rrw_variogram(l, w));
             if n.gm_sigma_dps > 0.0 {
                 // The model has its own Gauss-Markov term: this one replaces it when larger.
                 n.gm_sigma_dps = n.gm_sigma_dps.max(c.sqrt());

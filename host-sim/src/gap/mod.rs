@@ -495,11 +495,7 @@ pub fn fit_baseline_terms(
     m.noise.arw_dps_per_rthz = get(fit::Kind::Arw);
     m.noise.bias_instability_dps = get(fit::Kind::BiasInstability);
     m.noise.rrw_dps_per_s_rthz = get(fit::Kind::Rrw);
-    // Flicker as 1/f up to the Nyquist frequency (as a real gyro's, and as the fit's flat
-    // `2 ln 2 / pi B^2` assumes): a bank starting at 2.5 samples lacks up to half the
-    // flicker's Allan variance at the shortest taus, which a strong-flicker record then
-    // shows as a white-noise gap (calibration record rate_ramp-302002, named white_noise).
-    m.noise.flicker_tau_min_s = crate::sim::FLICKER_TAU_MIN_SAMPLES * real.dt_s;
+    m.noise.flicker_tau_min_s = 2.5 * real.dt_s;
     m.noise.flicker_tau_max_s = 1e5;
     if let (Some(t), Some(tc)) = (f.get(fit::Kind::GaussMarkov), f.gm_tau_s) {
         if t.active {
@@ -557,14 +553,14 @@ pub fn diagnose(
         c
     };
     let fitted_on = less_ref(real);
-    let (base_model, mut source) = match model {
+    let (base_model, source) = match model {
         Some(m) => (m.clone(), "user model (--sim)".to_string()),
         None => (
             fit_baseline(&fitted_on, &layout, &fit_ranges)?,
-            "fitted to the fit blocks: ARW, bias instability, rate random walk (Allan variance)"
-                .to_string(),
+            "fitted to the fit blocks: ARW, bias instability, rate random walk".to_string(),
         ),
     };
+    let mut base = Spec::from_model(&base_model, real.ref_dps.is_some());
     // Temperature windows (and their rate of change) on the record's own time grid.
     let w_s = evidence::WINDOW_S;
     let t_total = real.t_s.last().copied().unwrap_or(0.0) + real.dt_s;
@@ -581,24 +577,16 @@ pub fn diagnose(
     let dtemp_w = temp_w
         .as_ref()
         .map(|tw| evidence::rate_of_change(tw, w_s, 6));
-    let dtemp_per_sample = dtemp_w.as_ref().map(|dw| {
-        std::sync::Arc::new(
+    if let Some(dw) = &dtemp_w {
+        base.dtemp_c_per_s = std::sync::Arc::new(
             real.t_s
                 .iter()
                 .map(|&t| dw[((t / w_s) as usize).min(n_win - 1)])
                 .map(|v| if v.is_finite() { v } else { 0.0 })
-                .collect::<Vec<f64>>(),
-        )
-    });
-    let spec_of = |m: &Model| {
-        let mut spec = Spec::from_model(m, real.ref_dps.is_some());
-        if let Some(d) = &dtemp_per_sample {
-            spec.dtemp_c_per_s = d.clone();
-        }
-        spec
-    };
-    let mut base_model = base_model;
-    let mut base = spec_of(&base_model);
+                .collect(),
+        );
+    }
+    let base = base;
     let g_base = 1.0 + 1e-6 * base.sf_ppm;
     let raw = real;
     let mut resid = real.clone();
@@ -618,55 +606,6 @@ pub fn diagnose(
     let mut fft = Fft::default();
     let real_out = analyse(&layout, &real_sim, &sel_score, Some(&sel_all), &mut fft);
     let seeds: Vec<u64> = (0..o.seeds as u64).map(|i| o.first_seed + i).collect();
-    let drift_bins = features::drift_pairs(&sel_fit);
-    let block_s = layout.t_total_s / BLOCKS as f64;
-    let slow_of = |sim_avars: &[Vec<(f64, usize)>], sim_drifts: &[Vec<f64>]| {
-        effects::SlowFeatures::new(
-            &layout.ms,
-            features::pooled_avar(&real.rate_dps, &fit_ranges, real.dt_s, &layout.ms),
-            layout.drift_variogram(&real.t_s, &real.rate_dps, &sel_fit),
-            sim_avars,
-            sim_drifts,
-            drift_bins
-                .iter()
-                .map(|(_, pairs)| pairs.iter().map(|p| p.2 * block_s).collect())
-                .collect(),
-            block_s / features::DRIFT_WINDOWS as f64,
-        )
-    };
-    // Without a user model, the slow noise the fit blocks' Allan variance cannot see (its
-    // taus reach a quarter block, 75 s of 1800): the rate random walk that their window-mean
-    // variogram across the record shows beyond the AVAR-fitted baseline's simulations
-    // (the `rate_random_walk` fit, `effects::drift_fit`), added to the baseline.
-    let mut rrw_refined = 0.0;
-    if model.is_none() {
-        let (mut avars, mut drifts) = (Vec::new(), Vec::new());
-        for &s in &seeds {
-            let sim = base.simulate(real, s, g_base)?;
-            let fr: Vec<(usize, usize)> = layout.ranges(&sim.t).into_iter().step_by(2).collect();
-            avars.push(features::pooled_avar(&sim.res, &fr, real.dt_s, &layout.ms));
-            drifts.push(layout.drift_variogram(&sim.t, &sim.res, &sel_fit));
-        }
-        let slow = slow_of(&avars, &drifts);
-        let w = slow.drift_window_s;
-        let (k2, _, _) = effects::drift_fit(&slow, real.dt_s, &|tau| tau / 3.0, &|l| {
-            effects::rrw_variogram(l, w)
-        });
-        let k_avar = base_model.noise.rrw_dps_per_s_rthz;
-        if k2 > 0.0 {
-            base_model.noise.rrw_dps_per_s_rthz = (k_avar.powi(2) + k2).sqrt();
-            base = spec_of(&base_model);
-        }
-        rrw_refined = base_model.noise.rrw_dps_per_s_rthz;
-        source.push_str(&format!(
-            "; rate random walk from the fit blocks' window-mean variogram: K {:.3e} -> {:.3e} deg/s^1.5 ({:.3} -> {:.3} deg/h/sqrt(h))",
-            k_avar,
-            rrw_refined,
-            k_avar * 216_000.0,
-            rrw_refined * 216_000.0
-        ));
-    }
-    let base = base;
 
     // Baseline simulations.
     let mut base_outs = Vec::new();
@@ -779,12 +718,45 @@ pub fn diagnose(
 
     // Fit context.
     let (spike_n, spike_sizes) = effects::spike_stats(&real.rate_dps, &fit_ranges);
+    let sim_avar: Vec<f64> = (0..layout.ms.len())
+        .map(|j| features::median(&sim_avars.iter().map(|a| a[j].0).collect::<Vec<_>>()))
+        .collect();
+    let ln_sd = |v: &[f64]| -> f64 {
+        let l: Vec<f64> = v
+            .iter()
+            .filter(|x| x.is_finite() && **x > 0.0)
+            .map(|x| x.ln())
+            .collect();
+        let m = features::mean(&l);
+        (l.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (l.len().max(2) - 1) as f64).sqrt()
+    };
+    let avar_ln_sd: Vec<f64> = (0..layout.ms.len())
+        .map(|j| ln_sd(&sim_avars.iter().map(|a| a[j].0).collect::<Vec<_>>()))
+        .collect();
+    let drift_bins = features::drift_pairs(&sel_fit);
+    let block_s = layout.t_total_s / BLOCKS as f64;
+    let col = |v: &[Vec<f64>], k: usize| v.iter().map(|a| a[k]).collect::<Vec<_>>();
     let mut ctx = FitCtx {
-        slow: slow_of(&sim_avars, &sim_drifts),
+        avar_ln_sd,
+        real_drift: layout.drift_variogram(&real.t_s, &real.rate_dps, &sel_fit),
+        sim_drift: (0..drift_bins.len())
+            .map(|k| features::median(&col(&sim_drifts, k)))
+            .collect(),
+        drift_ln_sd: (0..drift_bins.len())
+            .map(|k| ln_sd(&col(&sim_drifts, k)))
+            .collect(),
+        drift_lags_s: drift_bins
+            .iter()
+            .map(|(_, pairs)| pairs.iter().map(|p| p.2 * block_s).collect())
+            .collect(),
+        drift_window_s: block_s / features::DRIFT_WINDOWS as f64,
         real,
         raw: &raw.rate_dps,
         base: &base,
         fit_ranges: fit_ranges.clone(),
+        ms: layout.ms.clone(),
+        real_avar: features::pooled_avar(&real.rate_dps, &fit_ranges, real.dt_s, &layout.ms),
+        sim_avar,
         spikes: (spike_n, features::median(&sim_spikes)),
         spike_size_dps: if spike_sizes.is_empty() {
             0.0
@@ -797,14 +769,7 @@ pub fn diagnose(
         ),
         bursty: time.bursty,
         joint_markov: if model.is_none() {
-            fit_baseline_terms(&fitted_on, &layout, &fit_ranges, true)
-                .ok()
-                .map(|mut m| {
-                    // The variogram's random walk, as in the baseline.
-                    let n = &mut m.noise;
-                    n.rrw_dps_per_s_rthz = n.rrw_dps_per_s_rthz.max(rrw_refined);
-                    m
-                })
+            fit_baseline_terms(&fitted_on, &layout, &fit_ranges, true).ok()
         } else {
             None
         },

@@ -20,13 +20,6 @@ use rand_distr::StandardNormal;
 /// Gauss-Markov processes per decade of correlation time in the flicker bank.
 pub const FLICKER_PER_DECADE: f64 = 2.0;
 
-/// Shortest flicker-bank correlation time, in sample periods, for a bank meant to be 1/f
-/// up to the Nyquist frequency: with `0.7 dt` the sampled bank's Allan variance is within
-/// 3 % of the flat floor from 2 samples on (exact, [`sampled_gm_avar`]; test
-/// `sampled_bank_floor_is_flat_from_two_samples`); at the simulator's usual `2.5 dt` it is
-/// 49 % low at 2 samples and 19 % at 8. Used by `host-sim gap`'s fitted baseline.
-pub const FLICKER_TAU_MIN_SAMPLES: f64 = 0.7;
-
 /// `sqrt(2 ln 2 / pi)`: Allan deviation floor of flicker noise per unit B.
 pub const FLICKER_FLOOR: f64 = 0.664_282_597_612_5;
 
@@ -51,24 +44,6 @@ pub fn gm_avar(var: f64, t_s: f64, tau_s: f64) -> f64 {
     }
     let bracket = 1.0 - (3.0 - 4.0 * (-x).exp() + (-2.0 * x).exp()) / (2.0 * x);
     2.0 * var / x * bracket
-}
-
-/// Exact Allan variance, (deg/s)^2, of the **sampled** first-order Gauss-Markov process
-/// (an AR(1) sequence of variance `var` (deg/s)^2 and lag-1 correlation `phi = e^(-dt/T)`)
-/// averaged over `m` samples: `Var(mean of m) - Cov(two adjacent means of m)`,
-/// `var / m^2 [m + 2 sum_{d<m} (m - d) phi^d - sum_{d<2m} min(d, 2m - d) phi^d]`. Unlike
-/// [`gm_avar`] (continuous time) it holds for `T` below a sample period. O(m).
-pub fn sampled_gm_avar(var: f64, phi: f64, m: usize) -> f64 {
-    let m = m.max(1);
-    let (mut within, mut across, mut p) = (m as f64, 0.0, 1.0);
-    for d in 1..2 * m {
-        p *= phi;
-        if d < m {
-            within += 2.0 * (m - d) as f64 * p;
-        }
-        across += d.min(2 * m - d) as f64 * p;
-    }
-    var / (m * m) as f64 * (within - across)
 }
 
 /// One first-order Gauss-Markov process sampled every `dt` (exact discretisation).
@@ -188,30 +163,6 @@ mod tests {
                 assert!(worst < limit, "[{lo}, {hi}]: ripple {worst}");
             }
         }
-    }
-
-    #[test]
-    fn sampled_bank_floor_is_flat_from_two_samples() {
-        // A bank reaching down to 0.7 sample periods (what `host-sim gap` uses for its
-        // fitted baseline): the sampled record's Allan variance is within 3 % of the flat
-        // floor from 2 samples on (1/f to Nyquist is within 0.3 % there) and 11 % at 1.
-        let dt = 0.01;
-        let (lo, hi) = (FLICKER_TAU_MIN_SAMPLES * dt, 1e5);
-        let times = flicker_times_s(lo, hi);
-        let var = flicker_unit_var(&times, lo, hi);
-        let floor = FLICKER_FLOOR * FLICKER_FLOOR;
-        for m in [1usize, 2, 3, 4, 6, 8, 16, 64, 256, 1024, 7500] {
-            let a: f64 = times
-                .iter()
-                .map(|&t| sampled_gm_avar(var, (-dt / t).exp(), m))
-                .sum();
-            let limit = if m == 1 { 0.11 } else { 0.03 };
-            assert!((a / floor - 1.0).abs() < limit, "m {m}: {}", a / floor);
-        }
-        // The discrete and continuous forms agree where the process is well sampled.
-        let (t, m) = (1.0, 50usize);
-        let r = sampled_gm_avar(1.0, (-dt / t).exp(), m) / gm_avar(1.0, t, m as f64 * dt);
-        assert!((r - 1.0).abs() < 0.01, "{r}");
     }
 
     #[test]

@@ -30,10 +30,7 @@ mod model;
 pub mod motion;
 
 pub use family::{realize, Family};
-pub use markov::{
-    flicker_adev, gm_avar, sampled_gm_avar, GaussMarkov, FLICKER_FLOOR, FLICKER_PER_DECADE,
-    FLICKER_TAU_MIN_SAMPLES,
-};
+pub use markov::{flicker_adev, gm_avar, GaussMarkov, FLICKER_FLOOR, FLICKER_PER_DECADE};
 pub use model::{
     check_rate_hz, Bias, Faults, Model, Motion, Noise, QuantMode, Quantization, ScaleFactor,
     Temperature, Timing, EARTH_RATE_DPS, KEYS,
@@ -137,13 +134,11 @@ impl Simulator {
         let platform = Platform::new(&model.motion, stream(seed, Stream::Motion))?;
         let n = &model.noise;
         let dt_s = 1.0 / (rate_hz * (1.0 + 1e-6 * model.timing.rate_error_ppm));
-        // The bank is discretised exactly, so any correlation time is sound; below half a
-        // sample period a process is white noise and the bank no longer 1/f there.
-        if n.bias_instability_dps > 0.0 && n.flicker_tau_min_s < 0.5 * dt_s {
+        if n.bias_instability_dps > 0.0 && n.flicker_tau_min_s < 2.0 * dt_s {
             bail!(
-                "[noise] flicker_tau_min_s = {} s is shorter than half a sample period ({} s)",
+                "[noise] flicker_tau_min_s = {} s is shorter than 2 sample periods ({} s)",
                 n.flicker_tau_min_s,
-                0.5 * dt_s
+                2.0 * dt_s
             );
         }
         if model.timing.jitter_rms_s > 0.2 * dt_s {
