@@ -351,3 +351,31 @@ fn dropouts_test_counts_missing_slots() {
     );
     assert!(dropouts_outcome(40.0, &some).passed);
 }
+
+/// The spikes test's count: 180 000 samples of Gaussian noise have ~10 running-median
+/// residuals beyond the candidate's 6 robust sigma but none beyond the test's 10; four
+/// 15-sigma spikes are all counted, and against simulations without any they pass.
+#[test]
+fn spikes_test_counts_outliers_gaussian_noise_has_none() {
+    use host_sim::gap::effects::outliers;
+    use host_sim::gap::evidence::{spikes_outcome, SPIKE_TEST_SIGMAS};
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let mut y: Vec<f64> = (0..180_000)
+        .map(|_| StandardNormal.sample(&mut rng))
+        .collect();
+    let all = [(0, y.len())];
+    let (n6, _) = outliers(&y, &all, 6.0);
+    assert!((2.0..40.0).contains(&n6), "{n6} beyond 6 robust sigma");
+    assert_eq!(outliers(&y, &all, SPIKE_TEST_SIGMAS).0, 0.0);
+    for k in [10_000, 50_000, 90_000, 170_000] {
+        y[k] += 15.0;
+    }
+    let (count, sizes) = outliers(&y, &all, SPIKE_TEST_SIGMAS);
+    assert_eq!(count, 4.0, "{sizes:?}");
+    assert!(spikes_outcome(count, &[0.0; 12]).passed);
+    assert!(!spikes_outcome(0.0, &[0.0; 12]).passed);
+    // Inside the simulations' own spread: not passed.
+    assert!(!spikes_outcome(5.0, &[3.0, 5.0, 4.0, 6.0, 2.0, 5.0]).passed);
+}

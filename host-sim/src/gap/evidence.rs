@@ -25,6 +25,10 @@
 //!   also needs the reference coefficient's `|t| > 3` ([`SF_MIN_T`]).
 //! - `dropouts`: the time stamps: missing sample slots in the whole record against the
 //!   simulations' ([`dropouts_outcome`]); not run when the time stamps are bursty.
+//! - `spikes`: outliers (5-point running-median residuals beyond [`SPIKE_TEST_SIGMAS`]
+//!   robust sigma) in the whole record against the simulations'
+//!   ([`spikes_outcome`]): the candidate is fitted on the fit blocks only, so a few spikes
+//!   that all fall in the held-out blocks are otherwise missed.
 //!
 //! The drift tests are nested (a passed temperature test first; then warm-up or ramp,
 //! whichever is further past its threshold; the decision is in `mod.rs`). Each test gives
@@ -44,9 +48,10 @@ use serde::Serialize;
 pub const WINDOW_S: f64 = 5.0;
 
 /// z thresholds per test.
-pub const THRESHOLDS: [(Effect, f64); 6] = [
+pub const THRESHOLDS: [(Effect, f64); 7] = [
     (Effect::Temperature, 2.5),
     (Effect::Dropouts, 3.0),
+    (Effect::Spikes, 3.0),
     (Effect::RateRamp, 3.0),
     (Effect::ScaleFactor, 3.0),
     (Effect::Sinusoid, 2.5),
@@ -533,6 +538,38 @@ pub fn dropouts_outcome(missing: f64, null: &[f64]) -> Test {
     t
 }
 
+/// The spikes test counts 5-point running-median residuals beyond this many robust sigma
+/// (the `spikes` candidate's 6 are about 4 standard deviations of Gaussian noise, ~10 per
+/// 180 000 samples in the simulations; 10 are about 6.6, none).
+pub const SPIKE_TEST_SIGMAS: f64 = 10.0;
+
+/// Floor of the spikes test's null standard deviation, outliers: as
+/// [`DROPOUT_SD_FLOOR`], one outlier against simulations that have none gives z = 3.3
+/// (> the threshold 3).
+pub const SPIKE_SD_FLOOR: f64 = 0.3;
+
+/// The spikes test: outliers (5-point running-median residuals beyond
+/// [`SPIKE_TEST_SIGMAS`] robust sigma) in
+/// the whole record against the simulations' (a count: the null sd is floored at the
+/// Poisson sd `sqrt(mean)` and at [`SPIKE_SD_FLOOR`]).
+pub fn spikes_outcome(count: f64, null: &[f64]) -> Test {
+    let mut t = outcome(
+        Effect::Spikes,
+        "outliers: 5-point running-median residuals beyond 10 robust sigma in the whole record vs the simulations'",
+        count,
+        null,
+        format!("{count:.0} outliers"),
+    );
+    let sd = t
+        .null_sd
+        .max(t.null_mean.max(0.0).sqrt())
+        .max(SPIKE_SD_FLOOR);
+    t.null_sd = sd;
+    t.z = (count - t.null_mean) / sd;
+    t.passed = t.z > t.threshold;
+    t
+}
+
 /// The scale-factor test also needs the reference coefficient's `|t|` (AR(1) errors) above
 /// this.
 pub const SF_MIN_T: f64 = 3.0;
@@ -581,16 +618,19 @@ pub fn phase_randomised(x: &[f64], seed: u64) -> Vec<f64> {
 ///
 /// `missing`: the whole record's missing sample slots (steps longer than 1.5 periods) and
 /// the simulations'; `None` when the time stamps are bursty (gaps not measurable).
+/// `spikes`: the whole record's outlier count and the simulations'.
 pub fn run(
     real: &EvStats,
     sims: &[EvStats],
     temp_w: Option<&[f64]>,
     missing: Option<(f64, &[f64])>,
+    spikes: (f64, &[f64]),
 ) -> Vec<Test> {
     let mut out = Vec::new();
     if let Some((m, null)) = missing {
         out.push(dropouts_outcome(m, null));
     }
+    out.push(spikes_outcome(spikes.0, spikes.1));
     if let (Some(tw), Some(r)) = (temp_w, real.temp) {
         let mut nulls: Vec<f64> = sims.iter().filter_map(|s| s.temp).collect();
         for k in 0..SURROGATES {

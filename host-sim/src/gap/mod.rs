@@ -614,6 +614,7 @@ pub fn diagnose(
     let mut sim_spikes = Vec::new();
     let mut sim_missing = Vec::new();
     let mut sim_missing_all = Vec::new();
+    let mut sim_spikes_all = Vec::new();
     let mut task_sims = Vec::new();
     let mut null_stats: Vec<evidence::EvStats> = Vec::new();
     for (i, &s) in seeds.iter().enumerate() {
@@ -632,6 +633,9 @@ pub fn diagnose(
         sim_avars.push(features::pooled_avar(&sim.res, &fr, real.dt_s, &layout.ms));
         sim_drifts.push(layout.drift_variogram(&sim.t, &sim.res, &sel_fit));
         sim_spikes.push(effects::spike_stats(&sim.res, &fr).0);
+        sim_spikes_all.push(
+            effects::outliers(&sim.res, &[(0, sim.res.len())], evidence::SPIKE_TEST_SIGMAS).0,
+        );
         sim_missing.push(effects::missing_slots(&sim.t, &fr, real.dt_s));
         sim_missing_all.push(effects::missing_slots(
             &sim.t,
@@ -693,6 +697,15 @@ pub fn diagnose(
         &null_stats,
         temp_w.as_deref(),
         (!time.bursty).then_some((real_missing_all, sim_missing_all.as_slice())),
+        (
+            effects::outliers(
+                &real.rate_dps,
+                &[(0, real.rate_dps.len())],
+                evidence::SPIKE_TEST_SIGMAS,
+            )
+            .0,
+            sim_spikes_all.as_slice(),
+        ),
     );
 
     // Where (full record).
