@@ -15,7 +15,7 @@
 //! simulator's vehicle motion (own detector). Results: docs/motion.md.
 use anyhow::Result;
 use fog_core::still::SensorConfig;
-use host_sim::demo::{family_model, RATE_HZ};
+use host_sim::demo::{family_model, run_image, RATE_HZ};
 use host_sim::identify::series::{Records, Series};
 use host_sim::motion::{self, TrainOptions, TrainerArg};
 use host_sim::nav::{self, BaselineConfig, NavRecord};
@@ -69,16 +69,7 @@ fn main() -> Result<()> {
             im.config.level_q_dps2_per_s = (q / 3600f64.powi(3)) as f32;
             let (mut id, mut gk) = (0.0, 0.0);
             for rec in &tests {
-                let mut est = im.estimator().map_err(|e| anyhow::anyhow!("{e}"))?;
-                let (mut d, mut st) = (Vec::new(), Vec::new());
-                for k in 0..rec.len() {
-                    let t = rec.temp_c.as_ref().map_or(f32::NAN, |t| t[k] as f32);
-                    let o = est
-                        .push(rec.rate_dps[k] as f32, t, None)
-                        .map_err(|e| anyhow::anyhow!("{e}"))?;
-                    d.push(f64::from(o.drift_dps));
-                    st.push(o.still);
-                }
+                let (d, st) = run_image(&im, rec)?;
                 let c = nav::compare(
                     rec,
                     "id",
@@ -157,16 +148,13 @@ fn main() -> Result<()> {
         im.config.level_q_dps2_per_s = (q / 3600f64.powi(3)) as f32;
         let mut sum = 0.0;
         for rec in &driven {
-            let mut est = im.estimator().map_err(|e| anyhow::anyhow!("{e}"))?;
+            let (drift, _) = run_image(&im, rec)?;
             let mut acc = nav::HeadingAcc::new();
-            for k in 0..rec.len() {
-                let t = rec.temp_c.as_ref().map_or(f32::NAN, |t| t[k] as f32);
-                let d = est
-                    .push(rec.rate_dps[k] as f32, t, None)
-                    .map_or(0.0, |o| f64::from(o.drift_dps));
+            for (k, &d) in drift.iter().enumerate() {
+                let (t, rate) = (rec.t_s[k], rec.rate_dps[k]);
                 acc.push(
-                    rec.t_s[k],
-                    rec.rate_dps[k] - d,
+                    t,
+                    rate - d,
                     rec.true_rate_dps[k],
                     d,
                     rec.drift_dps[k],
@@ -177,16 +165,6 @@ fn main() -> Result<()> {
         }
         println!("training units driven q {q:>6.1}: heading RMS {sum:.4}");
     }
-    // GK with truth flags.
-    let mut g = 0.0;
-    for rec in &tests {
-        let mut k = nav::GatedKalman::new(3.162e-12, r);
-        g += nav::run(rec, &mut k, &rec.still_truth())
-            .scores
-            .heading_rms_deg
-            / nrec as f64;
-    }
-    println!("gated Kalman truth flags {g:.4}");
     Ok(())
 }
 

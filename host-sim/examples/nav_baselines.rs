@@ -534,6 +534,34 @@ fn sample_var(s: &SensorConfig) -> f64 {
     f64::from(s.sample_var_dps2())
 }
 
+/// The gated RW+GM filter with `c`, its white noise from each record's sensor.
+fn rwgm(c: RwGmConfig) -> impl Fn(&SensorConfig) -> Result<Box<dyn DriftEstimator>> {
+    move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+        Ok(Box::new(GatedRwGm::new(RwGmConfig {
+            r_dps2: sample_var(s),
+            ..c
+        })))
+    }
+}
+
+/// The per-sample random-walk Kalman filter with q tuned by e_truth on the static
+/// validation units: (q, e_truth on the static test units).
+fn static_kalman(set: &Set) -> Result<(f64, f64)> {
+    let kalman = |q: f64| {
+        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+            Ok(Box::new(GatedKalman::new(q, sample_var(s))))
+        }
+    };
+    let mut kbest = (f64::INFINITY, 0.0);
+    for q in log_grid(1e-16, 1e-8, 4) {
+        let v = e_truth(&set.static_valid, kalman(q))?;
+        if v < kbest.0 {
+            kbest = (v, q);
+        }
+    }
+    Ok((kbest.1, e_truth(&set.static_test, kalman(kbest.1))?))
+}
+
 fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<()> {
     let nt = set.train.len();
     let nv = set.valid.len();
@@ -574,14 +602,6 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<
         "motion preset", "q dph2/h", "hdg RMS", "|hdg end|", "e moving", "false-st", "missed-st"
     );
     use LevelUpdate::{Sample, Window};
-    let rwgm = |c: RwGmConfig| {
-        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
-            Ok(Box::new(GatedRwGm::new(RwGmConfig {
-                r_dps2: sample_var(s),
-                ..c
-            })))
-        }
-    };
     // The GM state tuned on the static validation units (the product's: one sigma and
     // tau from the bias instability at rest).
     let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
@@ -676,22 +696,9 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<
         );
     }
     // Static records.
-    let kalman = |q: f64| {
-        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
-            Ok(Box::new(GatedKalman::new(q, sample_var(s))))
-        }
-    };
-    let mut kbest = (f64::INFINITY, 0.0);
-    for q in log_grid(1e-16, 1e-8, 4) {
-        let v = e_truth(&set.static_valid, kalman(q))?;
-        if v < kbest.0 {
-            kbest = (v, q);
-        }
-    }
-    let k_test = e_truth(&set.static_test, kalman(kbest.1))?;
+    let (k_q, k_test) = static_kalman(set)?;
     println!(
-        "static: per-sample RW Kalman (q {:.2e} (deg/s)^2/sample, tuned by e_truth) e_truth {k_test:.4}",
-        kbest.1
+        "static: per-sample RW Kalman (q {k_q:.2e} (deg/s)^2/sample, tuned by e_truth) e_truth {k_test:.4}"
     );
     let t = e_truth(&set.static_test, rwgm(gm))?;
     println!(
@@ -844,14 +851,6 @@ fn evaluate_trainers(
     let drls = train_motion(&set.train, s_train, None)?;
     let ls = train_least_squares(&set.train, s_train)?;
     let untrained = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let rwgm = |c: RwGmConfig| {
-        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
-            Ok(Box::new(GatedRwGm::new(RwGmConfig {
-                r_dps2: sample_var(s),
-                ..c
-            })))
-        }
-    };
     let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
     let rows = [
         ("DRLS m (paper trainer), dual", &drls, Second::Dual(gm)),
@@ -906,19 +905,7 @@ fn evaluate_trainers(
             .collect::<Result<Vec<_>>>()?;
         println!("    test RMS by q: {}", sweep.join(" "));
     }
-    let kalman = |q: f64| {
-        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
-            Ok(Box::new(GatedKalman::new(q, sample_var(s))))
-        }
-    };
-    let mut kbest = (f64::INFINITY, 0.0);
-    for q in log_grid(1e-16, 1e-8, 4) {
-        let v = e_truth(&set.static_valid, kalman(q))?;
-        if v < kbest.0 {
-            kbest = (v, q);
-        }
-    }
-    let k_test = e_truth(&set.static_test, kalman(kbest.1))?;
+    let (_, k_test) = static_kalman(set)?;
     let t = e_truth(&set.static_test, rwgm(gm))?;
     println!(
         "static: per-sample RW Kalman e_truth {k_test:.4}; RW+GM Kalman ({}) {t:.4} ({:+.1} %)",

@@ -64,7 +64,23 @@ fn demo_writes_the_report() {
         serde_json::from_str(&fs::read_to_string(dir.join("summary.json")).expect("summary"))
             .expect("json");
     assert_eq!(s["rows"], 60_000);
-    assert_eq!(s["records_trained"], 36, "12 records x 3 passes");
+    assert_eq!(
+        s["records_trained"], 12,
+        "12 records, least squares (one pass)"
+    );
+    // The test set: the identifier and the four baselines over 2 vehicles (--quick).
+    let t = &s["test_set"];
+    assert_eq!(
+        t["heading_rms_deg"].as_array().expect("per record").len(),
+        2
+    );
+    let mean = t["mean_heading_rms_deg"].as_array().expect("mean");
+    assert_eq!(mean.len(), 5);
+    assert_eq!(mean[0][0], "motion identifier");
+    assert!(mean
+        .iter()
+        .all(|m| m[1].as_f64().is_some_and(|v| v.is_finite() && v > 0.0)));
+    assert!(t["identifier_best"].as_u64().is_some_and(|n| n <= 2));
     let rows = s["scores"]["rows"].as_array().expect("scores");
     assert_eq!(rows.len(), 5, "identifier and four baselines");
     assert_eq!(rows[0]["name"], "motion identifier");

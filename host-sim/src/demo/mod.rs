@@ -228,13 +228,9 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         im.config.level_q_dps2_per_s = (q_dph2_per_h / 3600f64.powi(3)) as f32;
         let mut sum = 0.0;
         for v in &val {
-            let mut est = im.estimator().map_err(|e| anyhow::anyhow!("demo: {e}"))?;
+            let (drift, _) = run_image(&im, v)?;
             let mut acc = nav::HeadingAcc::new();
-            for k in 0..v.len() {
-                let temp = v.temp_c.as_ref().map_or(f32::NAN, |t| t[k] as f32);
-                let d = est
-                    .push(v.rate_dps[k] as f32, temp, None)
-                    .map_or(0.0, |o| f64::from(o.drift_dps));
+            for (k, &d) in drift.iter().enumerate() {
                 acc.push(
                     v.t_s[k],
                     v.rate_dps[k] - d,
@@ -330,16 +326,7 @@ fn test_set(image: &Image, cfg: &DemoConfig, cmp: &BaselineConfig) -> Result<Tes
             cfg.duration_s,
         )?;
         let rec = NavRecord::from_samples(&x);
-        let mut est = image
-            .estimator()
-            .map_err(|e| anyhow::anyhow!("demo: {e}"))?;
-        let (mut drift, mut still) = (Vec::new(), Vec::new());
-        for k in 0..rec.len() {
-            let temp = rec.temp_c.as_ref().map_or(f32::NAN, |t| t[k] as f32);
-            let o = est.push(rec.rate_dps[k] as f32, temp, None);
-            drift.push(o.map_or(0.0, |o| f64::from(o.drift_dps)));
-            still.push(o.is_ok_and(|o| o.still));
-        }
+        let (drift, still) = run_image(image, &rec)?;
         tables
             .push(nav::compare(&rec, "motion identifier", &drift, &still, true, cmp.clone()).table);
     }
@@ -353,6 +340,22 @@ fn test_set(image: &Image, cfg: &DemoConfig, cmp: &BaselineConfig) -> Result<Tes
         ),
         &tables,
     ))
+}
+
+/// `image`'s estimator over `rec` from power-on, its own detector: drift estimate, deg/s,
+/// and still flag per sample (a refused sample: drift 0, not still).
+pub fn run_image(image: &Image, rec: &NavRecord) -> Result<(Vec<f64>, Vec<bool>)> {
+    let mut est = image
+        .estimator()
+        .map_err(|e| anyhow::anyhow!("demo: {e}"))?;
+    let (mut drift, mut still) = (Vec::with_capacity(rec.len()), Vec::with_capacity(rec.len()));
+    for k in 0..rec.len() {
+        let temp = rec.temp_c.as_ref().map_or(f32::NAN, |t| t[k] as f32);
+        let o = est.push(rec.rate_dps[k] as f32, temp, None);
+        drift.push(o.map_or(0.0, |o| f64::from(o.drift_dps)));
+        still.push(o.is_ok_and(|o| o.still));
+    }
+    Ok((drift, still))
 }
 
 fn print_test_set(set: &TestSet) {

@@ -90,8 +90,8 @@ pub struct MotionSummary {
     pub gm_sigma_dph: f32,
     /// The image's Gauss-Markov correlation time, s (0: off).
     pub gm_tau_s: f32,
-    /// Record passes trained into the image (12 records x 3 passes = 36; 0: untrained, the
-    /// gated level alone).
+    /// Record passes trained into the image (least squares: the records, e.g. 12; DRLS:
+    /// records x passes, e.g. 36; 0: untrained, the gated level alone).
     pub records_trained: u32,
     /// The sensor configuration used.
     pub sensor: SensorSummary,
