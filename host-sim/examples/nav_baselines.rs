@@ -40,7 +40,8 @@
 //! product) and the window level, on vehicles and static records, with the least-squares
 //! cross-validation printed, and each row's test score at every other q of the grid
 //! (how much the pick from 3 validation vehicles matters). `--host-sim-only`: the first
-//! set alone.
+//! set alone. `--vehicles N`: N validation vehicles (units 100..) and N test vehicles
+//! (units 300..) per set instead of 3 and 4.
 //! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
 //! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
@@ -758,7 +759,7 @@ fn main() -> Result<()> {
     let trainers = std::env::args().any(|a| a == "--trainers");
     let svg_dir = std::env::args()
         .skip(1)
-        .find(|a| !a.starts_with("--"))
+        .find(|a| !a.starts_with("--") && a.parse::<u64>().is_err())
         .map(PathBuf::from);
     let r_dps2 = 0.001_111_11f64.powi(2) * 100.0 + (60.0f64 / 32768.0).powi(2) / 12.0;
     let ecore = SensorConfig::ECORE_2000;
@@ -767,19 +768,31 @@ fn main() -> Result<()> {
             .map(|u| Ok((ours(false, u, 4000 + u)?, ecore)))
             .collect()
     };
+    // Vehicle units: 3 validation (21..23) and 4 test (31..34), or with `--vehicles N`, N
+    // of each (validation 100.., test 300..).
+    let n_vehicles: Option<u64> = std::env::args()
+        .skip_while(|a| a != "--vehicles")
+        .nth(1)
+        .and_then(|v| v.parse().ok());
+    let (valid_units, test_units) = match n_vehicles {
+        Some(n) if n > 0 => (100..=99 + n, 300..=299 + n),
+        _ => (21..=23, 31..=34),
+    };
     let set = Set {
         name: "host-sim family".into(),
         train: (1..=12)
             .map(|u| ours(false, u, 1000 + u))
             .collect::<Result<_>>()?,
-        valid: (21..=23)
+        valid: valid_units
+            .clone()
             .map(|u| ours(true, u, 2000 + u))
             .collect::<Result<_>>()?,
-        test: (31..=34)
+        test: test_units
+            .clone()
             .map(|u| ours(true, u, 3000 + u))
             .collect::<Result<_>>()?,
         r_dps2,
-        sensors: vec![ecore; 19],
+        sensors: vec![ecore; 12 + valid_units.clone().count() + test_units.clone().count()],
         static_valid: static_ours(41..=43)?,
         static_test: static_ours(51..=54)?,
     };
@@ -803,10 +816,12 @@ fn main() -> Result<()> {
         let train: Vec<_> = (1..=12)
             .map(|u| get("static", u, 1000 + u))
             .collect::<Result<_>>()?;
-        let valid: Vec<_> = (21..=23)
+        let valid: Vec<_> = valid_units
+            .clone()
             .map(|u| get("vehicle", u, 2000 + u))
             .collect::<Result<_>>()?;
-        let test: Vec<_> = (31..=34)
+        let test: Vec<_> = test_units
+            .clone()
             .map(|u| get("vehicle", u, 3000 + u))
             .collect::<Result<_>>()?;
         let stat = |units: std::ops::RangeInclusive<u64>| -> Result<Vec<_>> {

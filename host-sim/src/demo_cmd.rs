@@ -20,7 +20,7 @@ pub struct Args {
     #[arg(long)]
     pub shrink: bool,
     /// The bench trainer of the model (`identify --preset motion --trainer`).
-    #[arg(long, value_enum, default_value_t = crate::motion::TrainerArg::LeastSquares)]
+    #[arg(long, value_enum, default_value_t = crate::motion::TrainerArg::DrlsChecked)]
     pub trainer: crate::motion::TrainerArg,
 }
 

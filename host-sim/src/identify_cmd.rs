@@ -115,10 +115,11 @@ pub struct Args {
     /// by default: it costs on the simulator's vehicles (docs/motion.md).
     #[arg(long)]
     pub shrink: bool,
-    /// `--preset motion`: the bench trainer of the model's output weights (least squares
-    /// over every record with a cross-validated ridge, the default; or the paper's DRLS,
-    /// `--epochs` passes).
-    #[arg(long, value_enum, default_value_t = motion::TrainerArg::LeastSquares)]
+    /// `--preset motion`: the bench trainer of the model's output weights: the paper's DRLS
+    /// (`--epochs` passes) kept only when least squares with leave-one-record-out finds a
+    /// shape the records share (`drls-checked`, the default), DRLS alone, or least squares
+    /// (host_sim::motion::TrainerArg).
+    #[arg(long, value_enum, default_value_t = motion::TrainerArg::DrlsChecked)]
     pub motion_trainer: motion::TrainerArg,
     /// `--preset motion`: how the saved image's level learns (default dual: per-sample
     /// level at rest, window level in motion; fog_core::preset).
@@ -281,6 +282,7 @@ fn run_motion(a: &Args) -> Result<()> {
     }
     let trained = motion::train(&train, &o)?;
     let (image, rows, shrink) = (trained.image, trained.records, trained.shrinkage);
+    let trained_empty = image.model.weights.iter().all(|w| *w == 0.0);
     if let Some(ls) = &trained.least_squares {
         eprintln!("motion {}", motion::describe_least_squares(ls));
     }
@@ -332,6 +334,12 @@ fn run_motion(a: &Args) -> Result<()> {
             (_, 0) => "untrained (0 epochs)".to_string(),
             (motion::TrainerArg::LeastSquares, _) => "least squares".to_string(),
             (motion::TrainerArg::Drls, e) => format!("DRLS x {e} passes"),
+            (motion::TrainerArg::DrlsChecked, _) if trained_empty => {
+                "EMPTY MODEL (the family shares no shape)".to_string()
+            }
+            (motion::TrainerArg::DrlsChecked, e) => {
+                format!("DRLS x {e} passes, shape shared by the family")
+            }
         },
         out.display()
     );

@@ -98,7 +98,7 @@ impl DemoConfig {
         validate_records: 32,
         duration_s: 1800.0,
         shrink: false,
-        trainer: motion::TrainerArg::LeastSquares,
+        trainer: motion::TrainerArg::DrlsChecked,
         test_records: 32,
     };
     /// The CI variant (`--quick`): 12 training records, 2 validation records, 600 s each.
@@ -107,7 +107,7 @@ impl DemoConfig {
         validate_records: 2,
         duration_s: 600.0,
         shrink: false,
-        trainer: motion::TrainerArg::LeastSquares,
+        trainer: motion::TrainerArg::DrlsChecked,
         test_records: 2,
     };
 }
