@@ -65,8 +65,8 @@ fn demo_writes_the_report() {
             .expect("json");
     assert_eq!(s["rows"], 60_000);
     assert_eq!(
-        s["records_trained"], 12,
-        "12 records, least squares (one pass)"
+        s["records_trained"], 36,
+        "12 records x 3 DRLS passes (drls-checked)"
     );
     // The test set: the identifier and the four baselines over 2 vehicles (--quick).
     let t = &s["test_set"];

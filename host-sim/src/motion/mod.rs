@@ -596,3 +596,67 @@ pub fn run(estimator: &mut PresetEstimator, r: &MotionRecord) -> Vec<MotionOutpu
 /// and the model term.
 pub const OUTPUT_HEADER: &str =
     "index,t_s,rate_dps,denoised_dps,drift_dps,compensated_dps,still,level_dps,model_dps";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// In-memory static records: 600 s at 100 Hz, each `bias + a_i exp(-t / 150 s)` plus
+    /// deterministic noise of the E-Core's sample sigma.
+    struct Synthetic(Vec<f64>);
+
+    impl Records for Synthetic {
+        fn len(&self) -> usize {
+            self.0.len()
+        }
+        fn get(&self, i: usize) -> Result<Series> {
+            let sigma = f64::from(SensorConfig::ECORE_2000.sample_var_dps2()).sqrt();
+            let mut x = 0x9e37_79b9_7f4a_7c15u64 ^ (i as u64 + 1);
+            let mut unit = move || {
+                x = x
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
+                (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            };
+            let a = self.0[i] / 3600.0;
+            let n = 60_000;
+            let t_s: Vec<f64> = (0..n).map(|k| k as f64 * 0.01).collect();
+            let rate_dps = t_s
+                .iter()
+                .map(|t| {
+                    let z = (unit() + unit() + unit() + unit()) * 3f64.sqrt();
+                    (1e-3 + a * (-t / 150.0).exp() + sigma * z) as f32
+                })
+                .collect();
+            Ok(Series {
+                name: format!("synthetic {i}"),
+                t_s,
+                rate_dps,
+                drift_dps: None,
+                temp_c: None,
+            })
+        }
+    }
+
+    fn weights(records: &Synthetic, trainer: TrainerArg) -> [f32; fog_core::motion::MOTION_L] {
+        let mut o = TrainOptions::new(SensorConfig::ECORE_2000);
+        o.time_max_s = 600.0;
+        o.trainer = trainer;
+        train(records, &o).expect("train").image.model.weights
+    }
+
+    #[test]
+    fn drls_checked_keeps_a_shared_shape_and_drops_unit_specific_ones() {
+        let any = |w: &[f32]| w.iter().any(|v| *v != 0.0);
+        // Every unit warms up by 10 deg/h: DRLS's model is kept, the same bits as DRLS.
+        let shared = Synthetic(vec![10.0; 5]);
+        let checked = weights(&shared, TrainerArg::DrlsChecked);
+        assert!(any(&checked));
+        assert_eq!(checked, weights(&shared, TrainerArg::Drls));
+        // Each unit's own sign and size (mean zero): DRLS still learns something, the
+        // check removes it.
+        let own = Synthetic(vec![8.0, -10.0, 6.0, -7.0, 3.0]);
+        assert!(any(&weights(&own, TrainerArg::Drls)));
+        assert!(!any(&weights(&own, TrainerArg::DrlsChecked)));
+    }
+}
