@@ -107,7 +107,7 @@ pub struct Args {
     #[arg(long, default_value_t = 3)]
     pub epochs: u32,
     /// `--preset motion`: random-walk density of the level, (deg/h)^2 per hour (default
-    /// 4, i.e. 2 deg/h/sqrt(h)).
+    /// host_sim::motion::DEFAULT_LEVEL_Q_DPH2_PER_H = 85.7, measured in motion).
     #[arg(long)]
     pub level_q_dph2_per_h: Option<f32>,
     /// `--preset motion`: shrink the model by leave-one-record-out cross-validation

