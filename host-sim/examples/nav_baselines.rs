@@ -545,6 +545,38 @@ fn rwgm(c: RwGmConfig) -> impl Fn(&SensorConfig) -> Result<Box<dyn DriftEstimato
     }
 }
 
+/// Prints one static row: `model` as `update` / `second`, q tuned by e_truth on the static
+/// validation units, e_truth on the static test units against the RW Kalman's `k_test`.
+fn static_motion_row(
+    set: &Set,
+    name: &str,
+    model: &MotionModel,
+    update: LevelUpdate,
+    second: Second,
+    k_test: f64,
+) -> Result<()> {
+    let mk = |q: f64| {
+        move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+            Ok(Box::new(motion_est(model, *s, q, update, false, second)?))
+        }
+    };
+    let mut best = (f64::INFINITY, 0.0);
+    for q in q_grid_dph2_per_h() {
+        let v = e_truth(&set.static_valid, mk(q))?;
+        if v < best.0 {
+            best = (v, q);
+        }
+    }
+    let t = e_truth(&set.static_test, mk(best.1))?;
+    println!(
+        "static: {name:<36} (q {:.1} (deg/h)^2/h{}) e_truth {t:.4} ({:+.1} % vs Kalman)",
+        best.1,
+        q_end(best.1),
+        100.0 * (t / k_test - 1.0)
+    );
+    Ok(())
+}
+
 /// The per-sample random-walk Kalman filter with q tuned by e_truth on the static
 /// validation units: (q, e_truth on the static test units).
 fn static_kalman(set: &Set) -> Result<(f64, f64)> {
@@ -732,25 +764,7 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<
             (Sample, Second::None),
         ),
     ] {
-        let mk = |q: f64| {
-            move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
-                Ok(Box::new(motion_est(model, *s, q, update, false, second)?))
-            }
-        };
-        let mut best = (f64::INFINITY, 0.0);
-        for q in q_grid_dph2_per_h() {
-            let v = e_truth(&set.static_valid, mk(q))?;
-            if v < best.0 {
-                best = (v, q);
-            }
-        }
-        let t = e_truth(&set.static_test, mk(best.1))?;
-        println!(
-            "static: {name:<32} (q {:.1} (deg/h)^2/h{}) e_truth {t:.4} ({:+.1} % vs Kalman)",
-            best.1,
-            q_end(best.1),
-            100.0 * (t / k_test - 1.0)
-        );
+        static_motion_row(set, name, model, update, second, k_test)?;
     }
     Ok(())
 }
@@ -928,32 +942,7 @@ fn evaluate_trainers(
         100.0 * (t / k_test - 1.0)
     );
     for (name, model, second) in rows {
-        let mk = |q: f64| {
-            move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
-                Ok(Box::new(motion_est(
-                    model,
-                    *s,
-                    q,
-                    LevelUpdate::Window,
-                    false,
-                    second,
-                )?))
-            }
-        };
-        let mut best = (f64::INFINITY, 0.0);
-        for q in q_grid_dph2_per_h() {
-            let v = e_truth(&set.static_valid, mk(q))?;
-            if v < best.0 {
-                best = (v, q);
-            }
-        }
-        let t = e_truth(&set.static_test, mk(best.1))?;
-        println!(
-            "static: {name:<36} (q {:.1}{}) e_truth {t:.4} ({:+.1} % vs Kalman)",
-            best.1,
-            q_end(best.1),
-            100.0 * (t / k_test - 1.0)
-        );
+        static_motion_row(set, name, model, LevelUpdate::Window, second, k_test)?;
     }
     Ok(())
 }

@@ -521,19 +521,25 @@ pub const DROPOUT_SD_FLOOR: f64 = 0.3;
 /// (a count: the null sd is floored at the Poisson sd `sqrt(mean)` and at
 /// [`DROPOUT_SD_FLOOR`]).
 pub fn dropouts_outcome(missing: f64, null: &[f64]) -> Test {
-    let mut t = outcome(
-        Effect::Dropouts,
-        "time stamps: missing sample slots (steps > 1.5 periods) in the whole record vs the simulations'",
+    count_outcome(
+        outcome(
+            Effect::Dropouts,
+            "time stamps: missing sample slots (steps > 1.5 periods) in the whole record vs the simulations'",
+            missing,
+            null,
+            format!("{missing:.0} missing slots"),
+        ),
         missing,
-        null,
-        format!("{missing:.0} missing slots"),
-    );
-    let sd = t
-        .null_sd
-        .max(t.null_mean.max(0.0).sqrt())
-        .max(DROPOUT_SD_FLOOR);
+        DROPOUT_SD_FLOOR,
+    )
+}
+
+/// A count test's outcome: the null sd floored at the Poisson sd `sqrt(mean)` and at
+/// `sd_floor`, then z and the verdict again.
+fn count_outcome(mut t: Test, count: f64, sd_floor: f64) -> Test {
+    let sd = t.null_sd.max(t.null_mean.max(0.0).sqrt()).max(sd_floor);
     t.null_sd = sd;
-    t.z = (missing - t.null_mean) / sd;
+    t.z = (count - t.null_mean) / sd;
     t.passed = t.z > t.threshold;
     t
 }
@@ -553,21 +559,17 @@ pub const SPIKE_SD_FLOOR: f64 = 0.3;
 /// the whole record against the simulations' (a count: the null sd is floored at the
 /// Poisson sd `sqrt(mean)` and at [`SPIKE_SD_FLOOR`]).
 pub fn spikes_outcome(count: f64, null: &[f64]) -> Test {
-    let mut t = outcome(
-        Effect::Spikes,
-        "outliers: 5-point running-median residuals beyond 10 robust sigma in the whole record vs the simulations'",
+    count_outcome(
+        outcome(
+            Effect::Spikes,
+            "outliers: 5-point running-median residuals beyond 10 robust sigma in the whole record vs the simulations'",
+            count,
+            null,
+            format!("{count:.0} outliers"),
+        ),
         count,
-        null,
-        format!("{count:.0} outliers"),
-    );
-    let sd = t
-        .null_sd
-        .max(t.null_mean.max(0.0).sqrt())
-        .max(SPIKE_SD_FLOOR);
-    t.null_sd = sd;
-    t.z = (count - t.null_mean) / sd;
-    t.passed = t.z > t.threshold;
-    t
+        SPIKE_SD_FLOOR,
+    )
 }
 
 /// The scale-factor test also needs the reference coefficient's `|t|` (AR(1) errors) above
