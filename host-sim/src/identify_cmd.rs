@@ -284,7 +284,11 @@ fn run_motion(a: &Args) -> Result<()> {
     let (image, rows, shrink) = (trained.image, trained.records, trained.shrinkage);
     let trained_empty = image.model.weights.iter().all(|w| *w == 0.0);
     if let Some(ls) = &trained.least_squares {
-        eprintln!("motion {}", motion::describe_least_squares(ls));
+        eprintln!(
+            "motion trainer {:?}: {}",
+            o.trainer,
+            motion::describe_least_squares(ls)
+        );
     }
     if shrink.cross_validated {
         eprintln!(

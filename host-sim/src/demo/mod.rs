@@ -197,7 +197,11 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         fogi.display()
     );
     if let Some(ls) = &trained.least_squares {
-        eprintln!("demo: {}", motion::describe_least_squares(ls));
+        eprintln!(
+            "demo: trainer {:?}: {}",
+            cfg.trainer,
+            motion::describe_least_squares(ls)
+        );
     }
     if shrink.cross_validated {
         eprintln!(
