@@ -45,6 +45,7 @@ impl Records for Set {
 fn main() -> Result<()> {
     let sensor = SensorConfig::ECORE_2000;
     let mut o = TrainOptions::new(sensor);
+    o.trainer = TrainerArg::LeastSquares;
     let ls = motion::train(&Set, &o)?.image;
     o.trainer = TrainerArg::Drls;
     let drls = motion::train(&Set, &o)?.image;
@@ -149,19 +150,8 @@ fn main() -> Result<()> {
         let mut sum = 0.0;
         for rec in &driven {
             let (drift, _) = run_image(&im, rec)?;
-            let mut acc = nav::HeadingAcc::new();
-            for (k, &d) in drift.iter().enumerate() {
-                let (t, rate) = (rec.t_s[k], rec.rate_dps[k]);
-                acc.push(
-                    t,
-                    rate - d,
-                    rec.true_rate_dps[k],
-                    d,
-                    rec.drift_dps[k],
-                    rec.moving[k],
-                );
-            }
-            sum += acc.scores().heading_rms_deg / 12.0;
+            let mut replayed = nav::Precomputed::new("motion identifier", &drift);
+            sum += nav::run(rec, &mut replayed, &[]).scores.heading_rms_deg / 12.0;
         }
         println!("training units driven q {q:>6.1}: heading RMS {sum:.4}");
     }

@@ -19,7 +19,7 @@ pub struct Args {
     /// --shrink`; not the firmware's default).
     #[arg(long)]
     pub shrink: bool,
-    /// The bench trainer of the model (`identify --preset motion --trainer`).
+    /// The bench trainer of the model (`identify --preset motion --motion-trainer`).
     #[arg(long, value_enum, default_value_t = crate::motion::TrainerArg::DrlsChecked)]
     pub trainer: crate::motion::TrainerArg,
 }

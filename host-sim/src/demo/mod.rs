@@ -81,7 +81,7 @@ pub struct DemoConfig {
     /// Shrink the model by leave-one-record-out ([`motion::Shrinkage`]; off in the
     /// firmware's preset).
     pub shrink: bool,
-    /// The bench trainer (default least squares; DRLS is the paper's reference).
+    /// The bench trainer (default `drls-checked`, as `identify --preset motion`).
     pub trainer: motion::TrainerArg,
     /// Test vehicle records (units [`VEHICLE_UNIT`].., seeds [`VEHICLE_SEED`]..; the first
     /// is the replayed record) scored beside the baselines.
@@ -233,18 +233,8 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         let mut sum = 0.0;
         for v in &val {
             let (drift, _) = run_image(&im, v)?;
-            let mut acc = nav::HeadingAcc::new();
-            for (k, &d) in drift.iter().enumerate() {
-                acc.push(
-                    v.t_s[k],
-                    v.rate_dps[k] - d,
-                    v.true_rate_dps[k],
-                    d,
-                    v.drift_dps[k],
-                    v.moving[k],
-                );
-            }
-            sum += acc.scores().heading_rms_deg;
+            let mut replayed = nav::Precomputed::new("motion identifier", &drift);
+            sum += nav::run(v, &mut replayed, &[]).scores.heading_rms_deg;
         }
         if sum < best.0 {
             best = (sum, q_dph2_per_h);
@@ -363,15 +353,9 @@ pub fn run_image(image: &Image, rec: &NavRecord) -> Result<(Vec<f64>, Vec<bool>)
 }
 
 fn print_test_set(set: &TestSet) {
-    eprintln!("demo: mean heading error RMS over {}:", set.records);
-    for (name, v) in &set.mean_heading_rms_deg {
-        eprintln!("  {name:<44} {v:>8.4} deg");
+    for line in set.text().lines() {
+        eprintln!("demo: {line}");
     }
-    eprintln!(
-        "demo: the identifier is below every baseline on {} of {} records",
-        set.identifier_best,
-        set.heading_rms_deg.len()
-    );
 }
 
 #[cfg(test)]

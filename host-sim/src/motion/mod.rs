@@ -92,7 +92,8 @@ impl LevelUpdateArg {
     }
 }
 
-/// The bench trainer of the model's output weights (`--trainer`).
+/// The bench trainer of the model's output weights (`identify --motion-trainer`,
+/// `demo --trainer`).
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum TrainerArg {
@@ -115,7 +116,7 @@ pub enum TrainerArg {
 /// How to train.
 #[derive(Debug, Clone, Copy)]
 pub struct TrainOptions {
-    /// The bench trainer (default least squares).
+    /// The bench trainer (default [`TrainerArg::DrlsChecked`]).
     pub trainer: TrainerArg,
     /// Estimator configuration stored in the image.
     pub config: MotionConfig,

@@ -59,11 +59,22 @@ fn released<'a, E: DriftEstimator + 'a>(inner: E, delay: usize) -> Box<dyn Drift
 }
 
 /// Drift estimates computed beforehand (an identifier already run over the record),
-/// replayed as a [`DriftEstimator`].
-struct Precomputed<'a> {
+/// replayed as a [`DriftEstimator`] (one per push, in order; 0 past the end).
+pub struct Precomputed<'a> {
     name: &'a str,
     drift_dps: &'a [f64],
     k: usize,
+}
+
+impl<'a> Precomputed<'a> {
+    /// Replays `drift_dps` (deg/s, one per sample) under `name`.
+    pub fn new(name: &'a str, drift_dps: &'a [f64]) -> Self {
+        Self {
+            name,
+            drift_dps,
+            k: 0,
+        }
+    }
 }
 
 impl DriftEstimator for Precomputed<'_> {
@@ -129,11 +140,7 @@ pub fn compare(
         ..ThermalKalmanConfig::default()
     };
     let mut ests: Vec<Box<dyn DriftEstimator + '_>> = vec![
-        Box::new(Precomputed {
-            name,
-            drift_dps,
-            k: 0,
-        }),
+        Box::new(Precomputed::new(name, drift_dps)),
         Box::new(NoCompensation),
         released(AlignmentBias::default(), cfg.release_samples),
         released(

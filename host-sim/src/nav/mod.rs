@@ -25,7 +25,9 @@ pub use baselines::{
     fit_thermal, AlignmentBias, DriftEstimator, GatedKalman, NoCompensation, TempRate, ThermalFit,
     ThermalKalman, ThermalKalmanConfig,
 };
-pub use compare::{compare, table, BaselineConfig, Compared, Comparison, Row, NO_COMPENSATION};
+pub use compare::{
+    compare, table, BaselineConfig, Compared, Comparison, Precomputed, Row, NO_COMPENSATION,
+};
 pub use gm::{GatedRwGm, RwGmConfig};
 pub use record::NavRecord;
 pub use score::{DetectorAcc, DetectorScores, HeadingAcc, NavScores, DPH_PER_DPS};

@@ -181,6 +181,19 @@ impl TestSet {
             identifier_best,
         }
     }
+    /// The mean table and the win count, as printed by `host-sim demo` and in the report.
+    pub fn text(&self) -> String {
+        let mut text = format!("mean heading error RMS over {}:\n", self.records);
+        for (name, v) in &self.mean_heading_rms_deg {
+            text.push_str(&format!("  {name:<44} {v:>8.4} deg\n"));
+        }
+        text.push_str(&format!(
+            "the identifier is below every baseline on {} of {} records",
+            self.identifier_best,
+            self.heading_rms_deg.len()
+        ));
+        text
+    }
 }
 
 /// A replay's summary and per-sample data (for the report).

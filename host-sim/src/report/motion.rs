@@ -174,19 +174,10 @@ fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
         )?;
     }
     if let Some(t) = &s.test_set {
-        let mut text = format!("mean heading error RMS over {}:\n", t.records);
-        for (name, v) in &t.mean_heading_rms_deg {
-            text.push_str(&format!("  {name:<44} {v:>8.4} deg\n"));
-        }
-        text.push_str(&format!(
-            "the identifier is below every baseline on {} of {} records",
-            t.identifier_best,
-            t.heading_rms_deg.len()
-        ));
         writeln!(
             o,
             "<h2>Over the test records</h2>\n<pre>{}</pre>",
-            esc(&text)
+            esc(&t.text())
         )?;
     }
     writeln!(
