@@ -49,10 +49,10 @@ use anyhow::{bail, Result};
 use fog_core::motion::{
     LevelUpdate, MotionConfig, MotionModel, MotionTrainer, Transfer, MOTION_DRLS,
 };
-use fog_core::motion_fit::{cross_validate, NormalEquations, RIDGE_GRID};
+use fog_core::motion_fit::NormalEquations;
 use fog_core::preset::{Arrangement, GaussMarkov, PresetEstimator};
 use fog_core::still::SensorConfig;
-use host_sim::motion::SHRINK_LAG_WINDOWS;
+use host_sim::motion::{describe_least_squares, least_squares_fit, SHRINK_LAG_WINDOWS};
 use host_sim::nav::{
     fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, DriftEstimator, GatedKalman,
     GatedRwGm, NavRecord, NoCompensation, RwGmConfig, ThermalKalman, ThermalKalmanConfig,
@@ -444,34 +444,24 @@ fn train_motion(
 /// Least squares over all `recs` (within-record centred), ridge by leave-one-record-out
 /// (`fog_core::motion_fit`); prints the cross-validation.
 fn train_least_squares(recs: &[NavRecord], sensors: &[SensorConfig]) -> Result<MotionModel> {
-    let mut model = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut eqs = Vec::new();
-    let mut all = NormalEquations::EMPTY;
-    for (r, s) in recs.iter().zip(sensors) {
-        let temp = r.temp_c.as_deref().map(f32s);
-        let (e, _) = NormalEquations::from_record(
-            &model,
-            &f32s(&r.rate_dps),
-            temp.as_deref(),
-            s.sample_rate_hz,
-            1.0,
-        )
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-        all.add(&e);
-        eqs.push(e);
-    }
-    let cv = cross_validate(&eqs, &RIDGE_GRID).ok_or_else(|| anyhow::anyhow!("no fold"))?;
+    let layout = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let eqs = recs
+        .iter()
+        .zip(sensors)
+        .map(|(r, s)| {
+            let temp = r.temp_c.as_deref().map(f32s);
+            let rate = f32s(&r.rate_dps);
+            NormalEquations::from_record(&layout, &rate, temp.as_deref(), s.sample_rate_hz, 1.0)
+                .map(|(e, _)| e)
+                .map_err(|e| anyhow::anyhow!("{e}"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let (model, fit) = least_squares_fit(&eqs, DURATION_S as f32)?;
     println!(
-        "least squares over {} records ({} windows): ridge {}, held-out gain over m = 0 {:.2} % (smallest ridge {:.2} %)",
+        "{} static records: {}",
         recs.len(),
-        all.windows(),
-        cv.rho.map_or("none (empty model)".to_string(), |r| format!("{r:.0e}")),
-        100.0 * cv.heldout_gain,
-        100.0 * cv.heldout_gain_least_ridge
+        describe_least_squares(&fit)
     );
-    if let Some(rho) = cv.rho {
-        model.weights = all.solve(rho).map_err(|e| anyhow::anyhow!("{e}"))?;
-    }
     Ok(model)
 }
 

@@ -412,12 +412,23 @@ fn least_squares(
         .filter(|(i, _)| Some(*i) != skip)
         .map(|(_, e)| e.0)
         .collect();
+    least_squares_fit(&used, o.time_max_s)
+}
+
+/// The least-squares model (standard layout over `0..time_max_s`) on the records `used`
+/// (one [`NormalEquations`] each), its ridge picked by leave-one-record-out
+/// ([`cross_validate`] over [`RIDGE_GRID`]; the empty model when no ridge beats `m = 0`;
+/// [`FALLBACK_RIDGE`] with fewer than 2 records).
+pub fn least_squares_fit(
+    used: &[NormalEquations],
+    time_max_s: f32,
+) -> Result<(MotionModel, LeastSquaresFit)> {
     let mut sum = NormalEquations::EMPTY;
-    for e in &used {
+    for e in used {
         sum.add(e);
     }
-    let mut model = MotionModel::standard(o.time_max_s).map_err(|e| anyhow!("model: {e}"))?;
-    let cv = cross_validate(&used, &RIDGE_GRID);
+    let mut model = MotionModel::standard(time_max_s).map_err(|e| anyhow!("model: {e}"))?;
+    let cv = cross_validate(used, &RIDGE_GRID);
     let rho = match cv {
         Some(c) => c.rho,
         None => Some(FALLBACK_RIDGE),
