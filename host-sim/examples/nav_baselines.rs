@@ -42,6 +42,13 @@
 //! (how much the pick from 3 validation vehicles matters). `--host-sim-only`: the first
 //! set alone. `--vehicles N`: N validation vehicles (units 100..) and N test vehicles
 //! (units 300..) per set instead of 3 and 4.
+//! `-- --flags`: instead, the product (dual, `drls-checked` model) and the causal baselines
+//! with the SAME still flags, scored twice: every estimator with the truth flags (an
+//! external still flag), then every estimator with the product's own detector calls (a
+//! gyro-only system); each tunes on the validation vehicles with the flags it is scored
+//! with, every filter's white noise from each record's sensor. The product twice: q tuned
+//! with the static-tuned GM (the default image's way) and q + GM sigma/tau tuned on the
+//! validation vehicles (coordinate descent). `--python-only`: skip the host-sim set.
 //! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
 //! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
@@ -590,6 +597,9 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<
     let nv = set.valid.len();
     let (s_train, rest) = set.sensors.split_at(nt);
     let (s_valid, s_test) = rest.split_at(nv);
+    if std::env::args().any(|a| a == "--flags") {
+        return evaluate_flags(set, s_train, s_valid, s_test);
+    }
     if trainers {
         return evaluate_trainers(set, s_train, s_valid, s_test);
     }
@@ -761,6 +771,8 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<
 
 fn main() -> Result<()> {
     let trainers = std::env::args().any(|a| a == "--trainers");
+    let flags = std::env::args().any(|a| a == "--flags");
+    let python_only = std::env::args().any(|a| a == "--python-only");
     let svg_dir = std::env::args()
         .skip(1)
         .find(|a| !a.starts_with("--") && a.parse::<u64>().is_err())
@@ -800,8 +812,14 @@ fn main() -> Result<()> {
         static_valid: static_ours(41..=43)?,
         static_test: static_ours(51..=54)?,
     };
-    let gm = evaluate(&set, svg_dir.as_deref())?;
-    evaluate_motion(&set, gm, trainers)?;
+    if !python_only {
+        let gm = if flags {
+            rwgm_grid(1.0)[0] // unused by --flags
+        } else {
+            evaluate(&set, svg_dir.as_deref())?
+        };
+        evaluate_motion(&set, gm, trainers)?;
+    }
     let ok = Command::new("python3")
         .args(["-c", "import numpy"])
         .status()
@@ -852,7 +870,11 @@ fn main() -> Result<()> {
             static_valid: stat(41..=43)?,
             static_test: stat(51..=54)?,
         };
-        let gm = evaluate(&set, svg_dir.as_deref())?;
+        let gm = if flags {
+            rwgm_grid(1.0)[0] // unused by --flags
+        } else {
+            evaluate(&set, svg_dir.as_deref())?
+        };
         evaluate_motion(&set, gm, trainers)?;
     }
     Ok(())
@@ -933,6 +955,211 @@ fn evaluate_trainers(
     );
     for (name, model, second) in rows {
         static_motion_row(set, name, model, LevelUpdate::Window, second, k_test)?;
+    }
+    Ok(())
+}
+
+/// The still flags a run gives every estimator: the truth (`!moving`) or the product's own
+/// detector calls (at its q picked on the validation vehicles).
+struct Flags<'a> {
+    name: &'a str,
+    valid: Vec<Vec<bool>>,
+    test: Vec<Vec<bool>>,
+}
+
+/// `--flags`: the product and the causal baselines, each with the SAME still flags: the
+/// truth (an external still flag, e.g. from wheel speed) or the product's own detector
+/// (what a gyro-only system has). Every estimator tunes on the validation vehicles with
+/// the flags it is scored with; the white-noise variance of every filter is each record's
+/// sensor's. The product: the default image's arrangement (dual, GM from the static RW+GM
+/// tuning) with the default trainer's model (`drls-checked`).
+fn evaluate_flags(
+    set: &Set,
+    s_train: &[SensorConfig],
+    s_valid: &[SensorConfig],
+    s_test: &[SensorConfig],
+) -> Result<()> {
+    let drls = train_motion(&set.train, s_train, None)?;
+    let layout = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let eqs = set
+        .train
+        .iter()
+        .zip(s_train)
+        .map(|(r, s)| {
+            let temp = r.temp_c.as_deref().map(f32s);
+            NormalEquations::from_record(
+                &layout,
+                &f32s(&r.rate_dps),
+                temp.as_deref(),
+                s.sample_rate_hz,
+                1.0,
+            )
+            .map(|(e, _)| e)
+            .map_err(|e| anyhow::anyhow!("{e}"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let (_, fit) = least_squares_fit(&eqs, DURATION_S as f32)?;
+    let model = if fit.rho.is_some() { drls } else { layout };
+    println!(
+        "\n{} (--flags): the default's check {}",
+        set.name,
+        if fit.rho.is_some() {
+            "keeps DRLS's model"
+        } else {
+            "empties the model"
+        }
+    );
+    let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
+    // Product: mean heading RMS and |end| over `recs`, with each record's still calls.
+    let product = |recs: &[NavRecord],
+                   sensors: &[SensorConfig],
+                   q: f64,
+                   gm: RwGmConfig,
+                   truth: bool|
+     -> Result<(f64, f64, Vec<Vec<bool>>)> {
+        let (mut a, mut b, mut calls) = (0.0, 0.0, Vec::new());
+        for (r, s) in recs.iter().zip(sensors) {
+            let second = Second::Dual(gm);
+            let mut m = motion_est(&model, *s, q, LevelUpdate::Window, truth, second)?;
+            let out = run(r, &mut m, &r.still_truth());
+            a += out.scores.heading_rms_deg;
+            b += out.scores.heading_final_deg.abs();
+            calls.push(m.calls);
+        }
+        let n = recs.len() as f64;
+        Ok((a / n, b / n, calls))
+    };
+    println!(
+        "{:<34} {:<9} {:>10} {:>10}  picked on validation",
+        "estimator", "flags", "hdg RMS", "|hdg end|"
+    );
+    let mut flag_sets = Vec::new();
+    let gm_grid: Vec<RwGmConfig> = SIGMA_DPH
+        .iter()
+        .flat_map(|&sigma_dph| {
+            log_grid(TAU_S.0, TAU_S.1, 2)
+                .into_iter()
+                .map(move |tau_s| RwGmConfig {
+                    sigma_gm_dps: sigma_dph / 3600.0,
+                    tau_s,
+                    ..gm
+                })
+        })
+        .collect();
+    for truth in [true, false] {
+        let name = if truth { "truth" } else { "detector" };
+        let valid = |q: f64, g: RwGmConfig| Ok(product(&set.valid, s_valid, q, g, truth)?.0);
+        // q with the static-tuned GM (the default image's way), then (q, GM) on the
+        // validation vehicles by coordinate descent: GM at q, q at GM, twice.
+        let (q0, _) = pick(&q_grid_dph2_per_h(), |q| valid(*q, gm))?;
+        let (mut q, mut g) = (q0, gm);
+        for _ in 0..2 {
+            g = pick(&gm_grid, |c| valid(q, *c))?.0;
+            q = pick(&q_grid_dph2_per_h(), |q| valid(*q, g))?.0;
+        }
+        let (a, b, _) = product(&set.test, s_test, q0, gm, truth)?;
+        println!(
+            "{:<34} {name:<9} {a:>10.4} {b:>10.4}  q {q0:.1} (deg/h)^2/h{}; GM {:.1} deg/h, {:.0} s (static-tuned)",
+            "product (dual, drls-checked)",
+            q_end(q0),
+            gm.sigma_gm_dps * 3600.0,
+            gm.tau_s
+        );
+        let (_, _, valid_calls) = product(&set.valid, s_valid, q, g, truth)?;
+        let (a, b, test_calls) = product(&set.test, s_test, q, g, truth)?;
+        println!(
+            "{:<34} {name:<9} {a:>10.4} {b:>10.4}  q {q:.1} (deg/h)^2/h{}; GM {:.1} deg/h, {:.0} s (vehicle-tuned)",
+            "product, q and GM vehicle-tuned",
+            q_end(q),
+            g.sigma_gm_dps * 3600.0,
+            g.tau_s
+        );
+        flag_sets.push(if truth {
+            Flags {
+                name,
+                valid: set.valid.iter().map(|r| r.still_truth()).collect(),
+                test: set.test.iter().map(|r| r.still_truth()).collect(),
+            }
+        } else {
+            Flags {
+                name,
+                valid: valid_calls,
+                test: test_calls,
+            }
+        });
+    }
+    let rows: Vec<_> = set.train.iter().map(thermal_rows).collect();
+    let thermal = fit_thermal(&rows, ThermalKalmanConfig::default().dtemp_tau_s);
+    for f in &flag_sets {
+        // Mean heading RMS and |end| of `make(sensor)` over `recs` with `flags`.
+        let score = |recs: &[NavRecord],
+                     sensors: &[SensorConfig],
+                     flags: &[Vec<bool>],
+                     make: &dyn Fn(&SensorConfig) -> Box<dyn DriftEstimator>|
+         -> (f64, f64) {
+            let (mut a, mut b) = (0.0, 0.0);
+            for ((r, s), fl) in recs.iter().zip(sensors).zip(flags) {
+                let out = run(r, make(s).as_mut(), fl);
+                a += out.scores.heading_rms_deg;
+                b += out.scores.heading_final_deg.abs();
+            }
+            let n = recs.len() as f64;
+            (a / n, b / n)
+        };
+        let print = |name: &str, (a, b): (f64, f64), picked: String| {
+            println!("{name:<34} {:<9} {a:>10.4} {b:>10.4}  {picked}", f.name);
+        };
+        print(
+            "alignment bias",
+            score(&set.test, s_test, &f.test, &|_| {
+                Box::new(AlignmentBias::default())
+            }),
+            String::new(),
+        );
+        let kalman = |q: f64| {
+            move |s: &SensorConfig| -> Box<dyn DriftEstimator> {
+                Box::new(GatedKalman::new(q, sample_var(s)))
+            }
+        };
+        let (kq, _) = pick(&log_grid(1e-16, 1e-8, 2), |q| {
+            Ok(score(&set.valid, s_valid, &f.valid, &kalman(*q)).0)
+        })?;
+        print(
+            "gated Kalman (tuned q)",
+            score(&set.test, s_test, &f.test, &kalman(kq)),
+            format!("q {kq:.1e} (deg/s)^2/sample"),
+        );
+        if let Some(fit) = thermal {
+            let tk = move |s: &SensorConfig| -> Box<dyn DriftEstimator> {
+                let cfg = ThermalKalmanConfig {
+                    q_dps2: kq,
+                    r_dps2: sample_var(s),
+                    ..ThermalKalmanConfig::default()
+                };
+                Box::new(ThermalKalman::with_fit(cfg, fit))
+            };
+            print(
+                "gated Kalman + thermal fit",
+                score(&set.test, s_test, &f.test, &tk),
+                "the Kalman's q".into(),
+            );
+        }
+        let gmk = |c: RwGmConfig| {
+            move |s: &SensorConfig| -> Box<dyn DriftEstimator> {
+                Box::new(GatedRwGm::new(RwGmConfig {
+                    r_dps2: sample_var(s),
+                    ..c
+                }))
+            }
+        };
+        let (c, _) = pick(&rwgm_grid(1.0), |c| {
+            Ok(score(&set.valid, s_valid, &f.valid, &gmk(*c)).0)
+        })?;
+        print(
+            "gated RW+GM Kalman (tuned)",
+            score(&set.test, s_test, &f.test, &gmk(c)),
+            rwgm_label(&c),
+        );
     }
     Ok(())
 }
