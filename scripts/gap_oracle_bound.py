@@ -386,10 +386,8 @@ def spike_miss_prob(n):
     """(threshold t, q = P(one spike of amplitude U(5, 30) sigma_w stays below t))."""
     a1 = 1.0 - (1.0 - ALPHA) ** (1.0 / n)  # per-sample two-sided level
     t = norm_ppf(1.0 - a1 / 2.0)
-    amps = np.linspace(5.0, 30.0, 2001)
-    miss = phi_vec(t - amps) - phi_vec(-t - amps)
-    return t, float(np.trapezoid(miss, amps) / 25.0) if hasattr(np, "trapezoid") else \
-        float(np.trapz(miss, amps) / 25.0)
+    amps = 5.0 + 25.0 * (np.arange(2000) + 0.5) / 2000.0  # midpoint rule over U(5, 30)
+    return t, float(np.mean(phi_vec(t - amps) - phi_vec(-t - amps)))
 
 
 def oracle_record(m, folder, csv_check):
@@ -418,7 +416,8 @@ def oracle_record(m, folder, csv_check):
             f0 = m["params"]["sine_freq_hz"]
             mc = sig - sig.mean()
             d2 = float((mc**2).sum()) * dt / float(psd0(np.array([f0]), dt, sigma_w, b, k)[0])
-            out.update(d=math.sqrt(d2), d_within_share=0.0, sig=sig)
+            out.update(d=math.sqrt(d2), d_within_share=0.0, sig=sig,
+                       p_unknown_f=sine_unknown_f_power(math.sqrt(d2), n), n=n)
         else:
             gls = Gls(n, dt, sigma_w, b, k)
             filt = gls.filt(sig)
@@ -464,10 +463,9 @@ def oracle_record(m, folder, csv_check):
         v = csv["rate_dps"] if csv is not None else np.array([float("%.10g" % x) for x in cols["rate_dps"]])
         tol = 5e-10 * np.abs(v) * 1.001 + 1e-18
         hits = int((np.abs(v - q * np.round(v / q)) <= tol).sum())
-        rel = 2.0 * np.abs(v) * 5e-10 * 1.001
         thr = chernoff_thr(np.minimum(2.0 * tol / q, 1.0), ALPHA)
         # Power at the bottom of the range (s 0.01): the same values, q(0.01) = 0.01 sigma_w.
-        thr_lo = chernoff_thr(np.minimum(rel / (0.01 * sigma_w) + 2e-18 / q, 1.0), ALPHA)
+        thr_lo = chernoff_thr(np.minimum(2.0 * tol / (0.01 * sigma_w), 1.0), ALPHA)
         out.update(p=1.0 if hits >= thr else 0.0, hits=hits, n_kept=len(v), thr=thr,
                    p_at_s_lo=1.0 if len(v) >= thr_lo else 0.0)
     elif cls == "none":
@@ -497,6 +495,39 @@ def class_power(cls, recs, s):
     return float(np.mean(ps))
 
 
+def rice_tail(a, b):
+    """P(|a + Z| > b), Z standard complex normal with E|Re Z|^2 = 1 (Marcum Q_1(a, b)),
+    by integrating the Rice density on a grid."""
+    r = np.linspace(b, max(b, a) + 12.0, 6001)
+    x = a * r
+    li0 = np.where(x < 600.0, np.log(np.i0(np.minimum(x, 600.0))),
+                   x - 0.5 * np.log(2.0 * math.pi * np.maximum(x, 1.0)))
+    pdf = np.exp(np.log(np.maximum(r, 1e-300)) - 0.5 * (r * r + a * a) + li0)
+    return float(min(1.0, ((pdf[1:] + pdf[:-1]) * 0.5 * np.diff(r)).sum()))
+
+
+def sine_unknown_f_power(d, n):
+    """Power of the periodogram-maximum test (frequency and phase unknown, everything else
+    known, line on a Fourier bin) for a line of known-phase SNR d: n/2 bins, each
+    |X|^2 / S ~ Exp(1) under H0; threshold ln((n/2) / alpha); with the line 2 |X|^2 / S is a
+    noncentral chi-square(2, d^2)."""
+    x = math.log((n / 2.0) / ALPHA)
+    return rice_tail(d, math.sqrt(2.0 * x))
+
+
+def s90_sine_unknown_f(recs):
+    def mean_pw(s):
+        return float(np.mean([sine_unknown_f_power(s * r["d_per_s"], r["n"]) for r in recs]))
+    lo, hi = 0.01, 1e4
+    for _ in range(50):
+        mid = math.sqrt(lo * hi)
+        if mean_pw(mid) < 0.9:
+            lo = mid
+        else:
+            hi = mid
+    return math.sqrt(lo * hi)
+
+
 def s90(cls, recs):
     lo_r, hi_r = gen.S_RANGE[cls]
     if cls == "quantization":
@@ -514,12 +545,13 @@ def s90(cls, recs):
 
 
 # ---------------------------------------------------------------- Monte-Carlo checks
-def mc_check(r, draws, seed):
+def mc_check(r, folder, draws, seed):
     m = r["_m"]
+    r = oracle_record(m, folder, False)
     cls = r["effect"]
     dt, sigma_w, b, k = noise_params(m)
     n = int(round(m["duration_s"] * m["fs_hz"]))
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng([seed, m["seed"]])  # independent draws per checked record
     z0, z1 = [], []
     if cls == "markov":
         sig = m["params"]["gm_sigma_deg_h"] / 3600.0
@@ -590,6 +622,10 @@ def main():
     recs = []
     for m in man:
         r = oracle_record(m, a.dir, not a.no_csv_check)
+        for key in ("sig", "gls", "filt_sig"):  # large; --mc rebuilds its records
+            r.pop(key, None)
+        if "lrt" in r:
+            r["lrt"].l0i = r["lrt"].cg = None
         recs.append(r)
         extra = ""
         if "d" in r:
@@ -635,12 +671,23 @@ def main():
           f"({100 * eff_o / eff_n:.1f} %); over all records {tot_o:.2f} of {tot_n} "
           f"({100 * tot_o / tot_n:.1f} %)" + (f"; diagnosis {tot_d} of {eff_n} effect records "
                                                f"({100 * tot_d / eff_n:.1f} %)" if diag else ""))
+    if diag:
+        weak = [r for r in recs if r["effect"] != "none" and r["p"] < 0.05 and r["name"] in diag]
+        print(f"effect records the oracle detects with P < 0.05: {len(weak)}; the diagnosis named "
+              f"an effect on {sum(diag[r['name']] != 'none' for r in weak)} of them (the right one on "
+              f"{sum(diag[r['name']] == r['effect'] for r in weak)}): "
+              + ", ".join(f"{r['name']} -> {diag[r['name']]}" for r in weak if diag[r['name']] != "none"))
+    if "sinusoid" in classes:
+        rr = [r for r in recs if r["effect"] == "sinusoid"]
+        print(f"sinusoid with frequency and phase unknown (periodogram maximum over n/2 bins, "
+              f"line on a bin, all else known): expected right {sum(r['p_unknown_f'] for r in rr):.2f}"
+              f" of {len(rr)}, s90 {s90_sine_unknown_f(rr):.3g}")
     if a.mc:
         print(f"\nMonte-Carlo checks ({a.mc} draws each, seed {a.mc_seed}):")
         for c in [c for c in LINEAR + ["markov"] if c in classes]:
             # The record whose oracle power is nearest 50 % (the most informative check).
             r = min((r for r in recs if r["effect"] == c), key=lambda r: abs(r["p"] - 0.5))
-            print("  " + mc_check(r, a.mc, a.mc_seed), flush=True)
+            print("  " + mc_check(r, a.dir, a.mc, a.mc_seed), flush=True)
     if a.json:
         keep = [{k: v for k, v in r.items() if k not in ("sig", "gls", "lrt", "g", "filt_sig", "_m")} for r in recs]
         json.dump({"alpha": ALPHA, "z_thr": Z_THR, "records": keep, "classes": rows,
