@@ -12,9 +12,8 @@ manifest; the constant bias stays unknown), at a threshold that keeps `none` fal
 on) the power of any real test, which has to estimate all of this from the record.
 
 Method per effect (s = the generator's strength, D, sigma_w as in gap_indep_gen.py):
-- Deterministic effects of known shape: rate_ramp, warmup, temperature (true coefficients
-  and the TRUE temperature, not the 1/16-degC channel), scale_factor (true error on the
-  recorded true_rate_dps). The effect signal m is rebuilt exactly by re-running the
+- Deterministic effects of known shape: rate_ramp, warmup, temperature, scale_factor (true
+  error on the recorded true_rate_dps). The effect signal m is rebuilt exactly by re-running the
   generator's make_record() with the record's seed twice, with its strength and with
   strength 0 (the generator draws the same numbers either way), m = difference. Detection
   SNR of the matched filter (generalised least squares), d^2 = m^T C^-1 m, on 1-s block
@@ -26,6 +25,12 @@ Method per effect (s = the generator's strength, D, sigma_w as in gap_indep_gen.
   points, averaged over the blocks (no numeric integration, no approximation). The signal
   inside the 1-s blocks (what block means lose) is added as a white-noise-only term
   d_in^2 = sum (m - block mean)^2 / sigma_w^2 (an approximation; its share is printed).
+  Temperature: the oracle's regressor is the true coefficients applied to the RECORDED
+  1/16-degC channel (dT/dt by the generator's 30-s moving mean, shrunk at the ends instead
+  of the raw series there), not the true temperature, whose sample-scale wander the channel
+  cannot show; d is then the mismatched-filter SNR (regressor vs true drift), block means
+  alone or with the within-block part, whichever is larger. The d with the true
+  temperature is printed beside it.
 - sinusoid (known frequency, phase, amplitude): the matched filter in stationary noise,
   d^2 = sum m^2 dt / S(f), S(f) the exact two-sided PSD of the generator's baseline at the
   line (white N^2, flicker B^2 / (2 pi f), discrete random walk K^2 dt^2 / (4 sin^2(pi f
@@ -36,7 +41,10 @@ Method per effect (s = the generator's strength, D, sigma_w as in gap_indep_gen.
   sum_k (1 - S0/S1)(f_k) I_k / S0(f_k), I_k the periodogram; under either hypothesis T is a
   weighted sum of unit exponentials, whose tails come from the Lugannani-Rice saddlepoint
   approximation. By Neyman-Pearson this is the most powerful test of the two simple
-  hypotheses (up to the Whittle approximation, checked by --mc).
+  hypotheses (up to the Whittle approximation). Beside it the exact Gaussian LRT on 1-s
+  block means (the generalised eigenvalues of the two block covariances, the constant bias
+  as a diffuse component; a weighted chi-square, saddlepoint tails), which --mc checks;
+  the power used is the larger of the two.
 - spikes (known amplitude law 5-30 sigma_w and rate, unknown places): the max |z| test over
   all samples with white noise only (for coloured noise added, every sample's SNR is lower,
   so white-only is an upper bound per spike), threshold for n samples; a record with k
@@ -51,6 +59,10 @@ Method per effect (s = the generator's strength, D, sigma_w as in gap_indep_gen.
   significant digits) within the print tolerance of a multiple of q, against its Chernoff
   bound under the null (continuous values: hit probability 2 tol / q per sample).
 - none: right unless some test fires: (1 - alpha)^9.
+Also printed: the sinusoid's power with the frequency and phase UNKNOWN (periodogram
+maximum over the n/2 Fourier bins, line on a bin, all else known: threshold ln((n/2) /
+alpha), noncentral chi-square(2, d^2) with the line), and with --diag the effect records of
+oracle power < 0.05 that the diagnosis named an effect on.
 
 Threshold: Bonferroni over the 9 effect tests, alpha = 0.05 / 9 per test (one-sided z
 2.54), so an oracle running all of them flags a `none` record at most 5 % of the time. A
@@ -60,10 +72,11 @@ records. Per effect, s90 is the strength at which the class's mean power (the cl
 records with everything but s kept) reaches 90 %.
 
 --mc R checks the statistics by Monte-Carlo on one record of each of the deterministic,
-sinusoid and markov classes (the one whose oracle power is nearest 50 %): R baseline-only noise draws made with the
-generator's own code (white + gap_indep_gen.flicker + cumsum walk, + gauss_markov), the
+sinusoid and markov classes (the one whose oracle power is nearest 50 %): R baseline-only
+noise draws made with the generator's own code (white + gap_indep_gen.flicker + cumsum walk, + gauss_markov), the
 oracle statistic applied without and with the effect (mean and sd of z vs N(0,1), N(d,1);
-for markov the T quantile and power vs the saddlepoint prediction).
+for markov the block LRT's mean, sd, false alarms and power vs the saddlepoint prediction).
+Deterministic: numpy's default_rng, seeded per record from --mc-seed and the record seed.
 
 Usage:
   scripts/gap_oracle_bound.py --dir RECORDS [--diag BENCH_OUT] [--json OUT.json]
