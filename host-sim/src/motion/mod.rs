@@ -322,9 +322,7 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
                 let mut check = None;
                 if o.trainer == TrainerArg::DrlsChecked {
                     let (_, fit) = least_squares(&equations(&all, o)?, None, o)?;
-                    if fit.cross_validated && fit.rho.is_none() {
-                        model.weights = [0.0; fog_core::motion::MOTION_L];
-                    }
+                    model = checked(model, &fit);
                     check = Some(fit);
                 }
                 (model, tr.drls().clone(), rows, check)
@@ -401,6 +399,15 @@ fn equations(all: &[Series], o: &TrainOptions) -> Result<Vec<(NormalEquations, f
 
 /// The least-squares model on `eqs` except record `skip`, its ridge picked by
 /// leave-one-record-out over the records used.
+/// The `drls-checked` rule: `model` (DRLS's) unless the least-squares cross-validation
+/// `fit` found no shape the records share, then the empty model.
+fn checked(mut model: MotionModel, fit: &LeastSquaresFit) -> MotionModel {
+    if fit.cross_validated && fit.rho.is_none() {
+        model.weights = [0.0; fog_core::motion::MOTION_L];
+    }
+    model
+}
+
 fn least_squares(
     eqs: &[(NormalEquations, f32)],
     skip: Option<usize>,
@@ -488,13 +495,19 @@ fn shrink_by_cross_validation(all: &[Series], o: &TrainOptions) -> Result<Shrink
     let fs = o.config.sensor.sample_rate_hz;
     let window_s = o.config.still.window_s;
     let eqs = match o.trainer {
-        TrainerArg::LeastSquares => Some(equations(all, o)?),
-        TrainerArg::Drls | TrainerArg::DrlsChecked => None,
+        TrainerArg::LeastSquares | TrainerArg::DrlsChecked => Some(equations(all, o)?),
+        TrainerArg::Drls => None,
     };
     for (i, s) in all.iter().enumerate() {
-        let model = match &eqs {
-            Some(eqs) => least_squares(eqs, Some(i), o)?.0,
-            None => *train_on(all, Some(i), o)?.0.model(),
+        // Each fold's model is made the way the trainer makes the whole model: for
+        // `drls-checked`, DRLS on the other records checked by their own cross-validation.
+        let model = match (o.trainer, &eqs) {
+            (TrainerArg::LeastSquares, Some(eqs)) => least_squares(eqs, Some(i), o)?.0,
+            (TrainerArg::DrlsChecked, Some(eqs)) => checked(
+                *train_on(all, Some(i), o)?.0.model(),
+                &least_squares(eqs, Some(i), o)?.1,
+            ),
+            _ => *train_on(all, Some(i), o)?.0.model(),
         };
         let temp = s.temp_c.as_deref();
         let err = |e| anyhow!("{}: {e}", s.name);
@@ -681,5 +694,38 @@ mod tests {
         let own = Synthetic(vec![8.0, -10.0, 6.0, -7.0, 3.0]);
         assert!(any(&weights(&own, TrainerArg::Drls)));
         assert!(!any(&weights(&own, TrainerArg::DrlsChecked)));
+    }
+
+    #[test]
+    fn drls_checked_shrinkage_scores_checked_folds() {
+        let shrink = |records: &Synthetic, trainer: TrainerArg| {
+            let mut o = TrainOptions::new(SensorConfig::ECORE_2000);
+            o.time_max_s = 600.0;
+            o.trainer = trainer;
+            o.shrink = true;
+            train(records, &o).expect("train").shrinkage
+        };
+        // Unit-specific shapes: every fold's check empties its model, so no held-out record
+        // gains or loses anything; unchecked DRLS folds do change the held-out error.
+        let own = Synthetic(vec![8.0, -10.0, 6.0, -7.0, 3.0]);
+        let s = shrink(&own, TrainerArg::DrlsChecked);
+        assert!(s.cross_validated);
+        assert!(
+            s.records.iter().all(|(_, g, _)| *g == 0.0),
+            "{:?}",
+            s.records
+        );
+        let d = shrink(&own, TrainerArg::Drls);
+        assert!(
+            d.records.iter().any(|(_, g, _)| *g != 0.0),
+            "{:?}",
+            d.records
+        );
+        // A shared shape survives every fold's check: the same folds as DRLS.
+        let shared = Synthetic(vec![10.0; 5]);
+        assert_eq!(
+            shrink(&shared, TrainerArg::DrlsChecked).records,
+            shrink(&shared, TrainerArg::Drls).records
+        );
     }
 }
