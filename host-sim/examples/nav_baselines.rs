@@ -48,7 +48,8 @@
 //! gyro-only system); each tunes on the validation vehicles with the flags it is scored
 //! with, every filter's white noise from each record's sensor. The product twice: q tuned
 //! with the static-tuned GM (the default image's way) and q + GM sigma/tau tuned on the
-//! validation vehicles (coordinate descent). `--python-only`: skip the host-sim set.
+//! validation vehicles (coordinate descent from two starts: that point and the gated RW+GM
+//! filter's (q, GM) tuned with the truth flags). `--python-only`: skip the host-sim set.
 //! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
 //! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
@@ -1046,17 +1047,47 @@ fn evaluate_flags(
                 })
         })
         .collect();
+    // The gated RW+GM filter tuned on the validation vehicles with the truth flags: a second
+    // start for the product's (q, GM) search (its GM may revert slowly to the level).
+    let rwgm_truth = pick(&rwgm_grid(1.0), |c| {
+        let sum: f64 = set
+            .valid
+            .iter()
+            .zip(s_valid)
+            .map(|(r, s)| {
+                let c = RwGmConfig {
+                    r_dps2: sample_var(s),
+                    ..*c
+                };
+                run(r, &mut GatedRwGm::new(c), &r.still_truth())
+                    .scores
+                    .heading_rms_deg
+            })
+            .sum();
+        Ok(sum / set.valid.len() as f64)
+    })?
+    .0;
+    // Its random walk on the product's q grid (the nearest point in log).
+    let q_grid = q_grid_dph2_per_h();
+    let q_rw = rwgm_truth.q_rw_dps2_per_s * 3600f64.powi(3);
+    let (q_start, _) = pick(&q_grid, |q| Ok((q / q_rw).ln().abs()))?;
     for truth in [true, false] {
         let name = if truth { "truth" } else { "detector" };
         let valid = |q: f64, g: RwGmConfig| Ok(product(&set.valid, s_valid, q, g, truth)?.0);
         // q with the static-tuned GM (the default image's way), then (q, GM) on the
-        // validation vehicles by coordinate descent: GM at q, q at GM, twice.
-        let (q0, _) = pick(&q_grid_dph2_per_h(), |q| valid(*q, gm))?;
-        let (mut q, mut g) = (q0, gm);
-        for _ in 0..2 {
-            g = pick(&gm_grid, |c| valid(q, *c))?.0;
-            q = pick(&q_grid_dph2_per_h(), |q| valid(*q, g))?.0;
+        // validation vehicles by coordinate descent (GM at q, q at GM, twice) from two
+        // starts: that point and the tuned RW+GM filter's (q, GM); the better end is kept.
+        let (q0, _) = pick(&q_grid, |q| valid(*q, gm))?;
+        let mut ends = Vec::new();
+        for (q_init, g_init) in [(q0, gm), (q_start, rwgm_truth)] {
+            let (mut q, mut g) = (q_init, g_init);
+            for _ in 0..2 {
+                g = pick(&gm_grid, |c| valid(q, *c))?.0;
+                q = pick(&q_grid, |q| valid(*q, g))?.0;
+            }
+            ends.push((q, g));
         }
+        let ((q, g), _) = pick(&ends, |(q, g)| valid(*q, *g))?;
         let (a, b, _) = product(&set.test, s_test, q0, gm, truth)?;
         println!(
             "{:<34} {name:<9} {a:>10.4} {b:>10.4}  q {q0:.1} (deg/h)^2/h{}; GM {:.1} deg/h, {:.0} s (static-tuned)",
