@@ -60,7 +60,9 @@ use fog_core::motion::{
 use fog_core::motion_fit::NormalEquations;
 use fog_core::preset::{Arrangement, GaussMarkov, PresetEstimator};
 use fog_core::still::SensorConfig;
-use host_sim::motion::{describe_least_squares, least_squares_fit, SHRINK_LAG_WINDOWS};
+use host_sim::motion::{
+    describe_least_squares, drls_checked, least_squares_fit, LeastSquaresFit, SHRINK_LAG_WINDOWS,
+};
 use host_sim::nav::{
     fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, DriftEstimator, GatedKalman,
     GatedRwGm, NavRecord, NoCompensation, RwGmConfig, ThermalKalman, ThermalKalmanConfig,
@@ -452,6 +454,21 @@ fn train_motion(
 /// Least squares over all `recs` (within-record centred), ridge by leave-one-record-out
 /// (`fog_core::motion_fit`); prints the cross-validation.
 fn train_least_squares(recs: &[NavRecord], sensors: &[SensorConfig]) -> Result<MotionModel> {
+    let (model, fit) = least_squares(recs, sensors)?;
+    println!(
+        "{} static records: {}",
+        recs.len(),
+        describe_least_squares(&fit)
+    );
+    Ok(model)
+}
+
+/// The least-squares model of `recs` and its cross-validation
+/// ([`host_sim::motion::least_squares_fit`], as `identify` fits it).
+fn least_squares(
+    recs: &[NavRecord],
+    sensors: &[SensorConfig],
+) -> Result<(MotionModel, LeastSquaresFit)> {
     let layout = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
     let eqs = recs
         .iter()
@@ -464,13 +481,7 @@ fn train_least_squares(recs: &[NavRecord], sensors: &[SensorConfig]) -> Result<M
                 .map_err(|e| anyhow::anyhow!("{e}"))
         })
         .collect::<Result<Vec<_>>>()?;
-    let (model, fit) = least_squares_fit(&eqs, DURATION_S as f32)?;
-    println!(
-        "{} static records: {}",
-        recs.len(),
-        describe_least_squares(&fit)
-    );
-    Ok(model)
+    least_squares_fit(&eqs, DURATION_S as f32)
 }
 
 /// The model trained on all `recs` and the same shrunk by leave-one-record-out
@@ -966,6 +977,8 @@ struct Flags<'a> {
     name: &'a str,
     valid: Vec<Vec<bool>>,
     test: Vec<Vec<bool>>,
+    /// The gated RW+GM filter already tuned on `valid` (the truth flags' is).
+    rwgm: Option<RwGmConfig>,
 }
 
 /// `--flags`: the product and the causal baselines, each with the SAME still flags: the
@@ -980,31 +993,12 @@ fn evaluate_flags(
     s_valid: &[SensorConfig],
     s_test: &[SensorConfig],
 ) -> Result<()> {
-    let drls = train_motion(&set.train, s_train, None)?;
-    let layout = MotionModel::standard(DURATION_S as f32).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let eqs = set
-        .train
-        .iter()
-        .zip(s_train)
-        .map(|(r, s)| {
-            let temp = r.temp_c.as_deref().map(f32s);
-            NormalEquations::from_record(
-                &layout,
-                &f32s(&r.rate_dps),
-                temp.as_deref(),
-                s.sample_rate_hz,
-                1.0,
-            )
-            .map(|(e, _)| e)
-            .map_err(|e| anyhow::anyhow!("{e}"))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let (_, fit) = least_squares_fit(&eqs, DURATION_S as f32)?;
-    let model = if fit.rho.is_some() { drls } else { layout };
+    let (_, fit) = least_squares(&set.train, s_train)?;
+    let model = drls_checked(train_motion(&set.train, s_train, None)?, &fit);
     println!(
         "\n{} (--flags): the default's check {}",
         set.name,
-        if fit.rho.is_some() {
+        if model.weights.iter().any(|w| *w != 0.0) {
             "keeps DRLS's model"
         } else {
             "empties the model"
@@ -1047,26 +1041,32 @@ fn evaluate_flags(
                 })
         })
         .collect();
-    // The gated RW+GM filter tuned on the validation vehicles with the truth flags: a second
-    // start for the product's (q, GM) search (its GM may revert slowly to the level).
-    let rwgm_truth = pick(&rwgm_grid(1.0), |c| {
-        let sum: f64 = set
-            .valid
-            .iter()
-            .zip(s_valid)
-            .map(|(r, s)| {
-                let c = RwGmConfig {
-                    r_dps2: sample_var(s),
-                    ..*c
-                };
-                run(r, &mut GatedRwGm::new(c), &r.still_truth())
-                    .scores
-                    .heading_rms_deg
-            })
-            .sum();
-        Ok(sum / set.valid.len() as f64)
-    })?
-    .0;
+    // Mean heading RMS and |end| of `make(sensor)` over `recs` with `flags`.
+    let score = |recs: &[NavRecord],
+                 sensors: &[SensorConfig],
+                 flags: &[Vec<bool>],
+                 make: &dyn Fn(&SensorConfig) -> Result<Box<dyn DriftEstimator>>|
+     -> Result<(f64, f64)> {
+        let (mut a, mut b) = (0.0, 0.0);
+        for ((r, s), fl) in recs.iter().zip(sensors).zip(flags) {
+            let out = run(r, make(s)?.as_mut(), fl);
+            a += out.scores.heading_rms_deg;
+            b += out.scores.heading_final_deg.abs();
+        }
+        let n = recs.len() as f64;
+        Ok((a / n, b / n))
+    };
+    // The gated RW+GM filter tuned on the validation vehicles with `flags`.
+    let tune_rwgm = |flags: &[Vec<bool>]| -> Result<RwGmConfig> {
+        Ok(pick(&rwgm_grid(1.0), |c| {
+            Ok(score(&set.valid, s_valid, flags, &rwgm(*c))?.0)
+        })?
+        .0)
+    };
+    let truth_valid: Vec<Vec<bool>> = set.valid.iter().map(|r| r.still_truth()).collect();
+    // Tuned with the truth flags: a second start for the product's (q, GM) search (its GM
+    // may revert slowly to the level), and the truth rows' RW+GM baseline.
+    let rwgm_truth = tune_rwgm(&truth_valid)?;
     // Its random walk on the product's q grid (the nearest point in log).
     let q_grid = q_grid_dph2_per_h();
     let q_rw = rwgm_truth.q_rw_dps2_per_s * 3600f64.powi(3);
@@ -1108,87 +1108,67 @@ fn evaluate_flags(
         flag_sets.push(if truth {
             Flags {
                 name,
-                valid: set.valid.iter().map(|r| r.still_truth()).collect(),
+                valid: truth_valid.clone(),
                 test: set.test.iter().map(|r| r.still_truth()).collect(),
+                rwgm: Some(rwgm_truth),
             }
         } else {
             Flags {
                 name,
                 valid: valid_calls,
                 test: test_calls,
+                rwgm: None,
             }
         });
     }
     let rows: Vec<_> = set.train.iter().map(thermal_rows).collect();
     let thermal = fit_thermal(&rows, ThermalKalmanConfig::default().dtemp_tau_s);
     for f in &flag_sets {
-        // Mean heading RMS and |end| of `make(sensor)` over `recs` with `flags`.
-        let score = |recs: &[NavRecord],
-                     sensors: &[SensorConfig],
-                     flags: &[Vec<bool>],
-                     make: &dyn Fn(&SensorConfig) -> Box<dyn DriftEstimator>|
-         -> (f64, f64) {
-            let (mut a, mut b) = (0.0, 0.0);
-            for ((r, s), fl) in recs.iter().zip(sensors).zip(flags) {
-                let out = run(r, make(s).as_mut(), fl);
-                a += out.scores.heading_rms_deg;
-                b += out.scores.heading_final_deg.abs();
-            }
-            let n = recs.len() as f64;
-            (a / n, b / n)
-        };
         let print = |name: &str, (a, b): (f64, f64), picked: String| {
             println!("{name:<34} {:<9} {a:>10.4} {b:>10.4}  {picked}", f.name);
         };
         print(
             "alignment bias",
             score(&set.test, s_test, &f.test, &|_| {
-                Box::new(AlignmentBias::default())
-            }),
+                Ok(Box::new(AlignmentBias::default()))
+            })?,
             String::new(),
         );
         let kalman = |q: f64| {
-            move |s: &SensorConfig| -> Box<dyn DriftEstimator> {
-                Box::new(GatedKalman::new(q, sample_var(s)))
+            move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+                Ok(Box::new(GatedKalman::new(q, sample_var(s))))
             }
         };
         let (kq, _) = pick(&log_grid(1e-16, 1e-8, 2), |q| {
-            Ok(score(&set.valid, s_valid, &f.valid, &kalman(*q)).0)
+            Ok(score(&set.valid, s_valid, &f.valid, &kalman(*q))?.0)
         })?;
         print(
             "gated Kalman (tuned q)",
-            score(&set.test, s_test, &f.test, &kalman(kq)),
+            score(&set.test, s_test, &f.test, &kalman(kq))?,
             format!("q {kq:.1e} (deg/s)^2/sample"),
         );
         if let Some(fit) = thermal {
-            let tk = move |s: &SensorConfig| -> Box<dyn DriftEstimator> {
+            let tk = move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
                 let cfg = ThermalKalmanConfig {
                     q_dps2: kq,
                     r_dps2: sample_var(s),
                     ..ThermalKalmanConfig::default()
                 };
-                Box::new(ThermalKalman::with_fit(cfg, fit))
+                Ok(Box::new(ThermalKalman::with_fit(cfg, fit)))
             };
             print(
                 "gated Kalman + thermal fit",
-                score(&set.test, s_test, &f.test, &tk),
+                score(&set.test, s_test, &f.test, &tk)?,
                 "the Kalman's q".into(),
             );
         }
-        let gmk = |c: RwGmConfig| {
-            move |s: &SensorConfig| -> Box<dyn DriftEstimator> {
-                Box::new(GatedRwGm::new(RwGmConfig {
-                    r_dps2: sample_var(s),
-                    ..c
-                }))
-            }
+        let c = match f.rwgm {
+            Some(c) => c,
+            None => tune_rwgm(&f.valid)?,
         };
-        let (c, _) = pick(&rwgm_grid(1.0), |c| {
-            Ok(score(&set.valid, s_valid, &f.valid, &gmk(*c)).0)
-        })?;
         print(
             "gated RW+GM Kalman (tuned)",
-            score(&set.test, s_test, &f.test, &gmk(c)),
+            score(&set.test, s_test, &f.test, &rwgm(c))?,
             rwgm_label(&c),
         );
     }

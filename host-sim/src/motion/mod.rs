@@ -322,7 +322,7 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
                 let mut check = None;
                 if o.trainer == TrainerArg::DrlsChecked {
                     let (_, fit) = least_squares(&equations(&all, o)?, None, o)?;
-                    model = checked(model, &fit);
+                    model = drls_checked(model, &fit);
                     check = Some(fit);
                 }
                 (model, tr.drls().clone(), rows, check)
@@ -401,7 +401,7 @@ fn equations(all: &[Series], o: &TrainOptions) -> Result<Vec<(NormalEquations, f
 /// leave-one-record-out over the records used.
 /// The `drls-checked` rule: `model` (DRLS's) unless the least-squares cross-validation
 /// `fit` found no shape the records share, then the empty model.
-fn checked(mut model: MotionModel, fit: &LeastSquaresFit) -> MotionModel {
+pub fn drls_checked(mut model: MotionModel, fit: &LeastSquaresFit) -> MotionModel {
     if fit.cross_validated && fit.rho.is_none() {
         model.weights = [0.0; fog_core::motion::MOTION_L];
     }
@@ -503,7 +503,7 @@ fn shrink_by_cross_validation(all: &[Series], o: &TrainOptions) -> Result<Shrink
         // `drls-checked`, DRLS on the other records checked by their own cross-validation.
         let model = match (o.trainer, &eqs) {
             (TrainerArg::LeastSquares, Some(eqs)) => least_squares(eqs, Some(i), o)?.0,
-            (TrainerArg::DrlsChecked, Some(eqs)) => checked(
+            (TrainerArg::DrlsChecked, Some(eqs)) => drls_checked(
                 *train_on(all, Some(i), o)?.0.model(),
                 &least_squares(eqs, Some(i), o)?.1,
             ),
