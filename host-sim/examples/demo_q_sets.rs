@@ -15,42 +15,32 @@
 //! simulator's vehicle motion (own detector). Results: docs/motion.md.
 use anyhow::Result;
 use fog_core::still::SensorConfig;
-use host_sim::demo::{family_model, run_image, RATE_HZ};
+use host_sim::demo::{family_model, run_image, TrainingSet, RATE_HZ};
 use host_sim::identify::series::{Records, Series};
 use host_sim::motion::{self, TrainOptions, TrainerArg};
 use host_sim::nav::{self, BaselineConfig, NavRecord};
 use host_sim::sim::Simulator;
 
-struct Set;
+/// The demo's 12 static training records, 1800 s each.
+const SET: TrainingSet = TrainingSet {
+    n: 12,
+    duration_s: 1800.0,
+};
+
 fn samples(unit: u64, seed: u64, vehicle: bool) -> Result<Vec<host_sim::sim::Sample>> {
     let mut s = Simulator::new(&family_model(unit, vehicle)?, seed, RATE_HZ)?;
     Ok((0..180_000).map(|_| s.next_sample()).collect())
-}
-impl Records for Set {
-    fn len(&self) -> usize {
-        12
-    }
-    fn get(&self, i: usize) -> Result<Series> {
-        let x = samples(i as u64 + 1, 101 + i as u64, false)?;
-        Ok(Series {
-            name: format!("{i}"),
-            t_s: x.iter().map(|s| s.t_s).collect(),
-            rate_dps: x.iter().map(|s| s.rate_dps as f32).collect(),
-            drift_dps: Some(x.iter().map(|s| s.drift_dps as f32).collect()),
-            temp_c: Some(x.iter().map(|s| s.temp_c as f32).collect()),
-        })
-    }
 }
 
 fn main() -> Result<()> {
     let sensor = SensorConfig::ECORE_2000;
     let mut o = TrainOptions::new(sensor);
     o.trainer = TrainerArg::LeastSquares;
-    let ls = motion::train(&Set, &o)?.image;
+    let ls = motion::train(&SET, &o)?.image;
     o.trainer = TrainerArg::Drls;
-    let drls = motion::train(&Set, &o)?.image;
+    let drls = motion::train(&SET, &o)?.image;
     o.epochs = 0;
-    let un = motion::train(&Set, &o)?.image;
+    let un = motion::train(&SET, &o)?.image;
     let (u0, s0) = if std::env::args().any(|a| a == "--val") {
         (800, 201)
     } else {
@@ -109,7 +99,7 @@ fn main() -> Result<()> {
         return Ok(());
     }
     // q tuned on the static TRAINING records with emulated drives (external flag).
-    let train: Vec<Series> = (0..12).map(|i| Set.get(i)).collect::<Result<_>>()?;
+    let train: Vec<Series> = (0..12).map(|i| SET.get(i)).collect::<Result<_>>()?;
     for q in [1.0f64, 2.6, 8.3, 26.0, 86.0, 275.0, 870.0] {
         let mut im = ls.clone();
         im.config.level_q_dps2_per_s = (q / 3600f64.powi(3)) as f32;

@@ -138,10 +138,13 @@ fn samples(model: &Model, seed: u64, duration_s: f64) -> Result<Vec<sim::Sample>
     }
 }
 
-/// The static training records, simulated on demand.
-struct TrainingSet {
-    n: u64,
-    duration_s: f64,
+/// The demo's static training records (units 1..=n, seeds 101.., `duration_s` each at
+/// [`RATE_HZ`], the family of [`family_model`]), simulated on demand.
+pub struct TrainingSet {
+    /// Number of records.
+    pub n: u64,
+    /// Length of each record, s.
+    pub duration_s: f64,
 }
 
 impl Records for TrainingSet {
