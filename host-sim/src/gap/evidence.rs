@@ -562,7 +562,7 @@ pub fn spikes_outcome(count: f64, null: &[f64]) -> Test {
     count_outcome(
         outcome(
             Effect::Spikes,
-            "outliers: 5-point running-median residuals beyond 10 robust sigma in the whole record vs the simulations'",
+            &format!("outliers: 5-point running-median residuals beyond {SPIKE_TEST_SIGMAS} robust sigma in the whole record vs the simulations'"),
             count,
             null,
             format!("{count:.0} outliers"),
