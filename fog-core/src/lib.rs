@@ -9,6 +9,7 @@
 //! - [`train`]: DRLS (paper section 4.2) and the RLS / NLMS baselines;
 //! - [`features`]: causal network inputs; [`identify`]: the on-line identifier;
 //! - [`still`]: sensor configuration and the causal stillness detector;
+//! - [`bank`]: the level as the sensor's Allan noise model (random walk + flicker bank);
 //! - [`motion`]: the motion-safe identifier (learn at rest, compensate in motion);
 //! - [`image`]: the trained identifier as a versioned, checksummed binary image;
 //! - [`baseline`]: causal estimators to compare with;
@@ -18,6 +19,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod bank;
 pub mod baseline;
 pub mod db4;
 pub mod denoise;

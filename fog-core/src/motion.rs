@@ -70,6 +70,8 @@ pub enum MotionError {
     NonFinite,
     /// A training record shorter than two detector windows.
     RecordTooShort,
+    /// The bank level's noise model is invalid ([`crate::bank::BankConfig::is_valid`]).
+    BadBank,
 }
 
 impl core::fmt::Display for MotionError {
@@ -83,6 +85,7 @@ impl core::fmt::Display for MotionError {
             Self::Shape(e) => write!(f, "{e}"),
             Self::NonFinite => f.write_str("non-finite rate sample"),
             Self::RecordTooShort => f.write_str("training record shorter than two windows"),
+            Self::BadBank => f.write_str("invalid bank level (B > 0, longest tau 1 to 10^4 s)"),
         }
     }
 }
@@ -316,6 +319,8 @@ pub struct MotionEstimator {
     since_now: u32,
     // Per-sample mode: a sample of this window was beyond the fast gate.
     halted: bool,
+    // The last push ended a detector window that failed (what rolled the level back).
+    window_failed: bool,
     stats: MotionStats,
 }
 
@@ -396,6 +401,7 @@ impl MotionEstimator {
             since_prev: 0,
             since_now: 0,
             halted: false,
+            window_failed: false,
             stats: MotionStats::default(),
         };
         e.restart();
@@ -423,6 +429,7 @@ impl MotionEstimator {
         self.since_prev = 0;
         self.since_now = 0;
         self.halted = false;
+        self.window_failed = false;
         self.stats = MotionStats::default();
     }
 
@@ -653,6 +660,7 @@ impl MotionEstimator {
             .still
             .push(rate_dps, drift, self.drift_var(), external_still);
         let mut still = s.still;
+        self.window_failed = s.window.is_some_and(|w| !w.passed);
         if self.update == LevelUpdate::Sample {
             still = self.sample_step(rate_dps, still, external_still.is_none());
         }
@@ -787,6 +795,16 @@ impl MotionEstimator {
     /// Counters.
     pub fn stats(&self) -> &MotionStats {
         &self.stats
+    }
+
+    /// The last [`MotionEstimator::push`] ended a detector window that failed.
+    pub fn window_failed(&self) -> bool {
+        self.window_failed
+    }
+
+    /// Samples per detector window.
+    pub fn window_samples(&self) -> u32 {
+        self.still.window_samples()
     }
 }
 

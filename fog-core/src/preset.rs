@@ -15,6 +15,7 @@
 //! window) are computed once and shared (the two estimators hold the same model).
 
 use crate::motion::{LevelUpdate, MotionConfig, MotionError, MotionEstimator, MotionModel};
+use crate::bank::{BankConfig, LevelBank};
 use crate::motion::{MotionOutput, MotionStats};
 
 /// How the level learns: the image's update-mode byte (format version 2).
@@ -29,6 +30,11 @@ pub enum Arrangement {
     Sample,
     /// Per-sample level at rest, window level in motion (module docs).
     Dual,
+    /// The level is the sensor's Allan noise model ([`crate::bank::LevelBank`]: random
+    /// walk + one Gauss-Markov state per decade of correlation time), updated at every
+    /// sample the per-sample estimator flags still, rolled back with it; the image's
+    /// Gauss-Markov fields carry the bank's `B` (sigma) and longest correlation time (tau).
+    Bank,
 }
 
 impl Arrangement {
@@ -38,6 +44,7 @@ impl Arrangement {
             Self::Window => 0,
             Self::Sample => 1,
             Self::Dual => 2,
+            Self::Bank => 3,
         }
     }
 
@@ -47,6 +54,7 @@ impl Arrangement {
             0 => Some(Self::Window),
             1 => Some(Self::Sample),
             2 => Some(Self::Dual),
+            3 => Some(Self::Bank),
             _ => None,
         }
     }
@@ -88,6 +96,19 @@ pub struct PresetEstimator {
     rest: MotionEstimator,
     /// The dual's window estimator.
     hold: Option<MotionEstimator>,
+    /// The bank arrangement's level.
+    bank: Option<BankLevel>,
+}
+
+/// [`Arrangement::Bank`]'s level and its window bookkeeping (as the per-sample estimator's).
+#[derive(Debug, Clone)]
+struct BankLevel {
+    level: LevelBank,
+    window: u32,
+    since_prev: u32,
+    since_now: u32,
+    // A sample of the current window carried an external still flag.
+    external: bool,
 }
 
 impl PresetEstimator {
@@ -104,12 +125,38 @@ impl PresetEstimator {
         let mut p = Self {
             rest: MotionEstimator::new(model, cfg)?,
             hold: None,
+            bank: None,
         };
         let update = match arrangement {
             Arrangement::Window => LevelUpdate::Window,
-            Arrangement::Sample | Arrangement::Dual => LevelUpdate::Sample,
+            Arrangement::Sample | Arrangement::Dual | Arrangement::Bank => LevelUpdate::Sample,
         };
         p.rest.set_level_update(update);
+        if arrangement == Arrangement::Bank {
+            // The per-sample estimator (random-walk level, no Gauss-Markov state) is the
+            // detector's drift reference; the bank is the output's level.
+            let bank = BankConfig {
+                q_rw_dps2_per_s: cfg.level_q_dps2_per_s,
+                b_dps: gm.sigma_dps,
+                tau_max_s: gm.tau_s,
+            };
+            let s = &cfg.sensor;
+            let level = LevelBank::new(
+                bank,
+                s.drift_bound_dps,
+                s.sample_var_dps2(),
+                s.sample_rate_hz,
+            )
+            .ok_or(MotionError::BadBank)?;
+            p.bank = Some(BankLevel {
+                level,
+                window: p.rest.window_samples(),
+                since_prev: 0,
+                since_now: 0,
+                external: false,
+            });
+            return Ok(p);
+        }
         p.rest.set_gauss_markov(gm.sigma_dps, gm.tau_s);
         if arrangement == Arrangement::Dual {
             let h = p.hold.insert(MotionEstimator::new(model, cfg)?);
@@ -133,6 +180,9 @@ impl PresetEstimator {
 
     /// Which arrangement this is.
     pub fn arrangement(&self) -> Arrangement {
+        if self.bank.is_some() {
+            return Arrangement::Bank;
+        }
         match (&self.hold, self.rest.level_update()) {
             (Some(_), _) => Arrangement::Dual,
             (None, LevelUpdate::Window) => Arrangement::Window,
@@ -145,6 +195,12 @@ impl PresetEstimator {
         self.rest.restart();
         if let Some(h) = self.hold.as_mut() {
             h.restart();
+        }
+        if let Some(b) = self.bank.as_mut() {
+            b.level.restart();
+            b.since_prev = 0;
+            b.since_now = 0;
+            b.external = false;
         }
     }
 
@@ -159,6 +215,41 @@ impl PresetEstimator {
         temp_c: f32,
         external_still: Option<bool>,
     ) -> Result<MotionOutput, MotionError> {
+        if let Some(b) = self.bank.as_mut() {
+            // Window start (the per-sample estimator checkpoints at the same samples).
+            if self.rest.stats().samples.is_multiple_of(b.window) && rate_dps.is_finite() {
+                b.level.checkpoint();
+                b.since_prev = b.since_now;
+                b.since_now = 0;
+                b.external = false;
+            }
+            b.external |= external_still.is_some();
+            let (o, _) = self
+                .rest
+                .push_shared(rate_dps, temp_c, external_still, None)?;
+            b.level.predict();
+            b.since_prev = b.since_prev.saturating_add(1);
+            b.since_now = b.since_now.saturating_add(1);
+            if o.still {
+                b.level.update(rate_dps - o.model_dps);
+            }
+            // A window the detector failed takes its samples and the previous window's out
+            // of the level; a window with an external flag is the flag's (its still samples
+            // were still: nothing to undo).
+            if self.rest.window_failed() && !b.external {
+                b.level.rollback(b.since_prev);
+                b.since_prev = 0;
+                b.since_now = 0;
+            }
+            let level = b.level.estimate_dps();
+            let drift = self.rest.config().sensor.clamp_drift(level + o.model_dps);
+            return Ok(MotionOutput {
+                drift_dps: drift,
+                compensated_dps: rate_dps - drift,
+                level_dps: level,
+                ..o
+            });
+        }
         let (o, x) = match self
             .rest
             .push_shared(rate_dps, temp_c, external_still, None)
@@ -362,9 +453,97 @@ mod tests {
             };
             assert!(!g.is_valid(), "{s} {t}");
         }
-        for a in [Arrangement::Window, Arrangement::Sample, Arrangement::Dual] {
+        for a in [
+            Arrangement::Window,
+            Arrangement::Sample,
+            Arrangement::Dual,
+            Arrangement::Bank,
+        ] {
             assert_eq!(Arrangement::from_byte(a.to_byte()), Some(a));
         }
-        assert_eq!(Arrangement::from_byte(3), None);
+        assert_eq!(Arrangement::from_byte(4), None);
+    }
+
+    /// B 1.5 deg/h, states up to 10^4 s.
+    const BANK: GaussMarkov = GaussMarkov {
+        sigma_dps: 1.5 / 3600.0,
+        tau_s: 10_000.0,
+    };
+
+    #[test]
+    fn bank_is_the_level_bank_on_rate_minus_model_when_still() {
+        // With the external flag: every window passes, so no rollback; the output is a
+        // LevelBank updated with rate - m at every still sample, predicted at every sample.
+        let mut model = MotionModel::standard(1800.0).expect("test");
+        for (i, w) in model.weights.iter_mut().enumerate() {
+            *w = 1e-4 * (i as f32 - 7.0);
+        }
+        let cfg = MotionConfig::for_sensor(S);
+        let mut p = PresetEstimator::new(model, cfg, Arrangement::Bank, BANK).expect("test");
+        assert_eq!(p.arrangement(), Arrangement::Bank);
+        let bank = BankConfig {
+            q_rw_dps2_per_s: cfg.level_q_dps2_per_s,
+            b_dps: BANK.sigma_dps,
+            tau_max_s: BANK.tau_s,
+        };
+        let mut r = LevelBank::new(bank, S.drift_bound_dps, S.sample_var_dps2(), 100.0)
+            .expect("test");
+        let mut z = Noise(11);
+        let mut nonzero_m = 0;
+        for k in 0..30_000usize {
+            let (x, moving) = rate(k, 12.0, &mut z);
+            let o = p.push(x, 25.0, Some(!moving)).expect("test");
+            r.predict();
+            if !moving {
+                r.update(x - o.model_dps);
+            }
+            let want = S.clamp_drift(r.estimate_dps() + o.model_dps);
+            assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
+            assert_eq!(o.still, !moving);
+            nonzero_m += (o.model_dps != 0.0) as u32;
+        }
+        assert!(nonzero_m > 1000);
+        // A bad bank is refused.
+        let bad = GaussMarkov {
+            sigma_dps: 1.0 / 3600.0,
+            tau_s: 0.5,
+        };
+        assert!(PresetEstimator::new(model, cfg, Arrangement::Bank, bad).is_err());
+    }
+
+    #[test]
+    fn bank_rotation_in_motion_never_moves_the_estimate() {
+        // Given flags: bit-identical with and without 20 deg/s turns. Own detector: bounded
+        // and within 1.5 deg/h RMS of the wandering bias at rest.
+        let (mut a, mut b) = (
+            make(Arrangement::Bank, BANK),
+            make(Arrangement::Bank, BANK),
+        );
+        let mut z = Noise(17);
+        for k in 0..40_000usize {
+            let (x, moving) = rate(k, 0.0, &mut z);
+            let turn = if moving { 20.0 } else { 0.0 };
+            let oa = a.push(x, f32::NAN, Some(!moving)).expect("test");
+            let ob = b.push(x + turn, f32::NAN, Some(!moving)).expect("test");
+            assert_eq!(oa.drift_dps.to_bits(), ob.drift_dps.to_bits(), "{k}");
+        }
+        let mut d = make(Arrangement::Bank, BANK);
+        let mut z = Noise(5);
+        let (mut e2, mut n) = (0.0f64, 0u32);
+        for k in 0..60_000usize {
+            let (x, moving) = rate(k, 10.0, &mut z);
+            let o = d.push(x, f32::NAN, None).expect("test");
+            assert!(o.drift_dps.abs() <= S.drift_bound_dps);
+            let t = k as f32 * 0.01;
+            let bias = (3.0 + 1.5 * (t / 40.0).sin()) / 3600.0;
+            if !moving && k % 3000 > 1000 && k > 5000 {
+                e2 += f64::from((o.drift_dps - bias) * 3600.0).powi(2);
+                n += 1;
+            }
+        }
+        let rms_dph = (e2 / f64::from(n)).sqrt();
+        assert!(rms_dph < 1.5, "{rms_dph}");
+        assert!(d.push(f32::NAN, 0.0, None).is_err());
+        assert_eq!(d.stats().rejected, 1);
     }
 }

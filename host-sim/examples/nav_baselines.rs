@@ -378,6 +378,11 @@ fn q_end(q: f64) -> &'static str {
     }
 }
 
+/// `--bank`: the `--flags` product runs [`Arrangement::Bank`] instead of the dual.
+fn bank_level() -> bool {
+    std::env::args().any(|a| a == "--bank")
+}
+
 fn q_dps2_per_s(q_dph2_per_h: f64) -> f32 {
     (q_dph2_per_h / 3600f64.powi(3)) as f32
 }
@@ -392,6 +397,9 @@ enum Second {
     /// (the hybrid) in motion, both with this configuration's sigma and tau and the row's q
     /// (the row's update is ignored).
     Dual(RwGmConfig),
+    /// [`Arrangement::Bank`]: the level as the Allan noise model, `B` = this
+    /// configuration's sigma, longest correlation time = its tau, random walk = the row's q.
+    Bank(RwGmConfig),
 }
 
 fn motion_est(
@@ -416,6 +424,7 @@ fn motion_est(
         Second::None => (single, GaussMarkov::OFF),
         Second::Gm(c) => (single, gm(c)),
         Second::Dual(c) => (Arrangement::Dual, gm(c)),
+        Second::Bank(c) => (Arrangement::Bank, gm(c)),
     };
     let est = PresetEstimator::new(*model, cfg, arrangement, gm)
         .map_err(|e| anyhow::anyhow!("estimator: {e}"))?;
@@ -1005,6 +1014,18 @@ fn evaluate_flags(
         }
     );
     let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
+    // `--bank`: the product's level is the Allan noise model; its start is the family's
+    // specification (B 1.5 deg/h, states up to 10^4 s; ASSUMED E-Core class).
+    let bank = bank_level();
+    let gm = if bank {
+        RwGmConfig {
+            sigma_gm_dps: 1.5 / 3600.0,
+            tau_s: 10_000.0,
+            ..gm
+        }
+    } else {
+        gm
+    };
     // Product: mean heading RMS and |end| over `recs`, with each record's still calls.
     let product = |recs: &[NavRecord],
                    sensors: &[SensorConfig],
@@ -1014,7 +1035,11 @@ fn evaluate_flags(
      -> Result<(f64, f64, Vec<Vec<bool>>)> {
         let (mut a, mut b, mut calls) = (0.0, 0.0, Vec::new());
         for (r, s) in recs.iter().zip(sensors) {
-            let second = Second::Dual(gm);
+            let second = if bank_level() {
+                Second::Bank(gm)
+            } else {
+                Second::Dual(gm)
+            };
             let mut m = motion_est(&model, *s, q, LevelUpdate::Window, truth, second)?;
             let out = run(r, &mut m, &r.still_truth());
             a += out.scores.heading_rms_deg;
@@ -1029,6 +1054,16 @@ fn evaluate_flags(
         "estimator", "flags", "hdg RMS", "|hdg end|"
     );
     let mut flag_sets = Vec::new();
+    let bank_grid: Vec<RwGmConfig> = [0.375, 0.75, 1.5, 3.0]
+        .iter()
+        .flat_map(|&b_dph| {
+            [1000.0, 10_000.0].map(move |tau_s| RwGmConfig {
+                sigma_gm_dps: b_dph / 3600.0,
+                tau_s,
+                ..gm
+            })
+        })
+        .collect();
     let gm_grid: Vec<RwGmConfig> = SIGMA_DPH
         .iter()
         .flat_map(|&sigma_dph| {
@@ -1079,10 +1114,18 @@ fn evaluate_flags(
         // starts: that point and the tuned RW+GM filter's (q, GM); the better end is kept.
         let (q0, _) = pick(&q_grid, |q| valid(*q, gm))?;
         let mut ends = Vec::new();
-        for (q_init, g_init) in [(q0, gm), (q_start, rwgm_truth)] {
+        let starts = if bank {
+            vec![(q0, gm)]
+        } else {
+            vec![(q0, gm), (q_start, rwgm_truth)]
+        };
+        for (q_init, g_init) in starts {
             let (mut q, mut g) = (q_init, g_init);
             for _ in 0..2 {
-                g = pick(&gm_grid, |c| valid(q, *c))?.0;
+                g = pick(if bank { &bank_grid } else { &gm_grid }, |c| {
+                    valid(q, *c)
+                })?
+                .0;
                 q = pick(&q_grid, |q| valid(*q, g))?.0;
             }
             ends.push((q, g));

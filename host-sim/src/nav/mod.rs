@@ -14,6 +14,7 @@
 //! - [`run`]: one estimator over one record; [`tune_gated_q`]: the gated Kalman's `q` on a
 //!   log grid, picked by mean heading-error RMS on validation records.
 
+mod bank;
 mod baselines;
 mod compare;
 mod gm;
@@ -25,6 +26,7 @@ pub use baselines::{
     fit_thermal, AlignmentBias, DriftEstimator, GatedKalman, NoCompensation, TempRate, ThermalFit,
     ThermalKalman, ThermalKalmanConfig,
 };
+pub use bank::{BankConfig, GatedBank};
 pub use compare::{
     compare, table, BaselineConfig, Compared, Comparison, Precomputed, Row, NO_COMPENSATION,
 };

@@ -1,0 +1,474 @@
+//! Level with the sensor's Allan noise model: a stillness-gated Kalman filter whose drift
+//! is a random walk (rate random walk) plus a bank of first-order Gauss-Markov states, one
+//! per decade of correlation time from 1 s, that together approximate flicker (bias
+//! instability `B`).
+//!
+//! Why a bank: flicker has no single correlation time. A continuum of Gauss-Markov states
+//! with weight `w` per unit of `ln tau` has the two-sided PSD `w / (2 f)`; flicker's
+//! `B^2 / (2 pi f)` needs `w = B^2 / pi`, so one state per decade gets the stationary
+//! variance `B^2 ln(10) / pi` (0.733 `B^2`). At rest every scale is observed together; in
+//! motion each decays toward 0 at its own rate, so the estimate keeps the slow scales and
+//! forgets the fast ones, which is what a flicker forecast over a drive should do.
+//!
+//! All arithmetic is f32 with the states in deg/h (values near 1, not 1e-4); the full
+//! covariance of at most [`BANK_STATES`] states is kept. Tested against an f64 reference
+//! (`cargo test -p fog-core --lib bank`).
+
+/// Most Gauss-Markov states (correlation times 1, 10, ..., 10^4 s).
+pub const BANK_GM_MAX: usize = 5;
+/// Most states: the random walk and [`BANK_GM_MAX`] Gauss-Markov states.
+pub const BANK_STATES: usize = BANK_GM_MAX + 1;
+
+const DPH_PER_DPS: f32 = 3600.0;
+
+/// The bank's noise model, from the sensor's specification (or tuned).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BankConfig {
+    /// Random-walk variance growth of the slow state, (deg/s)^2 per s (>= 0, finite).
+    pub q_rw_dps2_per_s: f32,
+    /// Bias instability `B`, deg/s (flicker PSD `B^2 / (2 pi f)`, two-sided; > 0, finite).
+    pub b_dps: f32,
+    /// Longest correlation time of the bank, s: states at 1, 10, ... s up to it (1 to
+    /// 10^4 s; finite).
+    pub tau_max_s: f32,
+}
+
+impl BankConfig {
+    /// Number of Gauss-Markov states: one per decade from 1 s to `tau_max_s`
+    /// (0 when the configuration is invalid).
+    pub fn gm_states(&self) -> usize {
+        if !self.is_valid() {
+            return 0;
+        }
+        let mut n = 0;
+        let mut tau = 1.0f32;
+        while n < BANK_GM_MAX && tau <= self.tau_max_s * 1.0001 {
+            n += 1;
+            tau *= 10.0;
+        }
+        n
+    }
+
+    /// Finite, `q >= 0`, `B > 0`, `1 <= tau_max_s <= 10^4` (within 0.01 %).
+    pub fn is_valid(&self) -> bool {
+        self.q_rw_dps2_per_s.is_finite()
+            && self.q_rw_dps2_per_s >= 0.0
+            && self.b_dps.is_finite()
+            && self.b_dps > 0.0
+            && self.tau_max_s.is_finite()
+            && self.tau_max_s >= 1.0
+            && self.tau_max_s <= 10_000.0 * 1.0001
+    }
+}
+
+/// State and covariance (deg/h, (deg/h)^2): what a checkpoint holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct State {
+    x: [f32; BANK_STATES],
+    p: [[f32; BANK_STATES]; BANK_STATES],
+}
+
+/// The filter: state `[b, g_1 .. g_M]` (deg/h), drift `b + sum g`. [`LevelBank::predict`]
+/// every sample (still or not), [`LevelBank::update`] only with still samples;
+/// [`LevelBank::checkpoint`] / [`LevelBank::rollback`] remove the samples of windows the
+/// detector failed afterwards.
+#[derive(Debug, Clone)]
+pub struct LevelBank {
+    n: usize,
+    s: State,
+    // Per-sample transition a_i, its products a_i a_j, the process noise added to each
+    // diagonal entry per sample ((deg/h)^2), and per-second quantities for rollback.
+    a: [f32; BANK_STATES],
+    aa: [[f32; BANK_STATES]; BANK_STATES],
+    q: [f32; BANK_STATES],
+    var_gm: f32,
+    q_rw_dph2_per_sample: f32,
+    dt_s: f32,
+    p0_dph2: f32,
+    r_dph2: f32,
+    cp_now: State,
+    cp_prev: State,
+}
+
+impl LevelBank {
+    /// A filter at power-on: state 0, the random walk's variance `bound^2` (the whole
+    /// drift bound, deg/s), each Gauss-Markov state at its stationary variance.
+    /// `sample_var_dps2`: white noise per sample, `sample_rate_hz` > 0. `None` when `cfg`
+    /// or the numbers are invalid.
+    pub fn new(
+        cfg: BankConfig,
+        bound_dps: f32,
+        sample_var_dps2: f32,
+        sample_rate_hz: f32,
+    ) -> Option<Self> {
+        let m = cfg.gm_states();
+        let ok = |v: f32| v.is_finite() && v > 0.0;
+        if m == 0 || !ok(bound_dps) || !ok(sample_var_dps2) || !ok(sample_rate_hz) {
+            return None;
+        }
+        let n = m + 1;
+        let dt_s = 1.0 / sample_rate_hz;
+        let b_dph = cfg.b_dps * DPH_PER_DPS;
+        // B^2 ln(10) / pi per decade.
+        let var_gm = b_dph * b_dph * core::f32::consts::LN_10 / core::f32::consts::PI;
+        let q_rw_dph2_per_sample = cfg.q_rw_dps2_per_s * DPH_PER_DPS * DPH_PER_DPS * dt_s;
+        let mut a = [1.0f32; BANK_STATES];
+        let mut q = [0.0f32; BANK_STATES];
+        q[0] = q_rw_dph2_per_sample;
+        let mut tau = 1.0f32;
+        for i in 1..n {
+            a[i] = crate::wnn::exp_anchor((-dt_s / tau).max(-87.0));
+            q[i] = var_gm * (1.0 - a[i] * a[i]);
+            tau *= 10.0;
+        }
+        let mut aa = [[0.0f32; BANK_STATES]; BANK_STATES];
+        for i in 0..n {
+            for j in 0..n {
+                aa[i][j] = a[i] * a[j];
+            }
+        }
+        let bound_dph = bound_dps * DPH_PER_DPS;
+        let mut f = Self {
+            n,
+            s: State {
+                x: [0.0; BANK_STATES],
+                p: [[0.0; BANK_STATES]; BANK_STATES],
+            },
+            a,
+            aa,
+            q,
+            var_gm,
+            q_rw_dph2_per_sample,
+            dt_s,
+            p0_dph2: bound_dph * bound_dph,
+            r_dph2: sample_var_dps2 * DPH_PER_DPS * DPH_PER_DPS,
+            cp_now: State {
+                x: [0.0; BANK_STATES],
+                p: [[0.0; BANK_STATES]; BANK_STATES],
+            },
+            cp_prev: State {
+                x: [0.0; BANK_STATES],
+                p: [[0.0; BANK_STATES]; BANK_STATES],
+            },
+        };
+        f.restart();
+        Some(f)
+    }
+
+    /// Back to power-on.
+    pub fn restart(&mut self) {
+        self.s.x = [0.0; BANK_STATES];
+        self.s.p = [[0.0; BANK_STATES]; BANK_STATES];
+        self.s.p[0][0] = self.p0_dph2;
+        for i in 1..self.n {
+            self.s.p[i][i] = self.var_gm;
+        }
+        self.cp_now = self.s;
+        self.cp_prev = self.s;
+    }
+
+    /// Number of states (random walk + Gauss-Markov).
+    pub fn states(&self) -> usize {
+        self.n
+    }
+
+    /// One sample's prediction.
+    #[inline]
+    pub fn predict(&mut self) {
+        let n = self.n;
+        for i in 1..n {
+            self.s.x[i] *= self.a[i];
+        }
+        for i in 0..n {
+            for j in 0..n {
+                self.s.p[i][j] *= self.aa[i][j];
+            }
+            self.s.p[i][i] += self.q[i];
+        }
+    }
+
+    /// Prediction over `k` samples at once (rollback): `a^k` per state.
+    fn predict_many(&mut self, k: u32) {
+        if k == 0 {
+            return;
+        }
+        let n = self.n;
+        let mut ak = [1.0f32; BANK_STATES];
+        let mut tau = 1.0f32;
+        for v in ak.iter_mut().take(n).skip(1) {
+            *v = crate::wnn::exp_anchor((-(k as f32) * self.dt_s / tau).max(-87.0));
+            tau *= 10.0;
+        }
+        for i in 1..n {
+            self.s.x[i] *= ak[i];
+        }
+        for i in 0..n {
+            for j in 0..n {
+                self.s.p[i][j] *= ak[i] * ak[j];
+            }
+        }
+        self.s.p[0][0] += self.q_rw_dph2_per_sample * k as f32;
+        for i in 1..n {
+            self.s.p[i][i] += self.var_gm * (1.0 - ak[i] * ak[i]);
+        }
+    }
+
+    /// The innovation variance of a sample `z` = drift + white noise, (deg/h)^2.
+    pub fn innovation_var_dph2(&self) -> f32 {
+        let n = self.n;
+        let mut s = self.r_dph2;
+        for row in self.s.p.iter().take(n) {
+            for v in row.iter().take(n) {
+                s += *v;
+            }
+        }
+        s
+    }
+
+    /// Kalman update with one still sample `z_dps` (= rate - model), white noise of the
+    /// configured variance. A non-finite sample or result changes nothing.
+    pub fn update(&mut self, z_dps: f32) {
+        let n = self.n;
+        let mut h = [0.0f32; BANK_STATES];
+        let mut s = self.r_dph2;
+        for i in 0..n {
+            let mut r = 0.0;
+            for j in 0..n {
+                r += self.s.p[i][j];
+            }
+            h[i] = r;
+            s += r;
+        }
+        let innovation = z_dps * DPH_PER_DPS - self.estimate_dph();
+        if !(s > 0.0) || !innovation.is_finite() {
+            return;
+        }
+        let inv = 1.0 / s;
+        let mut next = self.s;
+        for i in 0..n {
+            let k = h[i] * inv;
+            next.x[i] += k * innovation;
+            for j in 0..n {
+                next.p[i][j] -= k * h[j];
+            }
+        }
+        for i in 0..n {
+            next.p[i][i] = next.p[i][i].max(0.0);
+        }
+        if next.x.iter().all(|v| v.is_finite()) {
+            self.s = next;
+        }
+    }
+
+    /// At a detector window start: the previous checkpoint becomes the current one and the
+    /// current state the new current one.
+    pub fn checkpoint(&mut self) {
+        self.cp_prev = self.cp_now;
+        self.cp_now = self.s;
+    }
+
+    /// A window failed: back to the checkpoint before the previous window, predicted over
+    /// the `samples` since it; both checkpoints become that state.
+    pub fn rollback(&mut self, samples: u32) {
+        self.s = self.cp_prev;
+        self.predict_many(samples);
+        self.cp_now = self.s;
+        self.cp_prev = self.s;
+    }
+
+    fn estimate_dph(&self) -> f32 {
+        self.s.x.iter().take(self.n).sum()
+    }
+
+    /// The drift estimate, deg/s.
+    pub fn estimate_dps(&self) -> f32 {
+        self.estimate_dph() / DPH_PER_DPS
+    }
+
+    /// The variance of the drift estimate, (deg/s)^2.
+    pub fn estimate_var_dps2(&self) -> f32 {
+        (self.innovation_var_dph2() - self.r_dph2) / (DPH_PER_DPS * DPH_PER_DPS)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_noise::Noise;
+
+    /// f64 reference: the same filter with full f64 arithmetic, in deg/s.
+    struct Reference {
+        x: [f64; BANK_STATES],
+        p: [[f64; BANK_STATES]; BANK_STATES],
+        a: [f64; BANK_STATES],
+        q: [f64; BANK_STATES],
+        r: f64,
+        n: usize,
+    }
+
+    impl Reference {
+        fn new(cfg: BankConfig, bound: f64, r: f64, fs: f64) -> Self {
+            let n = cfg.gm_states() + 1;
+            let b = cfg.b_dps as f64;
+            let var = b * b * core::f64::consts::LN_10 / core::f64::consts::PI;
+            let mut s = Self {
+                x: [0.0; BANK_STATES],
+                p: [[0.0; BANK_STATES]; BANK_STATES],
+                a: [1.0; BANK_STATES],
+                q: [0.0; BANK_STATES],
+                r,
+                n,
+            };
+            s.p[0][0] = bound * bound;
+            s.q[0] = cfg.q_rw_dps2_per_s as f64 / fs;
+            let mut tau = 1.0;
+            for i in 1..n {
+                s.a[i] = libm::exp(-1.0 / fs / tau);
+                s.q[i] = var * (1.0 - s.a[i] * s.a[i]);
+                s.p[i][i] = var;
+                tau *= 10.0;
+            }
+            s
+        }
+        fn predict(&mut self) {
+            for i in 0..self.n {
+                self.x[i] *= self.a[i];
+                for j in 0..self.n {
+                    self.p[i][j] *= self.a[i] * self.a[j];
+                }
+                self.p[i][i] += self.q[i];
+            }
+        }
+        fn update(&mut self, z: f64) {
+            let n = self.n;
+            let h: [f64; BANK_STATES] =
+                core::array::from_fn(|i| if i < n { self.p[i][..n].iter().sum() } else { 0.0 });
+            let s: f64 = h[..n].iter().sum::<f64>() + self.r;
+            let inn = z - self.x[..n].iter().sum::<f64>();
+            for i in 0..n {
+                self.x[i] += h[i] / s * inn;
+                for j in 0..n {
+                    self.p[i][j] -= h[i] * h[j] / s;
+                }
+            }
+        }
+        fn estimate(&self) -> f64 {
+            self.x[..self.n].iter().sum()
+        }
+    }
+
+    const CFG: BankConfig = BankConfig {
+        q_rw_dps2_per_s: 1.9e-11,
+        b_dps: 1.5 / 3600.0,
+        tau_max_s: 10_000.0,
+    };
+
+    #[test]
+    fn states_per_decade() {
+        assert_eq!(CFG.gm_states(), 5);
+        let c = BankConfig {
+            tau_max_s: 1000.0,
+            ..CFG
+        };
+        assert_eq!(c.gm_states(), 4);
+        let c = BankConfig {
+            tau_max_s: 1.0,
+            ..CFG
+        };
+        assert_eq!(c.gm_states(), 1);
+        for bad in [0.5, 2e4, f32::NAN] {
+            let c = BankConfig {
+                tau_max_s: bad,
+                ..CFG
+            };
+            assert_eq!(c.gm_states(), 0);
+            assert!(LevelBank::new(c, 0.01, 1e-4, 100.0).is_none());
+        }
+        let c = BankConfig { b_dps: 0.0, ..CFG };
+        assert!(LevelBank::new(c, 0.01, 1e-4, 100.0).is_none());
+    }
+
+    /// One hour at 100 Hz of a wandering drift, still 3 of every 4 minutes: the f32 filter
+    /// follows the f64 reference within 0.01 deg/h at every sample.
+    #[test]
+    fn matches_an_f64_reference() {
+        let fs = 100.0;
+        let r = 1.2e-4;
+        let bound = 30.0 / 3600.0;
+        let mut f = LevelBank::new(CFG, bound, r, fs).expect("valid");
+        let mut g = Reference::new(CFG, bound as f64, r as f64, fs as f64);
+        let mut z = Noise(7);
+        let mut drift = 2.0 / 3600.0;
+        let mut worst = 0.0f64;
+        for k in 0..360_000u32 {
+            drift += 1e-8 * z.normal() as f64;
+            let still = (k / 6000) % 4 != 3;
+            let y = drift + (r as f64).sqrt() * z.normal() as f64;
+            f.predict();
+            g.predict();
+            if still {
+                f.update(y as f32);
+                g.update(y);
+            }
+            let e = (f.estimate_dps() as f64 - g.estimate()).abs() * 3600.0;
+            worst = worst.max(e);
+        }
+        assert!(worst < 0.01, "worst {worst} deg/h");
+        // And it tracked the drift.
+        assert!((g.estimate() - drift).abs() * 3600.0 < 1.0);
+    }
+
+    /// A rotation in motion never reaches the estimate; the fast scales decay, the random
+    /// walk holds.
+    #[test]
+    fn ignores_rotation_and_keeps_the_slow_part() {
+        let mut f = LevelBank::new(CFG, 30.0 / 3600.0, 1.2e-4, 100.0).expect("valid");
+        let mut z = Noise(3);
+        for _ in 0..60_000 {
+            f.predict();
+            f.update(3.0 / 3600.0 + 0.011 * z.normal());
+        }
+        let before = f.estimate_dps();
+        // Within the fast scales' noise (the 1-s and 10-s states follow the last samples).
+        assert!((before * 3600.0 - 3.0).abs() < 1.5, "{}", before * 3600.0);
+        for _ in 0..1000 {
+            f.predict(); // 10 s of a 30 deg/s turn: no update
+        }
+        let after = f.estimate_dps();
+        assert!(after.abs() <= before.abs() * 1.0001);
+        assert!(after.abs() > 0.5 * before.abs());
+    }
+
+    /// Rollback restores the checkpoint before the previous window, predicted forward.
+    #[test]
+    fn rollback_removes_the_failed_windows() {
+        let mut f = LevelBank::new(CFG, 30.0 / 3600.0, 1.2e-4, 100.0).expect("valid");
+        let mut z = Noise(5);
+        for _ in 0..10 {
+            f.checkpoint();
+            for _ in 0..100 {
+                f.predict();
+                f.update(1.0 / 3600.0 + 0.011 * z.normal());
+            }
+        }
+        let mut clean = f.clone();
+        f.checkpoint();
+        for _ in 0..100 {
+            f.predict();
+            f.update(1.0 / 3600.0 + 0.011 * z.normal());
+        }
+        f.checkpoint();
+        for _ in 0..100 {
+            f.predict();
+            f.update(0.5); // a drive's start taken for still
+        }
+        f.rollback(200);
+        for _ in 0..200 {
+            clean.predict();
+        }
+        assert!((f.estimate_dps() - clean.estimate_dps()).abs() < 1e-9);
+        let v = (f.estimate_var_dps2() / clean.estimate_var_dps2() - 1.0).abs();
+        assert!(v < 1e-3, "{v}");
+    }
+}
