@@ -188,8 +188,8 @@ impl LevelBank {
         }
     }
 
-    /// Prediction over `k` samples at once (rollback): `a^k` per state.
-    fn predict_many(&mut self, k: u32) {
+    /// Prediction over `k` samples at once (a window, or a rollback): `a^k` per state.
+    pub fn predict_many(&mut self, k: u32) {
         if k == 0 {
             return;
         }
@@ -229,9 +229,22 @@ impl LevelBank {
     /// Kalman update with one still sample `z_dps` (= rate - model), white noise of the
     /// configured variance. A non-finite sample or result changes nothing.
     pub fn update(&mut self, z_dps: f32) {
+        self.update_with(z_dps, self.r_dph2);
+    }
+
+    /// Kalman update with a window mean `z_dps` of white-noise variance `r_dps2`
+    /// (ASSUMED: the states at the window's end; the 1-s state moves within a window, so
+    /// its share is smoothed).
+    pub fn update_mean(&mut self, z_dps: f32, r_dps2: f32) {
+        if r_dps2.is_finite() && r_dps2 > 0.0 {
+            self.update_with(z_dps, r_dps2 * DPH_PER_DPS * DPH_PER_DPS);
+        }
+    }
+
+    fn update_with(&mut self, z_dps: f32, r_dph2: f32) {
         let n = self.n;
         let mut h = [0.0f32; BANK_STATES];
-        let mut s = self.r_dph2;
+        let mut s = r_dph2;
         for i in 0..n {
             let mut r = 0.0;
             for j in 0..n {

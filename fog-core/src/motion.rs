@@ -321,6 +321,10 @@ pub struct MotionEstimator {
     halted: bool,
     // The last push ended a detector window that failed (what rolled the level back).
     window_failed: bool,
+    // The last push ended a detector window.
+    window_ended: bool,
+    // The window mean the last push released, minus its model term (deg/s).
+    released_z: Option<f32>,
     stats: MotionStats,
 }
 
@@ -402,6 +406,8 @@ impl MotionEstimator {
             since_now: 0,
             halted: false,
             window_failed: false,
+            window_ended: false,
+            released_z: None,
             stats: MotionStats::default(),
         };
         e.restart();
@@ -430,6 +436,8 @@ impl MotionEstimator {
         self.since_now = 0;
         self.halted = false;
         self.window_failed = false;
+        self.window_ended = false;
+        self.released_z = None;
         self.stats = MotionStats::default();
     }
 
@@ -661,6 +669,8 @@ impl MotionEstimator {
             .push(rate_dps, drift, self.drift_var(), external_still);
         let mut still = s.still;
         self.window_failed = s.window.is_some_and(|w| !w.passed);
+        self.window_ended = s.window.is_some();
+        self.released_z = None;
         if self.update == LevelUpdate::Sample {
             still = self.sample_step(rate_dps, still, external_still.is_none());
         }
@@ -681,6 +691,7 @@ impl MotionEstimator {
                 self.predict_second_window();
             }
             if let Some(mean) = w.confirmed_mean_dps {
+                self.released_z = Some(mean - self.model_prev);
                 if let Some(t) = self.refine.as_mut() {
                     // On-line refinement: the released window's residual after the level,
                     // one DRLS step on the model's weights (still windows only).
@@ -805,6 +816,19 @@ impl MotionEstimator {
     /// Samples per detector window.
     pub fn window_samples(&self) -> u32 {
         self.still.window_samples()
+    }
+
+    /// The last [`MotionEstimator::push`] ended a detector window.
+    pub fn window_ended(&self) -> bool {
+        self.window_ended
+    }
+
+    /// The window mean the last [`MotionEstimator::push`] released (still, and the window
+    /// after it still too) minus that window's model term, deg/s, with its variance
+    /// (white noise over a window), (deg/s)^2.
+    pub fn released_window(&self) -> Option<(f32, f32)> {
+        self.released_z
+            .map(|z| (z, self.still.window_mean_var_dps2()))
     }
 }
 

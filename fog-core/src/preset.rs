@@ -103,7 +103,10 @@ pub struct PresetEstimator {
 /// [`Arrangement::Bank`]'s level and its window bookkeeping (as the per-sample estimator's).
 #[derive(Debug, Clone)]
 struct BankLevel {
+    /// Per still sample (the per-sample estimator's flags), rolled back with it.
     level: LevelBank,
+    /// Per released window mean (one window late): the output in motion.
+    hold: LevelBank,
     window: u32,
     since_prev: u32,
     since_now: u32,
@@ -149,6 +152,7 @@ impl PresetEstimator {
             )
             .ok_or(MotionError::BadBank)?;
             p.bank = Some(BankLevel {
+                hold: level.clone(),
                 level,
                 window: p.rest.window_samples(),
                 since_prev: 0,
@@ -198,6 +202,7 @@ impl PresetEstimator {
         }
         if let Some(b) = self.bank.as_mut() {
             b.level.restart();
+            b.hold.restart();
             b.since_prev = 0;
             b.since_now = 0;
             b.external = false;
@@ -241,7 +246,19 @@ impl PresetEstimator {
                 b.since_prev = 0;
                 b.since_now = 0;
             }
-            let level = b.level.estimate_dps();
+            if self.rest.window_ended() {
+                b.hold.predict_many(b.window);
+                if let Some((z, r)) = self.rest.released_window() {
+                    b.hold.update_mean(z, r);
+                }
+            }
+            // At rest the per-sample bank; from the first sample flagged moving, the bank
+            // that only released windows reached (as the dual).
+            let level = if o.still {
+                b.level.estimate_dps()
+            } else {
+                b.hold.estimate_dps()
+            };
             let drift = self.rest.config().sensor.clamp_drift(level + o.model_dps);
             return Ok(MotionOutput {
                 drift_dps: drift,
@@ -472,8 +489,9 @@ mod tests {
 
     #[test]
     fn bank_is_the_level_bank_on_rate_minus_model_when_still() {
-        // With the external flag: every window passes, so no rollback; the output is a
-        // LevelBank updated with rate - m at every still sample, predicted at every sample.
+        // With the external flag every still window passes, so no rollback: at every still
+        // sample the output is a LevelBank updated with rate - m at every still sample and
+        // predicted at every sample; in motion it is the bank of released windows.
         let mut model = MotionModel::standard(1800.0).expect("test");
         for (i, w) in model.weights.iter_mut().enumerate() {
             *w = 1e-4 * (i as f32 - 7.0);
@@ -489,7 +507,7 @@ mod tests {
         let mut r = LevelBank::new(bank, S.drift_bound_dps, S.sample_var_dps2(), 100.0)
             .expect("test");
         let mut z = Noise(11);
-        let mut nonzero_m = 0;
+        let (mut nonzero_m, mut from_hold) = (0, 0);
         for k in 0..30_000usize {
             let (x, moving) = rate(k, 12.0, &mut z);
             let o = p.push(x, 25.0, Some(!moving)).expect("test");
@@ -498,10 +516,18 @@ mod tests {
                 r.update(x - o.model_dps);
             }
             let want = S.clamp_drift(r.estimate_dps() + o.model_dps);
-            assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
+            if moving {
+                from_hold += (o.drift_dps != want) as u32;
+                let t = k as f32 * 0.01;
+                let bias = (3.0 + 1.5 * (t / 40.0).sin()) / 3600.0;
+                assert!(((o.drift_dps - bias) * 3600.0).abs() < 3.0, "{k}");
+            } else {
+                assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
+            }
             assert_eq!(o.still, !moving);
             nonzero_m += (o.model_dps != 0.0) as u32;
         }
+        assert!(from_hold > 1000, "{from_hold}");
         assert!(nonzero_m > 1000);
         // A bad bank is refused.
         let bad = GaussMarkov {

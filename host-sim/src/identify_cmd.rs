@@ -133,6 +133,14 @@ pub struct Args {
     /// host_sim::motion::GAUSS_MARKOV_TAU_S = 10).
     #[arg(long)]
     pub gm_tau_s: Option<f32>,
+    /// `--level-update bank`: the bank's bias instability B, deg/h (default
+    /// host_sim::motion::BANK_B_DPH = 1.5, the E-Core class's, ASSUMED).
+    #[arg(long)]
+    pub bank_b_dph: Option<f32>,
+    /// `--level-update bank`: the bank's longest correlation time, s, 1 to 10000 (default
+    /// host_sim::motion::BANK_TAU_MAX_S = 10000).
+    #[arg(long)]
+    pub bank_tau_max_s: Option<f32>,
     /// `--preset motion --validate`: the baselines' gated Kalman q, (deg/s)^2 per sample
     /// (default: tuned on the validation records).
     #[arg(long)]
@@ -279,6 +287,30 @@ fn run_motion(a: &Args) -> Result<()> {
             o.gauss_markov.sigma_dps * 3600.0,
             o.gauss_markov.tau_s
         );
+    }
+    if o.arrangement == fog_core::preset::Arrangement::Bank {
+        if a.gm_sigma_dph.is_some() || a.gm_tau_s.is_some() {
+            anyhow::bail!("--level-update bank takes --bank-b-dph / --bank-tau-max-s, not --gm-*");
+        }
+        // The image's Gauss-Markov fields carry the bank's B and longest tau.
+        o.gauss_markov = fog_core::preset::GaussMarkov {
+            sigma_dps: a.bank_b_dph.unwrap_or(motion::BANK_B_DPH) / 3600.0,
+            tau_s: a.bank_tau_max_s.unwrap_or(motion::BANK_TAU_MAX_S),
+        };
+        let bank = fog_core::bank::BankConfig {
+            q_rw_dps2_per_s: o.config.level_q_dps2_per_s,
+            b_dps: o.gauss_markov.sigma_dps,
+            tau_max_s: o.gauss_markov.tau_s,
+        };
+        if !bank.is_valid() {
+            anyhow::bail!(
+                "--bank-b-dph {} --bank-tau-max-s {}: B must be > 0 and the longest tau 1 to 10000 s",
+                o.gauss_markov.sigma_dps * 3600.0,
+                o.gauss_markov.tau_s
+            );
+        }
+    } else if a.bank_b_dph.is_some() || a.bank_tau_max_s.is_some() {
+        anyhow::bail!("--bank-b-dph / --bank-tau-max-s need --level-update bank");
     }
     let trained = motion::train(&train, &o)?;
     let (image, rows, shrink) = (trained.image, trained.records, trained.shrinkage);

@@ -68,6 +68,13 @@ pub const DEFAULT_GAUSS_MARKOV: GaussMarkov = GaussMarkov {
 /// figures (host-sim dual at q 4: about 0.21 deg vs 0.148 at 85.7).
 pub const DEFAULT_LEVEL_Q_DPH2_PER_H: f32 = 85.7;
 
+/// `--level-update bank`: the bank's bias instability `B`, deg/h (ASSUMED: the E-Core
+/// class's 1.5 deg/h, `host-sim/presets/ecore2000.toml`).
+pub const BANK_B_DPH: f32 = 1.5;
+/// `--level-update bank`: the bank's longest correlation time, s (states at 1, 10, ...,
+/// 10^4 s).
+pub const BANK_TAU_MAX_S: f32 = 10_000.0;
+
 /// How the saved image's level learns (`--level-update`).
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -79,6 +86,9 @@ pub enum LevelUpdateArg {
     /// Per-sample level at rest, window level in motion (the default).
     #[default]
     Dual,
+    /// The level as the sensor's Allan noise model: random walk + one Gauss-Markov state
+    /// per decade of correlation time (fog_core::bank), per still sample with rollback.
+    Bank,
 }
 
 impl LevelUpdateArg {
@@ -88,6 +98,7 @@ impl LevelUpdateArg {
             Self::Window => Arrangement::Window,
             Self::Sample => Arrangement::Sample,
             Self::Dual => Arrangement::Dual,
+            Self::Bank => Arrangement::Bank,
         }
     }
 }

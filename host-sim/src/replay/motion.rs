@@ -84,11 +84,11 @@ pub struct MotionSummary {
     pub output: String,
     /// The identifier image, or the built-in default.
     pub identifier: String,
-    /// The image's level arrangement: `window`, `sample` or `dual` (fog_core::preset).
+    /// The image's level arrangement: `window`, `sample`, `dual` or `bank` (fog_core::preset).
     pub level_update: String,
-    /// The image's Gauss-Markov sigma, deg/h (0: off).
+    /// The image's Gauss-Markov sigma, deg/h (0: off; `bank`: its bias instability B).
     pub gm_sigma_dph: f32,
-    /// The image's Gauss-Markov correlation time, s (0: off).
+    /// The image's Gauss-Markov correlation time, s (0: off; `bank`: its longest).
     pub gm_tau_s: f32,
     /// Record passes trained into the image (least squares: the records, e.g. 12; DRLS:
     /// records x passes, e.g. 36; 0: untrained, the gated level alone).
