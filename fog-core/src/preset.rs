@@ -253,8 +253,9 @@ impl PresetEstimator {
                 }
             }
             // At rest the per-sample bank; from the first sample flagged moving, the bank
-            // that only released windows reached (as the dual).
-            let level = if o.still {
+            // that only released windows reached (as the dual), unless an external flag
+            // decides: it is trusted, so the per-sample bank holds no suspect sample.
+            let level = if o.still || external_still.is_some() {
                 b.level.estimate_dps()
             } else {
                 b.hold.estimate_dps()
@@ -489,9 +490,9 @@ mod tests {
 
     #[test]
     fn bank_is_the_level_bank_on_rate_minus_model_when_still() {
-        // With the external flag every still window passes, so no rollback: at every still
-        // sample the output is a LevelBank updated with rate - m at every still sample and
-        // predicted at every sample; in motion it is the bank of released windows.
+        // With the external flag (trusted): no rollback, and the output at every sample is
+        // a LevelBank updated with rate - m at every still sample and predicted at every
+        // sample, in motion too.
         let mut model = MotionModel::standard(1800.0).expect("test");
         for (i, w) in model.weights.iter_mut().enumerate() {
             *w = 1e-4 * (i as f32 - 7.0);
@@ -507,7 +508,7 @@ mod tests {
         let mut r = LevelBank::new(bank, S.drift_bound_dps, S.sample_var_dps2(), 100.0)
             .expect("test");
         let mut z = Noise(11);
-        let (mut nonzero_m, mut from_hold) = (0, 0);
+        let mut nonzero_m = 0;
         for k in 0..30_000usize {
             let (x, moving) = rate(k, 12.0, &mut z);
             let o = p.push(x, 25.0, Some(!moving)).expect("test");
@@ -516,19 +517,31 @@ mod tests {
                 r.update(x - o.model_dps);
             }
             let want = S.clamp_drift(r.estimate_dps() + o.model_dps);
-            if moving {
-                from_hold += (o.drift_dps != want) as u32;
-                let t = k as f32 * 0.01;
-                let bias = (3.0 + 1.5 * (t / 40.0).sin()) / 3600.0;
-                assert!(((o.drift_dps - bias) * 3600.0).abs() < 3.0, "{k}");
-            } else {
-                assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
-            }
+            assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
             assert_eq!(o.still, !moving);
             nonzero_m += (o.model_dps != 0.0) as u32;
         }
-        assert!(from_hold > 1000, "{from_hold}");
         assert!(nonzero_m > 1000);
+        // With its own detector: at samples it flags still the per-sample bank, elsewhere
+        // the bank of released windows (and within 3 deg/h of the bias there).
+        let mut p = PresetEstimator::new(model, cfg, Arrangement::Bank, BANK).expect("test");
+        let mut z = Noise(11);
+        let mut from_hold = 0;
+        for k in 0..30_000usize {
+            let (x, moving) = rate(k, 12.0, &mut z);
+            let o = p.push(x, 25.0, None).expect("test");
+            let b = p.bank.as_ref().expect("bank");
+            let level = if o.still { &b.level } else { &b.hold };
+            let want = S.clamp_drift(level.estimate_dps() + o.model_dps);
+            assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
+            if moving {
+                from_hold += 1;
+                let t = k as f32 * 0.01;
+                let bias = (3.0 + 1.5 * (t / 40.0).sin()) / 3600.0;
+                assert!(((o.drift_dps - bias) * 3600.0).abs() < 3.0, "{k}");
+            }
+        }
+        assert!(from_hold > 1000, "{from_hold}");
         // A bad bank is refused.
         let bad = GaussMarkov {
             sigma_dps: 1.0 / 3600.0,

@@ -1,7 +1,11 @@
 //! Stillness-gated Kalman filter whose drift model is the sensor's Allan specification:
 //! a random walk (rate random walk `K`) plus a bank of first-order Gauss-Markov states that
 //! approximates flicker (bias instability `B`), white noise `N` per sample. No parameter is
-//! tuned on records: all come from the noise specification.
+//! tuned on records: all come from the noise specification. The f64 probe of
+//! `fog_core::bank` (`cargo run --release -p host-sim --example bank_probe`).
+
+// Matrix code: `p[i * n + j]` with the same `i`, `j` in several arrays reads as the algebra.
+#![allow(clippy::needless_range_loop)]
 
 use super::DriftEstimator;
 
@@ -111,7 +115,7 @@ impl GatedBank {
         // h = P 1 (H = all ones), s = 1' P 1 + r.
         let h: Vec<f64> = (0..n).map(|i| self.p[i * n..(i + 1) * n].iter().sum()).collect();
         let s: f64 = h.iter().sum::<f64>() + self.cfg.r_dps2;
-        if !(s > 0.0) || !y.is_finite() {
+        if s.is_nan() || s <= 0.0 || !y.is_finite() {
             return;
         }
         let innov = y - self.estimate();
