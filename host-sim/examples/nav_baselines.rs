@@ -64,8 +64,8 @@ use host_sim::motion::{
     describe_least_squares, drls_checked, least_squares_fit, LeastSquaresFit, SHRINK_LAG_WINDOWS,
 };
 use host_sim::nav::{
-    fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, DriftEstimator, GatedKalman,
-    GatedRwGm, NavRecord, NoCompensation, RwGmConfig, ThermalKalman, ThermalKalmanConfig,
+    fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, BankConfig, DriftEstimator,
+    GatedBank, GatedKalman, GatedRwGm, NavRecord, NoCompensation, RwGmConfig, ThermalKalman, ThermalKalmanConfig,
 };
 use host_sim::report::{heading_error_svg, still_spans, HeadingSeries};
 use host_sim::sim::{self, Model, Simulator};
@@ -1214,6 +1214,45 @@ fn evaluate_flags(
             score(&set.test, s_test, &f.test, &rwgm(c))?,
             rwgm_label(&c),
         );
+        if bank {
+            // The bank level alone in f64 (host_sim::nav::GatedBank, no model, no rollback):
+            // what the product's level is worth with these flags; q and B tuned.
+            let gated_bank = |q: f64, c: RwGmConfig| {
+                move |s: &SensorConfig| -> Result<Box<dyn DriftEstimator>> {
+                    Ok(Box::new(GatedBank::new(BankConfig {
+                        q_rw_dps2_per_s: f64::from(q_dps2_per_s(q)),
+                        b_dps: c.sigma_gm_dps,
+                        tau_min_s: 1.0,
+                        tau_max_s: c.tau_s,
+                        per_decade: 1.0,
+                        r_dps2: sample_var(s),
+                        p0_dps2: c.p0_dps2,
+                    })))
+                }
+            };
+            let coarse: Vec<f64> = log_grid(0.25, 16384.0, 2);
+            let mut g = gm;
+            let mut q = 100.0;
+            for _ in 0..2 {
+                q = pick(&coarse, |q| {
+                    Ok(score(&set.valid, s_valid, &f.valid, &gated_bank(*q, g))?.0)
+                })?
+                .0;
+                g = pick(&bank_grid, |c| {
+                    Ok(score(&set.valid, s_valid, &f.valid, &gated_bank(q, *c))?.0)
+                })?
+                .0;
+            }
+            print(
+                "gated bank alone (f64, ablation)",
+                score(&set.test, s_test, &f.test, &gated_bank(q, g))?,
+                format!(
+                    "q {q:.1} (deg/h)^2/h, B {:.3} deg/h, tau <= {:.0} s",
+                    g.sigma_gm_dps * 3600.0,
+                    g.tau_s
+                ),
+            );
+        }
     }
     Ok(())
 }
