@@ -363,8 +363,13 @@ mod tests {
         }
         fn update(&mut self, z: f64) {
             let n = self.n;
-            let h: [f64; BANK_STATES] =
-                core::array::from_fn(|i| if i < n { self.p[i][..n].iter().sum() } else { 0.0 });
+            let h: [f64; BANK_STATES] = core::array::from_fn(|i| {
+                if i < n {
+                    self.p[i][..n].iter().sum()
+                } else {
+                    0.0
+                }
+            });
             let s: f64 = h[..n].iter().sum::<f64>() + self.r;
             let inn = z - self.x[..n].iter().sum::<f64>();
             for i in 0..n {

@@ -14,8 +14,8 @@
 //! detectors and level steps per sample; the model inputs and the network (once per
 //! window) are computed once and shared (the two estimators hold the same model).
 
-use crate::motion::{LevelUpdate, MotionConfig, MotionError, MotionEstimator, MotionModel};
 use crate::bank::{BankConfig, LevelBank};
+use crate::motion::{LevelUpdate, MotionConfig, MotionError, MotionEstimator, MotionModel};
 use crate::motion::{MotionOutput, MotionStats};
 
 /// How the level learns: the image's update-mode byte (format version 2).
@@ -32,9 +32,15 @@ pub enum Arrangement {
     Dual,
     /// The level is the sensor's Allan noise model ([`crate::bank::LevelBank`]: random
     /// walk + one Gauss-Markov state per decade of correlation time), updated at every
-    /// sample the per-sample estimator flags still, rolled back with it; the image's
-    /// Gauss-Markov fields carry the bank's `B` (sigma) and longest correlation time (tau).
+    /// sample the per-sample estimator flags still (after its fast gate), never rolled
+    /// back, and the output in motion too; the image's Gauss-Markov fields carry the
+    /// bank's `B` (sigma) and longest correlation time (tau).
     Bank,
+    /// [`Arrangement::Bank`] protected as the dual is: the per-sample bank is rolled back
+    /// with the per-sample estimator when a window fails, and from the first sample that
+    /// estimator flags moving the output is a second bank that only released window means
+    /// reached (one window late). With an external still flag both are the plain bank.
+    BankDual,
 }
 
 impl Arrangement {
@@ -45,6 +51,7 @@ impl Arrangement {
             Self::Sample => 1,
             Self::Dual => 2,
             Self::Bank => 3,
+            Self::BankDual => 4,
         }
     }
 
@@ -55,6 +62,7 @@ impl Arrangement {
             1 => Some(Self::Sample),
             2 => Some(Self::Dual),
             3 => Some(Self::Bank),
+            4 => Some(Self::BankDual),
             _ => None,
         }
     }
@@ -103,10 +111,12 @@ pub struct PresetEstimator {
 /// [`Arrangement::Bank`]'s level and its window bookkeeping (as the per-sample estimator's).
 #[derive(Debug, Clone)]
 struct BankLevel {
-    /// Per still sample (the per-sample estimator's flags), rolled back with it.
+    /// Per still sample (the per-sample estimator's flags); `BankDual`: rolled back with it.
     level: LevelBank,
-    /// Per released window mean (one window late): the output in motion.
+    /// `BankDual`: per released window mean (one window late), the output in motion.
     hold: LevelBank,
+    /// `BankDual` (rollback and the released-window bank in motion).
+    protect: bool,
     window: u32,
     since_prev: u32,
     since_now: u32,
@@ -132,10 +142,12 @@ impl PresetEstimator {
         };
         let update = match arrangement {
             Arrangement::Window => LevelUpdate::Window,
-            Arrangement::Sample | Arrangement::Dual | Arrangement::Bank => LevelUpdate::Sample,
+            Arrangement::Sample | Arrangement::Dual | Arrangement::Bank | Arrangement::BankDual => {
+                LevelUpdate::Sample
+            }
         };
         p.rest.set_level_update(update);
-        if arrangement == Arrangement::Bank {
+        if matches!(arrangement, Arrangement::Bank | Arrangement::BankDual) {
             // The per-sample estimator (random-walk level, no Gauss-Markov state) is the
             // detector's drift reference; the bank is the output's level.
             let bank = BankConfig {
@@ -153,6 +165,7 @@ impl PresetEstimator {
             .ok_or(MotionError::BadBank)?;
             p.bank = Some(BankLevel {
                 hold: level.clone(),
+                protect: arrangement == Arrangement::BankDual,
                 level,
                 window: p.rest.window_samples(),
                 since_prev: 0,
@@ -184,8 +197,12 @@ impl PresetEstimator {
 
     /// Which arrangement this is.
     pub fn arrangement(&self) -> Arrangement {
-        if self.bank.is_some() {
-            return Arrangement::Bank;
+        if let Some(b) = &self.bank {
+            return if b.protect {
+                Arrangement::BankDual
+            } else {
+                Arrangement::Bank
+            };
         }
         match (&self.hold, self.rest.level_update()) {
             (Some(_), _) => Arrangement::Dual,
@@ -222,7 +239,10 @@ impl PresetEstimator {
     ) -> Result<MotionOutput, MotionError> {
         if let Some(b) = self.bank.as_mut() {
             // Window start (the per-sample estimator checkpoints at the same samples).
-            if self.rest.stats().samples.is_multiple_of(b.window) && rate_dps.is_finite() {
+            if b.protect
+                && self.rest.stats().samples.is_multiple_of(b.window)
+                && rate_dps.is_finite()
+            {
                 b.level.checkpoint();
                 b.since_prev = b.since_now;
                 b.since_now = 0;
@@ -241,12 +261,12 @@ impl PresetEstimator {
             // A window the detector failed takes its samples and the previous window's out
             // of the level; a window with an external flag is the flag's (its still samples
             // were still: nothing to undo).
-            if self.rest.window_failed() && !b.external {
+            if b.protect && self.rest.window_failed() && !b.external {
                 b.level.rollback(b.since_prev);
                 b.since_prev = 0;
                 b.since_now = 0;
             }
-            if self.rest.window_ended() {
+            if b.protect && self.rest.window_ended() {
                 b.hold.predict_many(b.window);
                 if let Some((z, r)) = self.rest.released_window() {
                     b.hold.update_mean(z, r);
@@ -255,7 +275,7 @@ impl PresetEstimator {
             // At rest the per-sample bank; from the first sample flagged moving, the bank
             // that only released windows reached (as the dual), unless an external flag
             // decides: it is trusted, so the per-sample bank holds no suspect sample.
-            let level = if o.still || external_still.is_some() {
+            let level = if o.still || external_still.is_some() || !b.protect {
                 b.level.estimate_dps()
             } else {
                 b.hold.estimate_dps()
@@ -476,10 +496,11 @@ mod tests {
             Arrangement::Sample,
             Arrangement::Dual,
             Arrangement::Bank,
+            Arrangement::BankDual,
         ] {
             assert_eq!(Arrangement::from_byte(a.to_byte()), Some(a));
         }
-        assert_eq!(Arrangement::from_byte(4), None);
+        assert_eq!(Arrangement::from_byte(5), None);
     }
 
     /// B 1.5 deg/h, states up to 10^4 s.
@@ -498,15 +519,15 @@ mod tests {
             *w = 1e-4 * (i as f32 - 7.0);
         }
         let cfg = MotionConfig::for_sensor(S);
-        let mut p = PresetEstimator::new(model, cfg, Arrangement::Bank, BANK).expect("test");
-        assert_eq!(p.arrangement(), Arrangement::Bank);
+        let mut p = PresetEstimator::new(model, cfg, Arrangement::BankDual, BANK).expect("test");
+        assert_eq!(p.arrangement(), Arrangement::BankDual);
         let bank = BankConfig {
             q_rw_dps2_per_s: cfg.level_q_dps2_per_s,
             b_dps: BANK.sigma_dps,
             tau_max_s: BANK.tau_s,
         };
-        let mut r = LevelBank::new(bank, S.drift_bound_dps, S.sample_var_dps2(), 100.0)
-            .expect("test");
+        let mut r =
+            LevelBank::new(bank, S.drift_bound_dps, S.sample_var_dps2(), 100.0).expect("test");
         let mut z = Noise(11);
         let mut nonzero_m = 0;
         for k in 0..30_000usize {
@@ -523,8 +544,24 @@ mod tests {
         }
         assert!(nonzero_m > 1000);
         // With its own detector: at samples it flags still the per-sample bank, elsewhere
-        // the bank of released windows (and within 3 deg/h of the bias there).
-        let mut p = PresetEstimator::new(model, cfg, Arrangement::Bank, BANK).expect("test");
+        // the bank of released windows (and within 3 deg/h of the bias there). The plain
+        // bank: the per-sample bank at every sample, updated at every still call.
+        let mut plain = PresetEstimator::new(model, cfg, Arrangement::Bank, BANK).expect("test");
+        assert_eq!(plain.arrangement(), Arrangement::Bank);
+        let mut r =
+            LevelBank::new(bank, S.drift_bound_dps, S.sample_var_dps2(), 100.0).expect("test");
+        let mut z = Noise(11);
+        for k in 0..30_000usize {
+            let (x, _) = rate(k, 12.0, &mut z);
+            let o = plain.push(x, 25.0, None).expect("test");
+            r.predict();
+            if o.still {
+                r.update(x - o.model_dps);
+            }
+            let want = S.clamp_drift(r.estimate_dps() + o.model_dps);
+            assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
+        }
+        let mut p = PresetEstimator::new(model, cfg, Arrangement::BankDual, BANK).expect("test");
         let mut z = Noise(11);
         let mut from_hold = 0;
         for k in 0..30_000usize {
@@ -554,10 +591,13 @@ mod tests {
     fn bank_rotation_in_motion_never_moves_the_estimate() {
         // Given flags: bit-identical with and without 20 deg/s turns. Own detector: bounded
         // and within 1.5 deg/h RMS of the wandering bias at rest.
-        let (mut a, mut b) = (
-            make(Arrangement::Bank, BANK),
-            make(Arrangement::Bank, BANK),
-        );
+        for arrangement in [Arrangement::Bank, Arrangement::BankDual] {
+            bank_ignores_rotation(arrangement);
+        }
+    }
+
+    fn bank_ignores_rotation(arrangement: Arrangement) {
+        let (mut a, mut b) = (make(arrangement, BANK), make(arrangement, BANK));
         let mut z = Noise(17);
         for k in 0..40_000usize {
             let (x, moving) = rate(k, 0.0, &mut z);
@@ -566,7 +606,7 @@ mod tests {
             let ob = b.push(x + turn, f32::NAN, Some(!moving)).expect("test");
             assert_eq!(oa.drift_dps.to_bits(), ob.drift_dps.to_bits(), "{k}");
         }
-        let mut d = make(Arrangement::Bank, BANK);
+        let mut d = make(arrangement, BANK);
         let mut z = Noise(5);
         let (mut e2, mut n) = (0.0f64, 0u32);
         for k in 0..60_000usize {

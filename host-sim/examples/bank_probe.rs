@@ -17,7 +17,8 @@ fn theirs(dir: &Path, unit: u64, seed: u64, ood: bool) -> Result<(NavRecord, f64
         let script =
             PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scripts/gen_nav_records.py");
         let mut c = Command::new("python3");
-        c.arg(script).args(["--kind", "vehicle", "--seed", &seed.to_string()]);
+        c.arg(script)
+            .args(["--kind", "vehicle", "--seed", &seed.to_string()]);
         c.args(["--duration-s", "1800", "--unit-seed", &unit.to_string()]);
         c.args(["--unit-spread", "0.2", "--out"]).arg(&out);
         if ood {
@@ -52,7 +53,9 @@ fn ours(unit: u64, seed: u64) -> Result<(NavRecord, f64)> {
 fn score(recs: &[(NavRecord, f64)], make: &dyn Fn(f64) -> Box<dyn DriftEstimator>) -> f64 {
     let mut a = 0.0;
     for (r, rr) in recs {
-        a += run(r, make(*rr).as_mut(), &r.still_truth()).scores.heading_rms_deg;
+        a += run(r, make(*rr).as_mut(), &r.still_truth())
+            .scores
+            .heading_rms_deg;
     }
     a / recs.len() as f64
 }
@@ -69,9 +72,19 @@ fn main() -> Result<()> {
         .unwrap_or(16);
     let dir = PathBuf::from("/tmp/bank_probe");
     std::fs::create_dir_all(&dir)?;
-    let get = |u: u64, s: u64| if host { ours(u, s) } else { theirs(&dir, u, s, ood) };
-    let valid: Vec<_> = (100..100 + n).map(|u| get(u, 2000 + u)).collect::<Result<_>>()?;
-    let test: Vec<_> = (300..300 + n).map(|u| get(u, 3000 + u)).collect::<Result<_>>()?;
+    let get = |u: u64, s: u64| {
+        if host {
+            ours(u, s)
+        } else {
+            theirs(&dir, u, s, ood)
+        }
+    };
+    let valid: Vec<_> = (100..100 + n)
+        .map(|u| get(u, 2000 + u))
+        .collect::<Result<_>>()?;
+    let test: Vec<_> = (300..300 + n)
+        .map(|u| get(u, 3000 + u))
+        .collect::<Result<_>>()?;
     let p0 = (30.0 * DPH).powi(2);
     // Spec: B 1.5 deg/h, K 0.5 deg/h/sqrt(h).
     let spec_b = 1.5 * DPH;
@@ -94,7 +107,10 @@ fn main() -> Result<()> {
     for bs in [0.25, 0.5, 1.0, 2.0] {
         for qs in [300.0, 1000.0, 3000.0, 10000.0, 30000.0] {
             for hi in [1000.0, 10000.0] {
-                bank_grid.push((format!("bank B x{bs} q x{qs} tau<= {hi}"), bank(spec_q * qs, spec_b * bs, hi)));
+                bank_grid.push((
+                    format!("bank B x{bs} q x{qs} tau<= {hi}"),
+                    bank(spec_q * qs, spec_b * bs, hi),
+                ));
             }
         }
     }
@@ -102,20 +118,37 @@ fn main() -> Result<()> {
     for q in log_grid(1e-15, 1e-7, 2) {
         for sd in [0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0] {
             for tau in log_grid(1.0, 10000.0, 2) {
-                let c = RwGmConfig { q_rw_dps2_per_s: q, sigma_gm_dps: sd * DPH, tau_s: tau, r_dps2: 1.0, p0_dps2: p0 };
-                rwgm_grid.push((format!("rwgm q {q:.1e} sigma {sd} tau {tau:.0}"), Box::new(move |r| Box::new(GatedRwGm::new(RwGmConfig { r_dps2: r, ..c })))));
+                let c = RwGmConfig {
+                    q_rw_dps2_per_s: q,
+                    sigma_gm_dps: sd * DPH,
+                    tau_s: tau,
+                    r_dps2: 1.0,
+                    p0_dps2: p0,
+                };
+                rwgm_grid.push((
+                    format!("rwgm q {q:.1e} sigma {sd} tau {tau:.0}"),
+                    Box::new(move |r| Box::new(GatedRwGm::new(RwGmConfig { r_dps2: r, ..c }))),
+                ));
             }
         }
     }
     // Two-fold: tune on one half, per-record scores on the other.
     let per_rec = |recs: &[(NavRecord, f64)], m: &Make| -> Vec<f64> {
-        recs.iter().map(|(r, rr)| run(r, m(*rr).as_mut(), &r.still_truth()).scores.heading_rms_deg).collect()
+        recs.iter()
+            .map(|(r, rr)| {
+                run(r, m(*rr).as_mut(), &r.still_truth())
+                    .scores
+                    .heading_rms_deg
+            })
+            .collect()
     };
     let tune = |recs: &[(NavRecord, f64)], grid: &[(String, Make)]| -> usize {
         let mut best = (0, f64::INFINITY);
         for (i, (_, m)) in grid.iter().enumerate() {
             let v = score(recs, m.as_ref());
-            if v < best.1 { best = (i, v); }
+            if v < best.1 {
+                best = (i, v);
+            }
         }
         best.0
     };
@@ -126,9 +159,16 @@ fn main() -> Result<()> {
         let ig = tune(fit, &rwgm_grid);
         let b = per_rec(eval, &bank_grid[ib].1);
         let g = per_rec(eval, &rwgm_grid[ig].1);
-        let (mb, mg) = (b.iter().sum::<f64>() / b.len() as f64, g.iter().sum::<f64>() / g.len() as f64);
-        println!("picked {} -> {mb:.4};  {} -> {mg:.4}", bank_grid[ib].0, rwgm_grid[ig].0);
-        sb += mb; sg += mg;
+        let (mb, mg) = (
+            b.iter().sum::<f64>() / b.len() as f64,
+            g.iter().sum::<f64>() / g.len() as f64,
+        );
+        println!(
+            "picked {} -> {mb:.4};  {} -> {mg:.4}",
+            bank_grid[ib].0, rwgm_grid[ig].0
+        );
+        sb += mb;
+        sg += mg;
         diffs.extend(b.iter().zip(&g).map(|(x, y)| x - y));
     }
     let nd = diffs.len() as f64;

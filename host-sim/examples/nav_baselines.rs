@@ -49,7 +49,11 @@
 //! with, every filter's white noise from each record's sensor. The product twice: q tuned
 //! with the static-tuned GM (the default image's way) and q + GM sigma/tau tuned on the
 //! validation vehicles (coordinate descent from two starts: that point and the gated RW+GM
-//! filter's (q, GM) tuned with the truth flags). `--python-only`: skip the host-sim set.
+//! filter's (q, GM) tuned with the truth flags). `--python-only`: skip the host-sim set;
+//! `--ood-only`: the second generator's `--ood` set alone. `--bank`: the product runs
+//! `Arrangement::Bank` (the level as the Allan noise model, fog_core::bank; q and the bank's
+//! B and longest tau tuned on the validation vehicles), and the bank alone in f64 joins the
+//! rows as an ablation; `--bank-dual`: the same with `Arrangement::BankDual`.
 //! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
 //! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
@@ -64,8 +68,9 @@ use host_sim::motion::{
     describe_least_squares, drls_checked, least_squares_fit, LeastSquaresFit, SHRINK_LAG_WINDOWS,
 };
 use host_sim::nav::{
-    fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, BankConfig, DriftEstimator,
-    GatedBank, GatedKalman, GatedRwGm, NavRecord, NoCompensation, RwGmConfig, ThermalKalman, ThermalKalmanConfig,
+    fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, BankConfig, DriftEstimator, GatedBank,
+    GatedKalman, GatedRwGm, NavRecord, NoCompensation, RwGmConfig, ThermalKalman,
+    ThermalKalmanConfig,
 };
 use host_sim::report::{heading_error_svg, still_spans, HeadingSeries};
 use host_sim::sim::{self, Model, Simulator};
@@ -378,9 +383,15 @@ fn q_end(q: f64) -> &'static str {
     }
 }
 
-/// `--bank`: the `--flags` product runs [`Arrangement::Bank`] instead of the dual.
+/// `--bank` (or `--bank-dual`): the `--flags` product runs [`Arrangement::Bank`] (or
+/// [`Arrangement::BankDual`]) instead of the dual.
 fn bank_level() -> bool {
-    std::env::args().any(|a| a == "--bank")
+    std::env::args().any(|a| a == "--bank" || a == "--bank-dual")
+}
+
+/// `--bank-dual`: [`Arrangement::BankDual`].
+fn bank_dual() -> bool {
+    std::env::args().any(|a| a == "--bank-dual")
 }
 
 fn q_dps2_per_s(q_dph2_per_h: f64) -> f32 {
@@ -424,6 +435,7 @@ fn motion_est(
         Second::None => (single, GaussMarkov::OFF),
         Second::Gm(c) => (single, gm(c)),
         Second::Dual(c) => (Arrangement::Dual, gm(c)),
+        Second::Bank(c) if bank_dual() => (Arrangement::BankDual, gm(c)),
         Second::Bank(c) => (Arrangement::Bank, gm(c)),
     };
     let est = PresetEstimator::new(*model, cfg, arrangement, gm)
@@ -854,7 +866,12 @@ fn main() -> Result<()> {
         return Ok(());
     }
     let tmp = tempfile::tempdir()?;
+    // `--ood-only`: the second generator's `--ood` set alone.
+    let ood_only = std::env::args().any(|a| a == "--ood-only");
     for ood in [false, true] {
+        if ood_only && !ood {
+            continue;
+        }
         let get = |kind: &str, u: u64, s: u64| theirs(tmp.path(), kind, u, s, ood);
         let train: Vec<_> = (1..=12)
             .map(|u| get("static", u, 1000 + u))
@@ -1122,10 +1139,7 @@ fn evaluate_flags(
         for (q_init, g_init) in starts {
             let (mut q, mut g) = (q_init, g_init);
             for _ in 0..2 {
-                g = pick(if bank { &bank_grid } else { &gm_grid }, |c| {
-                    valid(q, *c)
-                })?
-                .0;
+                g = pick(if bank { &bank_grid } else { &gm_grid }, |c| valid(q, *c))?.0;
                 q = pick(&q_grid, |q| valid(*q, g))?.0;
             }
             ends.push((q, g));

@@ -288,9 +288,12 @@ fn run_motion(a: &Args) -> Result<()> {
             o.gauss_markov.tau_s
         );
     }
-    if o.arrangement == fog_core::preset::Arrangement::Bank {
+    use fog_core::preset::Arrangement;
+    if matches!(o.arrangement, Arrangement::Bank | Arrangement::BankDual) {
         if a.gm_sigma_dph.is_some() || a.gm_tau_s.is_some() {
-            anyhow::bail!("--level-update bank takes --bank-b-dph / --bank-tau-max-s, not --gm-*");
+            anyhow::bail!(
+                "--level-update bank / bank-dual take --bank-b-dph / --bank-tau-max-s, not --gm-*"
+            );
         }
         // The image's Gauss-Markov fields carry the bank's B and longest tau.
         o.gauss_markov = fog_core::preset::GaussMarkov {
@@ -310,7 +313,7 @@ fn run_motion(a: &Args) -> Result<()> {
             );
         }
     } else if a.bank_b_dph.is_some() || a.bank_tau_max_s.is_some() {
-        anyhow::bail!("--bank-b-dph / --bank-tau-max-s need --level-update bank");
+        anyhow::bail!("--bank-b-dph / --bank-tau-max-s need --level-update bank or bank-dual");
     }
     let trained = motion::train(&train, &o)?;
     let (image, rows, shrink) = (trained.image, trained.records, trained.shrinkage);

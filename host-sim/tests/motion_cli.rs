@@ -91,6 +91,82 @@ fn train_save_and_replay() {
     assert!(still > (r.len() - 1) * 8 / 10, "{still}");
 }
 
+/// `--level-update bank` saves an image whose level is the Allan noise model; `replay`
+/// runs it (one row per input row, compensated = rate - drift, still at rest), and its
+/// summary names it; bad bank settings are one-line errors with nothing written.
+#[test]
+fn bank_level_is_saved_and_replayed() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let train = d.join("train");
+    fs::create_dir(&train).expect("test");
+    simulate(1, "120", None, &train.join("a.csv"));
+    simulate(2, "120", None, &train.join("b.csv"));
+    let img = d.join("bank.fogi");
+    let identify = |extra: &[&str], out: &Path| {
+        let mut c = host_sim();
+        c.args(["identify", "--preset", "motion", "--input"])
+            .arg(train.join("a.csv"))
+            .arg(train.join("b.csv"))
+            .args(["--level-update", "bank"])
+            .args(extra)
+            .arg("--save-identifier")
+            .arg(out);
+        c.assert()
+    };
+    identify(&["--bank-b-dph", "1.0", "--bank-tau-max-s", "1000"], &img).success();
+    let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("test");
+    assert_eq!(image.arrangement, fog_core::preset::Arrangement::Bank);
+    assert!((image.gauss_markov.sigma_dps * 3600.0 - 1.0).abs() < 1e-5);
+    assert_eq!(image.gauss_markov.tau_s, 1000.0);
+    let rec = d.join("rec.csv");
+    simulate(3, "60", None, &rec);
+    let out = d.join("out.csv");
+    let json = d.join("out.json");
+    host_sim()
+        .args(["replay", "--input"])
+        .arg(&rec)
+        .arg("--identifier")
+        .arg(&img)
+        .arg("--output")
+        .arg(&out)
+        .arg("--json")
+        .arg(&json)
+        .assert()
+        .success();
+    let r = rows(&out);
+    assert_eq!(
+        r.len(),
+        fs::read_to_string(&rec).expect("test").lines().count()
+    );
+    let mut still = 0;
+    for row in &r[1..] {
+        let rate: f32 = row[2].parse().expect("test");
+        let drift: f32 = row[4].parse().expect("test");
+        let comp: f32 = row[5].parse().expect("test");
+        assert_eq!(comp, rate - drift);
+        still += usize::from(row[6] == "1");
+    }
+    assert!(still > (r.len() - 1) * 8 / 10, "{still}");
+    let summary = fs::read_to_string(&json).expect("test");
+    assert!(summary.contains("\"level_update\": \"bank\""), "{summary}");
+    // Bad settings: one line naming the flag, no file.
+    for (extra, says) in [
+        (&["--bank-tau-max-s", "0.5"][..], "--bank-tau-max-s"),
+        (&["--bank-b-dph", "0"][..], "--bank-b-dph"),
+        (
+            &["--gm-sigma-dph", "2"][..],
+            "--level-update bank / bank-dual take",
+        ),
+    ] {
+        let bad = d.join("bad.fogi");
+        identify(extra, &bad)
+            .failure()
+            .stderr(predicates::str::contains(says));
+        assert!(!bad.exists());
+    }
+}
+
 #[test]
 fn external_still_flag_column() {
     let dir = tempfile::tempdir().expect("test");

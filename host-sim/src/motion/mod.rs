@@ -87,8 +87,11 @@ pub enum LevelUpdateArg {
     #[default]
     Dual,
     /// The level as the sensor's Allan noise model: random walk + one Gauss-Markov state
-    /// per decade of correlation time (fog_core::bank), per still sample with rollback.
+    /// per decade of correlation time (fog_core::bank), per still sample, in motion too.
     Bank,
+    /// The bank protected as the dual: rolled back when a window fails, and in motion a
+    /// second bank that only released windows reached.
+    BankDual,
 }
 
 impl LevelUpdateArg {
@@ -99,6 +102,7 @@ impl LevelUpdateArg {
             Self::Sample => Arrangement::Sample,
             Self::Dual => Arrangement::Dual,
             Self::Bank => Arrangement::Bank,
+            Self::BankDual => Arrangement::BankDual,
         }
     }
 }

@@ -113,7 +113,9 @@ impl GatedBank {
     fn update(&mut self, y: f64) {
         let n = self.n;
         // h = P 1 (H = all ones), s = 1' P 1 + r.
-        let h: Vec<f64> = (0..n).map(|i| self.p[i * n..(i + 1) * n].iter().sum()).collect();
+        let h: Vec<f64> = (0..n)
+            .map(|i| self.p[i * n..(i + 1) * n].iter().sum())
+            .collect();
         let s: f64 = h.iter().sum::<f64>() + self.cfg.r_dps2;
         if s.is_nan() || s <= 0.0 || !y.is_finite() {
             return;

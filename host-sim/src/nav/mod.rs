@@ -22,11 +22,11 @@ mod record;
 mod score;
 mod tune;
 
+pub use bank::{BankConfig, GatedBank};
 pub use baselines::{
     fit_thermal, AlignmentBias, DriftEstimator, GatedKalman, NoCompensation, TempRate, ThermalFit,
     ThermalKalman, ThermalKalmanConfig,
 };
-pub use bank::{BankConfig, GatedBank};
 pub use compare::{
     compare, table, BaselineConfig, Compared, Comparison, Precomputed, Row, NO_COMPENSATION,
 };
