@@ -101,7 +101,9 @@ pub struct LevelBank {
     a: [f32; BANK_STATES],
     aa: [f32; PACKED],
     q: [f32; BANK_STATES],
-    var_gm: f32,
+    // Stationary variance of each Gauss-Markov state ((deg/h)^2; 0 for the random walk and
+    // the unused states).
+    var: [f32; BANK_STATES],
     q_rw_dph2_per_sample: f32,
     dt_s: f32,
     p0_dph2: f32,
@@ -135,15 +137,21 @@ impl LevelBank {
         let mut a = [1.0f32; BANK_STATES];
         let mut q = [0.0f32; BANK_STATES];
         q[0] = q_rw_dph2_per_sample;
+        // Constant loop bounds (no index checks); states from `n` on are unused: a = 1,
+        // q = 0, stationary variance 0, so they stay 0.
+        let mut var = [0.0f32; BANK_STATES];
         let mut tau = 1.0f32;
-        for i in 1..n {
-            a[i] = crate::wnn::exp_anchor((-dt_s / tau).max(-87.0));
-            q[i] = var_gm * (1.0 - a[i] * a[i]);
+        for i in 1..BANK_STATES {
+            if i < n {
+                a[i] = crate::wnn::exp_anchor((-dt_s / tau).max(-87.0));
+                q[i] = var_gm * (1.0 - a[i] * a[i]);
+                var[i] = var_gm;
+            }
             tau *= 10.0;
         }
         let mut aa = [0.0f32; PACKED];
-        for i in 0..n {
-            for j in i..n {
+        for i in 0..BANK_STATES {
+            for j in i..BANK_STATES {
                 aa[row_start(i) + j - i] = a[i] * a[j];
             }
         }
@@ -154,7 +162,7 @@ impl LevelBank {
             a,
             aa,
             q,
-            var_gm,
+            var,
             q_rw_dph2_per_sample,
             dt_s,
             p0_dph2: bound_dph * bound_dph,
@@ -170,8 +178,8 @@ impl LevelBank {
     pub fn restart(&mut self) {
         self.s = ZERO;
         self.s.p[0] = self.p0_dph2;
-        for i in 1..self.n {
-            self.s.p[row_start(i)] = self.var_gm;
+        for i in 1..BANK_STATES {
+            self.s.p[row_start(i)] = self.var[i];
         }
         self.cp_now = self.s;
         self.cp_prev = self.s;
@@ -203,25 +211,26 @@ impl LevelBank {
         if k == 0 {
             return;
         }
-        let n = self.n;
+        // Constant loop bounds (no index checks); the unused states stay 0 (their
+        // stationary variance `var` is 0).
         let mut ak = [1.0f32; BANK_STATES];
         let mut tau = 1.0f32;
-        for v in ak.iter_mut().take(n).skip(1) {
+        for v in ak.iter_mut().skip(1) {
             *v = crate::wnn::exp_anchor((-(k as f32) * self.dt_s / tau).max(-87.0));
             tau *= 10.0;
         }
-        for i in 1..n {
+        for i in 1..BANK_STATES {
             self.s.x[i] *= ak[i];
         }
-        for i in 0..n {
+        for i in 0..BANK_STATES {
             let r = row_start(i);
-            for j in i..n {
+            for j in i..BANK_STATES {
                 self.s.p[r + j - i] *= ak[i] * ak[j];
             }
         }
         self.s.p[0] += self.q_rw_dph2_per_sample * k as f32;
-        for i in 1..n {
-            self.s.p[row_start(i)] += self.var_gm * (1.0 - ak[i] * ak[i]);
+        for i in 1..BANK_STATES {
+            self.s.p[row_start(i)] += self.var[i] * (1.0 - ak[i] * ak[i]);
         }
     }
 
