@@ -102,10 +102,21 @@ impl GaussMarkov {
 pub struct PresetEstimator {
     /// The only estimator (window or sample), or the dual's per-sample one.
     rest: MotionEstimator,
+    /// The dual's window estimator or the bank arrangements' levels, in one slot (the
+    /// larger of the two sizes, not their sum: the firmware's stack holds it).
+    second: SecondSlot,
+}
+
+/// What sits beside `rest`.
+#[derive(Debug, Clone)]
+#[allow(clippy::large_enum_variant)] // no heap: the slot is the point
+enum SecondSlot {
+    /// Window or sample: nothing.
+    None,
     /// The dual's window estimator.
-    hold: Option<MotionEstimator>,
-    /// The bank arrangement's level.
-    bank: Option<BankLevel>,
+    Hold(MotionEstimator),
+    /// [`Arrangement::Bank`] / [`Arrangement::BankDual`].
+    Bank(BankLevel),
 }
 
 /// [`Arrangement::Bank`]'s level and its window bookkeeping (as the per-sample estimator's).
@@ -137,8 +148,7 @@ impl PresetEstimator {
         // holds no extra copy of an estimator on its stack.
         let mut p = Self {
             rest: MotionEstimator::new(model, cfg)?,
-            hold: None,
-            bank: None,
+            second: SecondSlot::None,
         };
         let update = match arrangement {
             Arrangement::Window => LevelUpdate::Window,
@@ -163,7 +173,7 @@ impl PresetEstimator {
                 s.sample_rate_hz,
             )
             .ok_or(MotionError::BadBank)?;
-            p.bank = Some(BankLevel {
+            p.second = SecondSlot::Bank(BankLevel {
                 hold: level.clone(),
                 protect: arrangement == Arrangement::BankDual,
                 level,
@@ -176,7 +186,12 @@ impl PresetEstimator {
         }
         p.rest.set_gauss_markov(gm.sigma_dps, gm.tau_s);
         if arrangement == Arrangement::Dual {
-            let h = p.hold.insert(MotionEstimator::new(model, cfg)?);
+            p.second = SecondSlot::Hold(MotionEstimator::new(model, cfg)?);
+            // Set up in the slot (no move of a built estimator); the else is unreachable:
+            // the slot was just filled.
+            let SecondSlot::Hold(h) = &mut p.second else {
+                return Err(MotionError::BadStillConfig);
+            };
             h.set_level_update(LevelUpdate::Window);
             h.set_gauss_markov(gm.sigma_dps, gm.tau_s);
         }
@@ -197,27 +212,27 @@ impl PresetEstimator {
 
     /// Which arrangement this is.
     pub fn arrangement(&self) -> Arrangement {
-        if let Some(b) = &self.bank {
+        if let SecondSlot::Bank(b) = &self.second {
             return if b.protect {
                 Arrangement::BankDual
             } else {
                 Arrangement::Bank
             };
         }
-        match (&self.hold, self.rest.level_update()) {
-            (Some(_), _) => Arrangement::Dual,
-            (None, LevelUpdate::Window) => Arrangement::Window,
-            (None, LevelUpdate::Sample) => Arrangement::Sample,
+        match (&self.second, self.rest.level_update()) {
+            (SecondSlot::Hold(_), _) => Arrangement::Dual,
+            (_, LevelUpdate::Window) => Arrangement::Window,
+            (_, LevelUpdate::Sample) => Arrangement::Sample,
         }
     }
 
     /// Back to power-on (both estimators). Keeps the model.
     pub fn restart(&mut self) {
         self.rest.restart();
-        if let Some(h) = self.hold.as_mut() {
+        if let SecondSlot::Hold(h) = &mut self.second {
             h.restart();
         }
-        if let Some(b) = self.bank.as_mut() {
+        if let SecondSlot::Bank(b) = &mut self.second {
             b.level.restart();
             b.hold.restart();
             b.since_prev = 0;
@@ -237,7 +252,7 @@ impl PresetEstimator {
         temp_c: f32,
         external_still: Option<bool>,
     ) -> Result<MotionOutput, MotionError> {
-        if let Some(b) = self.bank.as_mut() {
+        if let SecondSlot::Bank(b) = &mut self.second {
             // Window start (the per-sample estimator checkpoints at the same samples).
             if b.protect
                 && self.rest.stats().samples.is_multiple_of(b.window)
@@ -295,13 +310,13 @@ impl PresetEstimator {
             Ok(v) => v,
             Err(e) => {
                 // Counted by both (the same check refuses it in both).
-                if let Some(h) = self.hold.as_mut() {
+                if let SecondSlot::Hold(h) = &mut self.second {
                     let _ = h.push(rate_dps, temp_c, external_still);
                 }
                 return Err(e);
             }
         };
-        let Some(h) = self.hold.as_mut() else {
+        let SecondSlot::Hold(h) = &mut self.second else {
             return Ok(o);
         };
         // The twin's inputs and model term (the same model, evaluated at the same window
@@ -335,7 +350,10 @@ impl PresetEstimator {
 
     /// The dual's window estimator (`None` unless [`Arrangement::Dual`]).
     pub fn hold(&self) -> Option<&MotionEstimator> {
-        self.hold.as_ref()
+        match &self.second {
+            SecondSlot::Hold(h) => Some(h),
+            _ => None,
+        }
     }
 }
 
@@ -567,7 +585,9 @@ mod tests {
         for k in 0..30_000usize {
             let (x, moving) = rate(k, 12.0, &mut z);
             let o = p.push(x, 25.0, None).expect("test");
-            let b = p.bank.as_ref().expect("bank");
+            let SecondSlot::Bank(b) = &p.second else {
+                panic!("bank")
+            };
             let level = if o.still { &b.level } else { &b.hold };
             let want = S.clamp_drift(level.estimate_dps() + o.model_dps);
             assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");

@@ -460,3 +460,82 @@ fn the_default_image_parses_and_says_how_it_was_made() {
         "identifier/README.md names the image's CRC-32 {crc:#010x}"
     );
 }
+
+/// The same damaged vehicle capture through a firmware built with a `bank` image (the default
+/// image's model and configuration, the level as the Allan noise model: arrangement byte 3,
+/// B 1.5 deg/h, states up to 10^4 s): every record bit-identical with the host's pipeline
+/// given the same image and with `PresetEstimator` from the parsed image; prints the stack
+/// high-water mark with that image.
+#[test]
+fn a_bank_image_runs_bit_for_bit() {
+    use fog_core::image::{Image, IMAGE_LEN};
+    use fog_core::preset::{Arrangement, GaussMarkov};
+    let Some(qemu) = qemu_system_arm() else {
+        return;
+    };
+    let bank = GaussMarkov {
+        sigma_dps: 1.5 / 3600.0,
+        tau_s: 10_000.0,
+    };
+    let image = Image::parse(&default_image())
+        .expect("default image")
+        .with_arrangement(Arrangement::Bank, bank);
+    let mut bytes = vec![0u8; IMAGE_LEN];
+    let n = image.to_bytes(&mut bytes).expect("image written");
+    bytes.truncate(n);
+    let dir = fog_system_tests::firmware_dir().join("target/bankimg");
+    std::fs::create_dir_all(&dir).expect("target/bankimg");
+    let path = dir.join("bank.fogi");
+    std::fs::write(&path, &bytes).expect("image file");
+    let elf = firmware_elf_in(
+        "target/bankimg",
+        &[],
+        &[("FOG_IDENTIFIER", path.as_os_str())],
+    );
+    let capture_dir = elf.with_file_name("hil-bank");
+    std::fs::create_dir_all(&capture_dir).expect("capture folder");
+    let (capture, _) = vehicle_capture(&capture_dir);
+    let stream = wire_stream(&capture, 0xBADB_17E5);
+    let expected = hil::host_reference_with(&stream, &bytes);
+    let log = elf.with_file_name("hil-bank-defmt.bin");
+    let (out, code) = run_qemu(&qemu, &elf, stream, &log);
+    let (records, stats) = parse_records(&out);
+    assert_eq!(code, Some(0), "QEMU's exit code (semihosting)");
+    let stats = stats.expect("final statistics record");
+    assert_eq!(
+        records.len(),
+        expected.samples.len(),
+        "one record per good frame"
+    );
+    let mut estimator = Image::parse(&bytes)
+        .expect("bank image")
+        .estimator()
+        .expect("estimator");
+    assert_eq!(estimator.arrangement(), Arrangement::Bank);
+    let mut still = 0;
+    for (k, (r, (_, _, status))) in records.iter().zip(&expected.samples).enumerate() {
+        assert_eq!(r.index as usize, k);
+        assert_eq!(
+            r.bits,
+            expected.bits(k),
+            "record {k} vs the host's pipeline"
+        );
+        assert_eq!(r.status, *status, "record {k}: status");
+        let m = estimator
+            .push(f32::from_bits(r.bits[0]), f32::NAN, expected.external[k])
+            .expect("finite rate");
+        assert_eq!(
+            [r.bits[1], r.bits[2]],
+            [m.drift_dps.to_bits(), m.compensated_dps.to_bits()],
+            "record {k}: drift, compensated vs PresetEstimator (bank)"
+        );
+        still += usize::from(m.still);
+    }
+    assert!(still > 500, "still samples: {still}");
+    assert_eq!(stats.counters, expected.stats.counters());
+    eprintln!(
+        "HIL bank image: {} records bit-identical, {still} still; stack high-water {} bytes",
+        records.len(),
+        stats.stack_bytes
+    );
+}
