@@ -94,17 +94,15 @@ const ZERO: State = State {
 /// multiply-adds to update.
 #[derive(Debug, Clone)]
 pub struct LevelBank {
-    n: usize,
     s: State,
     // Per-sample transition a_i, the products a_i a_j (packed), the process noise added to
-    // each diagonal entry per sample ((deg/h)^2), and per-second quantities for rollback.
+    // each diagonal entry per sample ((deg/h)^2; q[0] the random walk's).
     a: [f32; BANK_STATES],
     aa: [f32; PACKED],
     q: [f32; BANK_STATES],
     // Stationary variance of each Gauss-Markov state ((deg/h)^2; 0 for the random walk and
     // the unused states).
     var: [f32; BANK_STATES],
-    q_rw_dph2_per_sample: f32,
     dt_s: f32,
     p0_dph2: f32,
     r_dph2: f32,
@@ -157,13 +155,11 @@ impl LevelBank {
         }
         let bound_dph = bound_dps * DPH_PER_DPS;
         let mut f = Self {
-            n,
             s: ZERO,
             a,
             aa,
             q,
             var,
-            q_rw_dph2_per_sample,
             dt_s,
             p0_dph2: bound_dph * bound_dph,
             r_dph2: sample_var_dps2 * DPH_PER_DPS * DPH_PER_DPS,
@@ -185,15 +181,10 @@ impl LevelBank {
         self.cp_prev = self.s;
     }
 
-    /// Number of states (random walk + Gauss-Markov).
-    pub fn states(&self) -> usize {
-        self.n
-    }
-
     /// One sample's prediction.
     #[inline]
     pub fn predict(&mut self) {
-        // All BANK_STATES states, the unused ones at 0 (a = 0, q = 0): constant loop bounds
+        // All BANK_STATES states, the unused ones at 0 (a = 1, q = 0): constant loop bounds
         // (unrolled, no index checks) and the same values as over the used states alone.
         for i in 1..BANK_STATES {
             self.s.x[i] *= self.a[i];
@@ -228,7 +219,8 @@ impl LevelBank {
                 self.s.p[r + j - i] *= ak[i] * ak[j];
             }
         }
-        self.s.p[0] += self.q_rw_dph2_per_sample * k as f32;
+        // q[0]: the random walk's growth per sample.
+        self.s.p[0] += self.q[0] * k as f32;
         for i in 1..BANK_STATES {
             self.s.p[row_start(i)] += self.var[i] * (1.0 - ak[i] * ak[i]);
         }
@@ -248,11 +240,6 @@ impl LevelBank {
         }
         let total = h.iter().sum();
         (h, total)
-    }
-
-    /// The innovation variance of a sample `z` = drift + white noise, (deg/h)^2.
-    pub fn innovation_var_dph2(&self) -> f32 {
-        self.row_sums().1 + self.r_dph2
     }
 
     /// Kalman update with one still sample `z_dps` (= rate - model), white noise of the

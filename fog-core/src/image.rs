@@ -524,12 +524,7 @@ impl Image {
                 tau_s: r.f32()?,
             };
             let bank_ok = !matches!(arrangement, Arrangement::Bank | Arrangement::BankDual)
-                || crate::bank::BankConfig {
-                    q_rw_dps2_per_s: config.level_q_dps2_per_s,
-                    b_dps: gm.sigma_dps,
-                    tau_max_s: gm.tau_s,
-                }
-                .is_valid();
+                || gm.bank(config.level_q_dps2_per_s).is_valid();
             if !gm.is_valid() || !bank_ok {
                 return Err(ImageError::BadValue {
                     offset: ARRANGEMENT_AT + 4,

@@ -319,10 +319,8 @@ pub struct MotionEstimator {
     since_now: u32,
     // Per-sample mode: a sample of this window was beyond the fast gate.
     halted: bool,
-    // The last push ended a detector window that failed (what rolled the level back).
-    window_failed: bool,
-    // The last push ended a detector window.
-    window_ended: bool,
+    // The verdict of the detector window the last push ended (`Some(passed)`), if any.
+    last_window: Option<bool>,
     // The window mean the last push released, minus its model term (deg/s).
     released_z: Option<f32>,
     stats: MotionStats,
@@ -405,8 +403,7 @@ impl MotionEstimator {
             since_prev: 0,
             since_now: 0,
             halted: false,
-            window_failed: false,
-            window_ended: false,
+            last_window: None,
             released_z: None,
             stats: MotionStats::default(),
         };
@@ -435,8 +432,7 @@ impl MotionEstimator {
         self.since_prev = 0;
         self.since_now = 0;
         self.halted = false;
-        self.window_failed = false;
-        self.window_ended = false;
+        self.last_window = None;
         self.released_z = None;
         self.stats = MotionStats::default();
     }
@@ -668,8 +664,7 @@ impl MotionEstimator {
             .still
             .push(rate_dps, drift, self.drift_var(), external_still);
         let mut still = s.still;
-        self.window_failed = s.window.is_some_and(|w| !w.passed);
-        self.window_ended = s.window.is_some();
+        self.last_window = s.window.map(|w| w.passed);
         self.released_z = None;
         if self.update == LevelUpdate::Sample {
             still = self.sample_step(rate_dps, still, external_still.is_none());
@@ -810,7 +805,7 @@ impl MotionEstimator {
 
     /// The last [`MotionEstimator::push`] ended a detector window that failed.
     pub fn window_failed(&self) -> bool {
-        self.window_failed
+        self.last_window == Some(false)
     }
 
     /// Samples per detector window.
@@ -820,7 +815,7 @@ impl MotionEstimator {
 
     /// The last [`MotionEstimator::push`] ended a detector window.
     pub fn window_ended(&self) -> bool {
-        self.window_ended
+        self.last_window.is_some()
     }
 
     /// The window mean the last [`MotionEstimator::push`] released (still, and the window

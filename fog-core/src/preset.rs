@@ -86,6 +86,17 @@ impl GaussMarkov {
         tau_s: 0.0,
     };
 
+    /// The bank these fields carry in [`Arrangement::Bank`] / [`Arrangement::BankDual`]:
+    /// `B` = sigma, longest correlation time = tau, random walk `q_rw_dps2_per_s` (the
+    /// level's).
+    pub const fn bank(&self, q_rw_dps2_per_s: f32) -> BankConfig {
+        BankConfig {
+            q_rw_dps2_per_s,
+            b_dps: self.sigma_dps,
+            tau_max_s: self.tau_s,
+        }
+    }
+
     /// Off, or a finite sigma > 0 with a finite tau > 0.
     pub fn is_valid(&self) -> bool {
         (self.sigma_dps == 0.0 && self.tau_s == 0.0)
@@ -160,14 +171,9 @@ impl PresetEstimator {
         if matches!(arrangement, Arrangement::Bank | Arrangement::BankDual) {
             // The per-sample estimator (random-walk level, no Gauss-Markov state) is the
             // detector's drift reference; the bank is the output's level.
-            let bank = BankConfig {
-                q_rw_dps2_per_s: cfg.level_q_dps2_per_s,
-                b_dps: gm.sigma_dps,
-                tau_max_s: gm.tau_s,
-            };
             let s = &cfg.sensor;
             let level = LevelBank::new(
-                bank,
+                gm.bank(cfg.level_q_dps2_per_s),
                 s.drift_bound_dps,
                 s.sample_var_dps2(),
                 s.sample_rate_hz,
@@ -212,14 +218,9 @@ impl PresetEstimator {
 
     /// Which arrangement this is.
     pub fn arrangement(&self) -> Arrangement {
-        if let SecondSlot::Bank(b) = &self.second {
-            return if b.protect {
-                Arrangement::BankDual
-            } else {
-                Arrangement::Bank
-            };
-        }
         match (&self.second, self.rest.level_update()) {
+            (SecondSlot::Bank(b), _) if b.protect => Arrangement::BankDual,
+            (SecondSlot::Bank(_), _) => Arrangement::Bank,
             (SecondSlot::Hold(_), _) => Arrangement::Dual,
             (_, LevelUpdate::Window) => Arrangement::Window,
             (_, LevelUpdate::Sample) => Arrangement::Sample,
@@ -229,15 +230,16 @@ impl PresetEstimator {
     /// Back to power-on (both estimators). Keeps the model.
     pub fn restart(&mut self) {
         self.rest.restart();
-        if let SecondSlot::Hold(h) = &mut self.second {
-            h.restart();
-        }
-        if let SecondSlot::Bank(b) = &mut self.second {
-            b.level.restart();
-            b.hold.restart();
-            b.since_prev = 0;
-            b.since_now = 0;
-            b.external = false;
+        match &mut self.second {
+            SecondSlot::None => {}
+            SecondSlot::Hold(h) => h.restart(),
+            SecondSlot::Bank(b) => {
+                b.level.restart();
+                b.hold.restart();
+                b.since_prev = 0;
+                b.since_now = 0;
+                b.external = false;
+            }
         }
     }
 
@@ -456,9 +458,17 @@ mod tests {
 
     #[test]
     fn dual_rotation_in_motion_never_moves_the_estimate() {
-        // With the still flags given (as the motion module's tests do): identical outputs,
-        // bit for bit, with and without turns of 20 deg/s in the drives.
-        let (mut a, mut b) = (make(Arrangement::Dual, GM), make(Arrangement::Dual, GM));
+        assert_rotation_ignored(Arrangement::Dual, GM);
+    }
+
+    /// With the still flags given (as the motion module's tests do): identical outputs, bit
+    /// for bit, with and without turns of 20 deg/s in the drives. With its own detectors:
+    /// bounded, never still in motion (the output there learns only from released still
+    /// windows, or from still calls), and at rest (from 10 s into each stop) within
+    /// 1.5 deg/h RMS of the wandering bias (the untrained model: the level does it all); a
+    /// non-finite rate refused and counted.
+    fn assert_rotation_ignored(arrangement: Arrangement, gm: GaussMarkov) {
+        let (mut a, mut b) = (make(arrangement, gm), make(arrangement, gm));
         let mut z = Noise(17);
         for k in 0..40_000usize {
             let (x, moving) = rate(k, 0.0, &mut z);
@@ -467,9 +477,7 @@ mod tests {
             let ob = b.push(x + turn, f32::NAN, Some(!moving)).expect("test");
             assert_eq!(oa.drift_dps.to_bits(), ob.drift_dps.to_bits(), "{k}");
         }
-        // With its own detectors: bounded, and at rest (from 10 s into each stop) within
-        // 1.5 deg/h RMS of the wandering bias (the untrained model: the level does it all).
-        let mut d = make(Arrangement::Dual, GM);
+        let mut d = make(arrangement, gm);
         let mut z = Noise(5);
         let (mut e2, mut n) = (0.0f64, 0u32);
         for k in 0..60_000usize {
@@ -483,13 +491,13 @@ mod tests {
                 n += 1;
             }
             if moving {
-                // In motion the output is the window estimator's, which learns only from
-                // released still windows.
-                assert!(!o.still, "{k}");
+                assert!(!o.still, "{arrangement:?} {k}");
             }
         }
         let rms_dph = (e2 / f64::from(n)).sqrt();
-        assert!(rms_dph < 1.5, "{rms_dph}");
+        assert!(rms_dph < 1.5, "{arrangement:?} {rms_dph}");
+        assert!(d.push(f32::NAN, 0.0, None).is_err());
+        assert_eq!(d.stats().rejected, 1);
     }
 
     #[test]
@@ -539,11 +547,7 @@ mod tests {
         let cfg = MotionConfig::for_sensor(S);
         let mut p = PresetEstimator::new(model, cfg, Arrangement::BankDual, BANK).expect("test");
         assert_eq!(p.arrangement(), Arrangement::BankDual);
-        let bank = BankConfig {
-            q_rw_dps2_per_s: cfg.level_q_dps2_per_s,
-            b_dps: BANK.sigma_dps,
-            tau_max_s: BANK.tau_s,
-        };
+        let bank = BANK.bank(cfg.level_q_dps2_per_s);
         let mut r =
             LevelBank::new(bank, S.drift_bound_dps, S.sample_var_dps2(), 100.0).expect("test");
         let mut z = Noise(11);
@@ -609,40 +613,8 @@ mod tests {
 
     #[test]
     fn bank_rotation_in_motion_never_moves_the_estimate() {
-        // Given flags: bit-identical with and without 20 deg/s turns. Own detector: bounded
-        // and within 1.5 deg/h RMS of the wandering bias at rest.
         for arrangement in [Arrangement::Bank, Arrangement::BankDual] {
-            bank_ignores_rotation(arrangement);
+            assert_rotation_ignored(arrangement, BANK);
         }
-    }
-
-    fn bank_ignores_rotation(arrangement: Arrangement) {
-        let (mut a, mut b) = (make(arrangement, BANK), make(arrangement, BANK));
-        let mut z = Noise(17);
-        for k in 0..40_000usize {
-            let (x, moving) = rate(k, 0.0, &mut z);
-            let turn = if moving { 20.0 } else { 0.0 };
-            let oa = a.push(x, f32::NAN, Some(!moving)).expect("test");
-            let ob = b.push(x + turn, f32::NAN, Some(!moving)).expect("test");
-            assert_eq!(oa.drift_dps.to_bits(), ob.drift_dps.to_bits(), "{k}");
-        }
-        let mut d = make(arrangement, BANK);
-        let mut z = Noise(5);
-        let (mut e2, mut n) = (0.0f64, 0u32);
-        for k in 0..60_000usize {
-            let (x, moving) = rate(k, 10.0, &mut z);
-            let o = d.push(x, f32::NAN, None).expect("test");
-            assert!(o.drift_dps.abs() <= S.drift_bound_dps);
-            let t = k as f32 * 0.01;
-            let bias = (3.0 + 1.5 * (t / 40.0).sin()) / 3600.0;
-            if !moving && k % 3000 > 1000 && k > 5000 {
-                e2 += f64::from((o.drift_dps - bias) * 3600.0).powi(2);
-                n += 1;
-            }
-        }
-        let rms_dph = (e2 / f64::from(n)).sqrt();
-        assert!(rms_dph < 1.5, "{rms_dph}");
-        assert!(d.push(f32::NAN, 0.0, None).is_err());
-        assert_eq!(d.stats().rejected, 1);
     }
 }

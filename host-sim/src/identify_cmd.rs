@@ -300,12 +300,7 @@ fn run_motion(a: &Args) -> Result<()> {
             sigma_dps: a.bank_b_dph.unwrap_or(motion::BANK_B_DPH) / 3600.0,
             tau_s: a.bank_tau_max_s.unwrap_or(motion::BANK_TAU_MAX_S),
         };
-        let bank = fog_core::bank::BankConfig {
-            q_rw_dps2_per_s: o.config.level_q_dps2_per_s,
-            b_dps: o.gauss_markov.sigma_dps,
-            tau_max_s: o.gauss_markov.tau_s,
-        };
-        if !bank.is_valid() {
+        if !o.gauss_markov.bank(o.config.level_q_dps2_per_s).is_valid() {
             anyhow::bail!(
                 "--bank-b-dph {} --bank-tau-max-s {}: B must be > 0 and the longest tau 1 to 10000 s",
                 o.gauss_markov.sigma_dps * 3600.0,
