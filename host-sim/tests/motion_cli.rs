@@ -28,24 +28,66 @@ fn simulate(seed: u64, duration_s: &str, rate_hz: Option<&str>, out: &Path) {
     c.assert().success();
 }
 
-/// Two short static records, a trained image, and a record to replay.
-fn setup(d: &Path) -> (PathBuf, PathBuf) {
+/// Two short static records (seeds 1 and 2, 120 s) in `d/train`.
+fn train_dir(d: &Path) -> PathBuf {
     let train = d.join("train");
     fs::create_dir(&train).expect("test");
     simulate(1, "120", None, &train.join("a.csv"));
     simulate(2, "120", None, &train.join("b.csv"));
-    let img = d.join("m.fogi");
+    train
+}
+
+/// `identify --preset motion` on the records of [`train_dir`], `extra` arguments, image `out`.
+fn identify(train: &Path, extra: &[&str], out: &Path) -> assert_cmd::assert::Assert {
     host_sim()
         .args(["identify", "--preset", "motion", "--input"])
         .arg(train.join("a.csv"))
         .arg(train.join("b.csv"))
+        .args(extra)
         .arg("--save-identifier")
-        .arg(&img)
+        .arg(out)
         .assert()
-        .success();
+}
+
+/// Two short static records, a trained image, and a record to replay.
+fn setup(d: &Path) -> (PathBuf, PathBuf) {
+    let train = train_dir(d);
+    let img = d.join("m.fogi");
+    identify(&train, &[], &img).success();
     let rec = d.join("rec.csv");
     simulate(3, "60", None, &rec);
     (img, rec)
+}
+
+/// `replay --input rec --identifier img --output out [--json json]`; checks the header, one
+/// row per input row, compensated = rate - drift and the drift bound; returns the rows and
+/// the still rows.
+fn replay_checked(img: &Path, rec: &Path, out: &Path, json: Option<&Path>) -> (usize, usize) {
+    let mut c = host_sim();
+    c.args(["replay", "--input"])
+        .arg(rec)
+        .arg("--identifier")
+        .arg(img)
+        .arg("--output")
+        .arg(out);
+    if let Some(j) = json {
+        c.arg("--json").arg(j);
+    }
+    c.assert().success();
+    let r = rows(out);
+    assert_eq!(r[0].join(","), host_sim::motion::OUTPUT_HEADER);
+    let input = fs::read_to_string(rec).expect("test");
+    assert_eq!(r.len(), input.lines().count(), "one row per input row");
+    let mut still = 0;
+    for row in &r[1..] {
+        let rate: f32 = row[2].parse().expect("test");
+        let drift: f32 = row[4].parse().expect("test");
+        let comp: f32 = row[5].parse().expect("test");
+        assert_eq!(comp, rate - drift);
+        assert!(drift.abs() <= fog_core::still::SensorConfig::ECORE_2000.drift_bound_dps);
+        still += usize::from(row[6] == "1");
+    }
+    (r.len() - 1, still)
 }
 
 fn rows(p: &Path) -> Vec<Vec<String>> {
@@ -64,31 +106,9 @@ fn train_save_and_replay() {
         fs::metadata(&img).expect("test").len(),
         fog_core::image::IMAGE_LEN as u64
     );
-    let out = dir.path().join("out.csv");
-    host_sim()
-        .args(["replay", "--input"])
-        .arg(&rec)
-        .arg("--identifier")
-        .arg(&img)
-        .arg("--output")
-        .arg(&out)
-        .assert()
-        .success();
-    let r = rows(&out);
-    assert_eq!(r[0].join(","), host_sim::motion::OUTPUT_HEADER);
-    let input = fs::read_to_string(&rec).expect("test");
-    assert_eq!(r.len(), input.lines().count(), "one row per input row");
-    let mut still = 0;
-    for row in &r[1..] {
-        let rate: f32 = row[2].parse().expect("test");
-        let drift: f32 = row[4].parse().expect("test");
-        let comp: f32 = row[5].parse().expect("test");
-        assert_eq!(comp, rate - drift);
-        assert!(drift.abs() <= fog_core::still::SensorConfig::ECORE_2000.drift_bound_dps);
-        still += usize::from(row[6] == "1");
-    }
+    let (n, still) = replay_checked(&img, &rec, &dir.path().join("out.csv"), None);
     // A static record: still after the first few seconds.
-    assert!(still > (r.len() - 1) * 8 / 10, "{still}");
+    assert!(still > n * 8 / 10, "{still}");
 }
 
 /// `--level-update bank` saves an image whose level is the Allan noise model; `replay`
@@ -98,56 +118,23 @@ fn train_save_and_replay() {
 fn bank_level_is_saved_and_replayed() {
     let dir = tempfile::tempdir().expect("test");
     let d = dir.path();
-    let train = d.join("train");
-    fs::create_dir(&train).expect("test");
-    simulate(1, "120", None, &train.join("a.csv"));
-    simulate(2, "120", None, &train.join("b.csv"));
+    let train = train_dir(d);
     let img = d.join("bank.fogi");
-    let identify = |extra: &[&str], out: &Path| {
-        let mut c = host_sim();
-        c.args(["identify", "--preset", "motion", "--input"])
-            .arg(train.join("a.csv"))
-            .arg(train.join("b.csv"))
-            .args(["--level-update", "bank"])
-            .args(extra)
-            .arg("--save-identifier")
-            .arg(out);
-        c.assert()
+    let bank = |extra: &[&str], out: &Path| {
+        let mut args = vec!["--level-update", "bank"];
+        args.extend_from_slice(extra);
+        identify(&train, &args, out)
     };
-    identify(&["--bank-b-dph", "1.0", "--bank-tau-max-s", "1000"], &img).success();
+    bank(&["--bank-b-dph", "1.0", "--bank-tau-max-s", "1000"], &img).success();
     let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("test");
     assert_eq!(image.arrangement, fog_core::preset::Arrangement::Bank);
     assert!((image.gauss_markov.sigma_dps * 3600.0 - 1.0).abs() < 1e-5);
     assert_eq!(image.gauss_markov.tau_s, 1000.0);
     let rec = d.join("rec.csv");
     simulate(3, "60", None, &rec);
-    let out = d.join("out.csv");
     let json = d.join("out.json");
-    host_sim()
-        .args(["replay", "--input"])
-        .arg(&rec)
-        .arg("--identifier")
-        .arg(&img)
-        .arg("--output")
-        .arg(&out)
-        .arg("--json")
-        .arg(&json)
-        .assert()
-        .success();
-    let r = rows(&out);
-    assert_eq!(
-        r.len(),
-        fs::read_to_string(&rec).expect("test").lines().count()
-    );
-    let mut still = 0;
-    for row in &r[1..] {
-        let rate: f32 = row[2].parse().expect("test");
-        let drift: f32 = row[4].parse().expect("test");
-        let comp: f32 = row[5].parse().expect("test");
-        assert_eq!(comp, rate - drift);
-        still += usize::from(row[6] == "1");
-    }
-    assert!(still > (r.len() - 1) * 8 / 10, "{still}");
+    let (n, still) = replay_checked(&img, &rec, &d.join("out.csv"), Some(&json));
+    assert!(still > n * 8 / 10, "{still}");
     let summary = fs::read_to_string(&json).expect("test");
     assert!(summary.contains("\"level_update\": \"bank\""), "{summary}");
     // Bad settings: one line naming the flag, no file.
@@ -160,7 +147,7 @@ fn bank_level_is_saved_and_replayed() {
         ),
     ] {
         let bad = d.join("bad.fogi");
-        identify(extra, &bad)
+        bank(extra, &bad)
             .failure()
             .stderr(predicates::str::contains(says));
         assert!(!bad.exists());
