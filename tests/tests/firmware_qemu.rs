@@ -174,24 +174,7 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
 
     // A second reference, fog-core called directly (not through pipeline.rs): the estimator
     // from the parsed image, and the paper's denoiser on the first block.
-    let image = fog_core::image::Image::parse(&default_image()).expect("default image");
-    let mut estimator = image.estimator().expect("estimator");
-    for (k, r) in records.iter().enumerate() {
-        let rate_dps = f32::from_bits(r.bits[0]);
-        let m = estimator
-            .push(rate_dps, f32::NAN, expected.external[k])
-            .expect("finite rate");
-        assert_eq!(
-            [r.bits[1], r.bits[2]],
-            [m.drift_dps.to_bits(), m.compensated_dps.to_bits()],
-            "record {k}: drift, compensated vs PresetEstimator"
-        );
-        assert_eq!(
-            r.status & pipeline::STATUS_STILL != 0,
-            m.still,
-            "record {k}: still"
-        );
-    }
+    matches_preset_estimator(&records, &expected, &default_image());
     let mut block: Vec<f32> = records[..pipeline::BLOCK]
         .iter()
         .map(|r| f32::from_bits(r.bits[0]))
@@ -317,6 +300,38 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
         t0.elapsed() - built < Duration::from_secs(60),
         "HIL test too slow"
     );
+}
+
+/// A second reference, fog-core called directly (not through pipeline.rs): the estimator
+/// from the parsed `image` gives each record's drift and compensated rate (same bits) and
+/// still flag. Returns the still records.
+fn matches_preset_estimator(
+    records: &[hil::SampleRecord],
+    expected: &hil::Expected,
+    image: &[u8],
+) -> usize {
+    let image = fog_core::image::Image::parse(image).expect("image");
+    let mut estimator = image.estimator().expect("estimator");
+    let mut still = 0;
+    for (k, r) in records.iter().enumerate() {
+        let rate_dps = f32::from_bits(r.bits[0]);
+        let m = estimator
+            .push(rate_dps, f32::NAN, expected.external[k])
+            .expect("finite rate");
+        assert_eq!(
+            [r.bits[1], r.bits[2]],
+            [m.drift_dps.to_bits(), m.compensated_dps.to_bits()],
+            "record {k}: drift, compensated vs PresetEstimator ({:?})",
+            image.arrangement
+        );
+        assert_eq!(
+            r.status & pipeline::STATUS_STILL != 0,
+            m.still,
+            "record {k}: still"
+        );
+        still += usize::from(m.still);
+    }
+    still
 }
 
 /// Builds the firmware with `image` embedded (`FOG_IDENTIFIER`, into `target/badimg`), runs
@@ -507,12 +522,11 @@ fn a_bank_image_runs_bit_for_bit() {
         expected.samples.len(),
         "one record per good frame"
     );
-    let mut estimator = Image::parse(&bytes)
+    let estimator = Image::parse(&bytes)
         .expect("bank image")
         .estimator()
         .expect("estimator");
     assert_eq!(estimator.arrangement(), Arrangement::Bank);
-    let mut still = 0;
     for (k, (r, (_, _, status))) in records.iter().zip(&expected.samples).enumerate() {
         assert_eq!(r.index as usize, k);
         assert_eq!(
@@ -521,16 +535,8 @@ fn a_bank_image_runs_bit_for_bit() {
             "record {k} vs the host's pipeline"
         );
         assert_eq!(r.status, *status, "record {k}: status");
-        let m = estimator
-            .push(f32::from_bits(r.bits[0]), f32::NAN, expected.external[k])
-            .expect("finite rate");
-        assert_eq!(
-            [r.bits[1], r.bits[2]],
-            [m.drift_dps.to_bits(), m.compensated_dps.to_bits()],
-            "record {k}: drift, compensated vs PresetEstimator (bank)"
-        );
-        still += usize::from(m.still);
     }
+    let still = matches_preset_estimator(&records, &expected, &bytes);
     assert!(still > 500, "still samples: {still}");
     assert_eq!(stats.counters, expected.stats.counters());
     eprintln!(

@@ -1,7 +1,7 @@
 //! Stillness-gated Kalman filter whose drift model is the sensor's Allan specification:
 //! a random walk (rate random walk `K`) plus a bank of first-order Gauss-Markov states that
-//! approximates flicker (bias instability `B`), white noise `N` per sample. No parameter is
-//! tuned on records: all come from the noise specification. The f64 counterpart of
+//! approximates flicker (bias instability `B`), white noise `N` per sample. The parameters
+//! are the noise specification's, or tuned by the caller. The f64 counterpart of
 //! `fog_core::bank`, the ablation row of `nav_baselines --flags --bank`.
 
 // Matrix code: `p[i * n + j]` with the same `i`, `j` in several arrays reads as the algebra.
