@@ -7,6 +7,7 @@
 // Matrix code: `p[i * n + j]` with the same `i`, `j` in several arrays reads as the algebra.
 #![allow(clippy::needless_range_loop)]
 
+use super::baselines::Gated;
 use super::DriftEstimator;
 
 /// Flicker of two-sided PSD `B^2 / (2 pi f)` as a sum of Gauss-Markov states, one per
@@ -142,14 +143,21 @@ impl DriftEstimator for GatedBank {
         format!("gated RW+flicker bank ({} GM)", self.n - 1)
     }
     fn push(&mut self, t_s: f64, rate_dps: f64, _: Option<f64>, still: bool) -> f64 {
-        if let Some(t0) = self.last_t_s {
-            self.predict(t_s - t0);
-        }
-        self.last_t_s = Some(t_s);
-        let est = self.estimate();
-        if still && rate_dps.is_finite() {
-            self.update(rate_dps);
-        }
-        est
+        self.gated_push(t_s, rate_dps, still)
+    }
+}
+
+impl Gated for GatedBank {
+    fn last_t_s(&mut self) -> &mut Option<f64> {
+        &mut self.last_t_s
+    }
+    fn predict_s(&mut self, dt_s: f64) {
+        self.predict(dt_s);
+    }
+    fn update_still(&mut self, rate_dps: f64) {
+        self.update(rate_dps);
+    }
+    fn drift_dps(&self) -> f64 {
+        self.estimate()
     }
 }

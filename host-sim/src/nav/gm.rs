@@ -2,6 +2,7 @@
 //! Gauss-Markov state (bias instability), the reference model for the level of the motion
 //! preset, in f64.
 
+use super::baselines::Gated;
 use super::DriftEstimator;
 
 /// Parameters of [`GatedRwGm`].
@@ -110,14 +111,21 @@ impl DriftEstimator for GatedRwGm {
         )
     }
     fn push(&mut self, t_s: f64, rate_dps: f64, _: Option<f64>, still: bool) -> f64 {
-        if let Some(t0) = self.last_t_s {
-            self.predict(t_s - t0);
-        }
-        self.last_t_s = Some(t_s);
-        let est = self.estimate();
-        if still && rate_dps.is_finite() {
-            self.update(rate_dps, self.cfg.r_dps2);
-        }
-        est
+        self.gated_push(t_s, rate_dps, still)
+    }
+}
+
+impl Gated for GatedRwGm {
+    fn last_t_s(&mut self) -> &mut Option<f64> {
+        &mut self.last_t_s
+    }
+    fn predict_s(&mut self, dt_s: f64) {
+        self.predict(dt_s);
+    }
+    fn update_still(&mut self, rate_dps: f64) {
+        self.update(rate_dps, self.cfg.r_dps2);
+    }
+    fn drift_dps(&self) -> f64 {
+        self.estimate()
     }
 }
