@@ -294,6 +294,15 @@ impl LevelBank {
         self.cp_prev = self.s;
     }
 
+    /// A window failed: back to the checkpoint at its start, predicted over the `samples`
+    /// since it; both checkpoints become that state (the windows before it stay).
+    pub fn rollback_window(&mut self, samples: u32) {
+        self.s = self.cp_now;
+        self.predict_many(samples);
+        self.cp_now = self.s;
+        self.cp_prev = self.s;
+    }
+
     fn estimate_dph(&self) -> f32 {
         self.s.x.iter().sum()
     }

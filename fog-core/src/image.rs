@@ -20,7 +20,7 @@
 //! | 468 | 4 x f32 + 4 | trainer (DRLS): lambda, u0, u_max, w_max, mode (0 parallel, 1 sequential), form (0 gain, 1 energy), 0, 0 |
 //! | 488 | L x f32 | trainer state (`U` or `S` per weight) |
 //! | 552 | u32 | records trained on (passes included) |
-//! | 556 | 1+3 | level arrangement ([`Arrangement`]: 0 window, 1 sample, 2 dual, 3 bank, 4 bank-dual), 0, 0, 0 |
+//! | 556 | 1+3 | level arrangement ([`Arrangement`]: 0 window, 1 sample, 2 dual, 3 bank, 4 bank-dual, 5 bank-guarded), 0, 0, 0 |
 //! | 560 | 2 x f32 | Gauss-Markov state: sigma deg/s (0 = off), tau s (0 when off); bank (3, 4): its `B` deg/s (> 0) and longest correlation time s (1 to 10^4) |
 //! | 568 | u32 | CRC-32/ISO-HDLC of bytes 0..568 |
 //!
@@ -523,8 +523,7 @@ impl Image {
                 sigma_dps: r.f32()?,
                 tau_s: r.f32()?,
             };
-            let bank_ok = !matches!(arrangement, Arrangement::Bank | Arrangement::BankDual)
-                || gm.bank(config.level_q_dps2_per_s).is_valid();
+            let bank_ok = !arrangement.is_bank() || gm.bank(config.level_q_dps2_per_s).is_valid();
             if !gm.is_valid() || !bank_ok {
                 return Err(ImageError::BadValue {
                     offset: ARRANGEMENT_AT + 4,
@@ -744,7 +743,7 @@ mod tests {
         // An unknown arrangement, a NaN and a negative Gauss-Markov value behind a valid
         // checksum.
         for (at, v, want) in [
-            (ARRANGEMENT_AT, [5u8, 0, 0, 0], ARRANGEMENT_AT),
+            (ARRANGEMENT_AT, [6u8, 0, 0, 0], ARRANGEMENT_AT),
             (560, f32::NAN.to_le_bytes(), 560),
             (564, (-1.0f32).to_le_bytes(), 560),
             (560, 0.0f32.to_le_bytes(), 560),
@@ -759,22 +758,25 @@ mod tests {
                 "{at}"
             );
         }
-        // The bank (3) with a longest correlation time below 1 s.
-        let mut c = b;
-        c[ARRANGEMENT_AT] = 3;
-        c[564..568].copy_from_slice(&0.5f32.to_le_bytes());
-        let crc = crc32(&c[..CRC_AT]);
-        c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
-        assert_eq!(Image::parse(&c), Err(ImageError::BadValue { offset: 560 }));
-        c[564..568].copy_from_slice(&1000.0f32.to_le_bytes());
-        let crc = crc32(&c[..CRC_AT]);
-        c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
-        let bank = Image::parse(&c).expect("a valid bank image");
-        assert_eq!(bank.arrangement, Arrangement::Bank);
-        assert_eq!(
-            bank.estimator().map(|e| e.arrangement()),
-            Ok(Arrangement::Bank)
-        );
+        // Each bank arrangement with a longest correlation time below 1 s, then valid.
+        for a in [
+            Arrangement::Bank,
+            Arrangement::BankDual,
+            Arrangement::BankGuarded,
+        ] {
+            let mut c = b;
+            c[ARRANGEMENT_AT] = a.to_byte();
+            c[564..568].copy_from_slice(&0.5f32.to_le_bytes());
+            let crc = crc32(&c[..CRC_AT]);
+            c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+            assert_eq!(Image::parse(&c), Err(ImageError::BadValue { offset: 560 }));
+            c[564..568].copy_from_slice(&1000.0f32.to_le_bytes());
+            let crc = crc32(&c[..CRC_AT]);
+            c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+            let bank = Image::parse(&c).expect("a valid bank image");
+            assert_eq!(bank.arrangement, a);
+            assert_eq!(bank.estimator().map(|e| e.arrangement()), Ok(a));
+        }
     }
 
     proptest! {

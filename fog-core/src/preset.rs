@@ -41,10 +41,16 @@ pub enum Arrangement {
     /// estimator flags moving the output is a second bank that only released window means
     /// reached (one window late). With an external still flag both are the plain bank.
     BankDual,
+    /// [`Arrangement::Bank`] guarded by the window test alone: when the detector fails a
+    /// window, the bank goes back to that window's start (its samples come out; the
+    /// windows before it stay), and the bank is the output at rest and in motion. Less
+    /// protection than [`Arrangement::BankDual`] (the window before a failed one is kept),
+    /// less still data lost at each stop. With an external still flag, the plain bank.
+    BankGuarded,
 }
 
 impl Arrangement {
-    /// The image's byte: 0 window, 1 sample, 2 dual.
+    /// The image's byte: 0 window, 1 sample, 2 dual, 3 bank, 4 bank-dual, 5 bank-guarded.
     pub const fn to_byte(self) -> u8 {
         match self {
             Self::Window => 0,
@@ -52,6 +58,7 @@ impl Arrangement {
             Self::Dual => 2,
             Self::Bank => 3,
             Self::BankDual => 4,
+            Self::BankGuarded => 5,
         }
     }
 
@@ -63,8 +70,14 @@ impl Arrangement {
             2 => Some(Self::Dual),
             3 => Some(Self::Bank),
             4 => Some(Self::BankDual),
+            5 => Some(Self::BankGuarded),
             _ => None,
         }
+    }
+
+    /// One of the bank arrangements (the image's Gauss-Markov fields are the bank's).
+    pub const fn is_bank(self) -> bool {
+        matches!(self, Self::Bank | Self::BankDual | Self::BankGuarded)
     }
 }
 
@@ -86,7 +99,7 @@ impl GaussMarkov {
         tau_s: 0.0,
     };
 
-    /// The bank these fields carry in [`Arrangement::Bank`] / [`Arrangement::BankDual`]:
+    /// The bank these fields carry in the bank arrangements ([`Arrangement::is_bank`]):
     /// `B` = sigma, longest correlation time = tau, random walk `q_rw_dps2_per_s` (the
     /// level's).
     pub const fn bank(&self, q_rw_dps2_per_s: f32) -> BankConfig {
@@ -126,19 +139,30 @@ enum SecondSlot {
     None,
     /// The dual's window estimator.
     Hold(MotionEstimator),
-    /// [`Arrangement::Bank`] / [`Arrangement::BankDual`].
+    /// The bank arrangements ([`Arrangement::is_bank`]).
     Bank(BankLevel),
 }
 
-/// [`Arrangement::Bank`]'s level and its window bookkeeping (as the per-sample estimator's).
+/// How a bank arrangement guards its level against the detector's false stills.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Guard {
+    /// [`Arrangement::Bank`]: never rolled back.
+    None,
+    /// [`Arrangement::BankDual`]: back to the previous window's start; the held bank in
+    /// motion.
+    Dual,
+    /// [`Arrangement::BankGuarded`]: back to the failed window's start.
+    Window,
+}
+
+/// A bank arrangement's level and its window bookkeeping (as the per-sample estimator's).
 #[derive(Debug, Clone)]
 struct BankLevel {
-    /// Per still sample (the per-sample estimator's flags); `BankDual`: rolled back with it.
+    /// Per still sample (the per-sample estimator's flags); rolled back per [`Guard`].
     level: LevelBank,
     /// `BankDual`: per released window mean (one window late), the output in motion.
     hold: LevelBank,
-    /// `BankDual` (rollback and the released-window bank in motion).
-    protect: bool,
+    guard: Guard,
     window: u32,
     since_prev: u32,
     since_now: u32,
@@ -163,12 +187,14 @@ impl PresetEstimator {
         };
         let update = match arrangement {
             Arrangement::Window => LevelUpdate::Window,
-            Arrangement::Sample | Arrangement::Dual | Arrangement::Bank | Arrangement::BankDual => {
-                LevelUpdate::Sample
-            }
+            Arrangement::Sample
+            | Arrangement::Dual
+            | Arrangement::Bank
+            | Arrangement::BankDual
+            | Arrangement::BankGuarded => LevelUpdate::Sample,
         };
         p.rest.set_level_update(update);
-        if matches!(arrangement, Arrangement::Bank | Arrangement::BankDual) {
+        if arrangement.is_bank() {
             // The per-sample estimator (random-walk level, no Gauss-Markov state) is the
             // detector's drift reference; the bank is the output's level.
             let s = &cfg.sensor;
@@ -181,7 +207,11 @@ impl PresetEstimator {
             .ok_or(MotionError::BadBank)?;
             p.second = SecondSlot::Bank(BankLevel {
                 hold: level.clone(),
-                protect: arrangement == Arrangement::BankDual,
+                guard: match arrangement {
+                    Arrangement::BankDual => Guard::Dual,
+                    Arrangement::BankGuarded => Guard::Window,
+                    _ => Guard::None,
+                },
                 level,
                 window: p.rest.window_samples(),
                 since_prev: 0,
@@ -219,8 +249,11 @@ impl PresetEstimator {
     /// Which arrangement this is.
     pub fn arrangement(&self) -> Arrangement {
         match (&self.second, self.rest.level_update()) {
-            (SecondSlot::Bank(b), _) if b.protect => Arrangement::BankDual,
-            (SecondSlot::Bank(_), _) => Arrangement::Bank,
+            (SecondSlot::Bank(b), _) => match b.guard {
+                Guard::None => Arrangement::Bank,
+                Guard::Dual => Arrangement::BankDual,
+                Guard::Window => Arrangement::BankGuarded,
+            },
             (SecondSlot::Hold(_), _) => Arrangement::Dual,
             (_, LevelUpdate::Window) => Arrangement::Window,
             (_, LevelUpdate::Sample) => Arrangement::Sample,
@@ -256,7 +289,7 @@ impl PresetEstimator {
     ) -> Result<MotionOutput, MotionError> {
         if let SecondSlot::Bank(b) = &mut self.second {
             // Window start (the per-sample estimator checkpoints at the same samples).
-            if b.protect
+            if b.guard != Guard::None
                 && self.rest.stats().samples.is_multiple_of(b.window)
                 && rate_dps.is_finite()
             {
@@ -275,15 +308,19 @@ impl PresetEstimator {
             if o.still {
                 b.level.update(rate_dps - o.model_dps);
             }
-            // A window the detector failed takes its samples and the previous window's out
-            // of the level; a window with an external flag is the flag's (its still samples
-            // were still: nothing to undo).
-            if b.protect && self.rest.window_failed() && !b.external {
-                b.level.rollback(b.since_prev);
+            // A window the detector failed takes its samples (`Dual`: and the previous
+            // window's) out of the level; a window with an external flag is the flag's (its
+            // still samples were still: nothing to undo).
+            if self.rest.window_failed() && !b.external {
+                match b.guard {
+                    Guard::None => {}
+                    Guard::Dual => b.level.rollback(b.since_prev),
+                    Guard::Window => b.level.rollback_window(b.since_now),
+                }
                 b.since_prev = 0;
                 b.since_now = 0;
             }
-            if b.protect && self.rest.window_ended() {
+            if b.guard == Guard::Dual && self.rest.window_ended() {
                 b.hold.predict_many(b.window);
                 if let Some((z, r)) = self.rest.released_window() {
                     b.hold.update_mean(z, r);
@@ -292,7 +329,7 @@ impl PresetEstimator {
             // At rest the per-sample bank; from the first sample flagged moving, the bank
             // that only released windows reached (as the dual), unless an external flag
             // decides: it is trusted, so the per-sample bank holds no suspect sample.
-            let level = if o.still || external_still.is_some() || !b.protect {
+            let level = if o.still || external_still.is_some() || b.guard != Guard::Dual {
                 b.level.estimate_dps()
             } else {
                 b.hold.estimate_dps()
@@ -523,10 +560,16 @@ mod tests {
             Arrangement::Dual,
             Arrangement::Bank,
             Arrangement::BankDual,
+            Arrangement::BankGuarded,
         ] {
             assert_eq!(Arrangement::from_byte(a.to_byte()), Some(a));
+            assert_eq!(
+                a.is_bank(),
+                a.to_byte() >= 3,
+                "{a:?}: the bank arrangements are bytes 3.."
+            );
         }
-        assert_eq!(Arrangement::from_byte(5), None);
+        assert_eq!(Arrangement::from_byte(6), None);
     }
 
     /// B 1.5 deg/h, states up to 10^4 s.
@@ -545,26 +588,28 @@ mod tests {
             *w = 1e-4 * (i as f32 - 7.0);
         }
         let cfg = MotionConfig::for_sensor(S);
-        let mut p = PresetEstimator::new(model, cfg, Arrangement::BankDual, BANK).expect("test");
-        assert_eq!(p.arrangement(), Arrangement::BankDual);
         let bank = BANK.bank(cfg.level_q_dps2_per_s);
-        let mut r =
-            LevelBank::new(bank, S.drift_bound_dps, S.sample_var_dps2(), 100.0).expect("test");
-        let mut z = Noise(11);
-        let mut nonzero_m = 0;
-        for k in 0..30_000usize {
-            let (x, moving) = rate(k, 12.0, &mut z);
-            let o = p.push(x, 25.0, Some(!moving)).expect("test");
-            r.predict();
-            if !moving {
-                r.update(x - o.model_dps);
+        for a in [Arrangement::BankDual, Arrangement::BankGuarded] {
+            let mut p = PresetEstimator::new(model, cfg, a, BANK).expect("test");
+            assert_eq!(p.arrangement(), a);
+            let mut r =
+                LevelBank::new(bank, S.drift_bound_dps, S.sample_var_dps2(), 100.0).expect("test");
+            let mut z = Noise(11);
+            let mut nonzero_m = 0;
+            for k in 0..30_000usize {
+                let (x, moving) = rate(k, 12.0, &mut z);
+                let o = p.push(x, 25.0, Some(!moving)).expect("test");
+                r.predict();
+                if !moving {
+                    r.update(x - o.model_dps);
+                }
+                let want = S.clamp_drift(r.estimate_dps() + o.model_dps);
+                assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{a:?} {k}");
+                assert_eq!(o.still, !moving);
+                nonzero_m += (o.model_dps != 0.0) as u32;
             }
-            let want = S.clamp_drift(r.estimate_dps() + o.model_dps);
-            assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
-            assert_eq!(o.still, !moving);
-            nonzero_m += (o.model_dps != 0.0) as u32;
+            assert!(nonzero_m > 1000);
         }
-        assert!(nonzero_m > 1000);
         // With its own detector: at samples it flags still the per-sample bank, elsewhere
         // the bank of released windows (and within 3 deg/h of the bias there). The plain
         // bank: the per-sample bank at every sample, updated at every still call.
@@ -612,8 +657,74 @@ mod tests {
     }
 
     #[test]
+    fn bank_guarded_takes_out_a_failed_windows_samples_and_no_others() {
+        // A slow ramp from the middle of a window, every 60 s: the fast gate passes its
+        // first samples, the window test then fails windows that hold still calls. The
+        // rule: at every window end the level is a LevelBank updated with the still calls
+        // of the windows that did not fail (the windows before a failed one stay).
+        let model = MotionModel::standard(1800.0).expect("test");
+        let cfg = MotionConfig::for_sensor(S);
+        let mut p = PresetEstimator::new(model, cfg, Arrangement::BankGuarded, BANK).expect("test");
+        assert_eq!(p.arrangement(), Arrangement::BankGuarded);
+        let w = p.rest.window_samples() as usize;
+        let input = |k: usize, z: &mut Noise| {
+            let t = k as f32 * 0.01;
+            let bias = (3.0 + 1.5 * (t / 40.0).sin()) / 3600.0;
+            let c = k % 6000;
+            let ramp_dps = if c > 3050 {
+                0.0005 * (c - 3050) as f32
+            } else {
+                0.0
+            };
+            bias + ramp_dps + S.sample_var_dps2().sqrt() * z.normal12()
+        };
+        let mut z = Noise(23);
+        let n = 36_000usize;
+        extern crate std;
+        use std::vec::Vec;
+        let (mut x, mut still, mut m, mut level) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let mut failed = std::vec![false; n / w + 1];
+        for k in 0..n {
+            let xk = input(k, &mut z);
+            let o = p.push(xk, 25.0, None).expect("test");
+            if p.rest.window_failed() {
+                assert_eq!(k % w, w - 1, "a window ends at its last sample");
+                failed[k / w] = true;
+            }
+            x.push(xk);
+            still.push(o.still);
+            m.push(o.model_dps);
+            level.push(o.level_dps);
+            // The output is the bank at rest and in motion.
+            let want = S.clamp_drift(o.level_dps + o.model_dps);
+            assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
+        }
+        let bank = BANK.bank(cfg.level_q_dps2_per_s);
+        let mut r =
+            LevelBank::new(bank, S.drift_bound_dps, S.sample_var_dps2(), 100.0).expect("test");
+        let mut dropped = 0;
+        for k in 0..n {
+            r.predict();
+            if still[k] && !failed[k / w] {
+                r.update(x[k] - m[k]);
+            }
+            dropped += (still[k] && failed[k / w]) as u32;
+            if k % w == w - 1 {
+                let err_dph = (level[k] - r.estimate_dps()) * 3600.0;
+                assert!(err_dph.abs() < 1e-3, "{k}: {err_dph} deg/h");
+            }
+        }
+        // The ramp's first samples were flagged still and then taken out.
+        assert!(dropped > 50, "{dropped}");
+    }
+
+    #[test]
     fn bank_rotation_in_motion_never_moves_the_estimate() {
-        for arrangement in [Arrangement::Bank, Arrangement::BankDual] {
+        for arrangement in [
+            Arrangement::Bank,
+            Arrangement::BankDual,
+            Arrangement::BankGuarded,
+        ] {
             assert_rotation_ignored(arrangement, BANK);
         }
     }

@@ -53,7 +53,8 @@
 //! `--ood-only`: the second generator's `--ood` set alone. `--bank`: the product runs
 //! `Arrangement::Bank` (the level as the Allan noise model, fog_core::bank; q and the bank's
 //! B and longest tau tuned on the validation vehicles), and the bank alone in f64 joins the
-//! rows as an ablation; `--bank-dual`: the same with `Arrangement::BankDual`.
+//! rows as an ablation; `--bank-dual` / `--bank-guarded`: the same with
+//! `Arrangement::BankDual` / `Arrangement::BankGuarded`.
 //! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
 //! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
@@ -383,15 +384,19 @@ fn q_end(q: f64) -> &'static str {
     }
 }
 
-/// `--bank` (or `--bank-dual`): the `--flags` product runs [`Arrangement::Bank`] (or
-/// [`Arrangement::BankDual`]) instead of the dual.
-fn bank_level() -> bool {
-    std::env::args().any(|a| a == "--bank" || a == "--bank-dual")
+/// `--bank`, `--bank-dual` or `--bank-guarded`: the `--flags` product runs that bank
+/// arrangement instead of the dual.
+fn bank_arrangement() -> Option<Arrangement> {
+    std::env::args().find_map(|a| match a.as_str() {
+        "--bank" => Some(Arrangement::Bank),
+        "--bank-dual" => Some(Arrangement::BankDual),
+        "--bank-guarded" => Some(Arrangement::BankGuarded),
+        _ => None,
+    })
 }
 
-/// `--bank-dual`: [`Arrangement::BankDual`].
-fn bank_dual() -> bool {
-    std::env::args().any(|a| a == "--bank-dual")
+fn bank_level() -> bool {
+    bank_arrangement().is_some()
 }
 
 fn q_dps2_per_s(q_dph2_per_h: f64) -> f32 {
@@ -408,7 +413,7 @@ enum Second {
     /// (the hybrid) in motion, both with this configuration's sigma and tau and the row's q
     /// (the row's update is ignored).
     Dual(RwGmConfig),
-    /// [`Arrangement::Bank`]: the level as the Allan noise model, `B` = this
+    /// The bank arrangement of [`bank_arrangement`]: the level as the Allan noise model, `B` = this
     /// configuration's sigma, longest correlation time = its tau, random walk = the row's q.
     Bank(RwGmConfig),
 }
@@ -435,8 +440,7 @@ fn motion_est(
         Second::None => (single, GaussMarkov::OFF),
         Second::Gm(c) => (single, gm(c)),
         Second::Dual(c) => (Arrangement::Dual, gm(c)),
-        Second::Bank(c) if bank_dual() => (Arrangement::BankDual, gm(c)),
-        Second::Bank(c) => (Arrangement::Bank, gm(c)),
+        Second::Bank(c) => (bank_arrangement().unwrap_or(Arrangement::Bank), gm(c)),
     };
     let est = PresetEstimator::new(*model, cfg, arrangement, gm)
         .map_err(|e| anyhow::anyhow!("estimator: {e}"))?;

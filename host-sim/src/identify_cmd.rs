@@ -288,11 +288,10 @@ fn run_motion(a: &Args) -> Result<()> {
             o.gauss_markov.tau_s
         );
     }
-    use fog_core::preset::Arrangement;
-    if matches!(o.arrangement, Arrangement::Bank | Arrangement::BankDual) {
+    if o.arrangement.is_bank() {
         if a.gm_sigma_dph.is_some() || a.gm_tau_s.is_some() {
             anyhow::bail!(
-                "--level-update bank / bank-dual take --bank-b-dph / --bank-tau-max-s, not --gm-*"
+                "--level-update bank / bank-dual / bank-guarded take --bank-b-dph / --bank-tau-max-s, not --gm-*"
             );
         }
         // The image's Gauss-Markov fields carry the bank's B and longest tau.
@@ -308,7 +307,9 @@ fn run_motion(a: &Args) -> Result<()> {
             );
         }
     } else if a.bank_b_dph.is_some() || a.bank_tau_max_s.is_some() {
-        anyhow::bail!("--bank-b-dph / --bank-tau-max-s need --level-update bank or bank-dual");
+        anyhow::bail!(
+            "--bank-b-dph / --bank-tau-max-s need --level-update bank, bank-dual or bank-guarded"
+        );
     }
     let trained = motion::train(&train, &o)?;
     let (image, rows, shrink) = (trained.image, trained.records, trained.shrinkage);

@@ -111,39 +111,61 @@ fn train_save_and_replay() {
     assert!(still > n * 8 / 10, "{still}");
 }
 
-/// `--level-update bank` saves an image whose level is the Allan noise model; `replay`
-/// runs it (one row per input row, compensated = rate - drift, still at rest), and its
-/// summary names it; bad bank settings are one-line errors with nothing written.
+/// `--level-update bank` and `bank-guarded` save an image whose level is the Allan noise
+/// model; `replay` runs it (one row per input row, compensated = rate - drift, still at
+/// rest), and its summary names it as `identify` does; bad bank settings are one-line
+/// errors with nothing written.
 #[test]
 fn bank_level_is_saved_and_replayed() {
     let dir = tempfile::tempdir().expect("test");
     let d = dir.path();
     let train = train_dir(d);
-    let img = d.join("bank.fogi");
+    let rec = d.join("rec.csv");
+    simulate(3, "60", None, &rec);
+    use fog_core::preset::Arrangement;
+    for (name, arrangement) in [
+        ("bank", Arrangement::Bank),
+        ("bank-guarded", Arrangement::BankGuarded),
+    ] {
+        let img = d.join(format!("{name}.fogi"));
+        identify(
+            &train,
+            &[
+                "--level-update",
+                name,
+                "--bank-b-dph",
+                "1.0",
+                "--bank-tau-max-s",
+                "1000",
+            ],
+            &img,
+        )
+        .success();
+        let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("test");
+        assert_eq!(image.arrangement, arrangement);
+        assert!((image.gauss_markov.sigma_dps * 3600.0 - 1.0).abs() < 1e-5);
+        assert_eq!(image.gauss_markov.tau_s, 1000.0);
+        let json = d.join("out.json");
+        let (n, still) = replay_checked(&img, &rec, &d.join("out.csv"), Some(&json));
+        assert!(still > n * 8 / 10, "{still}");
+        let summary = fs::read_to_string(&json).expect("test");
+        assert!(
+            summary.contains(&format!("\"level_update\": \"{name}\"")),
+            "{summary}"
+        );
+    }
     let bank = |extra: &[&str], out: &Path| {
         let mut args = vec!["--level-update", "bank"];
         args.extend_from_slice(extra);
         identify(&train, &args, out)
     };
-    bank(&["--bank-b-dph", "1.0", "--bank-tau-max-s", "1000"], &img).success();
-    let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("test");
-    assert_eq!(image.arrangement, fog_core::preset::Arrangement::Bank);
-    assert!((image.gauss_markov.sigma_dps * 3600.0 - 1.0).abs() < 1e-5);
-    assert_eq!(image.gauss_markov.tau_s, 1000.0);
-    let rec = d.join("rec.csv");
-    simulate(3, "60", None, &rec);
-    let json = d.join("out.json");
-    let (n, still) = replay_checked(&img, &rec, &d.join("out.csv"), Some(&json));
-    assert!(still > n * 8 / 10, "{still}");
-    let summary = fs::read_to_string(&json).expect("test");
-    assert!(summary.contains("\"level_update\": \"bank\""), "{summary}");
     // Bad settings: one line naming the flag, no file.
     for (extra, says) in [
         (&["--bank-tau-max-s", "0.5"][..], "--bank-tau-max-s"),
         (&["--bank-b-dph", "0"][..], "--bank-b-dph"),
         (
             &["--gm-sigma-dph", "2"][..],
-            "--level-update bank / bank-dual take",
+            "--level-update bank / bank-dual / bank-guarded take",
         ),
     ] {
         let bad = d.join("bad.fogi");

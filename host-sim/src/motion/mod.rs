@@ -92,6 +92,9 @@ pub enum LevelUpdateArg {
     /// The bank protected as the dual: rolled back when a window fails, and in motion a
     /// second bank that only released windows reached.
     BankDual,
+    /// The bank with a failed window's samples rolled back (the windows before it kept),
+    /// the output at rest and in motion.
+    BankGuarded,
 }
 
 impl LevelUpdateArg {
@@ -103,7 +106,27 @@ impl LevelUpdateArg {
             Self::Dual => Arrangement::Dual,
             Self::Bank => Arrangement::Bank,
             Self::BankDual => Arrangement::BankDual,
+            Self::BankGuarded => Arrangement::BankGuarded,
         }
+    }
+
+    /// The argument that gives `arrangement` (the inverse of [`Self::arrangement`]).
+    pub fn of(arrangement: Arrangement) -> Self {
+        match arrangement {
+            Arrangement::Window => Self::Window,
+            Arrangement::Sample => Self::Sample,
+            Arrangement::Dual => Self::Dual,
+            Arrangement::Bank => Self::Bank,
+            Arrangement::BankDual => Self::BankDual,
+            Arrangement::BankGuarded => Self::BankGuarded,
+        }
+    }
+
+    /// The command-line value (`bank-dual`, ...), as `--level-update` takes it.
+    pub fn cli_name(self) -> String {
+        clap::ValueEnum::to_possible_value(&self)
+            .map(|v| v.get_name().to_owned())
+            .unwrap_or_default()
     }
 }
 
@@ -651,6 +674,19 @@ pub const OUTPUT_HEADER: &str =
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every `--level-update` value names its arrangement and back, and the name `replay`
+    /// reports is the one `identify` takes (`bank-dual`, not `bankdual`).
+    #[test]
+    fn level_update_names_round_trip() {
+        use clap::ValueEnum;
+        for arg in LevelUpdateArg::value_variants() {
+            assert_eq!(LevelUpdateArg::of(arg.arrangement()), *arg);
+            let name = arg.cli_name();
+            assert_eq!(LevelUpdateArg::from_str(&name, false), Ok(*arg), "{name}");
+        }
+        assert_eq!(LevelUpdateArg::BankDual.cli_name(), "bank-dual");
+    }
 
     /// In-memory static records: 600 s at 100 Hz, each `bias + a_i exp(-t / 150 s)` plus
     /// deterministic noise of the E-Core's sample sigma.

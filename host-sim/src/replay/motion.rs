@@ -84,7 +84,8 @@ pub struct MotionSummary {
     pub output: String,
     /// The identifier image, or the built-in default.
     pub identifier: String,
-    /// The image's level arrangement: `window`, `sample`, `dual` or `bank` (fog_core::preset).
+    /// The image's level arrangement as `identify --level-update` names it: `window`,
+    /// `sample`, `dual`, `bank`, `bank-dual` or `bank-guarded` (fog_core::preset).
     pub level_update: String,
     /// The image's Gauss-Markov sigma, deg/h (0: off; `bank`: its bias instability B).
     pub gm_sigma_dph: f32,
@@ -398,7 +399,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         format: rec.format.name(),
         output: output.display().to_string(),
         identifier,
-        level_update: format!("{:?}", image.arrangement).to_lowercase(),
+        level_update: motion::LevelUpdateArg::of(image.arrangement).cli_name(),
         gm_sigma_dph: image.gauss_markov.sigma_dps * 3600.0,
         gm_tau_s: image.gauss_markov.tau_s,
         records_trained: image.records_trained,
