@@ -476,11 +476,12 @@ fn the_default_image_parses_and_says_how_it_was_made() {
     );
 }
 
-/// The same damaged vehicle capture through a firmware built with a `bank` image (the default
-/// image's model and configuration, the level as the Allan noise model: arrangement byte 3,
-/// B 1.5 deg/h, states up to 10^4 s): every record bit-identical with the host's pipeline
+/// The same damaged vehicle capture through a firmware built with each bank image that
+/// is not only measured on the host: `bank` (arrangement byte 3) and `bank-guarded` (byte 5,
+/// its rollback runs at the capture's turns); the default image's model and configuration,
+/// B 1.5 deg/h, states up to 10^4 s. Every record bit-identical with the host's pipeline
 /// given the same image and with `PresetEstimator` from the parsed image; prints the stack
-/// high-water mark with that image.
+/// high-water mark with each image.
 #[test]
 fn a_bank_image_runs_bit_for_bit() {
     use fog_core::image::{Image, IMAGE_LEN};
@@ -492,56 +493,59 @@ fn a_bank_image_runs_bit_for_bit() {
         sigma_dps: 1.5 / 3600.0,
         tau_s: 10_000.0,
     };
-    let image = Image::parse(&default_image())
-        .expect("default image")
-        .with_arrangement(Arrangement::Bank, bank);
-    let mut bytes = vec![0u8; IMAGE_LEN];
-    let n = image.to_bytes(&mut bytes).expect("image written");
-    bytes.truncate(n);
-    let dir = fog_system_tests::firmware_dir().join("target/bankimg");
-    std::fs::create_dir_all(&dir).expect("target/bankimg");
-    let path = dir.join("bank.fogi");
-    std::fs::write(&path, &bytes).expect("image file");
-    let elf = firmware_elf_in(
-        "target/bankimg",
-        &[],
-        &[("FOG_IDENTIFIER", path.as_os_str())],
-    );
-    let capture_dir = elf.with_file_name("hil-bank");
-    std::fs::create_dir_all(&capture_dir).expect("capture folder");
-    let (capture, _) = vehicle_capture(&capture_dir);
-    let stream = wire_stream(&capture, 0xBADB_17E5);
-    let expected = hil::host_reference_with(&stream, &bytes);
-    let log = elf.with_file_name("hil-bank-defmt.bin");
-    let (out, code) = run_qemu(&qemu, &elf, stream, &log);
-    let (records, stats) = parse_records(&out);
-    assert_eq!(code, Some(0), "QEMU's exit code (semihosting)");
-    let stats = stats.expect("final statistics record");
-    assert_eq!(
-        records.len(),
-        expected.samples.len(),
-        "one record per good frame"
-    );
-    let estimator = Image::parse(&bytes)
-        .expect("bank image")
-        .estimator()
-        .expect("estimator");
-    assert_eq!(estimator.arrangement(), Arrangement::Bank);
-    for (k, (r, (_, _, status))) in records.iter().zip(&expected.samples).enumerate() {
-        assert_eq!(r.index as usize, k);
-        assert_eq!(
-            r.bits,
-            expected.bits(k),
-            "record {k} vs the host's pipeline"
+    for arrangement in [Arrangement::Bank, Arrangement::BankGuarded] {
+        let name = format!("{arrangement:?}").to_lowercase();
+        let image = Image::parse(&default_image())
+            .expect("default image")
+            .with_arrangement(arrangement, bank);
+        let mut bytes = vec![0u8; IMAGE_LEN];
+        let n = image.to_bytes(&mut bytes).expect("image written");
+        bytes.truncate(n);
+        let dir = fog_system_tests::firmware_dir().join("target/bankimg");
+        std::fs::create_dir_all(&dir).expect("target/bankimg");
+        let path = dir.join(format!("{name}.fogi"));
+        std::fs::write(&path, &bytes).expect("image file");
+        let elf = firmware_elf_in(
+            "target/bankimg",
+            &[],
+            &[("FOG_IDENTIFIER", path.as_os_str())],
         );
-        assert_eq!(r.status, *status, "record {k}: status");
+        let capture_dir = elf.with_file_name(format!("hil-{name}"));
+        std::fs::create_dir_all(&capture_dir).expect("capture folder");
+        let (capture, _) = vehicle_capture(&capture_dir);
+        let stream = wire_stream(&capture, 0xBADB_17E5);
+        let expected = hil::host_reference_with(&stream, &bytes);
+        let log = elf.with_file_name(format!("hil-{name}-defmt.bin"));
+        let (out, code) = run_qemu(&qemu, &elf, stream, &log);
+        let (records, stats) = parse_records(&out);
+        assert_eq!(code, Some(0), "{name}: QEMU's exit code (semihosting)");
+        let stats = stats.expect("final statistics record");
+        assert_eq!(
+            records.len(),
+            expected.samples.len(),
+            "{name}: one record per good frame"
+        );
+        let estimator = Image::parse(&bytes)
+            .expect("bank image")
+            .estimator()
+            .expect("estimator");
+        assert_eq!(estimator.arrangement(), arrangement);
+        for (k, (r, (_, _, status))) in records.iter().zip(&expected.samples).enumerate() {
+            assert_eq!(r.index as usize, k);
+            assert_eq!(
+                r.bits,
+                expected.bits(k),
+                "{name}: record {k} vs the host's pipeline"
+            );
+            assert_eq!(r.status, *status, "{name}: record {k}: status");
+        }
+        let still = matches_preset_estimator(&records, &expected, &bytes);
+        assert!(still > 500, "{name}: still samples: {still}");
+        assert_eq!(stats.counters, expected.stats.counters());
+        eprintln!(
+            "HIL {name} image: {} records bit-identical, {still} still; stack high-water {} bytes",
+            records.len(),
+            stats.stack_bytes
+        );
     }
-    let still = matches_preset_estimator(&records, &expected, &bytes);
-    assert!(still > 500, "still samples: {still}");
-    assert_eq!(stats.counters, expected.stats.counters());
-    eprintln!(
-        "HIL bank image: {} records bit-identical, {still} still; stack high-water {} bytes",
-        records.len(),
-        stats.stack_bytes
-    );
 }
