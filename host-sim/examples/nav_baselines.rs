@@ -55,6 +55,8 @@
 //! B and longest tau tuned on the validation vehicles), and the bank alone in f64 joins the
 //! rows as an ablation; `--bank-dual` / `--bank-guarded`: the same with
 //! `Arrangement::BankDual` / `Arrangement::BankGuarded`.
+//! `--static-only` (without `--flags`): the static records' rows alone (the bank
+//! arrangements among them), no vehicles.
 //! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
 //! the drift bound is the E-Core's 30 deg/h (ASSUMED) for every set.
 
@@ -395,8 +397,9 @@ fn bank_arrangement() -> Option<Arrangement> {
     })
 }
 
-fn bank_level() -> bool {
-    bank_arrangement().is_some()
+/// `--static-only`: of the default rows, the static records' alone (no vehicles).
+fn static_only() -> bool {
+    std::env::args().any(|a| a == "--static-only")
 }
 
 fn q_dps2_per_s(q_dph2_per_h: f64) -> f32 {
@@ -413,9 +416,10 @@ enum Second {
     /// (the hybrid) in motion, both with this configuration's sigma and tau and the row's q
     /// (the row's update is ignored).
     Dual(RwGmConfig),
-    /// The bank arrangement of [`bank_arrangement`]: the level as the Allan noise model, `B` = this
-    /// configuration's sigma, longest correlation time = its tau, random walk = the row's q.
-    Bank(RwGmConfig),
+    /// A bank arrangement ([`Arrangement::is_bank`]): the level as the Allan noise model,
+    /// `B` = this configuration's sigma, longest correlation time = its tau, random walk =
+    /// the row's q.
+    Bank(Arrangement, RwGmConfig),
 }
 
 fn motion_est(
@@ -440,7 +444,7 @@ fn motion_est(
         Second::None => (single, GaussMarkov::OFF),
         Second::Gm(c) => (single, gm(c)),
         Second::Dual(c) => (Arrangement::Dual, gm(c)),
-        Second::Bank(c) => (bank_arrangement().unwrap_or(Arrangement::Bank), gm(c)),
+        Second::Bank(a, c) => (a, gm(c)),
     };
     let est = PresetEstimator::new(*model, cfg, arrangement, gm)
         .map_err(|e| anyhow::anyhow!("estimator: {e}"))?;
@@ -677,78 +681,83 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<
     let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
     let gmv = Second::Gm(gm_vehicle);
     let gms = Second::Gm(gm);
-    for (name, model, mode) in [
-        (
-            "motion, window update",
-            &trained,
-            (Window, false, Second::None),
-        ),
-        (
-            "unshrunk m, window update",
-            &unshrunk,
-            (Window, false, Second::None),
-        ),
-        (
-            "motion, sample + rollback",
-            &trained,
-            (Sample, false, Second::None),
-        ),
-        (
-            "motion, sample + GM (static-tuned)",
-            &trained,
-            (Sample, false, gms),
-        ),
-        (
-            "unshrunk m, sample + GM (static-tuned)",
-            &unshrunk,
-            (Sample, false, gms),
-        ),
-        (
-            "motion, hybrid window + GM (static-tuned)",
-            &trained,
-            (Window, false, gms),
-        ),
-        (
-            "motion, hybrid window + GM (vehicle-tuned)",
-            &trained,
-            (Window, false, gmv),
-        ),
-        (
-            "unshrunk m, hybrid window + GM (static)",
-            &unshrunk,
-            (Window, false, gms),
-        ),
-        (
-            "motion, dual sample+GM / hybrid (static)",
-            &trained,
-            (Window, false, Second::Dual(gm)),
-        ),
-        (
-            "unshrunk m, dual (static)",
-            &unshrunk,
-            (Window, false, Second::Dual(gm)),
-        ),
-        (
-            "untrained m, dual (static)",
-            &untrained,
-            (Window, false, Second::Dual(gm)),
-        ),
-        (
-            "untrained m, window update",
-            &untrained,
-            (Window, false, Second::None),
-        ),
-        (
-            "untrained m, hybrid window + GM (static)",
-            &untrained,
-            (Window, false, gms),
-        ),
-        (
-            "untrained m, sample + rollback",
-            &untrained,
-            (Sample, false, Second::None),
-        ),
-    ] {
+    let vehicle_rows = if static_only() {
+        Vec::new()
+    } else {
+        vec![
+            (
+                "motion, window update",
+                &trained,
+                (Window, false, Second::None),
+            ),
+            (
+                "unshrunk m, window update",
+                &unshrunk,
+                (Window, false, Second::None),
+            ),
+            (
+                "motion, sample + rollback",
+                &trained,
+                (Sample, false, Second::None),
+            ),
+            (
+                "motion, sample + GM (static-tuned)",
+                &trained,
+                (Sample, false, gms),
+            ),
+            (
+                "unshrunk m, sample + GM (static-tuned)",
+                &unshrunk,
+                (Sample, false, gms),
+            ),
+            (
+                "motion, hybrid window + GM (static-tuned)",
+                &trained,
+                (Window, false, gms),
+            ),
+            (
+                "motion, hybrid window + GM (vehicle-tuned)",
+                &trained,
+                (Window, false, gmv),
+            ),
+            (
+                "unshrunk m, hybrid window + GM (static)",
+                &unshrunk,
+                (Window, false, gms),
+            ),
+            (
+                "motion, dual sample+GM / hybrid (static)",
+                &trained,
+                (Window, false, Second::Dual(gm)),
+            ),
+            (
+                "unshrunk m, dual (static)",
+                &unshrunk,
+                (Window, false, Second::Dual(gm)),
+            ),
+            (
+                "untrained m, dual (static)",
+                &untrained,
+                (Window, false, Second::Dual(gm)),
+            ),
+            (
+                "untrained m, window update",
+                &untrained,
+                (Window, false, Second::None),
+            ),
+            (
+                "untrained m, hybrid window + GM (static)",
+                &untrained,
+                (Window, false, gms),
+            ),
+            (
+                "untrained m, sample + rollback",
+                &untrained,
+                (Sample, false, Second::None),
+            ),
+        ]
+    };
+    for (name, model, mode) in vehicle_rows {
         let mut best = (f64::INFINITY, 0.0);
         for q in q_grid_dph2_per_h() {
             let v = score(model, &set.valid, s_valid, q, mode)?.0;
@@ -770,6 +779,13 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<
     println!(
         "static: per-sample RW Kalman (q {k_q:.2e} (deg/s)^2/sample, tuned by e_truth) e_truth {k_test:.4}"
     );
+    // The bank arrangements at the family's specification (B 1.5 deg/h, states up to
+    // 10^4 s; ASSUMED E-Core class, identify's default); q tuned as every motion row's.
+    let bank_spec = RwGmConfig {
+        sigma_gm_dps: 1.5 / 3600.0,
+        tau_s: 10_000.0,
+        ..gm
+    };
     let t = e_truth(&set.static_test, rwgm(gm))?;
     println!(
         "static: per-sample RW+GM Kalman ({}) e_truth {t:.4} ({:+.1} % vs Kalman)",
@@ -795,6 +811,16 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<
         ("untrained m, hybrid window + GM", &untrained, (Window, gms)),
         ("motion, dual", &trained, (Window, Second::Dual(gm))),
         ("unshrunk m, dual", &unshrunk, (Window, Second::Dual(gm))),
+        (
+            "motion, bank",
+            &trained,
+            (Window, Second::Bank(Arrangement::Bank, bank_spec)),
+        ),
+        (
+            "motion, bank-guarded",
+            &trained,
+            (Window, Second::Bank(Arrangement::BankGuarded, bank_spec)),
+        ),
         (
             "untrained m, sample + rollback",
             &untrained,
@@ -850,8 +876,8 @@ fn main() -> Result<()> {
         static_test: static_ours(51..=54)?,
     };
     if !python_only {
-        let gm = if flags {
-            rwgm_grid(1.0)[0] // unused by --flags
+        let gm = if flags || static_only() {
+            rwgm_grid(1.0)[0] // unused by --flags and the static rows
         } else {
             evaluate(&set, svg_dir.as_deref())?
         };
@@ -1037,7 +1063,7 @@ fn evaluate_flags(
     let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
     // `--bank`: the product's level is the Allan noise model; its start is the family's
     // specification (B 1.5 deg/h, states up to 10^4 s; ASSUMED E-Core class).
-    let bank = bank_level();
+    let bank = bank_arrangement().is_some();
     let gm = if bank {
         RwGmConfig {
             sigma_gm_dps: 1.5 / 3600.0,
@@ -1056,8 +1082,8 @@ fn evaluate_flags(
      -> Result<(f64, f64, Vec<Vec<bool>>)> {
         let (mut a, mut b, mut calls) = (0.0, 0.0, Vec::new());
         for (r, s) in recs.iter().zip(sensors) {
-            let second = if bank_level() {
-                Second::Bank(gm)
+            let second = if let Some(a) = bank_arrangement() {
+                Second::Bank(a, gm)
             } else {
                 Second::Dual(gm)
             };
