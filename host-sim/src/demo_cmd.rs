@@ -22,6 +22,10 @@ pub struct Args {
     /// The bench trainer of the model (`identify --preset motion --motion-trainer`).
     #[arg(long, value_enum, default_value_t = crate::motion::TrainerArg::DrlsChecked)]
     pub trainer: crate::motion::TrainerArg,
+    /// How the identifier's level learns (`identify --preset motion --level-update`), with
+    /// that arrangement's default Gauss-Markov state or bank.
+    #[arg(long, value_enum, default_value_t = crate::motion::LevelUpdateArg::default())]
+    pub level_update: crate::motion::LevelUpdateArg,
 }
 
 /// Runs the command; prints the path of `index.html` on stdout.
@@ -33,6 +37,7 @@ pub fn run(args: &Args) -> Result<()> {
     };
     cfg.shrink = args.shrink;
     cfg.trainer = args.trainer;
+    cfg.arrangement = args.level_update.arrangement();
     let index = demo::run(&args.out, &cfg)?;
     println!("{}", index.display());
     Ok(())

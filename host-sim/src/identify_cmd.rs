@@ -121,10 +121,9 @@ pub struct Args {
     /// (host_sim::motion::TrainerArg).
     #[arg(long, value_enum, default_value_t = motion::TrainerArg::DrlsChecked)]
     pub motion_trainer: motion::TrainerArg,
-    /// `--preset motion`: how the saved image's level learns (default bank-guarded: the
-    /// level as the sensor's Allan noise model, a failed window's still calls rolled back;
-    /// fog_core::preset).
-    #[arg(long, value_enum, default_value_t = motion::LevelUpdateArg::BankGuarded)]
+    /// `--preset motion`: how the saved image's level learns (default dual: per-sample
+    /// level at rest, window level in motion; fog_core::preset).
+    #[arg(long, value_enum, default_value_t = motion::LevelUpdateArg::Dual)]
     pub level_update: motion::LevelUpdateArg,
     /// `--preset motion`: Gauss-Markov sigma of the level, deg/h (0: off; default
     /// host_sim::motion::GAUSS_MARKOV_SIGMA_DPH = 2, ASSUMED from the static tuning).
@@ -292,7 +291,7 @@ fn run_motion(a: &Args) -> Result<()> {
     if o.arrangement.is_bank() {
         if a.gm_sigma_dph.is_some() || a.gm_tau_s.is_some() {
             anyhow::bail!(
-                "--level-update bank / bank-dual / bank-guarded (the default) take --bank-b-dph / --bank-tau-max-s, not --gm-* (a Gauss-Markov state needs --level-update window, sample or dual)"
+                "--level-update bank / bank-dual / bank-guarded take --bank-b-dph / --bank-tau-max-s, not --gm-*"
             );
         }
         // The image's Gauss-Markov fields carry the bank's B and longest tau.

@@ -64,6 +64,7 @@ fn demo_writes_the_report() {
         serde_json::from_str(&fs::read_to_string(dir.join("summary.json")).expect("summary"))
             .expect("json");
     assert_eq!(s["rows"], 60_000);
+    assert_eq!(s["level_update"], "dual", "identify's default arrangement");
     assert_eq!(
         s["records_trained"], 36,
         "12 records x 3 DRLS passes (drls-checked)"
@@ -110,6 +111,44 @@ fn demo_writes_the_report() {
         .expect("headline");
     assert!(head < html.find("<svg").expect("svg"), "headline first");
     assert!(!html.contains("<script"));
+}
+
+/// `--level-update` picks the identifier's arrangement (with its default bank): the saved
+/// image and the summary name it, and the identifier still beats no compensation.
+#[test]
+fn demo_runs_another_arrangement() {
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("demo_cli_bank_guarded");
+    if out.exists() {
+        fs::remove_dir_all(&out).expect("clean the previous demo");
+    }
+    Command::cargo_bin("host-sim")
+        .expect("binary built")
+        .args(["demo", "--quick", "--level-update", "bank-guarded", "--out"])
+        .arg(&out)
+        .assert()
+        .success();
+    let image =
+        fog_core::image::Image::parse(&fs::read(out.join("identifier.fogi")).expect("image"))
+            .expect("parses");
+    assert_eq!(
+        image.arrangement,
+        fog_core::preset::Arrangement::BankGuarded
+    );
+    assert!(
+        (image.gauss_markov.sigma_dps * 3600.0 - 1.5).abs() < 1e-5,
+        "B 1.5 deg/h"
+    );
+    assert_eq!(image.gauss_markov.tau_s, 10_000.0);
+    let s: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(out.join("summary.json")).expect("summary"))
+            .expect("json");
+    assert_eq!(s["level_update"], "bank-guarded");
+    let rows = s["scores"]["rows"].as_array().expect("scores");
+    assert!(
+        rows[0]["scores"]["heading_rms_deg"].as_f64()
+            < rows[1]["scores"]["heading_rms_deg"].as_f64(),
+        "the identifier beats no compensation"
+    );
 }
 
 fn find_browser() -> Option<PathBuf> {

@@ -165,7 +165,7 @@ fn bank_level_is_saved_and_replayed() {
         (&["--bank-b-dph", "0"][..], "--bank-b-dph"),
         (
             &["--gm-sigma-dph", "2"][..],
-            "--level-update bank / bank-dual / bank-guarded (the default) take",
+            "--level-update bank / bank-dual / bank-guarded take",
         ),
     ] {
         let bad = d.join("bad.fogi");

@@ -459,15 +459,9 @@ fn the_default_image_parses_and_says_how_it_was_made() {
         image.model.weights.iter().any(|w| *w != 0.0),
         "trained weights"
     );
-    // The product's arrangement: bank-guarded with a valid bank (B, longest tau).
-    assert_eq!(
-        image.arrangement,
-        fog_core::preset::Arrangement::BankGuarded
-    );
-    assert!(image
-        .gauss_markov
-        .bank(image.config.level_q_dps2_per_s)
-        .is_valid());
+    // The product's arrangement: the dual with a Gauss-Markov state.
+    assert_eq!(image.arrangement, fog_core::preset::Arrangement::Dual);
+    assert!(image.gauss_markov.sigma_dps > 0.0 && image.gauss_markov.is_valid());
     let readme =
         std::fs::read_to_string(fog_system_tests::firmware_dir().join("identifier/README.md"))
             .expect("identifier/README.md");
@@ -482,10 +476,10 @@ fn the_default_image_parses_and_says_how_it_was_made() {
     );
 }
 
-/// The same damaged vehicle capture through a firmware built with each bank image that is
-/// not the default (`bank-guarded`, which the default-image tests run): `bank` (arrangement
-/// byte 3) and `bank-dual` (byte 4, its held bank runs at the capture's turns); the default
-/// image's model and configuration, B 1.5 deg/h, states up to 10^4 s. Every record bit-identical with the host's pipeline
+/// The same damaged vehicle capture through a firmware built with each bank image that
+/// is not only measured on the host: `bank` (arrangement byte 3) and `bank-guarded` (byte 5,
+/// its rollback runs at the capture's turns); the default image's model and configuration,
+/// B 1.5 deg/h, states up to 10^4 s. Every record bit-identical with the host's pipeline
 /// given the same image and with `PresetEstimator` from the parsed image; prints the stack
 /// high-water mark with each image.
 #[test]
@@ -499,7 +493,7 @@ fn a_bank_image_runs_bit_for_bit() {
         sigma_dps: 1.5 / 3600.0,
         tau_s: 10_000.0,
     };
-    for arrangement in [Arrangement::Bank, Arrangement::BankDual] {
+    for arrangement in [Arrangement::Bank, Arrangement::BankGuarded] {
         let name = format!("{arrangement:?}").to_lowercase();
         let image = Image::parse(&default_image())
             .expect("default image")

@@ -86,6 +86,10 @@ pub struct DemoConfig {
     /// Test vehicle records (units [`VEHICLE_UNIT`].., seeds [`VEHICLE_SEED`]..; the first
     /// is the replayed record) scored beside the baselines.
     pub test_records: u64,
+    /// The identifier's arrangement (`identify`'s default, the dual, in [`Self::FULL`] and
+    /// [`Self::QUICK`]), with its default Gauss-Markov state or bank
+    /// ([`TrainOptions::with_arrangement`]).
+    pub arrangement: fog_core::preset::Arrangement,
 }
 
 impl DemoConfig {
@@ -100,6 +104,7 @@ impl DemoConfig {
         shrink: false,
         trainer: motion::TrainerArg::DrlsChecked,
         test_records: 32,
+        arrangement: fog_core::preset::Arrangement::Dual,
     };
     /// The CI variant (`--quick`): 12 training records, 2 validation records, 600 s each.
     pub const QUICK: Self = Self {
@@ -109,6 +114,7 @@ impl DemoConfig {
         shrink: false,
         trainer: motion::TrainerArg::DrlsChecked,
         test_records: 2,
+        arrangement: fog_core::preset::Arrangement::Dual,
     };
 }
 
@@ -188,6 +194,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let mut train_options = TrainOptions::new(sensor);
     train_options.shrink = cfg.shrink;
     train_options.trainer = cfg.trainer;
+    let train_options = train_options.with_arrangement(cfg.arrangement);
     let trained = motion::train(&set, &train_options)?;
     let (mut image, shrink) = (trained.image, trained.shrinkage);
     let fogi = dir.join("identifier.fogi");

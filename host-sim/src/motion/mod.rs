@@ -74,8 +74,8 @@ pub const BANK_B_DPH: f32 = 1.5;
 /// `--level-update bank`: the bank's longest correlation time, s (states at 1, 10, ...,
 /// 10^4 s).
 pub const BANK_TAU_MAX_S: f32 = 10_000.0;
-/// The bank a saved image carries by default ([`BANK_B_DPH`], [`BANK_TAU_MAX_S`] in the
-/// image's Gauss-Markov fields).
+/// The bank a saved image carries by default in a bank arrangement ([`BANK_B_DPH`],
+/// [`BANK_TAU_MAX_S`] in the image's Gauss-Markov fields).
 pub const DEFAULT_BANK: GaussMarkov = GaussMarkov {
     sigma_dps: BANK_B_DPH / 3600.0,
     tau_s: BANK_TAU_MAX_S,
@@ -89,7 +89,8 @@ pub enum LevelUpdateArg {
     Window,
     /// Level per still sample with rollback.
     Sample,
-    /// Per-sample level at rest, window level in motion.
+    /// Per-sample level at rest, window level in motion (the default).
+    #[default]
     Dual,
     /// The level as the sensor's Allan noise model: random walk + one Gauss-Markov state
     /// per decade of correlation time (fog_core::bank), per still sample, in motion too.
@@ -98,8 +99,7 @@ pub enum LevelUpdateArg {
     /// second bank that only released windows reached.
     BankDual,
     /// The bank with a failed window's samples rolled back (the windows before it kept),
-    /// the output at rest and in motion (the default).
-    #[default]
+    /// the output at rest and in motion.
     BankGuarded,
 }
 
@@ -177,11 +177,10 @@ pub struct TrainOptions {
     /// The drive the shrinkage scores the model over, detector windows
     /// ([`fog_core::motion::Transfer::add_record`]'s `lag`; 0: the whole record's shape).
     pub shrink_lag_windows: usize,
-    /// How the image's level learns (default [`Arrangement::BankGuarded`]).
+    /// How the image's level learns (default [`Arrangement::Dual`]).
     pub arrangement: Arrangement,
-    /// The image's Gauss-Markov fields: the bank's `B` and longest tau for a bank
-    /// arrangement (default [`DEFAULT_BANK`]), else the Gauss-Markov state
-    /// ([`DEFAULT_GAUSS_MARKOV`] for `identify`'s other arrangements).
+    /// The image's Gauss-Markov state (default [`GAUSS_MARKOV_SIGMA_DPH`],
+    /// [`GAUSS_MARKOV_TAU_S`]).
     pub gauss_markov: GaussMarkov,
 }
 
@@ -191,8 +190,8 @@ pub struct TrainOptions {
 pub const SHRINK_LAG_WINDOWS: usize = 60;
 
 impl TrainOptions {
-    /// Defaults for `sensor`: 3 passes, 1800 s, no shrinkage, `bank-guarded` with the
-    /// default bank, level noise [`DEFAULT_LEVEL_Q_DPH2_PER_H`].
+    /// Defaults for `sensor`: 3 passes, 1800 s, no shrinkage, the dual with the default
+    /// Gauss-Markov state, level noise [`DEFAULT_LEVEL_Q_DPH2_PER_H`].
     pub fn new(sensor: SensorConfig) -> Self {
         let mut config = MotionConfig::for_sensor(sensor);
         config.level_q_dps2_per_s = DEFAULT_LEVEL_Q_DPH2_PER_H / (3600.0 * 3600.0 * 3600.0);
@@ -203,9 +202,23 @@ impl TrainOptions {
             time_max_s: 1800.0,
             shrink: false,
             shrink_lag_windows: SHRINK_LAG_WINDOWS,
-            arrangement: Arrangement::BankGuarded,
-            gauss_markov: DEFAULT_BANK,
+            arrangement: Arrangement::Dual,
+            gauss_markov: DEFAULT_GAUSS_MARKOV,
         }
+    }
+}
+
+impl TrainOptions {
+    /// The same options with `arrangement` and its default Gauss-Markov fields
+    /// ([`DEFAULT_BANK`] for a bank arrangement, else [`DEFAULT_GAUSS_MARKOV`]).
+    pub fn with_arrangement(mut self, arrangement: Arrangement) -> Self {
+        self.arrangement = arrangement;
+        self.gauss_markov = if arrangement.is_bank() {
+            DEFAULT_BANK
+        } else {
+            DEFAULT_GAUSS_MARKOV
+        };
+        self
     }
 }
 

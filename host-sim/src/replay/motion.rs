@@ -211,8 +211,7 @@ pub struct MotionOutcome {
     pub compared: Option<Compared>,
 }
 
-/// The built-in identifier for `sensor`: an untrained model (the gated level alone, in
-/// the default arrangement).
+/// The built-in identifier for `sensor`: an untrained model (the gated level alone).
 pub fn builtin_image(sensor: SensorConfig) -> Result<Image> {
     let mut o = motion::TrainOptions::new(sensor);
     o.epochs = 0;
@@ -346,7 +345,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
             (
                 builtin_image(sensor)?,
                 format!(
-                    "built-in: untrained model (the default arrangement, bank-guarded: the gated Allan-model level with the stillness detector), sensor {} Hz / {} deg/s ({how})",
+                    "built-in: untrained model (gated random-walk level with the stillness detector), sensor {} Hz / {} deg/s ({how})",
                     sensor.sample_rate_hz, sensor.full_scale_dps
                 ),
             )
