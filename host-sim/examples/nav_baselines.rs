@@ -812,13 +812,13 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<
         ("motion, dual", &trained, (Window, Second::Dual(gm))),
         ("unshrunk m, dual", &unshrunk, (Window, Second::Dual(gm))),
         (
-            "motion, bank",
-            &trained,
+            "unshrunk m, bank",
+            &unshrunk,
             (Window, Second::Bank(Arrangement::Bank, bank_spec)),
         ),
         (
-            "motion, bank-guarded",
-            &trained,
+            "unshrunk m, bank-guarded",
+            &unshrunk,
             (Window, Second::Bank(Arrangement::BankGuarded, bank_spec)),
         ),
         (
