@@ -167,21 +167,34 @@ const TAU_S: (f64, f64) = (1.0, 10000.0);
 const Q_RW: (f64, f64) = (1e-15, 1e-7);
 
 fn rwgm_grid(r_dps2: f64) -> Vec<RwGmConfig> {
-    let mut g = Vec::new();
-    for q in log_grid(Q_RW.0, Q_RW.1, 2) {
-        for sigma_dph in SIGMA_DPH {
-            for tau_s in log_grid(TAU_S.0, TAU_S.1, 2) {
-                g.push(RwGmConfig {
-                    q_rw_dps2_per_s: q,
+    log_grid(Q_RW.0, Q_RW.1, 2)
+        .into_iter()
+        .flat_map(|q| {
+            gm_grid(RwGmConfig {
+                q_rw_dps2_per_s: q,
+                sigma_gm_dps: 0.0,
+                tau_s: 1.0,
+                r_dps2,
+                p0_dps2: (30.0f64 / 3600.0).powi(2),
+            })
+        })
+        .collect()
+}
+
+/// The Gauss-Markov part of [`rwgm_grid`] (sigma, then tau) with the rest of `base`.
+fn gm_grid(base: RwGmConfig) -> Vec<RwGmConfig> {
+    SIGMA_DPH
+        .iter()
+        .flat_map(|&sigma_dph| {
+            log_grid(TAU_S.0, TAU_S.1, 2)
+                .into_iter()
+                .map(move |tau_s| RwGmConfig {
                     sigma_gm_dps: sigma_dph / 3600.0,
                     tau_s,
-                    r_dps2,
-                    p0_dps2: (30.0f64 / 3600.0).powi(2),
-                });
-            }
-        }
-    }
-    g
+                    ..base
+                })
+        })
+        .collect()
 }
 
 fn rwgm_label(c: &RwGmConfig) -> String {
@@ -1111,18 +1124,7 @@ fn evaluate_flags(
             })
         })
         .collect();
-    let gm_grid: Vec<RwGmConfig> = SIGMA_DPH
-        .iter()
-        .flat_map(|&sigma_dph| {
-            log_grid(TAU_S.0, TAU_S.1, 2)
-                .into_iter()
-                .map(move |tau_s| RwGmConfig {
-                    sigma_gm_dps: sigma_dph / 3600.0,
-                    tau_s,
-                    ..gm
-                })
-        })
-        .collect();
+    let gm_grid = gm_grid(gm);
     // Mean heading RMS and |end| of `make(sensor)` over `recs` with `flags`.
     let score = |recs: &[NavRecord],
                  sensors: &[SensorConfig],
