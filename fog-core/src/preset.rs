@@ -223,13 +223,11 @@ impl PresetEstimator {
         p.rest.set_gauss_markov(gm.sigma_dps, gm.tau_s);
         if arrangement == Arrangement::Dual {
             p.second = SecondSlot::Hold(MotionEstimator::new(model, cfg)?);
-            // Set up in the slot (no move of a built estimator); the else is unreachable:
-            // the slot was just filled.
-            let SecondSlot::Hold(h) = &mut p.second else {
-                return Err(MotionError::BadStillConfig);
-            };
-            h.set_level_update(LevelUpdate::Window);
-            h.set_gauss_markov(gm.sigma_dps, gm.tau_s);
+            // Set up in the slot (no move of a built estimator; the slot was just filled).
+            if let SecondSlot::Hold(h) = &mut p.second {
+                h.set_level_update(LevelUpdate::Window);
+                h.set_gauss_markov(gm.sigma_dps, gm.tau_s);
+            }
         }
         Ok(p)
     }
