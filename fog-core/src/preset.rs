@@ -1,5 +1,8 @@
 //! The estimator an identifier image names: one [`MotionEstimator`] (window or per-sample
-//! level) or the dual ([`Arrangement::Dual`]), with an optional Gauss-Markov state.
+//! level) or the dual ([`Arrangement::Dual`]), with an optional Gauss-Markov state, or a
+//! bank arrangement ([`Arrangement::is_bank`]: the level as the sensor's Allan noise model,
+//! [`crate::bank::LevelBank`], beside a per-sample estimator that is the detector's drift
+//! reference).
 //!
 //! The dual runs two estimators of the same model and configuration side by side on the
 //! same samples, each with its own stillness detector:
