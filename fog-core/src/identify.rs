@@ -9,7 +9,7 @@
 //!    completed; the trainer makes one step with `h(x(k - B))` and `d(k - B)`. So targets
 //!    are used exactly `B` samples after their measurement, one per incoming sample (no
 //!    burst of `B` updates when a block completes);
-//! 4. `X(k)` goes into the [`BlockDenoiser`]; when it completes a block, the block's
+//! 4. `X(k)` goes into the [`BlockDenoiser`](crate::denoise::BlockDenoiser); when it completes a block, the block's
 //!    denoised values become the targets of the next `B` training steps.
 //!
 //! Memory, fixed at compile time: denoising block and its scratch `8 B` bytes, input ring

@@ -261,7 +261,7 @@ pub(crate) fn from_total_key(k: u32) -> f32 {
 /// the mean of the two middle values; values are ranked by `f32::total_cmp` (for
 /// non-negative values, the order of their bit patterns).
 ///
-/// Radix selection on [`total_key`], 4 bits per pass from the top: each pass counts the
+/// Radix selection on `total_key`, 4 bits per pass from the top: each pass counts the
 /// remaining candidates per digit, keeps (compacted to the front of `v`) those with the
 /// digit that holds the middle rank, and records how many fall below it and the largest of
 /// them (for the lower middle value). The candidates shrink quickly once the exponent bits

@@ -133,9 +133,9 @@ impl<const N: usize> InputScaling<N> {
 pub enum Neuron {
     /// `phi(a . x - b)`: the paper's wavelet neuron (eq. 5).
     Wavelet,
-    /// Constant 1: an output bias (not in the paper; in its reference [8], Zhang 1995).
+    /// Constant 1: an output bias (not in the paper; in its reference \[8\], Zhang 1995).
     Bias,
-    /// The scaled input `x[j]` itself: a linear direct link (also from reference [8]).
+    /// The scaled input `x[j]` itself: a linear direct link (also from reference \[8\]).
     Linear(u8),
 }
 
