@@ -808,6 +808,14 @@ impl MotionEstimator {
         self.last_window == Some(false)
     }
 
+    /// The last accepted [`MotionEstimator::push`] was a detector window's first sample
+    /// (where the level is checkpointed); false before the first. Derived from the sample
+    /// count (no per-sample cost); the count wraps after 2^32 samples (497 days at 100 Hz).
+    pub fn window_started(&self) -> bool {
+        let pushed = self.stats.samples;
+        pushed != 0 && (pushed - 1).is_multiple_of(self.still.window_samples())
+    }
+
     /// Samples per detector window.
     pub fn window_samples(&self) -> u32 {
         self.still.window_samples()
@@ -1307,6 +1315,24 @@ mod tests {
         w.weights = [1.0 / 3600.0; MOTION_L];
         let x = [100.0, REFERENCE_TEMP_C, 0.0];
         assert!((w.scaled(0.25).eval(&x) - 0.25 * w.eval(&x)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn window_started_marks_each_windows_first_accepted_sample() {
+        let model = MotionModel::standard(1800.0).expect("test");
+        let mut e = MotionEstimator::new(model, MotionConfig::for_sensor(S)).expect("test");
+        let w = e.window_samples() as usize;
+        assert!(!e.window_started(), "no push yet");
+        let x = record(3, 0.0, 2 * w + 50);
+        for (k, &r) in x.iter().enumerate() {
+            e.push(r, 25.0, None).expect("test");
+            assert_eq!(e.window_started(), k % w == 0, "{k}");
+            // A refused sample is not a sample: the answer stays.
+            assert!(e.push(f32::NAN, 25.0, None).is_err());
+            assert_eq!(e.window_started(), k % w == 0, "{k} after a refused sample");
+        }
+        e.restart();
+        assert!(!e.window_started());
     }
 
     #[test]

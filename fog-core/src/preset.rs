@@ -166,7 +166,6 @@ struct BankLevel {
     /// `BankDual`: per released window mean (one window late), the output in motion.
     hold: LevelBank,
     guard: Guard,
-    window: u32,
     since_prev: u32,
     since_now: u32,
     // A sample of the current window carried an external still flag.
@@ -216,7 +215,6 @@ impl PresetEstimator {
                     _ => Guard::None,
                 },
                 level,
-                window: p.rest.window_samples(),
                 since_prev: 0,
                 since_now: 0,
                 external: false,
@@ -289,20 +287,18 @@ impl PresetEstimator {
         external_still: Option<bool>,
     ) -> Result<MotionOutput, MotionError> {
         if let SecondSlot::Bank(b) = &mut self.second {
-            // Window start (the per-sample estimator checkpoints at the same samples).
-            if b.guard != Guard::None
-                && self.rest.stats().samples.is_multiple_of(b.window)
-                && rate_dps.is_finite()
-            {
+            let (o, _) = self
+                .rest
+                .push_shared(rate_dps, temp_c, external_still, None)?;
+            // At the per-sample estimator's window starts, the bank's checkpoint (before this
+            // sample reaches it).
+            if b.guard != Guard::None && self.rest.window_started() {
                 b.level.checkpoint();
                 b.since_prev = b.since_now;
                 b.since_now = 0;
                 b.external = false;
             }
             b.external |= external_still.is_some();
-            let (o, _) = self
-                .rest
-                .push_shared(rate_dps, temp_c, external_still, None)?;
             b.level.predict();
             b.since_prev = b.since_prev.saturating_add(1);
             b.since_now = b.since_now.saturating_add(1);
@@ -322,7 +318,7 @@ impl PresetEstimator {
                 b.since_now = 0;
             }
             if b.guard == Guard::Dual && self.rest.window_ended() {
-                b.hold.predict_many(b.window);
+                b.hold.predict_many(self.rest.window_samples());
                 if let Some((z, r)) = self.rest.released_window() {
                     b.hold.update_mean(z, r);
                 }
