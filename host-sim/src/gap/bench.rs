@@ -100,7 +100,7 @@ pub struct BenchReport {
     pub setup: String,
     /// Every record.
     pub records: Vec<BenchRecord>,
-    /// confusion[truth][diagnosed] = count.
+    /// `confusion[truth][diagnosed]` = count.
     pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
     /// Per class.
     pub classes: BTreeMap<String, ClassSummary>,

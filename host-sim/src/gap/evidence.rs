@@ -302,7 +302,7 @@ fn resid(y: &[f64], cols: &[&[f64]]) -> Option<Vec<f64>> {
 }
 
 /// Temperature statistic on [`TEMP_WINDOW_S`] means (from the 5-s means): what `[T,
-/// dT/dt]` add to `[1, t, exp(-t/tau)]` ([`ar1_nested`], AR(1) errors), `tau_s` the series'
+/// dT/dt]` add to `[1, t, exp(-t/tau)]` (`ar1_nested`, AR(1) errors), `tau_s` the series'
 /// own best warm-up time constant (from [`warmup_stat`]; 0 = no exponential column): the
 /// channel must explain the drift **beyond** a ramp and a warm-up transient, so a drift that
 /// is merely a transient does not pass because the channel also rises at power-on.
@@ -345,7 +345,7 @@ pub const WARMUP_TAU_MAX_SHARE: f64 = 1.0 / 3.0;
 
 /// Warm-up statistic on [`WARMUP_WINDOW_S`] means (from the 5-s means `y_w`): the largest,
 /// over tau on a 16-per-decade grid from one window to the record length, of what
-/// `exp(-t/tau)` adds to `[1, t]` ([`ar1_nested`]: AR(1) errors by Cochrane-Orcutt, so a
+/// `exp(-t/tau)` adds to `[1, t]` (`ar1_nested`: AR(1) errors by Cochrane-Orcutt, so a
 /// drift that merely wanders, flicker or random walk, is discounted, and a line is removed
 /// in both models, so a ramp alone gives nothing); and that best tau, s. The grid runs past
 /// [`WARMUP_TAU_MAX_SHARE`] of the record so that a slow curvature (a ramp over a walk) is

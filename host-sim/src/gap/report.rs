@@ -86,7 +86,7 @@ fn esc(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
-/// The files [`write`] writes into its folder.
+/// The files [`write()`] writes into its folder.
 pub const FILES: [&str; 3] = ["adev.svg", "psd.svg", "index.html"];
 
 /// Writes `adev.svg`, `psd.svg` and `index.html` into `dir`; returns the page's path.
