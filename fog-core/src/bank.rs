@@ -288,16 +288,18 @@ impl LevelBank {
     /// A window failed: back to the checkpoint before the previous window, predicted over
     /// the `samples` since it; both checkpoints become that state.
     pub fn rollback(&mut self, samples: u32) {
-        self.s = self.cp_prev;
-        self.predict_many(samples);
-        self.cp_now = self.s;
-        self.cp_prev = self.s;
+        self.restore(self.cp_prev, samples);
     }
 
     /// A window failed: back to the checkpoint at its start, predicted over the `samples`
     /// since it; both checkpoints become that state (the windows before it stay).
     pub fn rollback_window(&mut self, samples: u32) {
-        self.s = self.cp_now;
+        self.restore(self.cp_now, samples);
+    }
+
+    /// Back to `cp`, predicted over `samples`; both checkpoints become that state.
+    fn restore(&mut self, cp: State, samples: u32) {
+        self.s = cp;
         self.predict_many(samples);
         self.cp_now = self.s;
         self.cp_prev = self.s;

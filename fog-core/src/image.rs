@@ -21,7 +21,7 @@
 //! | 488 | L x f32 | trainer state (`U` or `S` per weight) |
 //! | 552 | u32 | records trained on (passes included) |
 //! | 556 | 1+3 | level arrangement ([`Arrangement`]: 0 window, 1 sample, 2 dual, 3 bank, 4 bank-dual, 5 bank-guarded), 0, 0, 0 |
-//! | 560 | 2 x f32 | Gauss-Markov state: sigma deg/s (0 = off), tau s (0 when off); bank (3, 4): its `B` deg/s (> 0) and longest correlation time s (1 to 10^4) |
+//! | 560 | 2 x f32 | Gauss-Markov state: sigma deg/s (0 = off), tau s (0 when off); bank (3, 4, 5): its `B` deg/s (> 0) and longest correlation time s (1 to 10^4) |
 //! | 568 | u32 | CRC-32/ISO-HDLC of bytes 0..568 |
 //!
 //! Version 1 ([`IMAGE_LEN_V1`] = 560 bytes) is version 2 without bytes 556..568 (its CRC at

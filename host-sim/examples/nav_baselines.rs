@@ -68,7 +68,8 @@ use fog_core::motion_fit::NormalEquations;
 use fog_core::preset::{Arrangement, GaussMarkov, PresetEstimator};
 use fog_core::still::SensorConfig;
 use host_sim::motion::{
-    describe_least_squares, drls_checked, least_squares_fit, LeastSquaresFit, SHRINK_LAG_WINDOWS,
+    describe_least_squares, drls_checked, least_squares_fit, LeastSquaresFit, BANK_B_DPH,
+    BANK_TAU_MAX_S, SHRINK_LAG_WINDOWS,
 };
 use host_sim::nav::{
     fit_thermal, log_grid, run, tune_gated_q, AlignmentBias, BankConfig, DriftEstimator, GatedBank,
@@ -408,6 +409,17 @@ fn bank_arrangement() -> Option<Arrangement> {
         "--bank-guarded" => Some(Arrangement::BankGuarded),
         _ => None,
     })
+}
+
+/// `base` with the bank at the family's specification, `identify`'s default (B
+/// [`BANK_B_DPH`] deg/h in sigma, states up to [`BANK_TAU_MAX_S`] s in tau; ASSUMED E-Core
+/// class).
+fn bank_spec(base: RwGmConfig) -> RwGmConfig {
+    RwGmConfig {
+        sigma_gm_dps: f64::from(BANK_B_DPH) / 3600.0,
+        tau_s: f64::from(BANK_TAU_MAX_S),
+        ..base
+    }
 }
 
 /// `--static-only`: of the default rows, the static records' alone (no vehicles).
@@ -792,13 +804,8 @@ fn evaluate_motion(set: &Set, gm_vehicle: RwGmConfig, trainers: bool) -> Result<
     println!(
         "static: per-sample RW Kalman (q {k_q:.2e} (deg/s)^2/sample, tuned by e_truth) e_truth {k_test:.4}"
     );
-    // The bank arrangements at the family's specification (B 1.5 deg/h, states up to
-    // 10^4 s; ASSUMED E-Core class, identify's default); q tuned as every motion row's.
-    let bank_spec = RwGmConfig {
-        sigma_gm_dps: 1.5 / 3600.0,
-        tau_s: 10_000.0,
-        ..gm
-    };
+    // The bank arrangements at the family's specification; q tuned as every motion row's.
+    let bank_spec = bank_spec(gm);
     let t = e_truth(&set.static_test, rwgm(gm))?;
     println!(
         "static: per-sample RW+GM Kalman ({}) e_truth {t:.4} ({:+.1} % vs Kalman)",
@@ -1075,17 +1082,9 @@ fn evaluate_flags(
     );
     let (gm, _) = pick(&rwgm_grid(1.0), |c| e_truth(&set.static_valid, rwgm(*c)))?;
     // `--bank`: the product's level is the Allan noise model; its start is the family's
-    // specification (B 1.5 deg/h, states up to 10^4 s; ASSUMED E-Core class).
+    // specification.
     let bank = bank_arrangement().is_some();
-    let gm = if bank {
-        RwGmConfig {
-            sigma_gm_dps: 1.5 / 3600.0,
-            tau_s: 10_000.0,
-            ..gm
-        }
-    } else {
-        gm
-    };
+    let gm = if bank { bank_spec(gm) } else { gm };
     // Product: mean heading RMS and |end| over `recs`, with each record's still calls.
     let product = |recs: &[NavRecord],
                    sensors: &[SensorConfig],

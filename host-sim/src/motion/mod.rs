@@ -206,9 +206,7 @@ impl TrainOptions {
             gauss_markov: DEFAULT_GAUSS_MARKOV,
         }
     }
-}
 
-impl TrainOptions {
     /// The same options with `arrangement` and its default Gauss-Markov fields
     /// ([`DEFAULT_BANK`] for a bank arrangement, else [`DEFAULT_GAUSS_MARKOV`]).
     pub fn with_arrangement(mut self, arrangement: Arrangement) -> Self {
