@@ -15,8 +15,9 @@
 //! simulator's vehicle motion (own detector). Results: docs/motion.md.
 use anyhow::Result;
 use fog_core::still::SensorConfig;
-use host_sim::demo::{family_model, run_image, TrainingSet, RATE_HZ};
+use host_sim::demo::{family_model, TrainingSet, RATE_HZ};
 use host_sim::identify::series::{Records, Series};
+use host_sim::motion::tune::run_image;
 use host_sim::motion::{self, TrainOptions, TrainerArg};
 use host_sim::nav::{self, BaselineConfig, NavRecord};
 use host_sim::sim::Simulator;

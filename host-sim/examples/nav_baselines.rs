@@ -1175,7 +1175,7 @@ fn evaluate_flags(
             }
             ends.push((q, g));
         }
-        let ((q, g), _) = pick(&ends, |(q, g)| valid(*q, *g))?;
+        let ((q, g), valid_rms) = pick(&ends, |(q, g)| valid(*q, *g))?;
         let (a, b, _) = product(&set.test, s_test, q0, gm, truth)?;
         println!(
             "{:<34} {name:<9} {a:>10.4} {b:>10.4}  q {q0:.1} (deg/h)^2/h{}; GM {:.1} deg/h, {:.0} s (static-tuned)",
@@ -1187,7 +1187,7 @@ fn evaluate_flags(
         let (_, _, valid_calls) = product(&set.valid, s_valid, q, g, truth)?;
         let (a, b, test_calls) = product(&set.test, s_test, q, g, truth)?;
         println!(
-            "{:<34} {name:<9} {a:>10.4} {b:>10.4}  q {q:.1} (deg/h)^2/h{}; GM {:.1} deg/h, {:.0} s (vehicle-tuned)",
+            "{:<34} {name:<9} {a:>10.4} {b:>10.4}  q {q:.1} (deg/h)^2/h{}; GM {:.3} deg/h, {:.0} s (vehicle-tuned; validation {valid_rms:.4})",
             "product, q and GM vehicle-tuned",
             q_end(q),
             g.sigma_gm_dps * 3600.0,

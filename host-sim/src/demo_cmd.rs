@@ -22,22 +22,23 @@ pub struct Args {
     /// The bench trainer of the model (`identify --preset motion --motion-trainer`).
     #[arg(long, value_enum, default_value_t = crate::motion::TrainerArg::DrlsChecked)]
     pub trainer: crate::motion::TrainerArg,
-    /// How the identifier's level learns (`identify --preset motion --level-update`), with
-    /// that arrangement's default Gauss-Markov state or bank.
-    #[arg(long, value_enum, default_value_t = crate::motion::LevelUpdateArg::default())]
-    pub level_update: crate::motion::LevelUpdateArg,
+    /// The identifier's candidate arrangements (`identify --preset motion --level-update
+    /// A B --tune-on`): each tuned on the validation vehicles from its default Gauss-Markov
+    /// state or bank, the best kept (default: dual and bank-guarded).
+    #[arg(long, value_enum, num_args = 1.., default_values_t = demo::DEFAULT_ARRANGEMENTS.map(crate::motion::LevelUpdateArg::of))]
+    pub level_update: Vec<crate::motion::LevelUpdateArg>,
 }
 
 /// Runs the command; prints the path of `index.html` on stdout.
 pub fn run(args: &Args) -> Result<()> {
     let mut cfg = if args.quick {
-        DemoConfig::QUICK
+        DemoConfig::quick()
     } else {
-        DemoConfig::FULL
+        DemoConfig::full()
     };
     cfg.shrink = args.shrink;
     cfg.trainer = args.trainer;
-    cfg.arrangement = args.level_update.arrangement();
+    cfg.arrangements = args.level_update.iter().map(|l| l.arrangement()).collect();
     let index = demo::run(&args.out, &cfg)?;
     println!("{}", index.display());
     Ok(())

@@ -3,8 +3,11 @@
 use crate::identify::series::CsvFiles;
 use crate::identify::{self, Act, DrlsFormArg, LevelInput, Options, Preset, TrainerKind};
 use crate::motion::{self, SensorArg};
+use crate::nav::NavRecord;
 use crate::record;
 use anyhow::{Context, Result};
+use fog_core::image::Image;
+use fog_core::preset::{Arrangement, GaussMarkov};
 use std::path::PathBuf;
 
 /// The identifier's options, shared by `identify` and `reproduce`.
@@ -122,9 +125,19 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = motion::TrainerArg::DrlsChecked)]
     pub motion_trainer: motion::TrainerArg,
     /// `--preset motion`: how the saved image's level learns (default dual: per-sample
-    /// level at rest, window level in motion; fog_core::preset).
-    #[arg(long, value_enum, default_value_t = motion::LevelUpdateArg::Dual)]
-    pub level_update: motion::LevelUpdateArg,
+    /// level at rest, window level in motion; fog_core::preset). Several values (e.g.
+    /// `dual bank-guarded`) need `--tune-on`: each is tuned there and the best is saved.
+    #[arg(long, value_enum, num_args = 1.., default_values_t = [motion::LevelUpdateArg::Dual])]
+    pub level_update: Vec<motion::LevelUpdateArg>,
+    /// `--preset motion`: vehicle records with truth (`true_rate_dps`, `drift_dps`; CSV
+    /// files or folders; other units than the training records') on which the level noise,
+    /// the second state (Gauss-Markov sigma and tau, or the bank's B and longest tau) and,
+    /// with several `--level-update` values, the arrangement are picked by the least mean
+    /// heading-error RMS with the identifier's own detector (host_sim::motion::tune); the
+    /// picks overrule `--level-q-dph2-per-h`, `--gm-*` and `--bank-*`, which set the start.
+    /// Score the result on other records (`--validate`).
+    #[arg(long, num_args = 1..)]
+    pub tune_on: Vec<PathBuf>,
     /// `--preset motion`: Gauss-Markov sigma of the level, deg/h (0: off; default
     /// host_sim::motion::GAUSS_MARKOV_SIGMA_DPH = 2, ASSUMED from the static tuning).
     #[arg(long)]
@@ -248,6 +261,72 @@ pub fn run(a: &Args) -> Result<()> {
     write_report(json, &report, &report)
 }
 
+/// The image's Gauss-Markov fields for `arrangement` from the arguments: the bank's B and
+/// longest tau for a bank arrangement, else the Gauss-Markov state (defaults
+/// [`motion::DEFAULT_BANK`], [`motion::DEFAULT_GAUSS_MARKOV`]).
+fn second_state(
+    a: &Args,
+    arrangement: Arrangement,
+    level_q_dps2_per_s: f32,
+) -> Result<GaussMarkov> {
+    if arrangement.is_bank() {
+        let g = GaussMarkov {
+            sigma_dps: a.bank_b_dph.unwrap_or(motion::BANK_B_DPH) / 3600.0,
+            tau_s: a.bank_tau_max_s.unwrap_or(motion::BANK_TAU_MAX_S),
+        };
+        if !g.bank(level_q_dps2_per_s).is_valid() {
+            anyhow::bail!(
+                "--bank-b-dph {} --bank-tau-max-s {}: B must be > 0 and the longest tau 1 to 10000 s",
+                g.sigma_dps * 3600.0,
+                g.tau_s
+            );
+        }
+        return Ok(g);
+    }
+    let d = motion::DEFAULT_GAUSS_MARKOV;
+    let g = GaussMarkov {
+        sigma_dps: a.gm_sigma_dph.map_or(d.sigma_dps, |s| s / 3600.0),
+        tau_s: a.gm_tau_s.unwrap_or(d.tau_s),
+    };
+    if g.sigma_dps == 0.0 {
+        return Ok(GaussMarkov::OFF);
+    }
+    if !g.is_valid() {
+        anyhow::bail!(
+            "--gm-sigma-dph {} --gm-tau-s {}: sigma must be >= 0 and tau > 0, both finite",
+            g.sigma_dps * 3600.0,
+            g.tau_s
+        );
+    }
+    Ok(g)
+}
+
+/// `--tune-on`: the vehicle records with truth, each at `image`'s sample rate.
+fn read_vehicles(image: &Image, paths: &[PathBuf]) -> Result<Vec<NavRecord>> {
+    let rate_hz = f64::from(image.config.sensor.sample_rate_hz);
+    let mut out = Vec::new();
+    for p in &CsvFiles::from_args(paths, "rate_dps")?.0 {
+        let r = crate::replay::input::read_csv(
+            p,
+            &crate::replay::input::RateSpec::default(),
+            rate_hz,
+            None,
+        )?;
+        let hz = (1.0 / r.record.series.sample_period_s()) as f32;
+        image
+            .check_rate(hz)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
+        let Some(t) = r.truth else {
+            anyhow::bail!(
+                "{}: no truth (`true_rate_dps` and `drift_dps`): cannot tune on it",
+                p.display()
+            );
+        };
+        out.push(t);
+    }
+    Ok(out)
+}
+
 /// `--preset motion`: trains on the static records and writes the identifier image.
 fn run_motion(a: &Args) -> Result<()> {
     let Some(out) = &a.save_identifier else {
@@ -259,7 +338,12 @@ fn run_motion(a: &Args) -> Result<()> {
     } else {
         CsvFiles::from_args(&a.validate, "rate_dps")?.0
     };
-    for p in train.0.iter().chain(&validate) {
+    let tune_on = if a.tune_on.is_empty() {
+        Vec::new()
+    } else {
+        CsvFiles::from_args(&a.tune_on, "rate_dps")?.0
+    };
+    for p in train.0.iter().chain(&validate).chain(&tune_on) {
         record::refuse_overwrite(p, out)?;
         if let Some(j) = &a.json {
             record::refuse_overwrite(p, j)?;
@@ -272,47 +356,67 @@ fn run_motion(a: &Args) -> Result<()> {
     if let Some(q) = a.level_q_dph2_per_h {
         o.config.level_q_dps2_per_s = q / (3600.0 * 3600.0 * 3600.0);
     }
-    o.arrangement = a.level_update.arrangement();
-    let d = motion::DEFAULT_GAUSS_MARKOV;
-    o.gauss_markov = fog_core::preset::GaussMarkov {
-        sigma_dps: a.gm_sigma_dph.map_or(d.sigma_dps, |s| s / 3600.0),
-        tau_s: a.gm_tau_s.unwrap_or(d.tau_s),
-    };
-    if o.gauss_markov.sigma_dps == 0.0 {
-        o.gauss_markov = fog_core::preset::GaussMarkov::OFF;
+    let arrangements: Vec<Arrangement> = a.level_update.iter().map(|l| l.arrangement()).collect();
+    if arrangements.len() > 1 && a.tune_on.is_empty() {
+        anyhow::bail!("several --level-update values need --tune-on VEHICLE_RECORDS to pick one");
     }
-    if !o.gauss_markov.is_valid() {
+    let banks = arrangements.iter().filter(|x| x.is_bank()).count();
+    if banks == arrangements.len() && (a.gm_sigma_dph.is_some() || a.gm_tau_s.is_some()) {
         anyhow::bail!(
-            "--gm-sigma-dph {} --gm-tau-s {}: sigma must be >= 0 and tau > 0, both finite",
-            o.gauss_markov.sigma_dps * 3600.0,
-            o.gauss_markov.tau_s
+            "--level-update bank / bank-dual / bank-guarded take --bank-b-dph / --bank-tau-max-s, not --gm-*"
         );
     }
-    if o.arrangement.is_bank() {
-        if a.gm_sigma_dph.is_some() || a.gm_tau_s.is_some() {
-            anyhow::bail!(
-                "--level-update bank / bank-dual / bank-guarded take --bank-b-dph / --bank-tau-max-s, not --gm-*"
-            );
-        }
-        // The image's Gauss-Markov fields carry the bank's B and longest tau.
-        o.gauss_markov = fog_core::preset::GaussMarkov {
-            sigma_dps: a.bank_b_dph.unwrap_or(motion::BANK_B_DPH) / 3600.0,
-            tau_s: a.bank_tau_max_s.unwrap_or(motion::BANK_TAU_MAX_S),
-        };
-        if !o.gauss_markov.bank(o.config.level_q_dps2_per_s).is_valid() {
-            anyhow::bail!(
-                "--bank-b-dph {} --bank-tau-max-s {}: B must be > 0 and the longest tau 1 to 10000 s",
-                o.gauss_markov.sigma_dps * 3600.0,
-                o.gauss_markov.tau_s
-            );
-        }
-    } else if a.bank_b_dph.is_some() || a.bank_tau_max_s.is_some() {
+    if banks == 0 && (a.bank_b_dph.is_some() || a.bank_tau_max_s.is_some()) {
         anyhow::bail!(
             "--bank-b-dph / --bank-tau-max-s need --level-update bank, bank-dual or bank-guarded"
         );
     }
+    let mut seconds = Vec::with_capacity(arrangements.len());
+    for &arr in &arrangements {
+        seconds.push(second_state(a, arr, o.config.level_q_dps2_per_s)?);
+    }
+    o.arrangement = arrangements[0];
+    o.gauss_markov = seconds[0];
     let trained = motion::train(&train, &o)?;
-    let (image, rows, shrink) = (trained.image, trained.records, trained.shrinkage);
+    let (mut image, rows, shrink) = (trained.image, trained.records, trained.shrinkage);
+    let tuning = if a.tune_on.is_empty() {
+        None
+    } else {
+        let candidates: Vec<Image> = arrangements
+            .iter()
+            .zip(&seconds)
+            .map(|(&arr, &g)| image.clone().with_arrangement(arr, g))
+            .collect();
+        let vehicles = read_vehicles(&image, &a.tune_on)?;
+        let (picked, best, tuned) = motion::tune::pick_arrangement(&candidates, &vehicles)?;
+        for (arr, t) in arrangements.iter().zip(&tuned) {
+            eprintln!(
+                "tuned on {} vehicle records: {}: {}",
+                vehicles.len(),
+                motion::LevelUpdateArg::of(*arr).cli_name(),
+                motion::tune::describe(*arr, t)
+            );
+        }
+        eprintln!(
+            "tuned: saving {}",
+            motion::LevelUpdateArg::of(picked.arrangement).cli_name()
+        );
+        image = picked;
+        Some(serde_json::json!({
+            "records": vehicles.len(),
+            "picked": motion::LevelUpdateArg::of(image.arrangement).cli_name(),
+            "candidates": arrangements.iter().zip(&tuned).map(|(arr, t)| serde_json::json!({
+                "level_update": motion::LevelUpdateArg::of(*arr).cli_name(),
+                "level_q_dph2_per_h": t.q_dph2_per_h,
+                "second_sigma_or_b_dph": t.second.sigma_dps * 3600.0,
+                "second_tau_s": t.second.tau_s,
+                "mean_heading_rms_deg": t.heading_rms_deg,
+                "q_at_grid_end": t.q_at_grid_end,
+                "second_at_grid_end": t.second_at_grid_end,
+            })).collect::<Vec<_>>(),
+            "picked_index": best,
+        }))
+    };
     let trained_empty = image.model.weights.iter().all(|w| *w == 0.0);
     if let Some(ls) = &trained.least_squares {
         eprintln!(
@@ -353,6 +457,7 @@ fn run_motion(a: &Args) -> Result<()> {
             "shrinkage": shrink,
             "weights_dps": image.model.weights,
             "validation": validation,
+            "tuning": tuning,
         }))
         .context("report to JSON")?;
         record::write_atomic(j, |w| {

@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 const SVGS: [&str; 3] = ["heading_error.svg", "drift.svg", "rate.svg"];
 
 /// Runs the demo once for every test of this file; returns its folder and stdout.
-fn demo() -> &'static (PathBuf, String) {
-    static DEMO: OnceLock<(PathBuf, String)> = OnceLock::new();
+fn demo() -> &'static (PathBuf, String, String) {
+    static DEMO: OnceLock<(PathBuf, String, String)> = OnceLock::new();
     DEMO.get_or_init(|| {
         // Under target/tmp: kept for inspection, replaced on the next run.
         let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("demo_cli");
@@ -27,7 +27,8 @@ fn demo() -> &'static (PathBuf, String) {
             .assert()
             .success();
         let stdout = String::from_utf8_lossy(&a.get_output().stdout).to_string();
-        (out, stdout)
+        let stderr = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+        (out, stdout, stderr)
     })
 }
 
@@ -43,7 +44,7 @@ fn finite(v: &serde_json::Value, path: &str) -> f64 {
 
 #[test]
 fn demo_writes_the_report() {
-    let (dir, stdout) = demo();
+    let (dir, stdout, stderr) = demo();
     let index = dir.join("index.html");
     assert_eq!(
         stdout.trim(),
@@ -64,7 +65,25 @@ fn demo_writes_the_report() {
         serde_json::from_str(&fs::read_to_string(dir.join("summary.json")).expect("summary"))
             .expect("json");
     assert_eq!(s["rows"], 60_000);
-    assert_eq!(s["level_update"], "dual", "identify's default arrangement");
+    // The arrangement kept: the candidate (dual, bank-guarded) the validation vehicles
+    // scored lower, each at its tuned level.
+    let kept = s["level_update"].as_str().expect("level_update");
+    assert!(kept == "dual" || kept == "bank-guarded", "{kept}");
+    let rms_of = |name: &str| -> f64 {
+        let line = stderr
+            .lines()
+            .find(|l| l.contains(&format!("identifier {name}: level q")))
+            .unwrap_or_else(|| panic!("no tuning line for {name}: {stderr}"));
+        let tail = line.split("mean heading RMS ").nth(1).expect("rms");
+        tail.split(' ')
+            .next()
+            .expect("rms")
+            .parse()
+            .expect("number")
+    };
+    let (dual, bank) = (rms_of("dual"), rms_of("bank-guarded"));
+    assert_eq!(kept, if dual <= bank { "dual" } else { "bank-guarded" });
+    assert!(stderr.contains(&format!("identifier {kept}: level q")) && stderr.contains("(kept)"));
     assert_eq!(
         s["records_trained"], 36,
         "12 records x 3 DRLS passes (drls-checked)"
@@ -113,8 +132,9 @@ fn demo_writes_the_report() {
     assert!(!html.contains("<script"));
 }
 
-/// `--level-update` picks the identifier's arrangement (with its default bank): the saved
-/// image and the summary name it, and the identifier still beats no compensation.
+/// `--level-update` with one value runs that arrangement alone (its bank tuned on the
+/// validation vehicles): the saved image and the summary name it, and the identifier still
+/// beats no compensation.
 #[test]
 fn demo_runs_another_arrangement() {
     let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("demo_cli_bank_guarded");
@@ -134,11 +154,15 @@ fn demo_runs_another_arrangement() {
         image.arrangement,
         fog_core::preset::Arrangement::BankGuarded
     );
+    // B and the longest tau tuned on the validation vehicles, from the bank's grid.
+    let b_dph = image.gauss_markov.sigma_dps * 3600.0;
     assert!(
-        (image.gauss_markov.sigma_dps * 3600.0 - 1.5).abs() < 1e-5,
-        "B 1.5 deg/h"
+        host_sim::motion::tune::BANK_B_GRID_DPH
+            .iter()
+            .any(|b| (b - b_dph).abs() < 1e-4),
+        "B {b_dph} deg/h"
     );
-    assert_eq!(image.gauss_markov.tau_s, 10_000.0);
+    assert!(host_sim::motion::tune::BANK_TAU_MAX_GRID_S.contains(&image.gauss_markov.tau_s));
     let s: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(out.join("summary.json")).expect("summary"))
             .expect("json");
@@ -214,7 +238,7 @@ fn index_html_loads_in_headless_chromium() {
         );
         return;
     };
-    let (dir, _) = demo();
+    let (dir, _, _) = demo();
     let index = dir.join("index.html").canonicalize().expect("path");
     let url = format!("file://{}", index.display());
     let profile = tempfile::tempdir().expect("tmp");

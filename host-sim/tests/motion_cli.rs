@@ -441,3 +441,94 @@ fn identify_shrinks_the_model_by_cross_validation() {
         );
     }
 }
+
+/// `identify --tune-on`: each `--level-update` value tuned on vehicle records with truth,
+/// the one with the least mean heading RMS saved; the picks in the JSON and the image.
+#[test]
+fn tune_on_vehicles_picks_the_arrangement_and_its_level() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let train = train_dir(d);
+    // Two 300-s vehicle records of the ecore2000 preset (alignment 60 s).
+    let preset =
+        fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("presets/ecore2000.toml"))
+            .expect("preset");
+    // The preset's [motion] table is its last; the vehicle profile replaces it.
+    let head = preset.split("[motion]").next().expect("preset head");
+    let toml = format!("{head}[motion]\nprofile = \"vehicle\"\n[motion.vehicle]\nalign_s = 60.0\n");
+    let model = d.join("vehicle.toml");
+    fs::write(&model, toml).expect("test");
+    let veh = d.join("vehicles");
+    fs::create_dir(&veh).expect("test");
+    for seed in [21u64, 22] {
+        host_sim()
+            .args(["simulate", "--model"])
+            .arg(&model)
+            .args([
+                "--duration-s",
+                "300",
+                "--seed",
+                &seed.to_string(),
+                "--output",
+            ])
+            .arg(veh.join(format!("v{seed}.csv")))
+            .assert()
+            .success();
+    }
+    let img = d.join("tuned.fogi");
+    let json = d.join("tuned.json");
+    let json_s = json.to_str().expect("utf-8 path");
+    let veh_s = veh.to_str().expect("utf-8 path");
+    identify(
+        &train,
+        &[
+            "--level-update",
+            "dual",
+            "bank-guarded",
+            "--tune-on",
+            veh_s,
+            "--json",
+            json_s,
+        ],
+        &img,
+    )
+    .success()
+    .stderr(predicates::str::contains(
+        "tuned on 2 vehicle records: dual:",
+    ))
+    .stderr(predicates::str::contains(
+        "tuned on 2 vehicle records: bank-guarded:",
+    ));
+    let v: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&json).expect("test")).expect("json");
+    let c = v["tuning"]["candidates"].as_array().expect("candidates");
+    assert_eq!(c.len(), 2);
+    let rms = |i: usize| c[i]["mean_heading_rms_deg"].as_f64().expect("rms");
+    let best = if rms(0) <= rms(1) { 0 } else { 1 };
+    assert_eq!(v["tuning"]["picked"], c[best]["level_update"]);
+    let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("image");
+    use fog_core::preset::Arrangement;
+    let arr = [Arrangement::Dual, Arrangement::BankGuarded][best];
+    assert_eq!(image.arrangement, arr);
+    let q = c[best]["level_q_dph2_per_h"].as_f64().expect("q");
+    let q_image = f64::from(image.config.level_q_dps2_per_s) * 3600f64.powi(3);
+    assert!((q_image / q - 1.0).abs() < 1e-5, "{q_image} vs {q}");
+    let s = c[best]["second_sigma_or_b_dph"].as_f64().expect("sigma");
+    assert!((f64::from(image.gauss_markov.sigma_dps) * 3600.0 - s).abs() < 1e-4);
+    // Several arrangements without vehicles to tune on, or vehicles without truth: one
+    // line, no file.
+    let bad = d.join("bad.fogi");
+    identify(&train, &["--level-update", "dual", "bank-guarded"], &bad)
+        .failure()
+        .stderr(predicates::str::contains("need --tune-on"));
+    let bare = d.join("bare.csv");
+    let mut text = String::from("t_s,rate_dps\n");
+    for k in 0..1000 {
+        text += &format!("{},0.001\n", k as f64 * 0.01);
+    }
+    fs::write(&bare, text).expect("test");
+    identify(&train, &["--tune-on", bare.to_str().expect("utf-8")], &bad)
+        .failure()
+        .stderr(predicates::str::contains("bare.csv: no truth"));
+    assert!(!bad.exists());
+}

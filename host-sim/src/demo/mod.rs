@@ -9,15 +9,17 @@
 //!    simulated again at each pass (the simulator is deterministic), so memory holds one.
 //! 3. Tunes the gated Kalman baseline's q on `validate_records` simulated `vehicle` records
 //!    of other units ([`nav::tune_gated_q`], truth still flags, [`BASELINE_Q_GRID`]), and
-//!    the identifier's level noise on the same records ([`LEVEL_Q_GRID_DPH2_PER_H`], its
-//!    own detector's flags), then writes the image. A pick at either end of a grid is
-//!    printed as a warning and written into the baseline's label (never silent).
+//!    the identifier's level noise and second state (Gauss-Markov state or bank) on the
+//!    same records ([`motion::tune`], its own detector's flags), then writes the image. A pick at
+//!    an end of a grid is printed as a warning (and, for the baseline, written into its
+//!    label; never silent).
 //! 4. Simulates one `vehicle` record (unit [`VEHICLE_UNIT`], seed [`VEHICLE_SEED`]), writes
 //!    it as `DIR/vehicle.csv`, replays it with the identifier ([`crate::replay::motion`]),
 //!    `DIR/replay.csv`, and writes the report (`index.html`, heading-error figure with the
 //!    identifier beside the baselines, `summary.json`).
 
 use crate::identify::series::{Records, Series};
+use crate::motion::tune::{self, run_image};
 use crate::motion::{self, TrainOptions};
 use crate::nav::BaselineConfig;
 use crate::nav::{self, NavRecord};
@@ -53,9 +55,6 @@ pub const VEHICLE_SEED: u64 = 7;
 
 /// The gated Kalman baseline's q grid, (deg/s)^2 per sample: (low, high, points per decade).
 pub const BASELINE_Q_GRID: (f64, f64, usize) = (1e-16, 1e-8, 4);
-/// The identifier's level-noise grid, (deg/h)^2/h: (low, high, points per decade), the
-/// range of `examples/nav_baselines.rs`.
-pub const LEVEL_Q_GRID_DPH2_PER_H: (f64, f64, usize) = (0.25, 16384.0, 4);
 
 /// `" (AT THE LOW END OF ITS GRID)"` / `" (AT THE HIGH END ...)"` / `""`.
 pub fn grid_end_note(grid: &[f64], picked: f64) -> &'static str {
@@ -70,11 +69,11 @@ pub fn grid_end_note(grid: &[f64], picked: f64) -> &'static str {
 }
 
 /// What the demo runs.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct DemoConfig {
     /// Static training records.
     pub train_records: u64,
-    /// Vehicle records on which the baseline's q is tuned.
+    /// Vehicle records on which the baseline's q and the identifier's level are tuned.
     pub validate_records: u64,
     /// Length of every record, s.
     pub duration_s: f64,
@@ -86,10 +85,11 @@ pub struct DemoConfig {
     /// Test vehicle records (units [`VEHICLE_UNIT`].., seeds [`VEHICLE_SEED`]..; the first
     /// is the replayed record) scored beside the baselines.
     pub test_records: u64,
-    /// The identifier's arrangement (`identify`'s default, the dual, in [`Self::FULL`] and
-    /// [`Self::QUICK`]), with its default Gauss-Markov state or bank
-    /// ([`TrainOptions::with_arrangement`]).
-    pub arrangement: fog_core::preset::Arrangement,
+    /// The identifier's candidate arrangements, each starting from its default
+    /// Gauss-Markov state or bank ([`motion::default_second_state`]) and tuned on the
+    /// validation vehicles; the best is kept ([`motion::tune::pick_arrangement`], as
+    /// `identify --level-update A B --tune-on`). Default: the dual and `bank-guarded`.
+    pub arrangements: Vec<fog_core::preset::Arrangement>,
 }
 
 impl DemoConfig {
@@ -97,26 +97,35 @@ impl DemoConfig {
     /// each. Why 32: the level noise that minimises the mean heading RMS moved from 8 to 86
     /// (deg/h)^2/h between two sets of 8 vehicles of the same family, and agreed (86) on
     /// two sets of 32 (docs/motion.md, "How many vehicles a comparison needs").
-    pub const FULL: Self = Self {
-        train_records: 12,
-        validate_records: 32,
-        duration_s: 1800.0,
-        shrink: false,
-        trainer: motion::TrainerArg::DrlsChecked,
-        test_records: 32,
-        arrangement: fog_core::preset::Arrangement::Dual,
-    };
-    /// The CI variant (`--quick`): 12 training records, 2 validation records, 600 s each.
-    pub const QUICK: Self = Self {
-        train_records: 12,
-        validate_records: 2,
-        duration_s: 600.0,
-        shrink: false,
-        trainer: motion::TrainerArg::DrlsChecked,
-        test_records: 2,
-        arrangement: fog_core::preset::Arrangement::Dual,
-    };
+    pub fn full() -> Self {
+        Self {
+            train_records: 12,
+            validate_records: 32,
+            duration_s: 1800.0,
+            shrink: false,
+            trainer: motion::TrainerArg::DrlsChecked,
+            test_records: 32,
+            arrangements: DEFAULT_ARRANGEMENTS.to_vec(),
+        }
+    }
+
+    /// The CI variant (`--quick`): 12 training records, 2 validation and 2 test records,
+    /// 600 s each.
+    pub fn quick() -> Self {
+        Self {
+            validate_records: 2,
+            duration_s: 600.0,
+            test_records: 2,
+            ..Self::full()
+        }
+    }
 }
+
+/// The demo's candidate arrangements ([`DemoConfig::arrangements`]).
+pub const DEFAULT_ARRANGEMENTS: [fog_core::preset::Arrangement; 2] = [
+    fog_core::preset::Arrangement::Dual,
+    fog_core::preset::Arrangement::BankGuarded,
+];
 
 /// A unit of the demo's family; `vehicle`: the `vehicle` motion profile, else static.
 pub fn family_model(unit: u64, vehicle: bool) -> Result<Model> {
@@ -132,7 +141,7 @@ pub fn family_model(unit: u64, vehicle: bool) -> Result<Model> {
     Ok(m)
 }
 
-fn samples(model: &Model, seed: u64, duration_s: f64) -> Result<Vec<sim::Sample>> {
+pub(crate) fn samples(model: &Model, seed: u64, duration_s: f64) -> Result<Vec<sim::Sample>> {
     let mut s = Simulator::new(model, seed, RATE_HZ)?;
     let mut out = Vec::with_capacity((duration_s * RATE_HZ) as usize);
     loop {
@@ -194,9 +203,13 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let mut train_options = TrainOptions::new(sensor);
     train_options.shrink = cfg.shrink;
     train_options.trainer = cfg.trainer;
-    let train_options = train_options.with_arrangement(cfg.arrangement);
+    let first = *cfg
+        .arrangements
+        .first()
+        .context("demo: no arrangement to run")?;
+    let train_options = train_options.with_arrangement(first);
     let trained = motion::train(&set, &train_options)?;
-    let (mut image, shrink) = (trained.image, trained.shrinkage);
+    let (image, shrink) = (trained.image, trained.shrinkage);
     let fogi = dir.join("identifier.fogi");
     eprintln!(
         "demo: trained the motion identifier on {} static {PRESET} records ({} s, unit spread {UNIT_SPREAD}, start {:?} C, self-heating {:?} C) -> {}",
@@ -233,40 +246,40 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let tuned =
         nav::tune_gated_q(&val, r_dps2, &baseline_grid).context("demo: no validation record")?;
     let baseline_note = grid_end_note(&baseline_grid, tuned.q_dps2);
-    // The identifier's level noise, tuned on the same records.
-    let (lo, hi, per) = LEVEL_Q_GRID_DPH2_PER_H;
-    let grid = nav::log_grid(lo, hi, per);
-    let mut best = (f64::INFINITY, grid.first().copied().unwrap_or(0.0));
-    for &q_dph2_per_h in &grid {
-        let mut im = image.clone();
-        im.config.level_q_dps2_per_s = (q_dph2_per_h / 3600f64.powi(3)) as f32;
-        let mut sum = 0.0;
-        for v in &val {
-            let (drift, _) = run_image(&im, v)?;
-            let mut replayed = nav::Precomputed::new("motion identifier", &drift);
-            sum += nav::run(v, &mut replayed, &[]).scores.heading_rms_deg;
-        }
-        if sum < best.0 {
-            best = (sum, q_dph2_per_h);
+    // The identifier's level noise and second state, tuned on the same records.
+    let candidates: Vec<Image> = cfg
+        .arrangements
+        .iter()
+        .map(|&a| {
+            image
+                .clone()
+                .with_arrangement(a, motion::default_second_state(a))
+        })
+        .collect();
+    let (image, _, levels) = tune::pick_arrangement(&candidates, &val)?;
+    motion::write_image(&fogi, &image)?;
+    for (c, level) in candidates.iter().zip(&levels) {
+        eprintln!(
+            "demo: on {} validation vehicles: identifier {}: {}{}",
+            val.len(),
+            motion::LevelUpdateArg::of(c.arrangement).cli_name(),
+            tune::describe(c.arrangement, level),
+            if c.arrangement == image.arrangement {
+                " (kept)"
+            } else {
+                ""
+            }
+        );
+        if level.q_at_grid_end || level.second_at_grid_end {
+            eprintln!("demo: WARNING: a tuned parameter is at an end of its grid: the grid does not bracket the optimum");
         }
     }
-    let level_note = grid_end_note(&grid, best.1);
-    image.config.level_q_dps2_per_s = (best.1 / 3600f64.powi(3)) as f32;
-    motion::write_image(&fogi, &image)?;
     eprintln!(
-        "demo: on {} validation vehicles: identifier level noise {:.3} (deg/h)^2/h{level_note} (mean heading RMS {:.4} deg); gated Kalman q {:.3e} (deg/s)^2 per sample{baseline_note} ({:.4} deg, truth still flags)",
-        val.len(),
-        best.1,
-        best.0 / val.len() as f64,
-        tuned.q_dps2,
-        tuned.heading_rms_deg
+        "demo: gated Kalman q {:.3e} (deg/s)^2 per sample{baseline_note} ({:.4} deg on the validation vehicles, truth still flags)",
+        tuned.q_dps2, tuned.heading_rms_deg
     );
-    for note in [level_note, baseline_note] {
-        if !note.is_empty() {
-            eprintln!(
-                "demo: WARNING: a tuned noise is{note}: the grid does not bracket the optimum"
-            );
-        }
+    if !baseline_note.is_empty() {
+        eprintln!("demo: WARNING: the baseline's q is{baseline_note}: the grid does not bracket the optimum");
     }
     let vehicle = dir.join("vehicle.csv");
     let x = samples(
@@ -344,22 +357,6 @@ fn test_set(image: &Image, cfg: &DemoConfig, cmp: &BaselineConfig) -> Result<Tes
         ),
         &tables,
     ))
-}
-
-/// `image`'s estimator over `rec` from power-on, its own detector: drift estimate, deg/s,
-/// and still flag per sample (a refused sample: drift 0, not still).
-pub fn run_image(image: &Image, rec: &NavRecord) -> Result<(Vec<f64>, Vec<bool>)> {
-    let mut est = image
-        .estimator()
-        .map_err(|e| anyhow::anyhow!("demo: {e}"))?;
-    let (mut drift, mut still) = (Vec::with_capacity(rec.len()), Vec::with_capacity(rec.len()));
-    for k in 0..rec.len() {
-        let temp = rec.temp_c.as_ref().map_or(f32::NAN, |t| t[k] as f32);
-        let o = est.push(rec.rate_dps[k] as f32, temp, None);
-        drift.push(o.map_or(0.0, |o| f64::from(o.drift_dps)));
-        still.push(o.is_ok_and(|o| o.still));
-    }
-    Ok((drift, still))
 }
 
 fn print_test_set(set: &TestSet) {

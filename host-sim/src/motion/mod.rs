@@ -10,6 +10,8 @@
 //! - training records are static (the true rate is zero, or constant and then removed with
 //!   the per-record intercept).
 
+pub mod tune;
+
 use crate::identify::series::{Records, Series};
 use crate::record;
 use anyhow::{anyhow, bail, Context, Result};
@@ -211,12 +213,18 @@ impl TrainOptions {
     /// ([`DEFAULT_BANK`] for a bank arrangement, else [`DEFAULT_GAUSS_MARKOV`]).
     pub fn with_arrangement(mut self, arrangement: Arrangement) -> Self {
         self.arrangement = arrangement;
-        self.gauss_markov = if arrangement.is_bank() {
-            DEFAULT_BANK
-        } else {
-            DEFAULT_GAUSS_MARKOV
-        };
+        self.gauss_markov = default_second_state(arrangement);
         self
+    }
+}
+
+/// The image's default Gauss-Markov fields for `arrangement`: [`DEFAULT_BANK`] for a bank
+/// arrangement, else [`DEFAULT_GAUSS_MARKOV`].
+pub fn default_second_state(arrangement: Arrangement) -> GaussMarkov {
+    if arrangement.is_bank() {
+        DEFAULT_BANK
+    } else {
+        DEFAULT_GAUSS_MARKOV
     }
 }
 
