@@ -23,9 +23,9 @@ pub const BANK_B_GRID_DPH: [f32; 5] = [0.1875, 0.375, 0.75, 1.5, 3.0];
 /// The bank's longest correlation time grid, s (10^4 s is the bank's limit, not a grid
 /// end).
 pub const BANK_TAU_MAX_GRID_S: [f32; 2] = [1_000.0, 10_000.0];
-/// The Gauss-Markov state's sigma grid, deg/h (around the default 2 deg/h), each with the
-/// correlation times in [`GM_TAU_GRID_S`].
-pub const GM_SIGMA_GRID_DPH: [f32; 5] = [0.5, 1.0, 2.0, 4.0, 8.0];
+/// The Gauss-Markov state's sigma grid, deg/h (a factor 16 below to 8 above the default
+/// 2 deg/h), each with the correlation times in [`GM_TAU_GRID_S`].
+pub const GM_SIGMA_GRID_DPH: [f32; 8] = [0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
 /// The Gauss-Markov state's correlation time grid, s.
 pub const GM_TAU_GRID_S: [f32; 5] = [0.1, 1.0, 10.0, 100.0, 1_000.0];
 
