@@ -12,7 +12,9 @@
 //! Its drift is `rest`'s while `rest` flags the sample still (after its fast gate), and
 //! `hold`'s otherwise: at rest the per-sample level follows the bias wander; from the
 //! first sample `rest` sees as moving, the output is the window level, which no sample of
-//! an unreleased window ever reached. Neither estimator learns from a moving sample, so a
+//! an unreleased window ever reached. At a sample with an external still flag the output
+//! is `rest`'s (the flag is trusted: the per-sample level holds no suspect sample, so the
+//! window level's protection buys nothing). Neither estimator learns from a moving sample, so a
 //! rotation in motion never moves the estimate (tested). Cost: two estimators' state, two
 //! detectors and level steps per sample; the model inputs and the network (once per
 //! window) are computed once and shared (the two estimators hold the same model).
@@ -31,7 +33,8 @@ pub enum Arrangement {
     Window,
     /// One estimator, level per still sample with rollback ([`LevelUpdate::Sample`]).
     Sample,
-    /// Per-sample level at rest, window level in motion (module docs).
+    /// Per-sample level at rest, window level in motion (module docs); with an external
+    /// still flag, the per-sample level throughout.
     Dual,
     /// The level is the sensor's Allan noise model ([`crate::bank::LevelBank`]: random
     /// walk + one Gauss-Markov state per decade of correlation time), updated at every
@@ -277,9 +280,9 @@ impl PresetEstimator {
 
     /// One sample (as [`MotionEstimator::push`]): `rate_dps`, `temp_c` (NaN: none),
     /// `external_still` (overrides both detectors when `Some`). In the dual, the output is
-    /// `rest`'s when it flags the sample still, else `hold`'s drift, compensated rate,
-    /// level and model term (with `rest`'s still flag). A non-finite rate is refused by
-    /// both and counted.
+    /// `rest`'s when it flags the sample still or the sample carries an external flag (the
+    /// flag is trusted), else `hold`'s drift, compensated rate, level and model term (with
+    /// `rest`'s still flag). A non-finite rate is refused by both and counted.
     pub fn push(
         &mut self,
         rate_dps: f32,
@@ -358,8 +361,12 @@ impl PresetEstimator {
         // The twin's inputs and model term (the same model, evaluated at the same window
         // starts): the window estimator does not evaluate the network again.
         let held = h.push_shared(rate_dps, temp_c, external_still, Some((x, o.model_dps)));
+        // An external flag is trusted (as in the bank arrangements): the per-sample level
+        // then holds no suspect sample, so it stays the output in motion too.
         Ok(match held {
-            Ok((h, _)) if !o.still => MotionOutput { still: false, ..h },
+            Ok((h, _)) if !o.still && external_still.is_none() => {
+                MotionOutput { still: false, ..h }
+            }
             _ => o,
         })
     }
@@ -465,6 +472,33 @@ mod tests {
         assert!(dual.push(f32::NAN, 0.0, None).is_err());
         assert_eq!(dual.stats().rejected, 1);
         assert_eq!(dual.hold().map(|h| h.stats().rejected), Some(1));
+    }
+
+    #[test]
+    fn dual_with_an_external_flag_is_the_per_sample_estimator() {
+        // A trusted flag: the output is the per-sample estimator's at every flagged sample,
+        // moving ones included; where the flag is absent, the dual switches as before.
+        let model = MotionModel::standard(1800.0).expect("test");
+        let cfg = MotionConfig::for_sensor(S);
+        let mut est = MotionEstimator::new(model, cfg)
+            .expect("test")
+            .with_level_update(LevelUpdate::Sample)
+            .with_gauss_markov(GM.sigma_dps, GM.tau_s);
+        let mut dual = make(Arrangement::Dual, GM);
+        let mut z = Noise(5);
+        let mut moving_flagged = 0;
+        for k in 0..40_000usize {
+            let (x, moving) = rate(k, 15.0, &mut z);
+            let flag = (k < 30_000).then_some(!moving);
+            let e = est.push(x, 25.0, flag).expect("test");
+            let o = dual.push(x, 25.0, flag).expect("test");
+            if flag.is_some() {
+                assert_eq!(o.drift_dps.to_bits(), e.drift_dps.to_bits(), "{k}");
+                moving_flagged += usize::from(moving);
+            }
+            assert_eq!(o.still, e.still, "{k}");
+        }
+        assert!(moving_flagged > 1_000, "{moving_flagged}");
     }
 
     #[test]

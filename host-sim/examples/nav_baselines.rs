@@ -54,7 +54,8 @@
 //! `Arrangement::Bank` (the level as the Allan noise model, fog_core::bank; q and the bank's
 //! B and longest tau tuned on the validation vehicles), and the bank alone in f64 joins the
 //! rows as an ablation; `--bank-dual` / `--bank-guarded`: the same with
-//! `Arrangement::BankDual` / `Arrangement::BankGuarded`.
+//! `Arrangement::BankDual` / `Arrangement::BankGuarded`. `--truth-only` (with `--flags`):
+//! the truth-flag rows alone.
 //! `--static-only` (without `--flags`): the static records' rows alone (the bank
 //! arrangements among them), no vehicles.
 //! The Python records' sensor (rate, noise, quantum) comes from each record's sidecar;
@@ -1154,7 +1155,12 @@ fn evaluate_flags(
     let q_grid = q_grid_dph2_per_h();
     let q_rw = rwgm_truth.q_rw_dps2_per_s * 3600f64.powi(3);
     let (q_start, _) = pick(&q_grid, |q| Ok((q / q_rw).ln().abs()))?;
+    // `--truth-only`: the external-flag half alone.
+    let truth_only = std::env::args().any(|a| a == "--truth-only");
     for truth in [true, false] {
+        if truth_only && !truth {
+            continue;
+        }
         let name = if truth { "truth" } else { "detector" };
         let valid = |q: f64, g: RwGmConfig| Ok(product(&set.valid, s_valid, q, g, truth)?.0);
         // q with the static-tuned GM (the default image's way), then (q, GM) on the
