@@ -84,6 +84,11 @@ fn demo_writes_the_report() {
     let (dual, bank) = (rms_of("dual"), rms_of("bank-guarded"));
     assert_eq!(kept, if dual <= bank { "dual" } else { "bank-guarded" });
     assert!(stderr.contains(&format!("identifier {kept}: level q")) && stderr.contains("(kept)"));
+    let tuning = s["level_tuning"].as_array().expect("level_tuning");
+    assert_eq!(tuning.len(), 2, "one line per candidate");
+    assert!(fs::read_to_string(dir.join("index.html"))
+        .expect("index.html")
+        .contains("tuned on validation vehicles"));
     assert_eq!(
         s["records_trained"], 36,
         "12 records x 3 DRLS passes (drls-checked)"

@@ -258,9 +258,10 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         .collect();
     let (image, _, levels) = tune::pick_arrangement(&candidates, &val)?;
     motion::write_image(&fogi, &image)?;
+    let mut level_tuning = Vec::new();
     for (c, level) in candidates.iter().zip(&levels) {
-        eprintln!(
-            "demo: on {} validation vehicles: identifier {}: {}{}",
+        let line = format!(
+            "on {} validation vehicles: identifier {}: {}{}",
             val.len(),
             motion::LevelUpdateArg::of(c.arrangement).cli_name(),
             tune::describe(c.arrangement, level),
@@ -270,6 +271,8 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
                 ""
             }
         );
+        eprintln!("demo: {line}");
+        level_tuning.push(line);
         if level.q_at_grid_end || level.second_at_grid_end {
             eprintln!("demo: WARNING: a tuned parameter is at an end of its grid: the grid does not bracket the optimum");
         }
@@ -328,6 +331,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let set = test_set(&image, cfg, &cmp)?;
     print_test_set(&set);
     out.summary.test_set = Some(set);
+    out.summary.level_tuning = level_tuning;
     report::motion::write(dir, &out)
 }
 

@@ -180,6 +180,13 @@ fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
             esc(&t.text())
         )?;
     }
+    if !s.level_tuning.is_empty() {
+        writeln!(
+            o,
+            "<h2>The identifier's level, tuned on validation vehicles</h2>\n<pre>{}</pre>",
+            esc(&s.level_tuning.join("\n"))
+        )?;
+    }
     writeln!(
         o,
         "<h2>Record and identifier</h2>\n<pre>{}</pre>",
