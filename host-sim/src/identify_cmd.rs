@@ -388,34 +388,15 @@ fn run_motion(a: &Args) -> Result<()> {
             .map(|(&arr, &g)| image.clone().with_arrangement(arr, g))
             .collect();
         let vehicles = read_vehicles(&image, &a.tune_on)?;
-        let (picked, best, tuned) = motion::tune::pick_arrangement(&candidates, &vehicles)?;
-        for (arr, t) in arrangements.iter().zip(&tuned) {
-            eprintln!(
-                "tuned on {} vehicle records: {}: {}",
-                vehicles.len(),
-                motion::LevelUpdateArg::of(*arr).cli_name(),
-                motion::tune::describe(*arr, t)
-            );
+        let (picked, tuning) = motion::tune::pick_arrangement(&candidates, &vehicles)?;
+        for line in tuning.lines() {
+            eprintln!("tuned {line}");
         }
-        eprintln!(
-            "tuned: saving {}",
-            motion::LevelUpdateArg::of(picked.arrangement).cli_name()
-        );
+        if tuning.any_at_grid_end() {
+            eprintln!("WARNING: a tuned parameter is at an end of its grid: the grid does not bracket the optimum");
+        }
         image = picked;
-        Some(serde_json::json!({
-            "records": vehicles.len(),
-            "picked": motion::LevelUpdateArg::of(image.arrangement).cli_name(),
-            "candidates": arrangements.iter().zip(&tuned).map(|(arr, t)| serde_json::json!({
-                "level_update": motion::LevelUpdateArg::of(*arr).cli_name(),
-                "level_q_dph2_per_h": t.q_dph2_per_h,
-                "second_sigma_or_b_dph": t.second.sigma_dps * 3600.0,
-                "second_tau_s": t.second.tau_s,
-                "mean_heading_rms_deg": t.heading_rms_deg,
-                "q_at_grid_end": t.q_at_grid_end,
-                "second_at_grid_end": t.second_at_grid_end,
-            })).collect::<Vec<_>>(),
-            "picked_index": best,
-        }))
+        Some(tuning)
     };
     let trained_empty = image.model.weights.iter().all(|w| *w == 0.0);
     if let Some(ls) = &trained.least_squares {

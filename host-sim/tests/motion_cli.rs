@@ -494,10 +494,10 @@ fn tune_on_vehicles_picks_the_arrangement_and_its_level() {
     )
     .success()
     .stderr(predicates::str::contains(
-        "tuned on 2 vehicle records: dual:",
+        "tuned on 2 validation vehicles: identifier dual:",
     ))
     .stderr(predicates::str::contains(
-        "tuned on 2 vehicle records: bank-guarded:",
+        "tuned on 2 validation vehicles: identifier bank-guarded:",
     ));
     let v: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(&json).expect("test")).expect("json");

@@ -256,26 +256,14 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
                 .with_arrangement(a, motion::default_second_state(a))
         })
         .collect();
-    let (image, _, levels) = tune::pick_arrangement(&candidates, &val)?;
+    let (image, tuning) = tune::pick_arrangement(&candidates, &val)?;
     motion::write_image(&fogi, &image)?;
-    let mut level_tuning = Vec::new();
-    for (c, level) in candidates.iter().zip(&levels) {
-        let line = format!(
-            "on {} validation vehicles: identifier {}: {}{}",
-            val.len(),
-            motion::LevelUpdateArg::of(c.arrangement).cli_name(),
-            tune::describe(c.arrangement, level),
-            if c.arrangement == image.arrangement {
-                " (kept)"
-            } else {
-                ""
-            }
-        );
+    let level_tuning = tuning.lines();
+    for line in &level_tuning {
         eprintln!("demo: {line}");
-        level_tuning.push(line);
-        if level.q_at_grid_end || level.second_at_grid_end {
-            eprintln!("demo: WARNING: a tuned parameter is at an end of its grid: the grid does not bracket the optimum");
-        }
+    }
+    if tuning.any_at_grid_end() {
+        eprintln!("demo: WARNING: a tuned parameter is at an end of its grid: the grid does not bracket the optimum");
     }
     eprintln!(
         "demo: gated Kalman q {:.3e} (deg/s)^2 per sample{baseline_note} ({:.4} deg on the validation vehicles, truth still flags)",

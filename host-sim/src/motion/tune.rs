@@ -12,6 +12,7 @@ use crate::nav::{self, NavRecord};
 use anyhow::Result;
 use fog_core::image::Image;
 use fog_core::preset::GaussMarkov;
+use serde::Serialize;
 
 /// The identifier's level-noise grid, (deg/h)^2/h: (low, high, points per decade), the
 /// range of `examples/nav_baselines.rs`.
@@ -140,13 +141,75 @@ pub fn tune(image: &Image, val: &[NavRecord]) -> Result<TunedLevel> {
     })
 }
 
+/// One candidate's tuning, as `identify --json` (`tuning.candidates`) writes it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    /// The arrangement, as `--level-update` names it.
+    pub level_update: String,
+    /// Level random walk, (deg/h)^2/h.
+    pub level_q_dph2_per_h: f64,
+    /// Gauss-Markov sigma or the bank's B, deg/h.
+    pub second_sigma_or_b_dph: f32,
+    /// Gauss-Markov tau or the bank's longest tau, s.
+    pub second_tau_s: f32,
+    /// Mean heading RMS over the vehicles, deg.
+    pub mean_heading_rms_deg: f64,
+    /// q at an end of its grid.
+    pub q_at_grid_end: bool,
+    /// The second state at an end of its grid.
+    pub second_at_grid_end: bool,
+    /// One line for people ([`describe`]).
+    pub text: String,
+}
+
+/// What [`pick_arrangement`] did.
+#[derive(Debug, Clone, Serialize)]
+pub struct Tuning {
+    /// Vehicle records tuned on.
+    pub records: usize,
+    /// The kept arrangement, as `--level-update` names it.
+    pub picked: String,
+    /// Its index among the candidates.
+    pub picked_index: usize,
+    /// Every candidate, in the order given.
+    pub candidates: Vec<Candidate>,
+}
+
+impl Tuning {
+    /// One line per candidate (`on 32 validation vehicles: identifier dual: level q ...`),
+    /// the kept one marked `(kept)`.
+    pub fn lines(&self) -> Vec<String> {
+        self.candidates
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                format!(
+                    "on {} validation vehicles: identifier {}: {}{}",
+                    self.records,
+                    c.level_update,
+                    c.text,
+                    if i == self.picked_index {
+                        " (kept)"
+                    } else {
+                        ""
+                    }
+                )
+            })
+            .collect()
+    }
+
+    /// A tuned parameter sits at an end of its grid (the grid does not bracket the optimum).
+    pub fn any_at_grid_end(&self) -> bool {
+        self.candidates
+            .iter()
+            .any(|c| c.q_at_grid_end || c.second_at_grid_end)
+    }
+}
+
 /// One candidate image per arrangement, each tuned on `val` ([`tune`]); the tuned image
-/// with the least mean heading RMS (ties to the first), its index, and every candidate's
-/// tuning (in `candidates`' order). `candidates` must not be empty.
-pub fn pick_arrangement(
-    candidates: &[Image],
-    val: &[NavRecord],
-) -> Result<(Image, usize, Vec<TunedLevel>)> {
+/// with the least mean heading RMS (ties to the first) and what was done. `candidates`
+/// must not be empty.
+pub fn pick_arrangement(candidates: &[Image], val: &[NavRecord]) -> Result<(Image, Tuning)> {
     let mut tuned = Vec::with_capacity(candidates.len());
     for im in candidates {
         tuned.push(tune(im, val)?);
@@ -157,11 +220,30 @@ pub fn pick_arrangement(
         .min_by(|a, b| a.1.heading_rms_deg.total_cmp(&b.1.heading_rms_deg))
         .map(|(i, _)| i)
         .ok_or_else(|| anyhow::anyhow!("no arrangement to tune"))?;
+    let name = |im: &Image| crate::motion::LevelUpdateArg::of(im.arrangement).cli_name();
     let t = tuned[best];
+    let tuning = Tuning {
+        records: val.len(),
+        picked: name(&candidates[best]),
+        picked_index: best,
+        candidates: candidates
+            .iter()
+            .zip(&tuned)
+            .map(|(im, t)| Candidate {
+                level_update: name(im),
+                level_q_dph2_per_h: t.q_dph2_per_h,
+                second_sigma_or_b_dph: t.second.sigma_dps * 3600.0,
+                second_tau_s: t.second.tau_s,
+                mean_heading_rms_deg: t.heading_rms_deg,
+                q_at_grid_end: t.q_at_grid_end,
+                second_at_grid_end: t.second_at_grid_end,
+                text: describe(im.arrangement, t),
+            })
+            .collect(),
+    };
     Ok((
         with_level(&candidates[best], t.q_dph2_per_h, t.second),
-        best,
-        tuned,
+        tuning,
     ))
 }
 
@@ -298,21 +380,27 @@ mod tests {
             .collect();
         let dual = image(Arrangement::Dual, crate::motion::DEFAULT_GAUSS_MARKOV);
         let bank = image(Arrangement::BankGuarded, crate::motion::DEFAULT_BANK);
-        let (picked, i, tuned) =
-            pick_arrangement(&[dual.clone(), bank.clone()], &val).expect("pick");
-        assert_eq!(tuned.len(), 2);
-        let least = if tuned[0].heading_rms_deg <= tuned[1].heading_rms_deg {
-            0
-        } else {
-            1
-        };
-        assert_eq!(i, least);
-        assert_eq!(picked.arrangement, [dual.arrangement, bank.arrangement][i]);
-        assert_eq!(picked.gauss_markov, tuned[i].second);
+        let (picked, t) = pick_arrangement(&[dual.clone(), bank.clone()], &val).expect("pick");
+        let c = &t.candidates;
+        assert_eq!(c.len(), 2);
+        let least = usize::from(c[1].mean_heading_rms_deg < c[0].mean_heading_rms_deg);
+        assert_eq!(t.picked_index, least);
+        assert_eq!(t.picked, ["dual", "bank-guarded"][least]);
+        assert_eq!(
+            picked.arrangement,
+            [dual.arrangement, bank.arrangement][least]
+        );
+        assert!(
+            (picked.gauss_markov.sigma_dps * 3600.0 - c[least].second_sigma_or_b_dph).abs() < 1e-6
+        );
+        assert_eq!(picked.gauss_markov.tau_s, c[least].second_tau_s);
         assert_eq!(
             mean_heading_rms(&picked, &val).expect("score"),
-            tuned[i].heading_rms_deg
+            c[least].mean_heading_rms_deg
         );
+        let lines = t.lines();
+        assert_eq!(lines.len(), 2);
+        assert!(lines[least].ends_with(" (kept)") && !lines[1 - least].ends_with(" (kept)"));
         assert!(pick_arrangement(&[], &val).is_err());
     }
 }
