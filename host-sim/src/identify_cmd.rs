@@ -134,7 +134,8 @@ pub struct Args {
     /// the second state (Gauss-Markov sigma and tau, or the bank's B and longest tau) and,
     /// with several `--level-update` values, the arrangement are picked by the least mean
     /// heading-error RMS with the identifier's own detector (host_sim::motion::tune); the
-    /// picks overrule `--level-q-dph2-per-h`, `--gm-*` and `--bank-*`, which set the start.
+    /// picks overrule `--level-q-dph2-per-h` (the whole q grid is scanned) and `--gm-*` /
+    /// `--bank-*` (the second state's start, kept when no grid point scores lower).
     /// Score the result on other records (`--validate`).
     #[arg(long, num_args = 1..)]
     pub tune_on: Vec<PathBuf>,
@@ -248,6 +249,9 @@ pub fn run(a: &Args) -> Result<()> {
     }
     if a.save_identifier.is_some() {
         anyhow::bail!("--save-identifier needs --preset motion");
+    }
+    if !a.tune_on.is_empty() {
+        anyhow::bail!("--tune-on needs --preset motion");
     }
     let (Some(json), false) = (&a.json, a.validate.is_empty()) else {
         anyhow::bail!("--validate and --json are required (except with --preset motion)");

@@ -69,23 +69,24 @@ fn demo_writes_the_report() {
     // scored lower, each at its tuned level.
     let kept = s["level_update"].as_str().expect("level_update");
     assert!(kept == "dual" || kept == "bank-guarded", "{kept}");
-    let rms_of = |name: &str| -> f64 {
-        let line = stderr
-            .lines()
-            .find(|l| l.contains(&format!("identifier {name}: level q")))
-            .unwrap_or_else(|| panic!("no tuning line for {name}: {stderr}"));
-        let tail = line.split("mean heading RMS ").nth(1).expect("rms");
-        tail.split(' ')
-            .next()
-            .expect("rms")
-            .parse()
-            .expect("number")
-    };
-    let (dual, bank) = (rms_of("dual"), rms_of("bank-guarded"));
-    assert_eq!(kept, if dual <= bank { "dual" } else { "bank-guarded" });
+    let tuning = &s["level_tuning"];
+    let c = tuning["candidates"].as_array().expect("candidates");
+    assert_eq!(c.len(), 2, "one per candidate");
+    assert_eq!(
+        (c[0]["level_update"].as_str(), c[1]["level_update"].as_str()),
+        (Some("dual"), Some("bank-guarded"))
+    );
+    let rms = |i: usize| finite(&c[i], "mean_heading_rms_deg");
+    assert_eq!(
+        kept,
+        if rms(0) <= rms(1) {
+            "dual"
+        } else {
+            "bank-guarded"
+        }
+    );
+    assert_eq!(tuning["picked"], kept);
     assert!(stderr.contains(&format!("identifier {kept}: level q")) && stderr.contains("(kept)"));
-    let tuning = s["level_tuning"].as_array().expect("level_tuning");
-    assert_eq!(tuning.len(), 2, "one line per candidate");
     assert!(fs::read_to_string(dir.join("index.html"))
         .expect("index.html")
         .contains("tuned on validation vehicles"));

@@ -258,8 +258,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         .collect();
     let (image, tuning) = tune::pick_arrangement(&candidates, &val)?;
     motion::write_image(&fogi, &image)?;
-    let level_tuning = tuning.lines();
-    for line in &level_tuning {
+    for line in tuning.lines() {
         eprintln!("demo: {line}");
     }
     if tuning.any_at_grid_end() {
@@ -319,7 +318,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let set = test_set(&image, cfg, &cmp)?;
     print_test_set(&set);
     out.summary.test_set = Some(set);
-    out.summary.level_tuning = level_tuning;
+    out.summary.level_tuning = Some(tuning);
     report::motion::write(dir, &out)
 }
 

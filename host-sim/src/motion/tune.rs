@@ -56,13 +56,14 @@ pub fn with_level(image: &Image, q_dph2_per_h: f64, second: GaussMarkov) -> Imag
 
 /// Mean heading RMS, deg, of `image` over `val` (its own detector).
 pub fn mean_heading_rms(image: &Image, val: &[NavRecord]) -> Result<f64> {
+    anyhow::ensure!(!val.is_empty(), "no vehicle record to score on");
     let mut sum = 0.0;
     for v in val {
         let (drift, _) = run_image(image, v)?;
         let mut replayed = nav::Precomputed::new("motion identifier", &drift);
         sum += nav::run(v, &mut replayed, &[]).scores.heading_rms_deg;
     }
-    Ok(sum / val.len().max(1) as f64)
+    Ok(sum / val.len() as f64)
 }
 
 /// The second-state grid of `image`'s arrangement (empty when it has none to tune: a
@@ -101,6 +102,10 @@ pub fn tune(image: &Image, val: &[NavRecord]) -> Result<TunedLevel> {
                 best = (s, q);
             }
         }
+        anyhow::ensure!(
+            best.0.is_finite(),
+            "no level noise gives a finite heading error on these vehicles"
+        );
         Ok(best)
     };
     let mut second = image.gauss_markov;
@@ -127,7 +132,9 @@ pub fn tune(image: &Image, val: &[NavRecord]) -> Result<TunedLevel> {
     };
     let second_at_grid_end = !seconds.is_empty()
         && if image.arrangement.is_bank() {
+            // 10^4 s is the bank's limit, not a grid end; the 10^3 s end is one.
             ends(second.sigma_dps * 3600.0, &BANK_B_GRID_DPH)
+                || BANK_TAU_MAX_GRID_S.first() == Some(&second.tau_s)
         } else {
             ends(second.sigma_dps * 3600.0, &GM_SIGMA_GRID_DPH)
                 || ends(second.tau_s, &GM_TAU_GRID_S)
@@ -253,13 +260,13 @@ pub fn describe(arrangement: fog_core::preset::Arrangement, t: &TunedLevel) -> S
     let end = |at: bool| if at { " (AT AN END OF ITS GRID)" } else { "" };
     let second = if arrangement.is_bank() {
         format!(
-            "bank B {:.4} deg/h, tau_max {:.0} s",
+            "bank B {:.4} deg/h, tau_max {} s",
             t.second.sigma_dps * 3600.0,
             t.second.tau_s
         )
     } else if t.second.sigma_dps > 0.0 {
         format!(
-            "Gauss-Markov sigma {:.3} deg/h, tau {:.0} s",
+            "Gauss-Markov sigma {:.3} deg/h, tau {} s",
             t.second.sigma_dps * 3600.0,
             t.second.tau_s
         )
@@ -282,9 +289,17 @@ pub fn run_image(image: &Image, rec: &NavRecord) -> Result<(Vec<f64>, Vec<bool>)
         .estimator()
         .map_err(|e| anyhow::anyhow!("identifier: {e}"))?;
     let (mut drift, mut still) = (Vec::with_capacity(rec.len()), Vec::with_capacity(rec.len()));
-    for k in 0..rec.len() {
-        let temp = rec.temp_c.as_ref().map_or(f32::NAN, |t| t[k] as f32);
-        let o = est.push(rec.rate_dps[k] as f32, temp, None);
+    anyhow::ensure!(
+        rec.rate_dps.len() == rec.len() && rec.temp_c.as_ref().is_none_or(|t| t.len() == rec.len()),
+        "record columns of different lengths"
+    );
+    for (k, &rate) in rec.rate_dps.iter().enumerate() {
+        let temp = rec
+            .temp_c
+            .as_ref()
+            .and_then(|t| t.get(k))
+            .map_or(f32::NAN, |&t| t as f32);
+        let o = est.push(rate as f32, temp, None);
         drift.push(o.map_or(0.0, |o| f64::from(o.drift_dps)));
         still.push(o.is_ok_and(|o| o.still));
     }

@@ -126,9 +126,9 @@ pub struct MotionSummary {
     pub scores: Option<nav::Comparison>,
     /// Scores over a set of test records beside this one (`host-sim demo`), when given.
     pub test_set: Option<TestSet>,
-    /// How the identifier's level was tuned (`host-sim demo`: one line per candidate
-    /// arrangement, [`crate::motion::tune::describe`]), when it was.
-    pub level_tuning: Vec<String>,
+    /// How the identifier's level and arrangement were tuned (`host-sim demo`), when they
+    /// were.
+    pub level_tuning: Option<crate::motion::tune::Tuning>,
 }
 
 /// Mean scores over several test records with truth, the identifier beside the baselines
@@ -425,7 +425,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         bytes: rec.bytes.clone(),
         scores: compared.as_ref().map(|c| c.table.clone()),
         test_set: None,
-        level_tuning: Vec::new(),
+        level_tuning: None,
     };
     Ok(MotionOutcome {
         summary,

@@ -180,11 +180,11 @@ fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
             esc(&t.text())
         )?;
     }
-    if !s.level_tuning.is_empty() {
+    if let Some(t) = &s.level_tuning {
         writeln!(
             o,
             "<h2>The identifier's level, tuned on validation vehicles</h2>\n<pre>{}</pre>",
-            esc(&s.level_tuning.join("\n"))
+            esc(&t.lines().join("\n"))
         )?;
     }
     writeln!(
