@@ -307,28 +307,11 @@ fn second_state(
 
 /// `--tune-on`: the vehicle records with truth, each at `image`'s sample rate.
 fn read_vehicles(image: &Image, paths: &[PathBuf]) -> Result<Vec<NavRecord>> {
-    let rate_hz = f64::from(image.config.sensor.sample_rate_hz);
-    let mut out = Vec::new();
-    for p in &CsvFiles::from_args(paths, "rate_dps")?.0 {
-        let r = crate::replay::input::read_csv(
-            p,
-            &crate::replay::input::RateSpec::default(),
-            rate_hz,
-            None,
-        )?;
-        let hz = (1.0 / r.record.series.sample_period_s()) as f32;
-        image
-            .check_rate(hz)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
-        let Some(t) = r.truth else {
-            anyhow::bail!(
-                "{}: no truth (`true_rate_dps` and `drift_dps`): cannot tune on it",
-                p.display()
-            );
-        };
-        out.push(t);
-    }
-    Ok(out)
+    CsvFiles::from_args(paths, "rate_dps")?
+        .0
+        .iter()
+        .map(|p| Ok(crate::replay::motion::read_truth_csv(image, p)?.1))
+        .collect()
 }
 
 /// `--preset motion`: trains on the static records and writes the identifier image.

@@ -108,44 +108,46 @@ pub fn tune(image: &Image, val: &[NavRecord]) -> Result<TunedLevel> {
         );
         Ok(best)
     };
-    let mut second = image.gauss_markov;
-    let (mut best, mut q) = pick_q(second)?;
-    if !seconds.is_empty() {
-        for &g in &seconds {
-            let s = score(q, g)?;
-            if s < best {
-                (best, second) = (s, g);
-            }
+    let start = image.gauss_markov;
+    let (mut best, mut q) = pick_q(start)?;
+    let mut second = start;
+    for &g in &seconds {
+        let s = score(q, g)?;
+        if s < best {
+            (best, second) = (s, g);
         }
+    }
+    // q again only where the second state moved (else the same scan, the same answer).
+    if second != start {
         (best, q) = pick_q(second)?;
     }
-    let at_end = |v: f64, grid: &[f64]| {
-        grid.len() > 1
-            && [grid.first(), grid.last()]
-                .into_iter()
-                .flatten()
-                .any(|&e| (v / e - 1.0).abs() < 1e-9)
-    };
-    let ends = |v: f32, grid: &[f32]| {
-        let g: Vec<f64> = grid.iter().map(|&x| f64::from(x)).collect();
-        at_end(f64::from(v), &g)
-    };
+    let sigma_dph = second.sigma_dps * 3600.0;
     let second_at_grid_end = !seconds.is_empty()
         && if image.arrangement.is_bank() {
             // 10^4 s is the bank's limit, not a grid end; the 10^3 s end is one.
-            ends(second.sigma_dps * 3600.0, &BANK_B_GRID_DPH)
+            at_grid_end(sigma_dph, &BANK_B_GRID_DPH)
                 || BANK_TAU_MAX_GRID_S.first() == Some(&second.tau_s)
         } else {
-            ends(second.sigma_dps * 3600.0, &GM_SIGMA_GRID_DPH)
-                || ends(second.tau_s, &GM_TAU_GRID_S)
+            at_grid_end(sigma_dph, &GM_SIGMA_GRID_DPH) || at_grid_end(second.tau_s, &GM_TAU_GRID_S)
         };
     Ok(TunedLevel {
         q_dph2_per_h: q,
         second,
         heading_rms_deg: best,
-        q_at_grid_end: at_end(q, &q_grid),
+        q_at_grid_end: at_grid_end(q, &q_grid),
         second_at_grid_end,
     })
+}
+
+/// `v` is the first or last point of `grid` (within 1e-9 relative) and the grid has more
+/// than one point.
+fn at_grid_end<T: Copy + Into<f64>>(v: T, grid: &[T]) -> bool {
+    let v: f64 = v.into();
+    grid.len() > 1
+        && [grid.first(), grid.last()]
+            .into_iter()
+            .flatten()
+            .any(|&e| (v / e.into() - 1.0).abs() < 1e-9)
 }
 
 /// One candidate's tuning, as `identify --json` (`tuning.candidates`) writes it.
@@ -357,14 +359,20 @@ mod tests {
         assert_eq!(t.arrangement, im.arrangement);
     }
 
+    /// Two 240-s vehicle records of the demo's family: units `unit`, `unit + 1`, seeds
+    /// `seed`, `seed + 1`.
+    fn vehicles(unit: u64, seed: u64) -> Vec<NavRecord> {
+        (0..2)
+            .map(|i| {
+                let m = crate::demo::family_model(unit + i, true).expect("model");
+                NavRecord::from_samples(&crate::demo::samples(&m, seed + i, 240.0).expect("sim"))
+            })
+            .collect()
+    }
+
     #[test]
     fn the_pick_is_the_least_along_q_and_no_worse_than_the_defaults() {
-        let val: Vec<NavRecord> = (0..2)
-            .map(|i| {
-                let m = crate::demo::family_model(800 + i, true).expect("model");
-                NavRecord::from_samples(&crate::demo::samples(&m, 201 + i, 240.0).expect("sim"))
-            })
-            .collect();
+        let val = vehicles(800, 201);
         let im = image(Arrangement::BankGuarded, crate::motion::DEFAULT_BANK);
         let t = tune(&im, &val).expect("tune");
         let score =
@@ -387,12 +395,7 @@ mod tests {
 
     #[test]
     fn the_arrangement_with_the_least_tuned_score_is_kept() {
-        let val: Vec<NavRecord> = (0..2)
-            .map(|i| {
-                let m = crate::demo::family_model(810 + i, true).expect("model");
-                NavRecord::from_samples(&crate::demo::samples(&m, 301 + i, 240.0).expect("sim"))
-            })
-            .collect();
+        let val = vehicles(810, 301);
         let dual = image(Arrangement::Dual, crate::motion::DEFAULT_GAUSS_MARKOV);
         let bank = image(Arrangement::BankGuarded, crate::motion::DEFAULT_BANK);
         let (picked, t) = pick_arrangement(&[dual.clone(), bank.clone()], &val).expect("pick");

@@ -507,6 +507,24 @@ pub struct ValidationScores {
     pub mean_heading_rms_deg: Vec<(String, f64)>,
 }
 
+/// The CSV record `p` at `image`'s sample rate, with its truth taken out; refused, naming
+/// the file, without truth (`true_rate_dps` and `drift_dps`) or at another rate.
+pub fn read_truth_csv(image: &Image, p: &Path) -> Result<(Input, NavRecord)> {
+    let rate_hz = f64::from(image.config.sensor.sample_rate_hz);
+    let mut r = input::read_csv(p, &RateSpec::default(), rate_hz, None)?;
+    let Some(truth) = r.truth.take() else {
+        bail!(
+            "{}: no truth (`true_rate_dps` and `drift_dps`): cannot score",
+            p.display()
+        );
+    };
+    let hz = (1.0 / r.record.series.sample_period_s()) as f32;
+    image
+        .check_rate(hz)
+        .map_err(|e| anyhow!("{}: {e}", p.display()))?;
+    Ok((r, truth))
+}
+
 /// Runs `image` over each record with truth in `paths` (files or folders) and scores it
 /// beside the baselines; the baselines' q is `baseline_q` or tuned on these records
 /// ([`nav::tune_gated_q`], truth still flags). A record without truth is refused.
@@ -516,22 +534,11 @@ pub fn score_records(
     baseline_q: Option<(f64, String)>,
 ) -> Result<ValidationScores> {
     let files = CsvFiles::from_args(paths, "rate_dps")?;
-    let rate_hz = f64::from(image.config.sensor.sample_rate_hz);
     let mut recs = Vec::new();
     for p in &files.0 {
-        let r = input::read_csv(p, &RateSpec::default(), rate_hz, None)?;
-        if r.truth.is_none() {
-            bail!(
-                "{}: no truth (`true_rate_dps` and `drift_dps`): cannot score",
-                p.display()
-            );
-        }
-        let hz = (1.0 / r.record.series.sample_period_s()) as f32;
-        image
-            .check_rate(hz)
-            .map_err(|e| anyhow!("{}: {e}", p.display()))?;
+        let (r, truth) = read_truth_csv(image, p)?;
         let moving = has_moving(p, &r)?;
-        recs.push((p.display().to_string(), r, moving));
+        recs.push((p.display().to_string(), r, truth, moving));
     }
     let r_dps2 = f64::from(image.config.sensor.sample_var_dps2());
     let cfg = match baseline_q {
@@ -542,7 +549,7 @@ pub fn score_records(
             release_samples: release_samples(image),
         },
         None => {
-            let truths: Vec<NavRecord> = recs.iter().filter_map(|r| r.1.truth.clone()).collect();
+            let truths: Vec<NavRecord> = recs.iter().map(|r| r.2.clone()).collect();
             let t = nav::tune_gated_q(&truths, r_dps2, &nav::log_grid(1e-18, 1e-8, 2))
                 .ok_or_else(|| anyhow!("--validate: no record"))?;
             BaselineConfig {
@@ -557,8 +564,7 @@ pub fn score_records(
         }
     };
     let mut out = Vec::new();
-    for (name, r, moving) in &recs {
-        let Some(t) = &r.truth else { continue };
+    for (name, r, t, moving) in &recs {
         let mut est = image.estimator().map_err(|e| anyhow!("{name}: {e}"))?;
         let o = motion::run(&mut est, &r.record);
         let drift: Vec<f64> = o.iter().map(|m| f64::from(m.drift_dps)).collect();
