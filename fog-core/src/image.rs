@@ -1,7 +1,7 @@
 //! The identifier image: a trained [`crate::motion`] identifier as a versioned binary file
 //! (train once on the bench, flash the result).
 //!
-//! Little-endian, fixed layout for format version 2 ([`IMAGE_LEN`] = 572 bytes for
+//! Little-endian, fixed layout for format version 3 ([`IMAGE_LEN`] = 584 bytes for
 //! `N` = [`MOTION_N`], `L` = [`MOTION_L`]):
 //!
 //! | offset | size | field |
@@ -22,11 +22,15 @@
 //! | 552 | u32 | records trained on (passes included) |
 //! | 556 | 1+3 | level arrangement ([`Arrangement`]: 0 window, 1 sample, 2 dual, 3 bank, 4 bank-dual, 5 bank-guarded), 0, 0, 0 |
 //! | 560 | 2 x f32 | Gauss-Markov state: sigma deg/s (0 = off), tau s (0 when off); bank (3, 4, 5): its `B` deg/s (> 0) and longest correlation time s (1 to 10^4) |
-//! | 568 | u32 | CRC-32/ISO-HDLC of bytes 0..568 |
+//! | 568 | 3 x f32 | the family's white-noise range as multiples of the sensor's sigma (`noise_lo`, `noise_hi` of [`StillConfig`]), the safety net's time s ([`MotionConfig::stale_s`]) |
+//! | 580 | u32 | CRC-32/ISO-HDLC of bytes 0..580 |
 //!
-//! Version 1 ([`IMAGE_LEN_V1`] = 560 bytes) is version 2 without bytes 556..568 (its CRC at
-//! 556 covers 0..556): it still loads, as [`Arrangement::Window`] without a Gauss-Markov
-//! state (what a version-1 image ran). [`Image::to_bytes`] writes version 2 only.
+//! Version 2 ([`IMAGE_LEN_V2`] = 572 bytes) is version 3 without bytes 568..580 (its CRC at
+//! 568): it loads with the noise range 1..1 (the specification) and the default
+//! [`MotionConfig::DEFAULT_STALE_S`]. Version 1 ([`IMAGE_LEN_V1`] = 560 bytes) is version 2
+//! without bytes 556..568 (its CRC at 556 covers 0..556): it loads as that and as
+//! [`Arrangement::Window`] without a Gauss-Markov state (what a version-1 image ran).
+//! [`Image::to_bytes`] writes version 3 only.
 //!
 //! [`Image::parse`] never panics (fuzzed by a proptest) and returns a typed [`ImageError`]:
 //! the magic and version are checked first (so that another version's layout is named as
@@ -40,20 +44,24 @@ use crate::wnn::{Activation, Evaluation, Neuron, WnnShape};
 
 /// `FOGI`.
 pub const MAGIC: [u8; 4] = *b"FOGI";
-/// The format this code writes (it reads this one and version 1).
-pub const FORMAT_VERSION: u16 = 2;
+/// The format this code writes (it reads this one and versions 1 and 2).
+pub const FORMAT_VERSION: u16 = 3;
 /// Preset id of [`crate::motion`].
 pub const PRESET_MOTION: u16 = 1;
-/// Bytes of a version-2 image.
-pub const IMAGE_LEN: usize = 572;
+/// Bytes of a version-3 image.
+pub const IMAGE_LEN: usize = 584;
+/// Bytes of a version-2 image (still read: module docs).
+pub const IMAGE_LEN_V2: usize = 572;
 /// Bytes of a version-1 image (still read: module docs).
 pub const IMAGE_LEN_V1: usize = 560;
 /// A stream's rate may differ from the image's by this fraction (timing of a real unit).
 pub const RATE_TOLERANCE: f32 = 0.01;
 
 const CRC_AT: usize = IMAGE_LEN - 4;
-/// Offset of the arrangement byte (version 2).
+/// Offset of the arrangement byte (versions 2 and 3).
 const ARRANGEMENT_AT: usize = 556;
+/// Offset of the noise range and the safety net's time (version 3).
+const FAMILY_AT: usize = 568;
 
 /// Why an image was refused.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -110,7 +118,7 @@ impl core::fmt::Display for ImageError {
             Self::UnsupportedVersion(v) => {
                 write!(
                     f,
-                    "format version {v} unsupported (this build reads 1 and {FORMAT_VERSION})"
+                    "format version {v} unsupported (this build reads 1 to {FORMAT_VERSION})"
                 )
             }
             Self::TrailingBytes(n) => write!(f, "{n} bytes after the end of the image"),
@@ -352,6 +360,9 @@ impl Image {
         w.bytes(&[self.arrangement.to_byte(), 0, 0, 0]);
         w.f32(self.gauss_markov.sigma_dps);
         w.f32(self.gauss_markov.tau_s);
+        w.f32(d.noise_lo);
+        w.f32(d.noise_hi);
+        w.f32(self.config.stale_s);
         let crc = crc32(w.out.get(..CRC_AT).unwrap_or(&[]));
         w.bytes(&crc.to_le_bytes());
         Ok(w.at)
@@ -373,6 +384,7 @@ impl Image {
         let version = u16::from_le_bytes([v[4], v[5]]);
         let len = match version {
             1 => IMAGE_LEN_V1,
+            2 => IMAGE_LEN_V2,
             FORMAT_VERSION => IMAGE_LEN,
             _ => return Err(ImageError::UnsupportedVersion(version)),
         };
@@ -421,11 +433,14 @@ impl Image {
             var_z: r.f32()?,
             mean_k: r.f32()?,
             noise_scale: r.f32()?,
+            noise_lo: 1.0,
+            noise_hi: 1.0,
         };
-        let config = MotionConfig {
+        let mut config = MotionConfig {
             sensor,
             still,
             level_q_dps2_per_s: r.f32()?,
+            stale_s: MotionConfig::DEFAULT_STALE_S,
         };
         match config.check() {
             Ok(()) => {}
@@ -531,6 +546,19 @@ impl Image {
             }
             (arrangement, gm)
         };
+        if version >= 3 {
+            config.still.noise_lo = r.f32()?;
+            config.still.noise_hi = r.f32()?;
+            if !config.still.is_valid() {
+                return Err(ImageError::BadValue { offset: FAMILY_AT });
+            }
+            config.stale_s = r.f32()?;
+            if config.check().is_err() {
+                return Err(ImageError::BadValue {
+                    offset: FAMILY_AT + 8,
+                });
+            }
+        }
         Ok(Self {
             config,
             model,
@@ -580,13 +608,11 @@ mod tests {
             *w = l as f32 * 1.0e-5 - 3.0e-5;
         }
         let tr = MotionTrainer::new(model, MOTION_DRLS, 1.0).expect("test");
-        Image::new(
-            MotionConfig::for_sensor(SensorConfig::ECORE_2000),
-            model,
-            tr.drls(),
-            12,
-        )
-        .with_arrangement(
+        let mut config = MotionConfig::for_sensor(SensorConfig::ECORE_2000);
+        config.still.noise_lo = 0.8;
+        config.still.noise_hi = 1.7;
+        config.stale_s = 300.0;
+        Image::new(config, model, tr.drls(), 12).with_arrangement(
             Arrangement::Dual,
             GaussMarkov {
                 sigma_dps: 3.0 / 3600.0,
@@ -604,6 +630,44 @@ mod tests {
         let crc = crc32(&v1[..556]);
         v1[556..].copy_from_slice(&crc.to_le_bytes());
         v1
+    }
+
+    /// The version-2 image of the same content: bytes 0..568 with version 2, and its CRC.
+    fn bytes_v2(img: &Image) -> [u8; IMAGE_LEN_V2] {
+        let b = bytes(img);
+        let mut v2 = [0u8; IMAGE_LEN_V2];
+        v2[..FAMILY_AT].copy_from_slice(&b[..FAMILY_AT]);
+        v2[4..6].copy_from_slice(&2u16.to_le_bytes());
+        let crc = crc32(&v2[..FAMILY_AT]);
+        v2[FAMILY_AT..].copy_from_slice(&crc.to_le_bytes());
+        v2
+    }
+
+    #[test]
+    fn version_2_loads_with_the_specification_and_the_default_safety_net() {
+        let img = sample();
+        let back = Image::parse(&bytes_v2(&img)).expect("test");
+        assert_eq!(back.config.still.noise_lo, 1.0);
+        assert_eq!(back.config.still.noise_hi, 1.0);
+        assert_eq!(back.config.stale_s, MotionConfig::DEFAULT_STALE_S);
+        assert_eq!(back.model, img.model);
+        assert_eq!(back.arrangement, img.arrangement);
+        // A bad noise range or time in a version-3 image: BadValue at its offset.
+        for (at, v, want) in [
+            (FAMILY_AT, 0.0f32, FAMILY_AT),
+            (FAMILY_AT + 4, 0.5, FAMILY_AT),
+            (FAMILY_AT + 8, -1.0, FAMILY_AT + 8),
+        ] {
+            let mut c = bytes(&img);
+            c[at..at + 4].copy_from_slice(&v.to_le_bytes());
+            let crc = crc32(&c[..CRC_AT]);
+            c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+            assert_eq!(
+                Image::parse(&c),
+                Err(ImageError::BadValue { offset: want }),
+                "{at}"
+            );
+        }
     }
 
     fn bytes(img: &Image) -> [u8; IMAGE_LEN] {
@@ -646,11 +710,14 @@ mod tests {
         let v1 = Image::parse(&bytes_v1(&img)).expect("test");
         assert_eq!(v1.arrangement, Arrangement::Window);
         assert_eq!(v1.gauss_markov, GaussMarkov::OFF);
-        let as_v1 = img
+        let mut as_v1 = img
             .clone()
             .with_arrangement(Arrangement::Window, GaussMarkov::OFF);
+        as_v1.config.still.noise_lo = 1.0;
+        as_v1.config.still.noise_hi = 1.0;
+        as_v1.config.stale_s = MotionConfig::DEFAULT_STALE_S;
         assert_eq!(v1, as_v1);
-        // Written back as version 2.
+        // Written back as version 3.
         assert_eq!(bytes(&v1), bytes(&as_v1));
         assert_eq!(
             v1.estimator().map(|e| e.arrangement()),
@@ -723,8 +790,8 @@ mod tests {
         c[0] = b'X';
         assert_eq!(Image::parse(&c), Err(ImageError::BadMagic));
         let mut c = b;
-        c[4] = 3;
-        assert_eq!(Image::parse(&c), Err(ImageError::UnsupportedVersion(3)));
+        c[4] = 4;
+        assert_eq!(Image::parse(&c), Err(ImageError::UnsupportedVersion(4)));
         let mut c = b;
         c[100] ^= 1;
         assert!(matches!(Image::parse(&c), Err(ImageError::Checksum { .. })));

@@ -103,6 +103,9 @@ pub struct MotionConfig {
     /// Random-walk density of the level, deg^2/s^2 per s (>= 0): how fast the residual
     /// drift may wander. Its variance grows by `q * window` every window, still or not.
     pub level_q_dps2_per_s: f32,
+    /// The safety net's time, s (> 0): after this long without a still sample the output
+    /// holds the drift last verified at rest ([`MotionOutput::verified`]).
+    pub stale_s: f32,
 }
 
 impl MotionConfig {
@@ -111,12 +114,17 @@ impl MotionConfig {
     /// misses); `host-sim` tunes it on validation records (docs/motion.md).
     pub const DEFAULT_LEVEL_Q: f32 = (2.0 / 3600.0) * (2.0 / 3600.0) / 3600.0;
 
+    /// Default [`MotionConfig::stale_s`]: 600 s, ASSUMED (the longest drive of the
+    /// vehicle families without a stop is 20 min; the model's shape is trusted for half).
+    pub const DEFAULT_STALE_S: f32 = 600.0;
+
     /// `sensor` with the default detector and level.
     pub const fn for_sensor(sensor: SensorConfig) -> Self {
         Self {
             sensor,
             still: StillConfig::DEFAULT,
             level_q_dps2_per_s: Self::DEFAULT_LEVEL_Q,
+            stale_s: Self::DEFAULT_STALE_S,
         }
     }
 
@@ -130,6 +138,9 @@ impl MotionConfig {
         }
         if !(self.level_q_dps2_per_s >= 0.0 && self.level_q_dps2_per_s.is_finite()) {
             return Err(MotionError::BadLevelNoise);
+        }
+        if !(self.stale_s > 0.0 && self.stale_s.is_finite()) {
+            return Err(MotionError::BadStillConfig);
         }
         Ok(())
     }
@@ -261,6 +272,12 @@ pub struct MotionOutput {
     pub level_dps: f32,
     /// The model term `m(x)`, deg/s.
     pub model_dps: f32,
+    /// The safety net ([`MotionConfig::stale_s`]): `true` when the output is the whole
+    /// estimate; `false` when nothing has been verified on this unit since power-on (no
+    /// still sample yet: the drift is 0, no compensation) or no still sample came for
+    /// `stale_s` (the drift is the level plus the model term as they were at the last still
+    /// sample: what was verified at rest, until the next rest).
+    pub verified: bool,
 }
 
 /// Counters.
@@ -276,6 +293,8 @@ pub struct MotionStats {
     /// Level updates: released still windows ([`LevelUpdate::Window`]) or still samples
     /// ([`LevelUpdate::Sample`]).
     pub level_updates: u32,
+    /// Samples whose output was not verified ([`MotionOutput::verified`] false).
+    pub unverified_samples: u32,
 }
 
 /// The per-sample estimator (see the module docs). Build it from a trained model and a
@@ -323,6 +342,12 @@ pub struct MotionEstimator {
     last_window: Option<bool>,
     // The window mean the last push released, minus its model term (deg/s).
     released_z: Option<f32>,
+    // Safety net: a still sample since power-on, samples since the last one (saturating),
+    // the model term then, and `stale_s` in samples.
+    ever_still: bool,
+    since_still: u32,
+    model_verified: f32,
+    stale_n: u32,
     stats: MotionStats,
 }
 
@@ -405,6 +430,17 @@ impl MotionEstimator {
             halted: false,
             last_window: None,
             released_z: None,
+            ever_still: false,
+            since_still: 0,
+            model_verified: 0.0,
+            stale_n: {
+                let n = libm::roundf(cfg.stale_s * cfg.sensor.sample_rate_hz);
+                if n < 4.0e9 {
+                    n as u32
+                } else {
+                    u32::MAX
+                }
+            },
             stats: MotionStats::default(),
         };
         e.restart();
@@ -434,6 +470,10 @@ impl MotionEstimator {
         self.halted = false;
         self.last_window = None;
         self.released_z = None;
+        self.ever_still = false;
+        self.since_still = 0;
+        self.model_verified = 0.0;
+        self.sample_r = self.still.noise_var_dps2();
         self.stats = MotionStats::default();
     }
 
@@ -656,18 +696,40 @@ impl MotionEstimator {
                 self.model_now = 0.0;
             }
         }
-        let drift = self
+        let second = self.second_coef() * self.gain;
+        let reference = self
             .cfg
             .sensor
-            .clamp_drift(self.level + self.model_now + self.second_coef() * self.gain);
+            .clamp_drift(self.level + self.model_now + second);
+        // The safety net (MotionOutput::verified): decided on the state before this sample.
+        let verified = self.ever_still && self.since_still <= self.stale_n;
+        let drift = if verified {
+            reference
+        } else if self.ever_still {
+            self.cfg
+                .sensor
+                .clamp_drift(self.level + self.model_verified + second)
+        } else {
+            0.0
+        };
         let s = self
             .still
-            .push(rate_dps, drift, self.drift_var(), external_still);
+            .push(rate_dps, reference, self.drift_var(), external_still);
         let mut still = s.still;
         self.last_window = s.window.map(|w| w.passed);
         self.released_z = None;
+        if s.window.is_some() {
+            self.sample_r = self.still.noise_var_dps2();
+        }
         if self.update == LevelUpdate::Sample {
             still = self.sample_step(rate_dps, still, external_still.is_none());
+        }
+        if still {
+            self.ever_still = true;
+            self.since_still = 0;
+            self.model_verified = self.model_now;
+        } else {
+            self.since_still = self.since_still.saturating_add(1);
         }
         if let Some(w) = s.window {
             if self.update == LevelUpdate::Sample {
@@ -717,6 +779,9 @@ impl MotionEstimator {
         if still {
             self.stats.still_samples = self.stats.still_samples.wrapping_add(1);
         }
+        if !verified {
+            self.stats.unverified_samples = self.stats.unverified_samples.wrapping_add(1);
+        }
         Ok((
             MotionOutput {
                 drift_dps: drift,
@@ -724,6 +789,7 @@ impl MotionEstimator {
                 still,
                 level_dps: self.level,
                 model_dps: self.model_now,
+                verified,
             },
             x,
         ))
@@ -791,6 +857,12 @@ impl MotionEstimator {
     /// The model.
     pub fn model(&self) -> &MotionModel {
         &self.model
+    }
+
+    /// The detector's noise reference: one sample's variance at rest, deg^2/s^2, learned
+    /// on line ([`crate::still`], "Noise reference"); the per-sample level's `r`.
+    pub fn noise_var_dps2(&self) -> f32 {
+        self.still.noise_var_dps2()
     }
 
     /// Level estimate and its variance (deg/s, deg^2/s^2).
@@ -1458,7 +1530,13 @@ mod tests {
         let mut model = MotionModel::standard(1800.0).expect("test");
         model.weights = [1.0; MOTION_L];
         let mut e = MotionEstimator::new(model, MotionConfig::for_sensor(S)).expect("test");
+        // Nothing verified at power-on: no compensation (the safety net).
         let o = e.push(0.0, 25.0, Some(false)).expect("test");
+        assert!(!o.verified);
+        assert_eq!(o.drift_dps, 0.0);
+        e.push(0.0, 25.0, Some(true)).expect("test");
+        let o = e.push(0.0, 25.0, Some(false)).expect("test");
+        assert!(o.verified);
         assert!(o.model_dps > S.drift_bound_dps);
         assert_eq!(o.drift_dps, S.drift_bound_dps);
     }
@@ -1478,7 +1556,6 @@ mod tests {
         let a = (-1.0 / (f64::from(S.sample_rate_hz) * f64::from(tau_s))).exp();
         let s2 = f64::from(sigma_gm).powi(2);
         let q = f64::from(cfg.level_q_dps2_per_s) / f64::from(S.sample_rate_hz);
-        let r = f64::from(S.sample_var_dps2() * cfg.still.noise_scale);
         let b = f64::from(S.drift_bound_dps);
         let (mut x, mut p) = ([0.0f64; 2], [b * b, 0.0, s2]);
         let mut z = Noise(3);
@@ -1488,12 +1565,17 @@ mod tests {
             let t = k as f64 * 0.01;
             let y = 3.0 / 3600.0 + 2.0 / 3600.0 * (t / 40.0).sin() + sigma * f64::from(z.normal());
             let o = e.push(y as f32, f32::NAN, Some(true)).expect("test");
+            // The sample's noise variance: the detector's reference, learned at window ends
+            // (crate::still, "Noise reference"; the Kalman step takes it from there).
+            let r = f64::from(e.noise_var_dps2());
             // Reference: predict, estimate (from earlier samples), update.
             if k > 0 {
                 x[1] *= a;
                 p = [p[0] + q, p[1] * a, a * a * p[2] + s2 * (1.0 - a * a)];
             }
-            max_err = max_err.max((f64::from(o.drift_dps) - (x[0] + x[1])).abs());
+            if k > 0 {
+                max_err = max_err.max((f64::from(o.drift_dps) - (x[0] + x[1])).abs());
+            }
             let (h0, h1) = (p[0] + p[1], p[1] + p[2]);
             let sk = h0 + h1 + r;
             let (k0, k1) = (h0 / sk, h1 / sk);

@@ -10,6 +10,7 @@
 //! - training records are static (the true rate is zero, or constant and then removed with
 //!   the per-record intercept).
 
+pub mod calibration;
 pub mod tune;
 
 use crate::identify::series::{Records, Series};
@@ -686,16 +687,18 @@ pub fn run(estimator: &mut PresetEstimator, r: &MotionRecord) -> Vec<MotionOutpu
                     still: false,
                     level_dps: 0.0,
                     model_dps: 0.0,
+                    verified: false,
                 })
         })
         .collect()
 }
 
 /// Header of `replay --identifier` output: the replay columns (`denoised_dps` empty: the
-/// motion estimator does not denoise at run time), then the still flag (0/1), the level
-/// and the model term.
+/// motion estimator does not denoise at run time), then the still flag (0/1), the level,
+/// the model term and the safety net's flag (1: the whole estimate; 0: nothing verified at
+/// rest yet, or no rest for the image's `stale_s`: fog_core::motion::MotionOutput::verified).
 pub const OUTPUT_HEADER: &str =
-    "index,t_s,rate_dps,denoised_dps,drift_dps,compensated_dps,still,level_dps,model_dps";
+    "index,t_s,rate_dps,denoised_dps,drift_dps,compensated_dps,still,level_dps,model_dps,verified";
 
 #[cfg(test)]
 mod tests {

@@ -110,6 +110,14 @@ pub struct MotionSummary {
     pub max_abs_rate_dps: f32,
     /// Rows flagged still.
     pub still_rows: usize,
+    /// Rows the safety net held (nothing verified at rest yet, or no rest for the image's
+    /// `stale_s`: column `verified` = 0).
+    pub unverified_rows: usize,
+    /// The detector's noise reference at the end of the record (learned on line, white
+    /// noise and quantization and any vibration at rest) as a density, deg/sqrt(h).
+    pub noise_learned_deg_rth: f64,
+    /// The image's (the sensor's) white-noise density, deg/sqrt(h).
+    pub noise_image_deg_rth: f64,
     /// Level updates.
     pub level_updates: u32,
     /// Largest |drift estimate|, deg/h.
@@ -371,14 +379,15 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         for (k, m) in out.iter().enumerate() {
             writeln!(
                 w,
-                "{k},{},{},,{},{},{},{},{}",
+                "{k},{},{},,{},{},{},{},{},{}",
                 s.t_s[k],
                 s.rate_dps[k],
                 m.drift_dps,
                 m.compensated_dps,
                 u8::from(m.still),
                 m.level_dps,
-                m.model_dps
+                m.model_dps,
+                u8::from(m.verified)
             )?;
         }
         Ok(())
@@ -414,6 +423,10 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         at_full_scale: s.rate_dps.iter().filter(|r| r.abs() >= fs).count(),
         max_abs_rate_dps: s.rate_dps.iter().fold(0.0f32, |a, r| a.max(r.abs())),
         still_rows: still.iter().filter(|&&b| b).count(),
+        unverified_rows: out.iter().filter(|m| !m.verified).count(),
+        noise_learned_deg_rth: (f64::from(est.rest().noise_var_dps2()) / f64::from(hz)).sqrt()
+            * 60.0,
+        noise_image_deg_rth: f64::from(sensor.noise_density_dps_rthz) * 60.0,
         level_updates: est.stats().level_updates,
         max_abs_drift_dph: drift_dps.iter().fold(0.0f64, |a, d| a.max(d.abs())) * 3600.0,
         raw_angle_end_deg: angle_deg(&s.t_s, s.rate_dps.iter().map(|&r| f64::from(r))),
@@ -451,7 +464,7 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
     let mut err = std::io::stderr().lock();
     writeln!(
         err,
-        "{}: {} rows ({}) through the motion identifier ({}; level {}, GM {} deg/h {} s); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still, {} level updates; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
+        "{}: {} rows ({}) through the motion identifier ({}; level {}, GM {} deg/h {} s); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still, {} held by the safety net; noise at rest learned {:.4} deg/sqrt(h) (image {:.4}); {} level updates; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
         s.input,
         s.rows,
         s.format,
@@ -463,6 +476,9 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
         s.sensor.sample_rate_hz,
         s.sensor.drift_bound_dph,
         s.still_rows,
+        s.unverified_rows,
+        s.noise_learned_deg_rth,
+        s.noise_image_deg_rth,
         s.level_updates,
         s.max_abs_drift_dph,
         s.raw_angle_end_deg,
