@@ -2,9 +2,10 @@
 
 use crate::identify::series::CsvFiles;
 use crate::identify::{self, Act, DrlsFormArg, LevelInput, Options, Preset, TrainerKind};
-use crate::motion::{self, SensorArg};
+use crate::motion;
 use crate::nav::NavRecord;
 use crate::record;
+use crate::sensor::SensorSpec;
 use anyhow::{Context, Result};
 use fog_core::image::Image;
 use fog_core::preset::{Arrangement, GaussMarkov};
@@ -102,9 +103,10 @@ pub struct Args {
     /// `--preset motion`: the identifier image to write (fog_core::image).
     #[arg(long)]
     pub save_identifier: Option<PathBuf>,
-    /// `--preset motion`: the sensor configuration.
-    #[arg(long, value_enum, default_value_t = SensorArg::Ecore2000)]
-    pub sensor: SensorArg,
+    /// `--preset motion`: the sensor: a built-in's name (`ecore2000`: 60 deg/s, 100 Hz;
+    /// `kvh1750`: 490 deg/s, 1 kHz) or a sensor file (host_sim::sensor).
+    #[arg(long, value_name = "NAME|FILE", value_parser = crate::sensor::parse_sensor_arg, default_value = "ecore2000")]
+    pub sensor: SensorSpec,
     /// `--preset motion`: passes over the training records (0: untrained model, the gated
     /// Kalman filter alone).
     #[arg(long, default_value_t = 3)]
@@ -336,7 +338,7 @@ fn run_motion(a: &Args) -> Result<()> {
             record::refuse_overwrite(p, j)?;
         }
     }
-    let mut o = motion::TrainOptions::new(a.sensor.config());
+    let mut o = motion::TrainOptions::new(a.sensor.config);
     o.epochs = a.epochs;
     o.shrink = a.shrink;
     o.trainer = a.motion_trainer;
@@ -417,7 +419,8 @@ fn run_motion(a: &Args) -> Result<()> {
     if let Some(j) = &a.json {
         let text = serde_json::to_string_pretty(&serde_json::json!({
             "preset": "motion",
-            "sensor": a.sensor,
+            "sensor": a.sensor.name,
+            "sensor_source": a.sensor.source,
             "epochs": a.epochs,
             "trainer": a.motion_trainer,
             "least_squares": trained.least_squares,

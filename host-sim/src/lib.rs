@@ -18,5 +18,6 @@ pub mod replay;
 pub mod replay_cmd;
 pub mod report;
 pub mod reproduce_cmd;
+pub mod sensor;
 pub mod sim;
 pub mod simulate_cmd;

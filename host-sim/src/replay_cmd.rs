@@ -2,11 +2,11 @@
 //! (default; [`crate::replay::motion`]) or the streamed level-trend / paper presets
 //! ([`crate::replay::stream`]).
 
-use crate::motion::SensorArg;
 use crate::replay::input::RateSpec;
 use crate::replay::motion::{self, MotionOptions};
 use crate::replay::stream::{self, IdPreset, InputFormat, Options, Outcome};
 use crate::report;
+use crate::sensor::SensorSpec;
 use anyhow::{bail, Context, Result};
 use std::path::PathBuf;
 
@@ -20,10 +20,11 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = InputFormat::Auto)]
     pub format: InputFormat,
     /// Sensor configuration (full scale, quantum, rate, noise, drift bound) when no
-    /// `--identifier` gives it: `ecore2000` (60 deg/s, 100 Hz, default) or `kvh1750`
-    /// (490 deg/s, 1 kHz).
-    #[arg(long, value_enum)]
-    pub sensor: Option<SensorArg>,
+    /// `--identifier` gives it: a built-in's name, `ecore2000` (60 deg/s, 100 Hz) or
+    /// `kvh1750` (490 deg/s, 1 kHz), or a sensor file (host_sim::sensor); default: the
+    /// built-in whose rate matches the record's.
+    #[arg(long, value_name = "NAME|FILE", value_parser = crate::sensor::parse_sensor_arg)]
+    pub sensor: Option<SensorSpec>,
     /// Full scale of E-Core binary frames, deg/s (32768 counts); default: the sensor's.
     #[arg(long)]
     pub full_scale_dps: Option<f32>,
@@ -90,7 +91,7 @@ pub fn run(args: &Args) -> Result<()> {
             }
         }
     }
-    let sensor = args.sensor.map(SensorArg::config);
+    let sensor = args.sensor.as_ref().map(|s| s.config);
     let id_preset = match args.preset {
         PresetArg::Motion => None,
         PresetArg::LevelTrend => Some(IdPreset::LevelTrend),

@@ -27,26 +27,6 @@ use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
 
-/// Sensors with a configuration in fog-core.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum SensorArg {
-    /// KVH E-Core 2000, 60 deg/s, 100 Hz ([`SensorConfig::ECORE_2000`]).
-    Ecore2000,
-    /// KVH DSP-1750-like axis, +-490 deg/s, 1 kHz ([`SensorConfig::KVH_DSP_1750`]).
-    Kvh1750,
-}
-
-impl SensorArg {
-    /// The configuration.
-    pub fn config(self) -> SensorConfig {
-        match self {
-            Self::Ecore2000 => SensorConfig::ECORE_2000,
-            Self::Kvh1750 => SensorConfig::KVH_DSP_1750,
-        }
-    }
-}
-
 /// Default Gauss-Markov sigma of the level, deg/h. ASSUMED from the static tuning: the
 /// per-sample RW+GM Kalman filter tuned by truth error on host-sim's 3 static validation
 /// units picks 2 deg/h, 10 s (the Python generator's nominal units 2 deg/h, 3 s; its OOD
