@@ -146,6 +146,25 @@ impl NormalEquations {
         self.records += other.records;
     }
 
+    /// The equations of the model restricted to the neurons `keep`: the others' rows,
+    /// columns and cross terms are zeroed, so that [`Self::solve`] (any ridge > 0) gives them
+    /// weight 0 and [`Self::sse`] scores the restricted model. For the host's comparison of
+    /// the whole model with its linear links alone (`host-sim identify`).
+    pub fn keep_only(&self, keep: &[bool; MOTION_L]) -> Self {
+        let mut out = *self;
+        for i in 0..MOTION_L {
+            for j in 0..MOTION_L {
+                if !(keep[i] && keep[j]) {
+                    out.gram[i][j] = 0.0;
+                }
+            }
+            if !keep[i] {
+                out.cross[i] = 0.0;
+            }
+        }
+        out
+    }
+
     /// These equations less `part` (a record that was added): the training set of a
     /// leave-one-out fold. `None` when `part` holds more records or windows than `self`.
     pub fn without(&self, part: &Self) -> Option<Self> {

@@ -35,9 +35,9 @@
 //! around a constant rate: at rest, or a constant-rate turn, whose noise is the same; a
 //! change of rate (the onset of a turn, road curvature) fails it. The reference moves in
 //! the log domain, down fast ([`NOISE_DOWN`] of the log ratio per window) and up slowly
-//! ([`NOISE_UP`]), so that it sits among the quietest windows: a drive whose vibration
-//! exceeds the stops' raises it slowly, the next stop brings it down within a few
-//! windows. The asymmetric tracker settles 0.55 standard deviations of `ln s^2` below the
+//! ([`NOISE_UP`]), so that it sits among the quietest windows; a step up needs the window's
+//! mean to pass the mean test too (a window at the drift estimate: a vibrating stop, not a
+//! straight drive or a steady turn, whose vibration would otherwise raise it). The asymmetric tracker settles 0.55 standard deviations of `ln s^2` below the
 //! mean of `ln s^2`, itself `1/(W-1)` below `ln sigma^2`: both are corrected, so the
 //! reference is unbiased for white noise. It stays within [`NOISE_MARGIN`] of the family's
 //! range (`noise_lo / margin .. noise_hi * margin` in sigma). An external still flag makes
@@ -372,20 +372,20 @@ impl Stillness {
         let mean_d = self.sum / n;
         let mean_dps = self.x0 + mean_d;
         let var = (self.sum2 - self.sum * mean_d) / (n - 1.0);
+        let dm = mean_dps - reference_dps;
+        let ref_var = if reference_var_dps2 >= 0.0 {
+            reference_var_dps2
+        } else {
+            0.0
+        };
+        // NaN anywhere fails the comparisons: moving.
+        let mean_ok = dm * dm <= self.mean_k2 * (self.sample_var / n + ref_var);
         let passed = if self.ext_any {
             self.ext_all_still
         } else {
-            let dm = mean_dps - reference_dps;
-            let ref_var = if reference_var_dps2 >= 0.0 {
-                reference_var_dps2
-            } else {
-                0.0
-            };
-            let bound = self.mean_k2 * (self.sample_var / n + ref_var);
-            // NaN anywhere fails both comparisons: moving.
-            var <= self.sample_var * self.var_ratio_max && dm * dm <= bound
+            var <= self.sample_var * self.var_ratio_max && mean_ok
         };
-        self.learn_noise(mean_dps, var);
+        self.learn_noise(mean_dps, var, mean_ok);
         let was_still = self.still;
         if passed {
             self.passing_windows = self.passing_windows.saturating_add(1);
@@ -415,8 +415,9 @@ impl Stillness {
     }
 
     /// The noise reference's step at a window end (module docs, "Noise reference"); before
-    /// the window's external-flag state is cleared.
-    fn learn_noise(&mut self, mean_dps: f32, var: f32) {
+    /// the window's external-flag state is cleared. `mean_ok`: the window passed the mean
+    /// test (needed for a step up).
+    fn learn_noise(&mut self, mean_dps: f32, var: f32, mean_ok: bool) {
         let last = self.last_stats.replace((mean_dps, var));
         let learn = if self.ext_any {
             self.ext_all_still
@@ -439,8 +440,10 @@ impl Stillness {
         let log_ratio = libm::logf(var / self.floor_var);
         let step = if log_ratio < 0.0 {
             NOISE_DOWN
-        } else {
+        } else if mean_ok || self.ext_any {
             NOISE_UP
+        } else {
+            return;
         };
         let floor = self.floor_var * libm::expf(step * log_ratio);
         if floor.is_finite() {

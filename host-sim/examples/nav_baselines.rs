@@ -1070,8 +1070,8 @@ fn evaluate_flags(
     s_valid: &[SensorConfig],
     s_test: &[SensorConfig],
 ) -> Result<()> {
-    let (_, fit) = least_squares(&set.train, s_train)?;
-    let model = drls_checked(train_motion(&set.train, s_train, None)?, &fit);
+    let (ls, fit) = least_squares(&set.train, s_train)?;
+    let model = drls_checked(train_motion(&set.train, s_train, None)?, &fit, &ls);
     println!(
         "\n{} (--flags): the default's check {}",
         set.name,

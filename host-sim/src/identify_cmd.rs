@@ -115,6 +115,11 @@ pub struct Args {
     /// host_sim::motion::DEFAULT_LEVEL_Q_DPH2_PER_H = 85.7, measured in motion).
     #[arg(long)]
     pub level_q_dph2_per_h: Option<f32>,
+    /// `--preset motion`: the safety net's time, s: after this long without a still sample
+    /// the output holds the drift verified at the last rest (fog_core::motion::MotionConfig::stale_s;
+    /// default 600).
+    #[arg(long)]
+    pub stale_s: Option<f32>,
     /// `--preset motion`: shrink the model by leave-one-record-out cross-validation
     /// (host_sim::motion::Shrinkage: alpha in [0, 1] folded into the output weights). Off
     /// by default: it costs on the simulator's vehicles (docs/motion.md).
@@ -338,7 +343,32 @@ fn run_motion(a: &Args) -> Result<()> {
             record::refuse_overwrite(p, j)?;
         }
     }
-    let mut o = motion::TrainOptions::new(a.sensor.config);
+    // What the calibration runs show, beside the sensor file; the image carries it.
+    let cal = motion::calibration::measure(&train)?;
+    eprintln!("{}", motion::calibration::table(&cal, &a.sensor.config));
+    let (sensor, still, warnings) = motion::calibration::learned_sensor(
+        &a.sensor.config,
+        &fog_core::still::StillConfig::DEFAULT,
+        &cal,
+    )?;
+    for w in &warnings {
+        eprintln!("WARNING: {w}");
+    }
+    eprintln!(
+        "image sensor: noise {:.4} deg/sqrt(h) (family range x{:.2} .. x{:.2}), drift bound {:.1} deg/h",
+        f64::from(sensor.noise_density_dps_rthz) * 60.0,
+        still.noise_lo,
+        still.noise_hi,
+        f64::from(sensor.drift_bound_dps) * 3600.0
+    );
+    let mut o = motion::TrainOptions::new(sensor);
+    o.config.still = still;
+    if let Some(t) = a.stale_s {
+        if !(t > 0.0 && t.is_finite()) {
+            anyhow::bail!("--stale-s {t}: must be finite and > 0");
+        }
+        o.config.stale_s = t;
+    }
     o.epochs = a.epochs;
     o.shrink = a.shrink;
     o.trainer = a.motion_trainer;
@@ -421,6 +451,8 @@ fn run_motion(a: &Args) -> Result<()> {
             "preset": "motion",
             "sensor": a.sensor.name,
             "sensor_source": a.sensor.source,
+            "calibration": cal,
+            "calibration_warnings": warnings,
             "epochs": a.epochs,
             "trainer": a.motion_trainer,
             "least_squares": trained.least_squares,

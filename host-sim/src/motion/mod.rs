@@ -297,6 +297,13 @@ pub struct LeastSquaresFit {
     pub windows: u64,
     /// Whether the ridge was cross-validated (2 records or more).
     pub cross_validated: bool,
+    /// The model is its linear links to temperature and its rate alone (the time neurons at
+    /// 0): they predicted the held-out records better than the whole model.
+    pub links_only: bool,
+    /// Pooled held-out gain of the whole model (its best ridge; 0: none beats `m = 0`).
+    pub heldout_gain_whole: f64,
+    /// Pooled held-out gain of the linear links alone (0: none beats `m = 0`).
+    pub heldout_gain_links: f64,
 }
 
 /// Ridge used without cross-validation (a single record): 1e-3 of the Gram matrix's mean
@@ -311,10 +318,13 @@ pub fn describe_least_squares(ls: &LeastSquaresFit) -> String {
         (None, _) => "EMPTY MODEL: no ridge predicted held-out records better than m = 0 (nothing transfers between units)".to_string(),
     };
     format!(
-        "least squares over {} windows: {pick}; held-out gain over m = 0 {:.2} % (smallest ridge {:.2} %)",
+        "least squares over {} windows: {pick}; held-out gain over m = 0 {:.2} % (smallest ridge {:.2} %); whole model {:.2} %, linear temperature links alone {:.2} % -> {}",
         ls.windows,
         100.0 * ls.heldout_gain,
-        100.0 * ls.heldout_gain_least_ridge
+        100.0 * ls.heldout_gain_least_ridge,
+        100.0 * ls.heldout_gain_whole,
+        100.0 * ls.heldout_gain_links,
+        if ls.links_only { "the links alone (least squares)" } else { "the whole model" }
     )
 }
 
@@ -366,8 +376,8 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
                 let mut model = *tr.model();
                 let mut check = None;
                 if o.trainer == TrainerArg::DrlsChecked {
-                    let (_, fit) = least_squares(&equations(&all, o)?, None, o)?;
-                    model = drls_checked(model, &fit);
+                    let (ls, fit) = least_squares(&equations(&all, o)?, None, o)?;
+                    model = drls_checked(model, &fit, &ls);
                     check = Some(fit);
                 }
                 (model, tr.drls().clone(), rows, check)
@@ -446,9 +456,13 @@ fn equations(all: &[Series], o: &TrainOptions) -> Result<Vec<(NormalEquations, f
 /// leave-one-record-out over the records used.
 /// The `drls-checked` rule: `model` (DRLS's) unless the least-squares cross-validation
 /// `fit` found no shape the records share, then the empty model.
-pub fn drls_checked(mut model: MotionModel, fit: &LeastSquaresFit) -> MotionModel {
+pub fn drls_checked(mut model: MotionModel, fit: &LeastSquaresFit, ls: &MotionModel) -> MotionModel {
     if fit.cross_validated && fit.rho.is_none() {
         model.weights = [0.0; fog_core::motion::MOTION_L];
+    } else if fit.links_only {
+        // The links alone predict held-out units better than the whole model: the
+        // least-squares links, not DRLS's whole model.
+        model.weights = ls.weights;
     }
     model
 }
@@ -480,7 +494,32 @@ pub fn least_squares_fit(
         sum.add(e);
     }
     let mut model = MotionModel::standard(time_max_s).map_err(|e| anyhow!("model: {e}"))?;
-    let cv = cross_validate(used, &RIDGE_GRID);
+    let cv_full = cross_validate(used, &RIDGE_GRID);
+    // The model's linear links to temperature and its rate alone (the time neurons at 0):
+    // kept when it predicts held-out records better than the whole model.
+    let keep = links_only(&model);
+    let links: Vec<NormalEquations> = used.iter().map(|e| e.keep_only(&keep)).collect();
+    let cv_links = if keep.iter().any(|k| *k) {
+        cross_validate(&links, &RIDGE_GRID)
+    } else {
+        None
+    };
+    let gain = |c: &Option<fog_core::motion_fit::CrossValidation>| {
+        c.as_ref().filter(|c| c.rho.is_some()).map(|c| c.heldout_gain)
+    };
+    let links_win = matches!(
+        (gain(&cv_links), gain(&cv_full)),
+        (Some(l), Some(f)) if l > f
+    ) || (gain(&cv_links).is_some() && gain(&cv_full).is_none());
+    let (cv, sum) = if links_win {
+        let mut s = NormalEquations::EMPTY;
+        for e in &links {
+            s.add(e);
+        }
+        (cv_links, s)
+    } else {
+        (cv_full, sum)
+    };
     let rho = match cv {
         Some(c) => c.rho,
         None => Some(FALLBACK_RIDGE),
@@ -502,8 +541,20 @@ pub fn least_squares_fit(
             heldout_gain_least_ridge: cv.map_or(f64::NAN, |c| c.heldout_gain_least_ridge),
             windows: sum.windows(),
             cross_validated: cv.is_some(),
+            links_only: links_win,
+            heldout_gain_whole: gain(&cv_full).unwrap_or(0.0),
+            heldout_gain_links: gain(&cv_links).unwrap_or(0.0),
         },
     ))
+}
+
+/// The neurons that are linear links to an input other than time (temperature, its rate).
+fn links_only(model: &MotionModel) -> [bool; fog_core::motion::MOTION_L] {
+    let mut keep = [false; fog_core::motion::MOTION_L];
+    for (k, kind) in keep.iter_mut().zip(model.shape.kind.iter()) {
+        *k = matches!(kind, fog_core::wnn::Neuron::Linear(j) if *j > 0);
+    }
+    keep
 }
 
 /// `o.epochs` passes over `all` except record `skip`; the fits of the last pass.
@@ -548,10 +599,10 @@ fn shrink_by_cross_validation(all: &[Series], o: &TrainOptions) -> Result<Shrink
         // `drls-checked`, DRLS on the other records checked by their own cross-validation.
         let model = match (o.trainer, &eqs) {
             (TrainerArg::LeastSquares, Some(eqs)) => least_squares(eqs, Some(i), o)?.0,
-            (TrainerArg::DrlsChecked, Some(eqs)) => drls_checked(
-                *train_on(all, Some(i), o)?.0.model(),
-                &least_squares(eqs, Some(i), o)?.1,
-            ),
+            (TrainerArg::DrlsChecked, Some(eqs)) => {
+                let (ls, fit) = least_squares(eqs, Some(i), o)?;
+                drls_checked(*train_on(all, Some(i), o)?.0.model(), &fit, &ls)
+            }
             _ => *train_on(all, Some(i), o)?.0.model(),
         };
         let temp = s.temp_c.as_deref();
