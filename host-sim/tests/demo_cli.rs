@@ -94,21 +94,21 @@ fn demo_writes_the_report() {
         s["records_trained"], 36,
         "12 records x 3 DRLS passes (drls-checked)"
     );
-    // The test set: the identifier and the four baselines over 2 vehicles (--quick).
+    // The test set: the identifier and the five baselines over 2 vehicles (--quick).
     let t = &s["test_set"];
     assert_eq!(
         t["heading_rms_deg"].as_array().expect("per record").len(),
         2
     );
     let mean = t["mean_heading_rms_deg"].as_array().expect("mean");
-    assert_eq!(mean.len(), 5);
+    assert_eq!(mean.len(), 6);
     assert_eq!(mean[0][0], "motion identifier");
     assert!(mean
         .iter()
         .all(|m| m[1].as_f64().is_some_and(|v| v.is_finite() && v > 0.0)));
     assert!(t["identifier_best"].as_u64().is_some_and(|n| n <= 2));
     let rows = s["scores"]["rows"].as_array().expect("scores");
-    assert_eq!(rows.len(), 5, "identifier and four baselines");
+    assert_eq!(rows.len(), 6, "identifier and five baselines");
     assert_eq!(rows[0]["name"], "motion identifier");
     for (i, r) in rows.iter().enumerate() {
         finite(r, "scores.heading_rms_deg");

@@ -3,14 +3,15 @@
 
 use super::{
     run, AlignmentBias, DetectorAcc, DetectorScores, DriftEstimator, GatedKalman, NavRecord,
-    NavScores, NoCompensation, ThermalKalman, ThermalKalmanConfig,
+    NavScores, NoCompensation, SelfCalConfig, SelfCalKalman, ThermalKalman, ThermalKalmanConfig,
 };
 use serde::Serialize;
 
 /// How the baselines are set up.
 #[derive(Debug, Clone, Serialize)]
 pub struct BaselineConfig {
-    /// Random walk of the gated Kalman filters' bias per sample, (deg/s)^2.
+    /// Random walk of the gated Kalman filters' bias per sample, (deg/s)^2 (the
+    /// self-calibrated one's too: see [`compare`]).
     pub q_dps2: f64,
     /// Where `q_dps2` came from (`--baseline-q`, tuned on validation records, or the
     /// identifier's own level noise).
@@ -91,6 +92,10 @@ impl DriftEstimator for Precomputed<'_> {
 /// Name of the no-compensation row.
 pub const NO_COMPENSATION: &str = "no compensation";
 
+/// Name of the last row: the gated Kalman filter with its own, alignment-calibrated
+/// detector ([`SelfCalKalman`]).
+pub const SELFCAL_LABEL: &str = "gated Kalman, own detector (alignment-calibrated)";
+
 /// One row of the table.
 #[derive(Debug, Clone, Serialize)]
 pub struct Row {
@@ -103,9 +108,11 @@ pub struct Row {
 /// The table and the detector's rates.
 #[derive(Debug, Clone, Serialize)]
 pub struct Comparison {
-    /// The identifier first, then none, alignment bias, gated Kalman, thermal Kalman.
+    /// The identifier first, then none, alignment bias, gated Kalman, thermal Kalman, gated
+    /// Kalman with its own detector ([`SELFCAL_LABEL`]).
     pub rows: Vec<Row>,
-    /// The still flags (the identifier's, shared by every baseline) against `moving`.
+    /// The still flags (the identifier's, shared by every baseline but the last, which has
+    /// its own detector) against `moving`.
     pub detector: DetectorScores,
     /// Whether the record has a `moving` column (without it the detector rates count every
     /// sample as still).
@@ -123,8 +130,13 @@ pub struct Compared {
     pub heading_deg: Vec<Vec<f64>>,
 }
 
-/// Scores the identifier (`name`, its drift per sample `drift_dps`) and the four causal
-/// baselines on `rec`, every one with the still flags `still` (the identifier's).
+/// Scores the identifier (`name`, its drift per sample `drift_dps`) and the five causal
+/// baselines on `rec`: the first four with the still flags `still` (the identifier's),
+/// released `cfg.release_samples` late; the last, [`SelfCalKalman`], with its own detector
+/// calibrated on the record's first [`super::selfcal::ALIGN_S`] s (ASSUMED still: a
+/// vehicle's alignment) and its own release. Its `q` is the other gated filters' `cfg.q_dps2`
+/// (one q for every baseline, so the row differs from the gated Kalman's by the detector
+/// alone; a q tuned for it with its own detector: [`super::tune_selfcal_q`]).
 /// `moving_known`: the record has a `moving` column.
 pub fn compare(
     rec: &NavRecord,
@@ -148,6 +160,7 @@ pub fn compare(
             cfg.release_samples,
         ),
         released(ThermalKalman::new(thermal), cfg.release_samples),
+        Box::new(SelfCalKalman::new(SelfCalConfig::with_q(cfg.q_dps2))),
     ];
     let labels = [
         name.to_string(),
@@ -155,6 +168,7 @@ pub fn compare(
         "alignment bias (initial still mean, held)".into(),
         "gated random-walk Kalman (ZARU)".into(),
         "gated Kalman + temperature regression".into(),
+        SELFCAL_LABEL.into(),
     ];
     let mut rows = Vec::new();
     let mut heading_deg = Vec::new();
@@ -206,17 +220,17 @@ pub fn table(c: &Comparison) -> String {
         }
     }
     o += &format!(
-        "{:<44} {:>12} {:>12} {:>12} {:>12} {:>12}\n",
+        "{:<50} {:>12} {:>12} {:>12} {:>12} {:>12}\n",
         "estimator", "heading RMS", "heading end", "e_truth", "e still", "e moving"
     );
     o += &format!(
-        "{:<44} {:>12} {:>12} {:>12} {:>12} {:>12}\n",
+        "{:<50} {:>12} {:>12} {:>12} {:>12} {:>12}\n",
         "", "deg", "deg", "deg/h", "deg/h", "deg/h"
     );
     for r in &c.rows {
         let s = &r.scores;
         o += &format!(
-            "{:<44} {:>12.4} {:>12.4} {:>12} {:>12} {:>12}\n",
+            "{:<50} {:>12.4} {:>12.4} {:>12} {:>12} {:>12}\n",
             r.name,
             s.heading_rms_deg,
             s.heading_final_deg,
@@ -239,11 +253,12 @@ pub fn table(c: &Comparison) -> String {
         }
     );
     o += &format!(
-        "baselines: q {:.3e} (deg/s)^2 per sample from {}, r {:.3e} (deg/s)^2; same still flags as the identifier, released {} samples late as its level\n",
+        "baselines: q {:.3e} (deg/s)^2 per sample from {}, r {:.3e} (deg/s)^2; same still flags as the identifier, released {} samples late as its level (the last row: own detector and r, from the first {} s)\n",
         c.baselines.q_dps2,
         c.baselines.q_source,
         c.baselines.r_dps2,
-        c.baselines.release_samples
+        c.baselines.release_samples,
+        super::selfcal::ALIGN_S
     );
     o
 }

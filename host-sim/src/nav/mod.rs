@@ -8,11 +8,14 @@
 //! - [`DriftEstimator`] baselines: [`NoCompensation`], [`AlignmentBias`], [`GatedKalman`]
 //!   (ZARU), [`ThermalKalman`] (ZARU + temperature regression, on-line RLS or coefficients
 //!   from [`fit_thermal`] on training records); [`GatedRwGm`] (ZARU with a random walk plus
-//!   a Gauss-Markov state).
-//! - [`compare`] / [`table`]: an identifier's drift beside the four baselines, with the
-//!   same still flags, as scores and as the text table of `replay` / `identify`.
+//!   a Gauss-Markov state); [`SelfCalKalman`] (ZARU with its OWN detector, the noise
+//!   reference measured on the unit's alignment; it ignores the still flags it is given).
+//! - [`compare`] / [`table`]: an identifier's drift beside the five baselines (the first
+//!   four with the identifier's still flags), as scores and as the text table of `replay` /
+//!   `identify`.
 //! - [`run`]: one estimator over one record; [`tune_gated_q`]: the gated Kalman's `q` on a
-//!   log grid, picked by mean heading-error RMS on validation records.
+//!   log grid, picked by mean heading-error RMS on validation records ([`tune_selfcal_q`]:
+//!   the same for [`SelfCalKalman`]).
 
 mod bank;
 mod baselines;
@@ -20,6 +23,7 @@ mod compare;
 mod gm;
 mod record;
 mod score;
+mod selfcal;
 mod tune;
 
 pub use bank::{BankConfig, GatedBank};
@@ -29,10 +33,12 @@ pub use baselines::{
 };
 pub use compare::{
     compare, table, BaselineConfig, Compared, Comparison, Precomputed, Row, NO_COMPENSATION,
+    SELFCAL_LABEL,
 };
 pub use gm::{GatedRwGm, RwGmConfig};
 pub use record::NavRecord;
 pub use score::{DetectorAcc, DetectorScores, HeadingAcc, NavScores, DPH_PER_DPS};
+pub use selfcal::{tune_selfcal_q, SelfCalConfig, SelfCalKalman};
 pub use tune::{log_grid, tune_gated_q, Tuning};
 
 /// One estimator's run over one record.

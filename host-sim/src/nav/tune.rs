@@ -29,19 +29,27 @@ pub fn log_grid(lo: f64, hi: f64, per_decade: usize) -> Vec<f64> {
 /// `records`, each run with its truth still flags (`!moving`) and the noise variance
 /// `r_dps2`. Ties go to the smaller `q`. None when the grid or the record set is empty.
 pub fn tune_gated_q(records: &[NavRecord], r_dps2: f64, q_grid: &[f64]) -> Option<Tuning> {
+    least_mean(records, q_grid, |q, r| {
+        let mut k = GatedKalman::new(q, r_dps2);
+        run(r, &mut k, &r.still_truth()).scores.heading_rms_deg
+    })
+}
+
+/// The grid point of `q_grid` with the least mean `score(q, record)` over `records`; ties
+/// go to the smaller `q` (the first). None when the grid or the record set is empty or no
+/// grid point scores a finite value.
+pub(super) fn least_mean(
+    records: &[NavRecord],
+    q_grid: &[f64],
+    score: impl Fn(f64, &NavRecord) -> f64,
+) -> Option<Tuning> {
     if records.is_empty() {
         return None;
     }
     let grid: Vec<(f64, f64)> = q_grid
         .iter()
         .map(|&q| {
-            let sum: f64 = records
-                .iter()
-                .map(|r| {
-                    let mut k = GatedKalman::new(q, r_dps2);
-                    run(r, &mut k, &r.still_truth()).scores.heading_rms_deg
-                })
-                .sum();
+            let sum: f64 = records.iter().map(|r| score(q, r)).sum();
             (q, sum / records.len() as f64)
         })
         .collect();

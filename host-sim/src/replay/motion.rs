@@ -197,7 +197,7 @@ impl TestSet {
     pub fn text(&self) -> String {
         let mut text = format!("mean heading error RMS over {}:\n", self.records);
         for (name, v) in &self.mean_heading_rms_deg {
-            text.push_str(&format!("  {name:<44} {v:>8.4} deg\n"));
+            text.push_str(&format!("  {name:<50} {v:>8.4} deg\n"));
         }
         text.push_str(&format!(
             "the identifier is below every baseline on {} of {} records",
@@ -618,7 +618,7 @@ pub fn print_validation(v: &ValidationScores) -> Result<()> {
         v.records.len()
     )?;
     for (name, m) in &v.mean_heading_rms_deg {
-        writeln!(err, "  {name:<44} {m:>10.4} deg")?;
+        writeln!(err, "  {name:<50} {m:>10.4} deg")?;
     }
     for r in &v.records {
         writeln!(err, "{}:", r.record)?;

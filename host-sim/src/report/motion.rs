@@ -1,7 +1,7 @@
 //! The report of a motion replay (`host-sim replay --report DIR` with the motion preset,
 //! `host-sim demo`): in `DIR`, written atomically,
 //! - `heading_error.svg` (records with truth): heading error over time of the identifier
-//!   and the four causal baselines, still periods shaded (the truth's `moving` when the
+//!   and the five causal baselines, still periods shaded (the truth's `moving` when the
 //!   record has it, else the detector's calls);
 //! - `drift.svg`: the drift estimate (and the true drift), deg/h;
 //! - `rate.svg`: measured and compensated rate, deg/s;
