@@ -254,9 +254,9 @@ fn bad_identifiers_are_refused() {
     flipped[300] ^= 0x10;
     refused(&flipped, &rec, d, "checksum mismatch");
     refused(&good[..200], &rec, d, "truncated at byte offset 200");
-    let mut v3 = good.clone();
-    v3[4] = 3;
-    refused(&v3, &rec, d, "format version 3 unsupported");
+    let mut v4 = good.clone();
+    v4[4] = 4;
+    refused(&v4, &rec, d, "format version 4 unsupported");
     refused(b"hello, world", &rec, d, "bad magic");
     // The right image, a record at another rate.
     let slow = d.join("slow.csv");

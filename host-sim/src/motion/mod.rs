@@ -456,7 +456,11 @@ fn equations(all: &[Series], o: &TrainOptions) -> Result<Vec<(NormalEquations, f
 /// leave-one-record-out over the records used.
 /// The `drls-checked` rule: `model` (DRLS's) unless the least-squares cross-validation
 /// `fit` found no shape the records share, then the empty model.
-pub fn drls_checked(mut model: MotionModel, fit: &LeastSquaresFit, ls: &MotionModel) -> MotionModel {
+pub fn drls_checked(
+    mut model: MotionModel,
+    fit: &LeastSquaresFit,
+    ls: &MotionModel,
+) -> MotionModel {
     if fit.cross_validated && fit.rho.is_none() {
         model.weights = [0.0; fog_core::motion::MOTION_L];
     } else if fit.links_only {
@@ -505,7 +509,9 @@ pub fn least_squares_fit(
         None
     };
     let gain = |c: &Option<fog_core::motion_fit::CrossValidation>| {
-        c.as_ref().filter(|c| c.rho.is_some()).map(|c| c.heldout_gain)
+        c.as_ref()
+            .filter(|c| c.rho.is_some())
+            .map(|c| c.heldout_gain)
     };
     let links_win = matches!(
         (gain(&cv_links), gain(&cv_full)),

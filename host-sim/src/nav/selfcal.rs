@@ -417,15 +417,16 @@ mod tests {
         assert!(frac > 0.95, "still fraction {frac}");
         let last = est.last().copied().expect("estimates");
         assert!((last - bias).abs() < 1.5 * DPH, "{} deg/h", last / DPH);
-        // The specification's noise (fog-core's detector) calls the same unit moving.
+        // fog-core's detector, which learns its noise reference on line, finds it still too,
+        // once its reference has risen from the family's top (about 40 s here).
         let s = fog_core::still::SensorConfig::ECORE_2000;
         let mut d = fog_core::still::Stillness::new(&s, &fog_core::still::StillConfig::DEFAULT)
             .expect("valid");
-        let spec_still = rates
+        let core_still = rates
             .iter()
             .filter(|&&r| d.push(r as f32, bias as f32, 0.0, None).still)
             .count();
-        assert!(spec_still < rates.len() / 100, "{spec_still}");
+        assert!(core_still > rates.len() * 8 / 10, "{core_still}");
     }
 
     #[test]

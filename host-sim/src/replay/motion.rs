@@ -317,9 +317,16 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
     let file_image = match &o.identifier {
         Some(p) => {
             let im = motion::read_image(p)?;
-            if o.sensor.is_some_and(|s| s != im.config.sensor) {
+            // The file fixes what the stream is (rate, full scale, quantum); the image's
+            // noise and drift bound were learned from the calibration runs.
+            let differs = |s: SensorConfig| {
+                let i = im.config.sensor;
+                (s.sample_rate_hz, s.full_scale_dps, s.quantum_dps)
+                    != (i.sample_rate_hz, i.full_scale_dps, i.quantum_dps)
+            };
+            if o.sensor.is_some_and(differs) {
                 bail!(
-                    "{}: its sensor configuration differs from --sensor; leave --sensor out",
+                    "{}: its sensor (rate, full scale, quantum) differs from --sensor; leave --sensor out",
                     p.display()
                 );
             }
