@@ -217,7 +217,7 @@ where
     defmt::info!(
         "fog-firmware: E-Core {=f32} deg/s full scale, {=f32} Hz, motion-safe identifier image ({=usize} bytes) loaded, drift bound {=f32} deg/s, denoise block {=usize} (resumable), denoised field {=usize} samples late",
         pipeline::FULL_SCALE_DPS,
-        pipeline::SAMPLE_RATE_HZ,
+        stage.sample_rate_hz(),
         IDENTIFIER_IMAGE.len(),
         stage.estimator().config().sensor.drift_bound_dps,
         pipeline::BLOCK,

@@ -37,9 +37,15 @@ pub const FULL_SCALE_DPS: f32 = 60.0;
 /// Sample period of the gyro's output, s (100 Hz: E-Core 2000).
 pub const SAMPLE_PERIOD_S: f32 = 0.01;
 
-/// Sample rate the firmware runs at, Hz; the identifier image must be for this rate
-/// (`Image::check_rate`, 1 % tolerance).
+/// Sample rate of the E-Core 2000 and of the committed default image, Hz. The firmware runs
+/// at the image's rate ([`Stage::sample_rate_hz`], within [`MIN_RATE_HZ`] ..
+/// [`MAX_RATE_HZ`]); this one is the temperature refresh's basis
+/// (`temperature::REFRESH_SAMPLES`: 100 samples, 1 s at this rate).
 pub const SAMPLE_RATE_HZ: f32 = 100.0;
+/// Slowest image rate the firmware runs, Hz (the sensor file's supported range).
+pub const MIN_RATE_HZ: f32 = 10.0;
+/// Fastest image rate the firmware runs, Hz.
+pub const MAX_RATE_HZ: f32 = 2000.0;
 
 /// Samples per denoising block.
 pub const BLOCK: usize = 512;
@@ -134,10 +140,16 @@ impl Stage {
     pub fn estimator(&self) -> &PresetEstimator {
         &self.estimator
     }
+
+    /// The rate the stage runs at: the image's, Hz.
+    pub fn sample_rate_hz(&self) -> f32 {
+        self.estimator.config().sensor.sample_rate_hz
+    }
 }
 
-/// Builds the stage from an identifier image (`fog_core::image` format), checked against
-/// [`SAMPLE_RATE_HZ`].
+/// Builds the stage from an identifier image (`fog_core::image` format) for any rate from
+/// [`MIN_RATE_HZ`] to [`MAX_RATE_HZ`] (another rate: `ImageError::RateMismatch` naming the
+/// nearer end of the range).
 ///
 /// Stack: the caller should use the result where it is (`match &mut result`), not move the
 /// stage out of it (a second copy of about 9 KiB).
@@ -145,9 +157,17 @@ pub fn new_stage(image: &[u8]) -> Result<Stage, SetupError> {
     // The parsed image only lives in this block (its stack slot is free after it).
     let estimator = {
         let image = Image::parse(image).map_err(SetupError::Image)?;
-        image
-            .check_rate(SAMPLE_RATE_HZ)
-            .map_err(SetupError::Image)?;
+        let image_hz = image.config.sensor.sample_rate_hz;
+        if !(MIN_RATE_HZ..=MAX_RATE_HZ).contains(&image_hz) {
+            return Err(SetupError::Image(ImageError::RateMismatch {
+                image_hz,
+                stream_hz: if image_hz < MIN_RATE_HZ {
+                    MIN_RATE_HZ
+                } else {
+                    MAX_RATE_HZ
+                },
+            }));
+        }
         image.estimator().map_err(SetupError::Estimator)?
     };
     let denoiser = ResumableDenoiser::new(DenoiseConfig::PAPER).map_err(SetupError::Denoiser)?;

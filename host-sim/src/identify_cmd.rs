@@ -480,6 +480,11 @@ fn run_motion(a: &Args) -> Result<()> {
             (motion::TrainerArg::DrlsChecked, _) if trained_empty => {
                 "EMPTY MODEL (the family shares no shape)".to_string()
             }
+            (motion::TrainerArg::DrlsChecked, _)
+                if trained.least_squares.as_ref().is_some_and(|l| l.links_only) =>
+            {
+                "the least-squares temperature links (held out, better than DRLS's whole model's shape)".to_string()
+            }
             (motion::TrainerArg::DrlsChecked, e) => {
                 format!("DRLS x {e} passes, shape shared by the family")
             }

@@ -28,7 +28,7 @@ pub const BANK_TAU_MAX_GRID_S: [f32; 2] = [1_000.0, 10_000.0];
 /// 2 deg/h), each with the correlation times in [`GM_TAU_GRID_S`].
 pub const GM_SIGMA_GRID_DPH: [f32; 8] = [0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
 /// The Gauss-Markov state's correlation time grid, s.
-pub const GM_TAU_GRID_S: [f32; 5] = [0.1, 1.0, 10.0, 100.0, 1_000.0];
+pub const GM_TAU_GRID_S: [f32; 3] = [10.0, 100.0, 1_000.0];
 
 /// What the tuning picked, and its score.
 #[derive(Debug, Clone, Copy)]
