@@ -430,6 +430,40 @@ mod tests {
         )
     }
 
+    /// The safety net on a static record: a unit far noisier than its family (10x, beyond
+    /// the noise reference's margin) is never found still, so nothing is verified and
+    /// nothing is subtracted (no worse than no compensation); a model that predicts a drift
+    /// the unit does not have (weights at 20 deg/h) is not subtracted either. The same unit
+    /// at the family's noise is found still and compensated, verified.
+    #[test]
+    fn a_static_unit_never_found_still_is_not_compensated() {
+        let mut model = MotionModel::standard(1800.0).expect("test");
+        model.weights = [20.0 / 3600.0 / crate::motion::MOTION_L as f32; crate::motion::MOTION_L];
+        for (scale, want_still) in [(10.0f32, false), (1.0, true)] {
+            let mut p =
+                PresetEstimator::new(model, MotionConfig::for_sensor(S), Arrangement::Dual, GM)
+                    .expect("test");
+            let mut z = Noise(21);
+            let (mut still, mut verified, mut sum_drift2) = (0usize, 0usize, 0.0f64);
+            for _ in 0..60_000 {
+                let x = 5.0 / 3600.0 + scale * S.sample_var_dps2().sqrt() * z.normal12();
+                let o = p.push(x, f32::NAN, None).expect("test");
+                still += usize::from(o.still);
+                verified += usize::from(o.verified);
+                sum_drift2 += f64::from(o.drift_dps).powi(2);
+                assert_eq!(o.compensated_dps, x - o.drift_dps);
+            }
+            if want_still {
+                assert!(
+                    still > 50_000 && verified > 50_000,
+                    "{scale}x: {still} {verified}"
+                );
+            } else {
+                assert_eq!((still, verified, sum_drift2), (0, 0, 0.0), "{scale}x");
+            }
+        }
+    }
+
     #[test]
     fn dual_is_the_two_estimators_switched_by_the_rest_flag() {
         // The reference: the two estimators built by hand (what host-sim's nav_baselines
