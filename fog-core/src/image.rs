@@ -20,8 +20,8 @@
 //! | 468 | 4 x f32 + 4 | trainer (DRLS): lambda, u0, u_max, w_max, mode (0 parallel, 1 sequential), form (0 gain, 1 energy), 0, 0 |
 //! | 488 | L x f32 | trainer state (`U` or `S` per weight) |
 //! | 552 | u32 | records trained on (passes included) |
-//! | 556 | 1+3 | level arrangement ([`Arrangement`]: 0 window, 1 sample, 2 dual, 3 bank, 4 bank-dual, 5 bank-guarded), 0, 0, 0 |
-//! | 560 | 2 x f32 | Gauss-Markov state: sigma deg/s (0 = off), tau s (0 when off); bank (3, 4, 5): its `B` deg/s (> 0) and longest correlation time s (1 to 10^4) |
+//! | 556 | 1+3 | level arrangement ([`Arrangement`]: 0 window, 1 sample, 2 dual, 3 bank, 4 bank-dual, 5 bank-guarded, 6 dual-thermal), 0, 0, 0 |
+//! | 560 | 2 x f32 | Gauss-Markov state: sigma deg/s (0 = off), tau s (0 when off); bank (3, 4, 5): its `B` deg/s (> 0) and longest correlation time s (1 to 10^4); dual-thermal (6): the temperature coefficient's prior sigma deg/s per deg C (> 0) and 0 |
 //! | 568 | 3 x f32 | the family's white-noise range as multiples of the sensor's sigma (`noise_lo`, `noise_hi` of [`StillConfig`]), the safety net's time s ([`MotionConfig::stale_s`]) |
 //! | 580 | u32 | CRC-32/ISO-HDLC of bytes 0..580 |
 //!
@@ -538,8 +538,14 @@ impl Image {
                 sigma_dps: r.f32()?,
                 tau_s: r.f32()?,
             };
-            let bank_ok = !arrangement.is_bank() || gm.bank(config.level_q_dps2_per_s).is_valid();
-            if !gm.is_valid() || !bank_ok {
+            let ok = if arrangement == Arrangement::DualThermal {
+                // The temperature coefficient's prior: sigma > 0, tau 0.
+                gm.sigma_dps.is_finite() && gm.sigma_dps > 0.0 && gm.tau_s == 0.0
+            } else {
+                gm.is_valid()
+                    && (!arrangement.is_bank() || gm.bank(config.level_q_dps2_per_s).is_valid())
+            };
+            if !ok {
                 return Err(ImageError::BadValue {
                     offset: ARRANGEMENT_AT + 4,
                 });

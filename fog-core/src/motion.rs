@@ -348,6 +348,11 @@ pub struct MotionEstimator {
     since_still: u32,
     model_verified: f32,
     stale_n: u32,
+    // Thermal second state: the first window's measured temperature (deg C), and
+    // `T - T0` of the current and previous windows.
+    temp0: Option<f32>,
+    u_now: f32,
+    u_prev: f32,
     stats: MotionStats,
 }
 
@@ -366,6 +371,11 @@ enum Second {
         q: f32,
         sigma2: f32,
     },
+    /// The unit's own temperature link: a constant coefficient `c` (deg/s per deg C, prior
+    /// `N(0, sigma2)`) observed with coefficient `T - T0` (the window's temperature minus the
+    /// first window's), so that the drift follows the unit's temperature in motion; 0
+    /// without a temperature channel.
+    Thermal { sigma2: f32 },
 }
 
 /// Fast gate of [`LevelUpdate::Sample`], in sigma of the innovation (ASSUMED: 5 sigma,
@@ -441,6 +451,9 @@ impl MotionEstimator {
                     u32::MAX
                 }
             },
+            temp0: None,
+            u_now: 0.0,
+            u_prev: 0.0,
             stats: MotionStats::default(),
         };
         e.restart();
@@ -460,7 +473,7 @@ impl MotionEstimator {
         self.gain = 0.0;
         self.gain_var = match self.second {
             Second::Gain => self.gain_sigma0 * self.gain_sigma0,
-            Second::GaussMarkov { sigma2, .. } => sigma2,
+            Second::GaussMarkov { sigma2, .. } | Second::Thermal { sigma2 } => sigma2,
         };
         self.gain_cov = 0.0;
         self.checkpoint_now = self.level_state();
@@ -473,6 +486,9 @@ impl MotionEstimator {
         self.ever_still = false;
         self.since_still = 0;
         self.model_verified = 0.0;
+        self.temp0 = None;
+        self.u_now = 0.0;
+        self.u_prev = 0.0;
         self.sample_r = self.still.noise_var_dps2();
         self.stats = MotionStats::default();
     }
@@ -549,7 +565,39 @@ impl MotionEstimator {
     pub fn gauss_markov(&self) -> (f32, f32) {
         match self.second {
             Second::GaussMarkov { .. } => (self.gain, self.gain_var),
-            Second::Gain => (0.0, 0.0),
+            Second::Gain | Second::Thermal { .. } => (0.0, 0.0),
+        }
+    }
+
+    /// The unit's own temperature link as the second state:
+    /// `drift = level + m(x) + c (T - T0)`, `c` constant with prior standard deviation
+    /// `sigma_dps_per_c` (deg/s per deg C, > 0), learned from still samples or released
+    /// windows like the level (and rolled back with it). Replaces a Gauss-Markov state.
+    /// Restarts the estimator.
+    pub fn with_thermal(mut self, sigma_dps_per_c: f32) -> Self {
+        self.set_thermal(sigma_dps_per_c);
+        self
+    }
+
+    /// [`MotionEstimator::with_thermal`] in place (restarts the estimator).
+    pub fn set_thermal(&mut self, sigma_dps_per_c: f32) {
+        self.gain_sigma0 = 0.0;
+        self.second = if sigma_dps_per_c.is_finite() && sigma_dps_per_c > 0.0 {
+            Second::Thermal {
+                sigma2: sigma_dps_per_c * sigma_dps_per_c,
+            }
+        } else {
+            Second::Gain
+        };
+        self.restart();
+    }
+
+    /// The unit's temperature coefficient and its variance (0, 0 unless
+    /// [`MotionEstimator::with_thermal`]), deg/s per deg C.
+    pub fn thermal(&self) -> (f32, f32) {
+        match self.second {
+            Second::Thermal { .. } => (self.gain, self.gain_var),
+            _ => (0.0, 0.0),
         }
     }
 
@@ -559,6 +607,7 @@ impl MotionEstimator {
         match self.second {
             Second::Gain => self.model_now,
             Second::GaussMarkov { .. } => 1.0,
+            Second::Thermal { .. } => self.u_now,
         }
     }
 
@@ -567,6 +616,10 @@ impl MotionEstimator {
     fn drift_var(&self) -> f32 {
         match (self.second, self.update) {
             (Second::GaussMarkov { .. }, _) => self.level_var + 2.0 * self.gain_cov + self.gain_var,
+            (Second::Thermal { .. }, _) => {
+                let h = self.second_coef();
+                self.level_var + 2.0 * h * self.gain_cov + h * h * self.gain_var
+            }
             _ => self.level_var,
         }
     }
@@ -595,15 +648,16 @@ impl MotionEstimator {
         }
     }
 
-    /// [`LevelUpdate::Window`] with the Gauss-Markov state: one two-state Kalman step on a
-    /// released window mean `z` (= `rate - m`, variance `r`), observation `level + g`.
-    /// ASSUMED: the released window is one window old; its `g` is taken as today's (the
-    /// state moved by `1 - a_window`, under 1 % for `tau_s` > 100 s).
-    fn window_step_gm(&mut self, z: f32, r: f32) {
-        let innovation = z - self.level - self.gain;
-        let ph0 = self.level_var + self.gain_cov;
-        let ph1 = self.gain_cov + self.gain_var;
-        let s = ph0 + ph1 + r;
+    /// [`LevelUpdate::Window`] with a second state: one two-state Kalman step on a
+    /// released window mean `z` (= `rate - m`, variance `r`), observation `level + h g`
+    /// (`h` = 1 for the Gauss-Markov state, the window's `T - T0` for the thermal one).
+    /// ASSUMED: the released window is one window old; its Gauss-Markov `g` is taken as
+    /// today's (the state moved by `1 - a_window`, under 1 % for `tau_s` > 100 s).
+    fn window_step_two(&mut self, z: f32, r: f32, h: f32) {
+        let innovation = z - self.level - h * self.gain;
+        let ph0 = self.level_var + h * self.gain_cov;
+        let ph1 = self.gain_cov + h * self.gain_var;
+        let s = ph0 + h * ph1 + r;
         let k0 = ph0 / s;
         let k1 = ph1 / s;
         let level = self.level + k0 * innovation;
@@ -688,6 +742,12 @@ impl MotionEstimator {
             self.model_prev = self.model_now;
             self.x_prev = self.x_now;
             self.x_now = x;
+            if self.temp0.is_none() && temp_c.is_finite() {
+                self.temp0 = Some(x[1]);
+            }
+            self.u_prev = self.u_now;
+            let u = self.temp0.map_or(0.0, |t0| x[1] - t0);
+            self.u_now = if u.is_finite() { u } else { 0.0 };
             self.model_now = match given {
                 Some((_, m)) => m,
                 None => self.model.eval(&x),
@@ -761,8 +821,14 @@ impl MotionEstimator {
                     // model_prev (windows and evaluations coincide).
                     let z = mean - self.model_prev;
                     let r = self.still.window_mean_var_dps2();
-                    if let Second::GaussMarkov { .. } = self.second {
-                        self.window_step_gm(z, r);
+                    let h = match self.second {
+                        Second::GaussMarkov { .. } => Some(1.0),
+                        // The released window is the previous one: its `T - T0`.
+                        Second::Thermal { .. } => Some(self.u_prev),
+                        Second::Gain => None,
+                    };
+                    if let Some(h) = h {
+                        self.window_step_two(z, r, h);
                     } else {
                         let gain = self.level_var / (self.level_var + r);
                         let level = self.level + gain * (z - self.level);

@@ -53,6 +53,11 @@ pub enum Arrangement {
     /// protection than [`Arrangement::BankDual`] (the window before a failed one is kept),
     /// less still data lost at each stop. With an external still flag, the plain bank.
     BankGuarded,
+    /// [`Arrangement::Dual`] whose second state is the unit's own temperature link
+    /// ([`MotionEstimator::with_thermal`]: `c (T - T0)`, learned at rest, followed in
+    /// motion) instead of a Gauss-Markov state; the image's Gauss-Markov fields carry the
+    /// coefficient's prior standard deviation (sigma, deg/s per deg C) and tau 0.
+    DualThermal,
 }
 
 impl Arrangement {
@@ -65,6 +70,7 @@ impl Arrangement {
             Self::Bank => 3,
             Self::BankDual => 4,
             Self::BankGuarded => 5,
+            Self::DualThermal => 6,
         }
     }
 
@@ -77,6 +83,7 @@ impl Arrangement {
             3 => Some(Self::Bank),
             4 => Some(Self::BankDual),
             5 => Some(Self::BankGuarded),
+            6 => Some(Self::DualThermal),
             _ => None,
         }
     }
@@ -194,6 +201,7 @@ impl PresetEstimator {
             Arrangement::Window => LevelUpdate::Window,
             Arrangement::Sample
             | Arrangement::Dual
+            | Arrangement::DualThermal
             | Arrangement::Bank
             | Arrangement::BankDual
             | Arrangement::BankGuarded => LevelUpdate::Sample,
@@ -224,13 +232,22 @@ impl PresetEstimator {
             });
             return Ok(p);
         }
-        p.rest.set_gauss_markov(gm.sigma_dps, gm.tau_s);
-        if arrangement == Arrangement::Dual {
+        let thermal = arrangement == Arrangement::DualThermal;
+        if thermal {
+            p.rest.set_thermal(gm.sigma_dps);
+        } else {
+            p.rest.set_gauss_markov(gm.sigma_dps, gm.tau_s);
+        }
+        if arrangement == Arrangement::Dual || thermal {
             p.second = SecondSlot::Hold(MotionEstimator::new(model, cfg)?);
             // Set up in the slot (no move of a built estimator; the slot was just filled).
             if let SecondSlot::Hold(h) = &mut p.second {
                 h.set_level_update(LevelUpdate::Window);
-                h.set_gauss_markov(gm.sigma_dps, gm.tau_s);
+                if thermal {
+                    h.set_thermal(gm.sigma_dps);
+                } else {
+                    h.set_gauss_markov(gm.sigma_dps, gm.tau_s);
+                }
             }
         }
         Ok(p)
@@ -256,6 +273,7 @@ impl PresetEstimator {
                 Guard::Dual => Arrangement::BankDual,
                 Guard::Window => Arrangement::BankGuarded,
             },
+            (SecondSlot::Hold(_), _) if self.rest.thermal().1 > 0.0 => Arrangement::DualThermal,
             (SecondSlot::Hold(_), _) => Arrangement::Dual,
             (_, LevelUpdate::Window) => Arrangement::Window,
             (_, LevelUpdate::Sample) => Arrangement::Sample,

@@ -294,6 +294,10 @@ fn second_state(
         }
         return Ok(g);
     }
+    if arrangement == Arrangement::DualThermal {
+        // The prior of the unit's temperature coefficient (the tuning scans it).
+        return Ok(motion::DEFAULT_THERMAL);
+    }
     let d = motion::DEFAULT_GAUSS_MARKOV;
     let g = GaussMarkov {
         sigma_dps: a.gm_sigma_dph.map_or(d.sigma_dps, |s| s / 3600.0),

@@ -84,6 +84,9 @@ pub enum LevelUpdateArg {
     /// The bank with a failed window's samples rolled back (the windows before it kept),
     /// the output at rest and in motion.
     BankGuarded,
+    /// The dual with the unit's own temperature link `c (T - T0)` learned at rest as its
+    /// second state, instead of a Gauss-Markov state (fog_core::preset).
+    DualThermal,
 }
 
 impl LevelUpdateArg {
@@ -96,6 +99,7 @@ impl LevelUpdateArg {
             Self::Bank => Arrangement::Bank,
             Self::BankDual => Arrangement::BankDual,
             Self::BankGuarded => Arrangement::BankGuarded,
+            Self::DualThermal => Arrangement::DualThermal,
         }
     }
 
@@ -108,6 +112,7 @@ impl LevelUpdateArg {
             Arrangement::Bank => Self::Bank,
             Arrangement::BankDual => Self::BankDual,
             Arrangement::BankGuarded => Self::BankGuarded,
+            Arrangement::DualThermal => Self::DualThermal,
         }
     }
 
@@ -204,10 +209,23 @@ impl TrainOptions {
 pub fn default_second_state(arrangement: Arrangement) -> GaussMarkov {
     if arrangement.is_bank() {
         DEFAULT_BANK
+    } else if arrangement == Arrangement::DualThermal {
+        DEFAULT_THERMAL
     } else {
         DEFAULT_GAUSS_MARKOV
     }
 }
+
+/// Prior standard deviation of the unit's temperature coefficient, deg/h per deg C
+/// (ASSUMED: 1, the gated Kalman + temperature regression baseline's prior, host_sim::nav).
+pub const THERMAL_SIGMA_DPH_PER_C: f32 = 1.0;
+
+/// The image's second-state fields for [`Arrangement::DualThermal`]: the prior
+/// [`THERMAL_SIGMA_DPH_PER_C`] (deg/s per deg C) and tau 0.
+pub const DEFAULT_THERMAL: GaussMarkov = GaussMarkov {
+    sigma_dps: THERMAL_SIGMA_DPH_PER_C / 3600.0,
+    tau_s: 0.0,
+};
 
 /// What training did, per record of the last pass.
 #[derive(Debug, Clone, Serialize)]

@@ -29,6 +29,9 @@ pub const BANK_TAU_MAX_GRID_S: [f32; 2] = [1_000.0, 10_000.0];
 pub const GM_SIGMA_GRID_DPH: [f32; 8] = [0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
 /// The Gauss-Markov state's correlation time grid, s.
 pub const GM_TAU_GRID_S: [f32; 3] = [10.0, 100.0, 1_000.0];
+/// The thermal state's prior sigma grid, deg/h per deg C (a factor 8 below to 4 above the
+/// default 1).
+pub const THERMAL_SIGMA_GRID_DPH_PER_C: [f32; 6] = [0.125, 0.25, 0.5, 1.0, 2.0, 4.0];
 
 /// What the tuning picked, and its score.
 #[derive(Debug, Clone, Copy)]
@@ -71,6 +74,8 @@ pub fn mean_heading_rms(image: &Image, val: &[NavRecord]) -> Result<f64> {
 pub fn second_grid(image: &Image) -> Vec<GaussMarkov> {
     let (sigmas_dph, taus_s): (&[f32], &[f32]) = if image.arrangement.is_bank() {
         (&BANK_B_GRID_DPH, &BANK_TAU_MAX_GRID_S)
+    } else if image.arrangement == fog_core::preset::Arrangement::DualThermal {
+        (&THERMAL_SIGMA_GRID_DPH_PER_C, &[0.0])
     } else if image.gauss_markov.sigma_dps > 0.0 {
         (&GM_SIGMA_GRID_DPH, &GM_TAU_GRID_S)
     } else {
@@ -127,6 +132,8 @@ pub fn tune(image: &Image, val: &[NavRecord]) -> Result<TunedLevel> {
             // 10^4 s is the bank's limit, not a grid end; the 10^3 s end is one.
             at_grid_end(sigma_dph, &BANK_B_GRID_DPH)
                 || BANK_TAU_MAX_GRID_S.first() == Some(&second.tau_s)
+        } else if image.arrangement == fog_core::preset::Arrangement::DualThermal {
+            at_grid_end(sigma_dph, &THERMAL_SIGMA_GRID_DPH_PER_C)
         } else {
             at_grid_end(sigma_dph, &GM_SIGMA_GRID_DPH) || at_grid_end(second.tau_s, &GM_TAU_GRID_S)
         };
@@ -265,6 +272,11 @@ pub fn describe(arrangement: fog_core::preset::Arrangement, t: &TunedLevel) -> S
             "bank B {:.4} deg/h, tau_max {} s",
             t.second.sigma_dps * 3600.0,
             t.second.tau_s
+        )
+    } else if arrangement == fog_core::preset::Arrangement::DualThermal {
+        format!(
+            "temperature coefficient prior {:.3} deg/h per deg C",
+            t.second.sigma_dps * 3600.0
         )
     } else if t.second.sigma_dps > 0.0 {
         format!(

@@ -23,7 +23,7 @@ mod compare;
 mod gm;
 mod record;
 mod score;
-mod selfcal;
+pub mod selfcal;
 mod tune;
 
 pub use bank::{BankConfig, GatedBank};
