@@ -816,7 +816,7 @@ mod tests {
         // An unknown arrangement, a NaN and a negative Gauss-Markov value behind a valid
         // checksum.
         for (at, v, want) in [
-            (ARRANGEMENT_AT, [6u8, 0, 0, 0], ARRANGEMENT_AT),
+            (ARRANGEMENT_AT, [7u8, 0, 0, 0], ARRANGEMENT_AT),
             (560, f32::NAN.to_le_bytes(), 560),
             (564, (-1.0f32).to_le_bytes(), 560),
             (560, 0.0f32.to_le_bytes(), 560),
@@ -831,6 +831,25 @@ mod tests {
                 "{at}"
             );
         }
+        // The dual-thermal: its prior sigma with tau 0 is valid (round trip), a tau is not.
+        let th = sample().with_arrangement(
+            Arrangement::DualThermal,
+            GaussMarkov {
+                sigma_dps: 1.0 / 3600.0,
+                tau_s: 0.0,
+            },
+        );
+        let back = Image::parse(&bytes(&th)).expect("dual-thermal image");
+        assert_eq!(back, th);
+        assert_eq!(
+            back.estimator().map(|e| e.arrangement()),
+            Ok(Arrangement::DualThermal)
+        );
+        let mut c = bytes(&th);
+        c[564..568].copy_from_slice(&4.0f32.to_le_bytes());
+        let crc = crc32(&c[..CRC_AT]);
+        c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(Image::parse(&c), Err(ImageError::BadValue { offset: 560 }));
         // Each bank arrangement with a longest correlation time below 1 s, then valid.
         for a in [
             Arrangement::Bank,
