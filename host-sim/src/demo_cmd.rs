@@ -24,7 +24,7 @@ pub struct Args {
     pub trainer: crate::motion::TrainerArg,
     /// The identifier's candidate arrangements (`identify --preset motion --level-update
     /// A B --tune-on`): each tuned on the validation vehicles from its default Gauss-Markov
-    /// state or bank, the best kept (default: dual and bank-guarded).
+    /// state or bank, the best kept (default: the product's, dual-thermal).
     #[arg(long, value_enum, num_args = 1.., default_values_t = demo::DEFAULT_ARRANGEMENTS.map(crate::motion::LevelUpdateArg::of))]
     pub level_update: Vec<crate::motion::LevelUpdateArg>,
 }

@@ -131,10 +131,11 @@ pub struct Args {
     /// (host_sim::motion::TrainerArg).
     #[arg(long, value_enum, default_value_t = motion::TrainerArg::DrlsChecked)]
     pub motion_trainer: motion::TrainerArg,
-    /// `--preset motion`: how the saved image's level learns (default dual: per-sample
-    /// level at rest, window level in motion; fog_core::preset). Several values (e.g.
+    /// `--preset motion`: how the saved image's level learns (default dual-thermal:
+    /// per-sample level at rest, window level in motion, each with the unit's own
+    /// temperature link; fog_core::preset). Several values (e.g.
     /// `dual bank-guarded`) need `--tune-on`: each is tuned there and the best is saved.
-    #[arg(long, value_enum, num_args = 1.., default_values_t = [motion::LevelUpdateArg::Dual])]
+    #[arg(long, value_enum, num_args = 1.., default_values_t = [motion::LevelUpdateArg::DualThermal])]
     pub level_update: Vec<motion::LevelUpdateArg>,
     /// `--preset motion`: vehicle records with truth (`true_rate_dps`, `drift_dps`; CSV
     /// files or folders; other units than the training records') on which the level noise,

@@ -122,10 +122,8 @@ impl DemoConfig {
 }
 
 /// The demo's candidate arrangements ([`DemoConfig::arrangements`]).
-pub const DEFAULT_ARRANGEMENTS: [fog_core::preset::Arrangement; 2] = [
-    fog_core::preset::Arrangement::Dual,
-    fog_core::preset::Arrangement::BankGuarded,
-];
+pub const DEFAULT_ARRANGEMENTS: [fog_core::preset::Arrangement; 1] =
+    [fog_core::preset::Arrangement::DualThermal];
 
 /// A unit of the demo's family; `vehicle`: the `vehicle` motion profile, else static.
 pub fn family_model(unit: u64, vehicle: bool) -> Result<Model> {

@@ -72,8 +72,7 @@ pub enum LevelUpdateArg {
     Window,
     /// Level per still sample with rollback.
     Sample,
-    /// Per-sample level at rest, window level in motion (the default).
-    #[default]
+    /// Per-sample level at rest, window level in motion.
     Dual,
     /// The level as the sensor's Allan noise model: random walk + one Gauss-Markov state
     /// per decade of correlation time (fog_core::bank), per still sample, in motion too.
@@ -85,7 +84,8 @@ pub enum LevelUpdateArg {
     /// the output at rest and in motion.
     BankGuarded,
     /// The dual with the unit's own temperature link `c (T - T0)` learned at rest as its
-    /// second state, instead of a Gauss-Markov state (fog_core::preset).
+    /// second state, instead of a Gauss-Markov state (fog_core::preset). The default.
+    #[default]
     DualThermal,
 }
 
@@ -165,7 +165,7 @@ pub struct TrainOptions {
     /// The drive the shrinkage scores the model over, detector windows
     /// ([`fog_core::motion::Transfer::add_record`]'s `lag`; 0: the whole record's shape).
     pub shrink_lag_windows: usize,
-    /// How the image's level learns (default [`Arrangement::Dual`]).
+    /// How the image's level learns (default [`Arrangement::DualThermal`]).
     pub arrangement: Arrangement,
     /// The image's Gauss-Markov state (default [`GAUSS_MARKOV_SIGMA_DPH`],
     /// [`GAUSS_MARKOV_TAU_S`]).
@@ -178,8 +178,8 @@ pub struct TrainOptions {
 pub const SHRINK_LAG_WINDOWS: usize = 60;
 
 impl TrainOptions {
-    /// Defaults for `sensor`: 3 passes, 1800 s, no shrinkage, the dual with the default
-    /// Gauss-Markov state, level noise [`DEFAULT_LEVEL_Q_DPH2_PER_H`].
+    /// Defaults for `sensor`: 3 passes, 1800 s, no shrinkage, the dual-thermal with the
+    /// default prior [`DEFAULT_THERMAL`], level noise [`DEFAULT_LEVEL_Q_DPH2_PER_H`].
     pub fn new(sensor: SensorConfig) -> Self {
         let mut config = MotionConfig::for_sensor(sensor);
         config.level_q_dps2_per_s = DEFAULT_LEVEL_Q_DPH2_PER_H / (3600.0 * 3600.0 * 3600.0);
@@ -190,8 +190,8 @@ impl TrainOptions {
             time_max_s: 1800.0,
             shrink: false,
             shrink_lag_windows: SHRINK_LAG_WINDOWS,
-            arrangement: Arrangement::Dual,
-            gauss_markov: DEFAULT_GAUSS_MARKOV,
+            arrangement: Arrangement::DualThermal,
+            gauss_markov: DEFAULT_THERMAL,
         }
     }
 
