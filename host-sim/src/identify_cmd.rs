@@ -348,26 +348,7 @@ fn run_motion(a: &Args) -> Result<()> {
             record::refuse_overwrite(p, j)?;
         }
     }
-    // What the calibration runs show, beside the sensor file; the image carries it.
-    let cal = motion::calibration::measure(&train)?;
-    eprintln!("{}", motion::calibration::table(&cal, &a.sensor.config));
-    let (sensor, still, warnings) = motion::calibration::learned_sensor(
-        &a.sensor.config,
-        &fog_core::still::StillConfig::DEFAULT,
-        &cal,
-    )?;
-    for w in &warnings {
-        eprintln!("WARNING: {w}");
-    }
-    eprintln!(
-        "image sensor: noise {:.4} deg/sqrt(h) (family range x{:.2} .. x{:.2}), drift bound {:.1} deg/h",
-        f64::from(sensor.noise_density_dps_rthz) * 60.0,
-        still.noise_lo,
-        still.noise_hi,
-        f64::from(sensor.drift_bound_dps) * 3600.0
-    );
-    let mut o = motion::TrainOptions::new(sensor);
-    o.config.still = still;
+    let mut o = motion::TrainOptions::new(a.sensor.config);
     if let Some(t) = a.stale_s {
         if !(t > 0.0 && t.is_finite()) {
             anyhow::bail!("--stale-s {t}: must be finite and > 0");
@@ -402,6 +383,22 @@ fn run_motion(a: &Args) -> Result<()> {
     o.arrangement = arrangements[0];
     o.gauss_markov = seconds[0];
     let trained = motion::train(&train, &o)?;
+    // What the calibration runs showed, beside the sensor file; the image carries it.
+    eprintln!(
+        "{}",
+        motion::calibration::table(&trained.calibration, &a.sensor.config)
+    );
+    for w in &trained.calibration_warnings {
+        eprintln!("WARNING: {w}");
+    }
+    let (sensor, still) = (trained.image.config.sensor, trained.image.config.still);
+    eprintln!(
+        "image sensor: noise {:.4} deg/sqrt(h) (family range x{:.2} .. x{:.2}), drift bound {:.1} deg/h",
+        f64::from(sensor.noise_density_dps_rthz) * 60.0,
+        still.noise_lo,
+        still.noise_hi,
+        f64::from(sensor.drift_bound_dps) * 3600.0
+    );
     let (mut image, rows, shrink) = (trained.image, trained.records, trained.shrinkage);
     let tuning = if a.tune_on.is_empty() {
         None
@@ -456,8 +453,8 @@ fn run_motion(a: &Args) -> Result<()> {
             "preset": "motion",
             "sensor": a.sensor.name,
             "sensor_source": a.sensor.source,
-            "calibration": cal,
-            "calibration_warnings": warnings,
+            "calibration": trained.calibration,
+            "calibration_warnings": trained.calibration_warnings,
             "epochs": a.epochs,
             "trainer": a.motion_trainer,
             "least_squares": trained.least_squares,

@@ -462,9 +462,13 @@ fn the_default_image_parses_and_says_how_it_was_made() {
         image.model.weights.iter().any(|w| *w != 0.0),
         "trained weights"
     );
-    // The product's arrangement: the dual with a Gauss-Markov state.
-    assert_eq!(image.arrangement, fog_core::preset::Arrangement::Dual);
-    assert!(image.gauss_markov.sigma_dps > 0.0 && image.gauss_markov.is_valid());
+    // The product's arrangement: the dual-thermal (its temperature coefficient's prior
+    // sigma > 0, tau 0).
+    assert_eq!(
+        image.arrangement,
+        fog_core::preset::Arrangement::DualThermal
+    );
+    assert!(image.gauss_markov.sigma_dps > 0.0 && image.gauss_markov.tau_s == 0.0);
     let readme =
         std::fs::read_to_string(fog_system_tests::firmware_dir().join("identifier/README.md"))
             .expect("identifier/README.md");

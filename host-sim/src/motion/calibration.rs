@@ -22,7 +22,7 @@
 //! measured value and the file's disagree beyond [`DISAGREE_FACTOR`] (noise) or 1 % (rate),
 //! a warning says so (a rate in rad/s read as deg/s shows as noise 57x below the file's).
 
-use crate::identify::series::{Records, Series};
+use crate::identify::series::Series;
 use anyhow::{bail, Result};
 use fog_core::still::{SensorConfig, StillConfig};
 use serde::Serialize;
@@ -84,13 +84,14 @@ pub struct Calibration {
 pub fn measure_run(s: &Series) -> Result<RunStats> {
     let n = s.rate_dps.len();
     let rate_hz = 1.0 / s.sample_period_s();
-    let per_mean = (DRIFT_MEAN_S * rate_hz).round().max(1.0) as usize;
-    if n < 2 * per_mean.max(16) {
+    if n < 16 {
         bail!(
-            "{}: {n} samples, too short to calibrate on (at least two {DRIFT_MEAN_S}-s means)",
+            "{}: {n} samples, too short to calibrate on (at least 16)",
             s.name
         );
     }
+    // 10-s means (a record shorter than 20 s: halves of it).
+    let per_mean = ((DRIFT_MEAN_S * rate_hz).round().max(1.0) as usize).min(n / 2);
     let x: Vec<f64> = s.rate_dps.iter().map(|&r| f64::from(r)).collect();
     let diffs = x.windows(2).map(|w| w[1] - w[0]);
     let (sum, sum2) = diffs.fold((0.0, 0.0), |(a, b), d| (a + d, b + d * d));
@@ -190,10 +191,10 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Measures every run.
-pub fn measure(records: &dyn Records) -> Result<Calibration> {
+pub fn measure(records: &[Series]) -> Result<Calibration> {
     let mut runs = Vec::with_capacity(records.len());
-    for i in 0..records.len() {
-        runs.push(measure_run(&records.get(i)?)?);
+    for s in records {
+        runs.push(measure_run(s)?);
     }
     if runs.is_empty() {
         bail!("no calibration run");

@@ -357,6 +357,10 @@ pub struct Trained {
     pub shrinkage: Shrinkage,
     /// The least-squares fit or check (`None` with `drls` or 0 epochs).
     pub least_squares: Option<LeastSquaresFit>,
+    /// What the calibration runs showed ([`calibration`]), folded into the image's sensor.
+    pub calibration: calibration::Calibration,
+    /// Where the runs and the sensor file disagree.
+    pub calibration_warnings: Vec<String>,
 }
 
 /// Trains a model on `records` (each static, from power-on) with `o.trainer` and returns
@@ -370,6 +374,14 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
             Ok(s)
         })
         .collect::<Result<_>>()?;
+    // The unit is never the datasheet: what the runs show goes into the image's sensor.
+    let cal = calibration::measure(&all)?;
+    let (sensor, still, calibration_warnings) =
+        calibration::learned_sensor(&o.config.sensor, &o.config.still, &cal)?;
+    let mut learned = o.clone();
+    learned.config.sensor = sensor;
+    learned.config.still = still;
+    let o = &learned;
     let base = trainer(o)?;
     let (model, drls, rows, ls) = if o.epochs == 0 {
         let rows = all
@@ -439,6 +451,8 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
         records: rows,
         shrinkage,
         least_squares: ls,
+        calibration: cal,
+        calibration_warnings,
     })
 }
 
