@@ -471,14 +471,20 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
     let mut err = std::io::stderr().lock();
     writeln!(
         err,
-        "{}: {} rows ({}) through the motion identifier ({}; level {}, GM {} deg/h {} s); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still, {} held by the safety net; noise at rest learned {:.4} deg/sqrt(h) (image {:.4}); {} level updates; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
+        "{}: {} rows ({}) through the motion identifier ({}; level {}, {}); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still, {} held by the safety net; noise at rest learned {:.4} deg/sqrt(h) (image {:.4}); {} level updates; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
         s.input,
         s.rows,
         s.format,
         s.identifier,
         s.level_update,
-        s.gm_sigma_dph,
-        s.gm_tau_s,
+        if s.level_update == "dual-thermal" {
+            format!(
+                "temperature coefficient prior {} deg/h per deg C",
+                s.gm_sigma_dph
+            )
+        } else {
+            format!("GM {} deg/h {} s", s.gm_sigma_dph, s.gm_tau_s)
+        },
         s.sensor.full_scale_dps,
         s.sensor.sample_rate_hz,
         s.sensor.drift_bound_dph,
