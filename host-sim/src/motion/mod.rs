@@ -378,7 +378,7 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
     let cal = calibration::measure(&all)?;
     let (sensor, still, calibration_warnings) =
         calibration::learned_sensor(&o.config.sensor, &o.config.still, &cal)?;
-    let mut learned = o.clone();
+    let mut learned = *o;
     learned.config.sensor = sensor;
     learned.config.still = still;
     let o = &learned;
