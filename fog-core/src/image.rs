@@ -664,16 +664,21 @@ mod tests {
             (FAMILY_AT + 4, 0.5, FAMILY_AT),
             (FAMILY_AT + 8, -1.0, FAMILY_AT + 8),
         ] {
-            let mut c = bytes(&img);
-            c[at..at + 4].copy_from_slice(&v.to_le_bytes());
-            let crc = crc32(&c[..CRC_AT]);
-            c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+            let c = patched(bytes(&img), at, v.to_le_bytes());
             assert_eq!(
                 Image::parse(&c),
                 Err(ImageError::BadValue { offset: want }),
                 "{at}"
             );
         }
+    }
+
+    /// `b` with `v` at `at` and its CRC made valid again.
+    fn patched(mut b: [u8; IMAGE_LEN], at: usize, v: [u8; 4]) -> [u8; IMAGE_LEN] {
+        b[at..at + 4].copy_from_slice(&v);
+        let crc = crc32(&b[..CRC_AT]);
+        b[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+        b
     }
 
     fn bytes(img: &Image) -> [u8; IMAGE_LEN] {
@@ -821,10 +826,7 @@ mod tests {
             (564, (-1.0f32).to_le_bytes(), 560),
             (560, 0.0f32.to_le_bytes(), 560),
         ] {
-            let mut c = b;
-            c[at..at + 4].copy_from_slice(&v);
-            let crc = crc32(&c[..CRC_AT]);
-            c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+            let c = patched(b, at, v);
             assert_eq!(
                 Image::parse(&c),
                 Err(ImageError::BadValue { offset: want }),
@@ -845,10 +847,7 @@ mod tests {
             back.estimator().map(|e| e.arrangement()),
             Ok(Arrangement::DualThermal)
         );
-        let mut c = bytes(&th);
-        c[564..568].copy_from_slice(&4.0f32.to_le_bytes());
-        let crc = crc32(&c[..CRC_AT]);
-        c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+        let c = patched(bytes(&th), 564, 4.0f32.to_le_bytes());
         assert_eq!(Image::parse(&c), Err(ImageError::BadValue { offset: 560 }));
         // Each bank arrangement with a longest correlation time below 1 s, then valid.
         for a in [
