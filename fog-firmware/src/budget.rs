@@ -111,7 +111,7 @@ impl Source {
     }
 
     fn next_counts(&mut self) -> i16 {
-        let t_s = self.k as f32 * pipeline::SAMPLE_PERIOD_S;
+        let t_s = self.k as f32 * (1.0 / pipeline::SAMPLE_RATE_HZ);
         let turn_dps = if TURN.contains(&(self.k as usize)) {
             TURN_DPS
         } else {

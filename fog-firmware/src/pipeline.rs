@@ -34,9 +34,6 @@ use fog_core::preset::PresetEstimator;
 /// Full scale of the E-Core 2000 unit the firmware decodes, deg/s.
 pub const FULL_SCALE_DPS: f32 = 60.0;
 
-/// Sample period of the gyro's output, s (100 Hz: E-Core 2000).
-pub const SAMPLE_PERIOD_S: f32 = 0.01;
-
 /// Sample rate of the E-Core 2000 and of the committed default image, Hz. The firmware runs
 /// at the image's rate ([`Stage::sample_rate_hz`], within [`MIN_RATE_HZ`] ..
 /// [`MAX_RATE_HZ`]); this one is the temperature refresh's basis

@@ -32,7 +32,7 @@ use crate::temperature_hold::Hold;
 /// Samples between two reads: 1 s of gyro samples at the E-Core's 100 Hz (0.01 s per
 /// sample). An image at another rate keeps 100 samples (ASSUMED harmless: 5 s at 20 Hz,
 /// 0.05 s at 2 kHz, against a case temperature whose time constant is minutes).
-pub const REFRESH_SAMPLES: u32 = (1.0 / pipeline::SAMPLE_PERIOD_S + 0.5) as u32;
+pub const REFRESH_SAMPLES: u32 = (pipeline::SAMPLE_RATE_HZ + 0.5) as u32;
 
 /// Samples a reading stays valid after the last good read: 5 s (five missed refreshes).
 pub const HOLD_SAMPLES: u32 = 5 * REFRESH_SAMPLES;

@@ -29,9 +29,10 @@ pub const BANK_TAU_MAX_GRID_S: [f32; 2] = [1_000.0, 10_000.0];
 pub const GM_SIGMA_GRID_DPH: [f32; 8] = [0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
 /// The Gauss-Markov state's correlation time grid, s.
 pub const GM_TAU_GRID_S: [f32; 3] = [10.0, 100.0, 1_000.0];
-/// The thermal state's prior sigma grid, deg/h per deg C (a factor 8 below to 4 above the
-/// default 1).
-pub const THERMAL_SIGMA_GRID_DPH_PER_C: [f32; 6] = [0.125, 0.25, 0.5, 1.0, 2.0, 4.0];
+/// The thermal state's prior sigma grid, deg/h per deg C (a factor 32 below to 16 above the
+/// default 1; its low end is a state that is all but off).
+pub const THERMAL_SIGMA_GRID_DPH_PER_C: [f32; 10] =
+    [0.03125, 0.0625, 0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
 
 /// What the tuning picked, and its score.
 #[derive(Debug, Clone, Copy)]
