@@ -592,6 +592,11 @@ impl MotionEstimator {
         self.restart();
     }
 
+    /// The second state is the unit's temperature link ([`MotionEstimator::with_thermal`]).
+    pub fn has_thermal(&self) -> bool {
+        matches!(self.second, Second::Thermal { .. })
+    }
+
     /// The unit's temperature coefficient and its variance (0, 0 unless
     /// [`MotionEstimator::with_thermal`]), deg/s per deg C.
     pub fn thermal(&self) -> (f32, f32) {
@@ -615,8 +620,8 @@ impl MotionEstimator {
     /// alone with the unit gain (as before it existed), the sum with the Gauss-Markov state.
     fn drift_var(&self) -> f32 {
         match (self.second, self.update) {
-            (Second::GaussMarkov { .. }, _) => self.level_var + 2.0 * self.gain_cov + self.gain_var,
-            (Second::Thermal { .. }, _) => {
+            // h = 1 (Gauss-Markov) or the window's T - T0 (thermal).
+            (Second::GaussMarkov { .. } | Second::Thermal { .. }, _) => {
                 let h = self.second_coef();
                 self.level_var + 2.0 * h * self.gain_cov + h * h * self.gain_var
             }

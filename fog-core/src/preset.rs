@@ -235,6 +235,10 @@ impl PresetEstimator {
             return Ok(p);
         }
         let thermal = arrangement == Arrangement::DualThermal;
+        if thermal && !(gm.sigma_dps.is_finite() && gm.sigma_dps > 0.0) {
+            // The unit's temperature coefficient needs a prior (sigma > 0).
+            return Err(MotionError::BadStillConfig);
+        }
         if thermal {
             p.rest.set_thermal(gm.sigma_dps);
         } else {
@@ -275,7 +279,7 @@ impl PresetEstimator {
                 Guard::Dual => Arrangement::BankDual,
                 Guard::Window => Arrangement::BankGuarded,
             },
-            (SecondSlot::Hold(_), _) if self.rest.thermal().1 > 0.0 => Arrangement::DualThermal,
+            (SecondSlot::Hold(_), _) if self.rest.has_thermal() => Arrangement::DualThermal,
             (SecondSlot::Hold(_), _) => Arrangement::Dual,
             (_, LevelUpdate::Window) => Arrangement::Window,
             (_, LevelUpdate::Sample) => Arrangement::Sample,
@@ -354,7 +358,14 @@ impl PresetEstimator {
             } else {
                 b.hold.estimate_dps()
             };
-            let drift = self.rest.config().sensor.clamp_drift(level + o.model_dps);
+            // The safety net (MotionOutput::verified): when the per-sample estimator holds,
+            // its held drift (0 before the first still sample; after `stale_s`, what was
+            // verified at the last rest) is the output, not the bank's.
+            let drift = if o.verified {
+                self.rest.config().sensor.clamp_drift(level + o.model_dps)
+            } else {
+                o.drift_dps
+            };
             return Ok(MotionOutput {
                 drift_dps: drift,
                 compensated_dps: rate_dps - drift,
@@ -739,7 +750,12 @@ mod tests {
                 if !moving {
                     r.update(x - o.model_dps);
                 }
-                let want = S.clamp_drift(r.estimate_dps() + o.model_dps);
+                // Before the first still sample the safety net holds: no compensation.
+                let want = if o.verified {
+                    S.clamp_drift(r.estimate_dps() + o.model_dps)
+                } else {
+                    0.0
+                };
                 assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{a:?} {k}");
                 assert_eq!(o.still, !moving);
                 nonzero_m += (o.model_dps != 0.0) as u32;
@@ -761,7 +777,11 @@ mod tests {
             if o.still {
                 r.update(x - o.model_dps);
             }
-            let want = S.clamp_drift(r.estimate_dps() + o.model_dps);
+            let want = if o.verified {
+                S.clamp_drift(r.estimate_dps() + o.model_dps)
+            } else {
+                0.0
+            };
             assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
         }
         let mut p = PresetEstimator::new(model, cfg, Arrangement::BankDual, BANK).expect("test");
@@ -774,7 +794,11 @@ mod tests {
                 panic!("bank")
             };
             let level = if o.still { &b.level } else { &b.hold };
-            let want = S.clamp_drift(level.estimate_dps() + o.model_dps);
+            let want = if o.verified {
+                S.clamp_drift(level.estimate_dps() + o.model_dps)
+            } else {
+                0.0
+            };
             assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
             if moving {
                 from_hold += 1;
@@ -831,8 +855,12 @@ mod tests {
             still.push(o.still);
             m.push(o.model_dps);
             level.push(o.level_dps);
-            // The output is the bank at rest and in motion.
-            let want = S.clamp_drift(o.level_dps + o.model_dps);
+            // The output is the bank at rest and in motion (once a still sample verified it).
+            let want = if o.verified {
+                S.clamp_drift(o.level_dps + o.model_dps)
+            } else {
+                0.0
+            };
             assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
         }
         let bank = BANK.bank(cfg.level_q_dps2_per_s);

@@ -173,8 +173,8 @@ impl StillConfig {
             && pos(self.var_z)
             && pos(self.mean_k)
             && pos(self.noise_scale)
-            && pos(self.noise_lo)
-            && pos(self.noise_hi)
+            && self.noise_lo >= NOISE_RANGE_MIN
+            && self.noise_hi <= NOISE_RANGE_MAX
             && self.noise_lo <= self.noise_hi
     }
 }
@@ -210,6 +210,11 @@ pub struct StillSample {
     pub window: Option<WindowVerdict>,
 }
 
+/// Least `noise_lo` a configuration may carry (a family range beyond 1000x either way is a
+/// unit or scale error, and would overflow the reference's f32 variance).
+pub const NOISE_RANGE_MIN: f32 = 1.0e-3;
+/// Largest `noise_hi` a configuration may carry.
+pub const NOISE_RANGE_MAX: f32 = 1.0e3;
 /// Least ratio the variance test allows (module docs).
 pub const VAR_RATIO_MIN: f32 = 1.5;
 /// Consistency of a window with the previous one (the noise reference learns only from
@@ -623,6 +628,18 @@ mod tests {
             &StillConfig::DEFAULT
         )
         .is_none());
+        // A family range beyond 1000x either way (a unit or scale error) is refused.
+        for (lo, hi) in [(1.0, 1.0e30), (1.0e-30, 1.0), (2.0, 1.0), (0.0, 1.0)] {
+            let cfg = StillConfig {
+                noise_lo: lo,
+                noise_hi: hi,
+                ..StillConfig::DEFAULT
+            };
+            assert!(
+                !cfg.is_valid() && Stillness::new(&S, &cfg).is_none(),
+                "{lo} {hi}"
+            );
+        }
     }
 
     /// Flags of a detector with the family range `lo..hi` fed `drift + rate(k) + scale *

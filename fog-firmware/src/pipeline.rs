@@ -13,7 +13,8 @@
 //! optional Gauss-Markov state; the image's arrangement: window level, per-sample level, or
 //! the dual = both side by side, the per-sample one's output while it flags the sample
 //! still, the window one's otherwise; see `docs/motion.md`) loaded from an identifier image
-//! ([`new_stage`]: `fog_core::image::Image::parse` + `check_rate`), plus the paper's block
+//! ([`new_stage`]: `fog_core::image::Image::parse`, the image's rate within
+//! [`MIN_RATE_HZ`] .. [`MAX_RATE_HZ`]), plus the paper's block
 //! denoiser (db4, 3 levels, `B` = 512) in its resumable form
 //! (`fog_core::denoise::ResumableDenoiser`: block `j`'s transform spread over the pushes of
 //! block `j + 1`, bit-identical to `BlockDenoiser`), its output reported per sample
