@@ -343,17 +343,12 @@ mod tests {
         }
     }
 
-    /// A deterministic normal (Box-Muller on a 64-bit LCG).
+    /// Deterministic unit normal deviates (the simulator's generator and distribution).
     fn normals(seed: u64, n: usize) -> Vec<f64> {
-        let mut s = seed;
-        let mut u = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
         (0..n)
-            .map(|_| (-2.0 * u().ln()).sqrt() * (2.0 * std::f64::consts::PI * u()).cos())
+            .map(|_| rng.sample(rand_distr::StandardNormal))
             .collect()
     }
 

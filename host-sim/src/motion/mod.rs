@@ -545,10 +545,9 @@ pub fn least_squares_fit(
             .filter(|c| c.rho.is_some())
             .map(|c| c.heldout_gain)
     };
-    let links_win = matches!(
-        (gain(&cv_links), gain(&cv_full)),
-        (Some(l), Some(f)) if l > f
-    ) || (gain(&cv_links).is_some() && gain(&cv_full).is_none());
+    let (gain_links, gain_whole) = (gain(&cv_links), gain(&cv_full));
+    // The links win when they beat the whole model held out, or when only they beat m = 0.
+    let links_win = gain_links.is_some_and(|l| gain_whole.is_none_or(|f| l > f));
     let (cv, sum) = if links_win {
         let mut s = NormalEquations::EMPTY;
         for e in &links {
@@ -580,8 +579,8 @@ pub fn least_squares_fit(
             windows: sum.windows(),
             cross_validated: cv.is_some(),
             links_only: links_win,
-            heldout_gain_whole: gain(&cv_full).unwrap_or(0.0),
-            heldout_gain_links: gain(&cv_links).unwrap_or(0.0),
+            heldout_gain_whole: gain_whole.unwrap_or(0.0),
+            heldout_gain_links: gain_links.unwrap_or(0.0),
         },
     ))
 }

@@ -325,19 +325,12 @@ pub fn tune_selfcal_q(records: &[NavRecord], cfg: SelfCalConfig, q_grid: &[f64])
 mod tests {
     use super::*;
 
-    /// Deterministic unit normal deviates (sum of 12 uniforms of a 64-bit LCG).
-    struct Noise(u64);
+    /// Deterministic unit normal deviates (the simulator's generator and distribution).
+    struct Noise(rand_pcg::Pcg64);
     impl Noise {
         fn normal(&mut self) -> f64 {
-            let mut s = 0.0;
-            for _ in 0..12 {
-                self.0 = self
-                    .0
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                s += (self.0 >> 11) as f64 / (1u64 << 53) as f64;
-            }
-            s - 6.0
+            use rand::Rng;
+            self.0.sample(rand_distr::StandardNormal)
         }
     }
 
@@ -365,7 +358,7 @@ mod tests {
     #[test]
     fn still_record_converges_to_the_bias() {
         let bias = 12.0 * DPH;
-        let mut noise = Noise(3);
+        let mut noise = Noise(rand::SeedableRng::seed_from_u64(3));
         let sigma = sigma_nominal_dps();
         let rates: Vec<f64> = (0..60_000).map(|_| bias + sigma * noise.normal()).collect();
         let mut f = SelfCalKalman::new(SelfCalConfig::with_q(1e-14));
@@ -386,7 +379,7 @@ mod tests {
         // 150.5 s still (alignment and more), a 5-deg/s turn for 100 s, still again.
         let bias = -20.0 * DPH;
         let sigma = sigma_nominal_dps();
-        let mut noise = Noise(5);
+        let mut noise = Noise(rand::SeedableRng::seed_from_u64(5));
         let (on, off) = (15_050, 25_050);
         let rates: Vec<f64> = (0..40_000)
             .map(|k| bias + sigma * noise.normal() + if (on..off).contains(&k) { 5.0 } else { 0.0 })
@@ -409,7 +402,7 @@ mod tests {
     fn noise_three_times_nominal_is_still() {
         let bias = 30.0 * DPH;
         let sigma = 3.0 * sigma_nominal_dps();
-        let mut noise = Noise(11);
+        let mut noise = Noise(rand::SeedableRng::seed_from_u64(11));
         let rates: Vec<f64> = (0..30_000).map(|_| bias + sigma * noise.normal()).collect();
         let mut f = SelfCalKalman::new(SelfCalConfig::with_q(1e-14));
         let (est, flags) = drive(&mut f, rates.len(), |k| rates[k]);
@@ -432,7 +425,7 @@ mod tests {
     #[test]
     fn a_turn_inside_the_alignment_does_not_move_the_noise_reference() {
         let sigma = sigma_nominal_dps();
-        let mut noise = Noise(13);
+        let mut noise = Noise(rand::SeedableRng::seed_from_u64(13));
         // A 10-deg/s turn from 50 s to 60 s, inside the 120-s alignment.
         let rates: Vec<f64> = (0..20_000)
             .map(|k| {
@@ -454,7 +447,7 @@ mod tests {
     #[test]
     fn tuner_scans_the_grid() {
         let sigma = sigma_nominal_dps();
-        let mut noise = Noise(17);
+        let mut noise = Noise(rand::SeedableRng::seed_from_u64(17));
         let n = 30_000usize;
         let rec = NavRecord {
             t_s: (0..n).map(|k| k as f64 / FS_HZ).collect(),
