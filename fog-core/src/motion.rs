@@ -273,10 +273,15 @@ pub struct MotionOutput {
     /// The model term `m(x)`, deg/s.
     pub model_dps: f32,
     /// The safety net ([`MotionConfig::stale_s`]): `true` when the output is the whole
-    /// estimate; `false` when nothing has been verified on this unit since power-on (no
-    /// still sample yet: the drift is 0, no compensation) or no still sample came for
-    /// `stale_s` (the drift is the level plus the model term as they were at the last still
-    /// sample: what was verified at rest, until the next rest).
+    /// estimate; `false` when nothing has been verified on this unit since power-on or no
+    /// still sample came for `stale_s`. Verified means a still window confirmed by the
+    /// next (the detector released its mean: no rollback reaches it) or an external still
+    /// flag. Before that, the per-sample level ([`LevelUpdate::Sample`]) gives a tentative
+    /// drift while the detector flags the sample still (presumed at power-on,
+    /// [`crate::still`]), undone if its window fails; otherwise the drift is 0, no
+    /// compensation. After `stale_s` without a still sample, the drift is the level plus
+    /// the model term as they were at the last still sample (what was verified at rest),
+    /// until the next rest.
     pub verified: bool,
 }
 
@@ -344,7 +349,7 @@ pub struct MotionEstimator {
     released_z: Option<f32>,
     // Safety net: a still sample since power-on, samples since the last one (saturating),
     // the model term then, and `stale_s` in samples.
-    ever_still: bool,
+    rest_verified: bool,
     since_still: u32,
     model_verified: f32,
     stale_n: u32,
@@ -440,7 +445,7 @@ impl MotionEstimator {
             halted: false,
             last_window: None,
             released_z: None,
-            ever_still: false,
+            rest_verified: false,
             since_still: 0,
             model_verified: 0.0,
             stale_n: {
@@ -461,7 +466,7 @@ impl MotionEstimator {
     }
 
     /// Back to power-on: time 0, level 0 with the variance of the whole bound, detector
-    /// moving. Keeps the model.
+    /// presumed still ([`crate::still`]), nothing verified. Keeps the model.
     pub fn restart(&mut self) {
         self.inputs.reset();
         self.still.reset();
@@ -483,7 +488,7 @@ impl MotionEstimator {
         self.halted = false;
         self.last_window = None;
         self.released_z = None;
-        self.ever_still = false;
+        self.rest_verified = false;
         self.since_still = 0;
         self.model_verified = 0.0;
         self.temp0 = None;
@@ -767,10 +772,15 @@ impl MotionEstimator {
             .sensor
             .clamp_drift(self.level + self.model_now + second);
         // The safety net (MotionOutput::verified): decided on the state before this sample.
-        let verified = self.ever_still && self.since_still <= self.stale_n;
-        let drift = if verified {
+        let verified = self.rest_verified && self.since_still <= self.stale_n;
+        // Tentative: nothing verified yet, the sample flagged still (presumed at power-on),
+        // a per-sample level that learns from it and is rolled back if its window fails.
+        let tentative = !self.rest_verified
+            && self.update == LevelUpdate::Sample
+            && external_still.unwrap_or(self.still.is_still());
+        let drift = if verified || tentative {
             reference
-        } else if self.ever_still {
+        } else if self.rest_verified {
             self.cfg
                 .sensor
                 .clamp_drift(self.level + self.model_verified + second)
@@ -790,7 +800,8 @@ impl MotionEstimator {
             still = self.sample_step(rate_dps, still, external_still.is_none());
         }
         if still {
-            self.ever_still = true;
+            // An external still flag is trusted: verified at once.
+            self.rest_verified |= external_still == Some(true);
             self.since_still = 0;
             self.model_verified = self.model_now;
         } else {
@@ -813,6 +824,8 @@ impl MotionEstimator {
                 self.predict_second_window();
             }
             if let Some(mean) = w.confirmed_mean_dps {
+                // Released: its window and the next passed in the still state.
+                self.rest_verified = true;
                 self.released_z = Some(mean - self.model_prev);
                 if let Some(t) = self.refine.as_mut() {
                     // On-line refinement: the released window's residual after the level,

@@ -462,35 +462,44 @@ mod tests {
     }
 
     /// The safety net on a static record: a unit far noisier than its family (10x, beyond
-    /// the noise reference's margin) is never found still, so nothing is verified and
-    /// nothing is subtracted (no worse than no compensation); a model that predicts a drift
-    /// the unit does not have (weights at 20 deg/h) is not subtracted either. The same unit
-    /// at the family's noise is found still and compensated, verified.
+    /// the noise reference's margin) fails its first window (presumed still at power-on),
+    /// so nothing is verified and, from that window's end, nothing is subtracted; over the
+    /// record it is no worse than no compensation. A model that predicts a drift the unit
+    /// does not have (weights at 20 deg/h) is not subtracted either. The same unit at the
+    /// family's noise is found still and compensated, verified.
     #[test]
     fn a_static_unit_never_found_still_is_not_compensated() {
         let mut model = MotionModel::standard(1800.0).expect("test");
         model.weights = [20.0 / 3600.0 / crate::motion::MOTION_L as f32; crate::motion::MOTION_L];
+        let drift = 5.0 / 3600.0;
         for (scale, want_still) in [(10.0f32, false), (1.0, true)] {
             let mut p =
                 PresetEstimator::new(model, MotionConfig::for_sensor(S), Arrangement::Dual, GM)
                     .expect("test");
+            let w = p.rest.window_samples() as usize;
             let mut z = Noise(21);
-            let (mut still, mut verified, mut sum_drift2) = (0usize, 0usize, 0.0f64);
-            for _ in 0..60_000 {
-                let x = 5.0 / 3600.0 + scale * S.sample_var_dps2().sqrt() * z.normal12();
+            let (mut still, mut verified, mut late_drift2) = (0usize, 0usize, 0.0f64);
+            let (mut err2, mut none2) = (0.0f64, 0.0f64);
+            for k in 0..60_000 {
+                let x = drift + scale * S.sample_var_dps2().sqrt() * z.normal12();
                 let o = p.push(x, f32::NAN, None).expect("test");
-                still += usize::from(o.still);
+                if k >= w {
+                    still += usize::from(o.still);
+                    late_drift2 += f64::from(o.drift_dps).powi(2);
+                }
                 verified += usize::from(o.verified);
-                sum_drift2 += f64::from(o.drift_dps).powi(2);
+                err2 += f64::from(o.drift_dps - drift).powi(2);
+                none2 += f64::from(drift).powi(2);
                 assert_eq!(o.compensated_dps, x - o.drift_dps);
             }
+            assert!(err2 <= none2, "{scale}x: {err2} vs {none2}");
             if want_still {
                 assert!(
                     still > 50_000 && verified > 50_000,
                     "{scale}x: {still} {verified}"
                 );
             } else {
-                assert_eq!((still, verified, sum_drift2), (0, 0, 0.0), "{scale}x");
+                assert_eq!((still, verified, late_drift2), (0, 0, 0.0), "{scale}x");
             }
         }
     }
@@ -750,11 +759,13 @@ mod tests {
                 if !moving {
                     r.update(x - o.model_dps);
                 }
-                // Before the first still sample the safety net holds: no compensation.
+                // The external flag is trusted: verified from the first still sample; that
+                // sample's output is the tentative per-sample level (0 at power-on) + m.
                 let want = if o.verified {
                     S.clamp_drift(r.estimate_dps() + o.model_dps)
                 } else {
-                    0.0
+                    assert_eq!(k, 0, "{a:?}");
+                    S.clamp_drift(o.model_dps)
                 };
                 assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{a:?} {k}");
                 assert_eq!(o.still, !moving);
@@ -772,15 +783,17 @@ mod tests {
         let mut z = Noise(11);
         for k in 0..30_000usize {
             let (x, _) = rate(k, 12.0, &mut z);
+            let rest_level = plain.rest.level().0;
             let o = plain.push(x, 25.0, None).expect("test");
             r.predict();
             if o.still {
                 r.update(x - o.model_dps);
             }
+            // Before the first released window: the per-sample level's tentative drift.
             let want = if o.verified {
                 S.clamp_drift(r.estimate_dps() + o.model_dps)
             } else {
-                0.0
+                S.clamp_drift(rest_level + o.model_dps)
             };
             assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
         }
@@ -789,6 +802,7 @@ mod tests {
         let mut from_hold = 0;
         for k in 0..30_000usize {
             let (x, moving) = rate(k, 12.0, &mut z);
+            let rest_level = p.rest.level().0;
             let o = p.push(x, 25.0, None).expect("test");
             let SecondSlot::Bank(b) = &p.second else {
                 panic!("bank")
@@ -797,7 +811,7 @@ mod tests {
             let want = if o.verified {
                 S.clamp_drift(level.estimate_dps() + o.model_dps)
             } else {
-                0.0
+                S.clamp_drift(rest_level + o.model_dps)
             };
             assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
             if moving {
@@ -846,6 +860,7 @@ mod tests {
         let mut failed = std::vec![false; n / w + 1];
         for k in 0..n {
             let xk = input(k, &mut z);
+            let rest_level = p.rest.level().0;
             let o = p.push(xk, 25.0, None).expect("test");
             if p.rest.window_failed() {
                 assert_eq!(k % w, w - 1, "a window ends at its last sample");
@@ -855,11 +870,15 @@ mod tests {
             still.push(o.still);
             m.push(o.model_dps);
             level.push(o.level_dps);
-            // The output is the bank at rest and in motion (once a still sample verified it).
+            // The output is the bank at rest and in motion (once a released window verified
+            // it); before, the per-sample level's tentative drift at a presumed still
+            // sample, or nothing.
             let want = if o.verified {
                 S.clamp_drift(o.level_dps + o.model_dps)
-            } else {
+            } else if o.drift_dps == 0.0 {
                 0.0
+            } else {
+                S.clamp_drift(rest_level + o.model_dps)
             };
             assert_eq!(o.drift_dps.to_bits(), want.to_bits(), "{k}");
         }
