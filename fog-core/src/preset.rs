@@ -359,8 +359,8 @@ impl PresetEstimator {
                 b.hold.estimate_dps()
             };
             // The safety net (MotionOutput::verified): when the per-sample estimator holds,
-            // its held drift (0 before the first still sample; after `stale_s`, what was
-            // verified at the last rest) is the output, not the bank's.
+            // its drift (before the first released window: tentative or 0; after `stale_s`,
+            // what was verified at the last rest) is the output, not the bank's.
             let drift = if o.verified {
                 self.rest.config().sensor.clamp_drift(level + o.model_dps)
             } else {

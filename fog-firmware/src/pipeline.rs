@@ -83,9 +83,10 @@ pub const STATUS_EXTERNAL: u8 = 1 << 2;
 pub const STATUS_LEVEL_UPDATE: u8 = 1 << 3;
 /// Status bit: a temperature reading went into the estimator with this sample.
 pub const STATUS_TEMPERATURE: u8 = 1 << 4;
-/// Status bit: the safety net held this sample's drift (nothing verified at rest since
-/// power-on: no compensation; or no still sample for the image's `stale_s`: the drift
-/// verified at the last rest); `fog_core::motion::MotionOutput::verified` false.
+/// Status bit: this sample's drift is not verified (nothing verified at rest since power-on:
+/// the tentative drift of the samples since power-on, presumed still, or none after a
+/// failing first window; or no still sample for the image's `stale_s`: the drift verified at
+/// the last rest); `fog_core::motion::MotionOutput::verified` false.
 pub const STATUS_UNVERIFIED: u8 = 1 << 5;
 /// Status bit: the sample was refused (non-finite or beyond `denoise::MAX_ABS_INPUT`); the
 /// three estimates are NaN, and neither the estimator nor the denoiser changed.

@@ -110,8 +110,8 @@ pub struct MotionSummary {
     pub max_abs_rate_dps: f32,
     /// Rows flagged still.
     pub still_rows: usize,
-    /// Rows the safety net held (nothing verified at rest yet, or no rest for the image's
-    /// `stale_s`: column `verified` = 0).
+    /// Rows not verified (nothing verified at rest yet: tentative or no compensation; or no
+    /// rest for the image's `stale_s`: column `verified` = 0).
     pub unverified_rows: usize,
     /// The detector's noise reference at the end of the record (learned on line, white
     /// noise and quantization and any vibration at rest) as a density, deg/sqrt(h).
@@ -471,7 +471,7 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
     let mut err = std::io::stderr().lock();
     writeln!(
         err,
-        "{}: {} rows ({}) through the motion identifier ({}; level {}, {}); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still, {} held by the safety net; noise at rest learned {:.4} deg/sqrt(h) (image {:.4}); {} level updates; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
+        "{}: {} rows ({}) through the motion identifier ({}; level {}, {}); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still, {} not verified (safety net); noise at rest learned {:.4} deg/sqrt(h) (image {:.4}); {} level updates; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
         s.input,
         s.rows,
         s.format,
