@@ -188,7 +188,7 @@ pub fn refuse_overwrite_all(inputs: &[&Path], outputs: &[&Path]) -> Result<()> {
 }
 
 /// Whether `a` and `b` name the same existing file.
-fn same_file(a: &Path, b: &Path) -> bool {
+pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
     if let (Ok(x), Ok(y)) = (a.canonicalize(), b.canonicalize()) {
         if x == y {
             return true;

@@ -131,6 +131,22 @@ pub fn run(args: &Args) -> Result<()> {
 }
 
 fn run_motion(args: &Args, sensor: Option<fog_core::still::SensorConfig>) -> Result<()> {
+    // Before anything is written: no output may be an input (the record, the identifier,
+    // the validation records) or another output.
+    let mut inputs = vec![args.input.as_path()];
+    inputs.extend(args.identifier.as_deref());
+    inputs.extend(args.validate.iter().map(PathBuf::as_path));
+    let mut outputs = vec![args.output.as_path()];
+    outputs.extend(args.json.as_deref());
+    crate::record::refuse_overwrite_all(&inputs, &outputs)?;
+    if let Some(j) = &args.json {
+        if j == &args.output || crate::record::same_file(j, &args.output) {
+            bail!(
+                "{}: --json and --output name the same file (one would destroy the other)",
+                j.display()
+            );
+        }
+    }
     let o = MotionOptions {
         identifier: args.identifier.clone(),
         sensor,

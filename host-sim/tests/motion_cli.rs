@@ -244,6 +244,41 @@ fn refused(img_bytes: &[u8], rec: &Path, d: &Path, expect: &str) {
     assert!(!out.exists());
 }
 
+/// No output of `replay` may destroy an input or another output: `--json` naming the
+/// record, the identifier or `--output`, and `--output` naming the identifier, fail before
+/// anything is written, and every input is left byte for byte.
+#[test]
+fn replay_outputs_never_overwrite_inputs() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let (img, rec) = setup(d);
+    let (rec_bytes, img_bytes) = (fs::read(&rec).expect("test"), fs::read(&img).expect("test"));
+    let out = d.join("out.csv");
+    for (output, json, expect) in [
+        (&out, Some(&rec), "refusing to overwrite the input file"),
+        (&out, Some(&img), "refusing to overwrite the input file"),
+        (&img, None, "refusing to overwrite the input file"),
+        (&out, Some(&out), "--json and --output name the same file"),
+    ] {
+        let mut c = host_sim();
+        c.args(["replay", "--input"])
+            .arg(&rec)
+            .arg("--identifier")
+            .arg(&img)
+            .arg("--output")
+            .arg(output);
+        if let Some(j) = json {
+            c.arg("--json").arg(j);
+        }
+        let a = c.assert().failure();
+        let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+        assert!(err.contains(expect), "{expect}: {err}");
+        assert_eq!(fs::read(&rec).expect("test"), rec_bytes);
+        assert_eq!(fs::read(&img).expect("test"), img_bytes);
+        assert!(!out.exists(), "{err}");
+    }
+}
+
 #[test]
 fn bad_identifiers_are_refused() {
     let dir = tempfile::tempdir().expect("test");
