@@ -155,6 +155,11 @@ pub struct Args {
     /// host_sim::motion::GAUSS_MARKOV_TAU_S = 10).
     #[arg(long)]
     pub gm_tau_s: Option<f32>,
+    /// `--level-update dual-thermal` (the default): the prior standard deviation of the
+    /// unit's temperature coefficient, deg/h per deg C, > 0 (default
+    /// host_sim::motion::THERMAL_SIGMA_DPH_PER_C = 1, ASSUMED; `--tune-on` scans it).
+    #[arg(long)]
+    pub thermal_prior_dph_per_c: Option<f32>,
     /// `--level-update bank`: the bank's bias instability B, deg/h (default
     /// host_sim::motion::BANK_B_DPH = 1.5, the E-Core class's, ASSUMED).
     #[arg(long)]
@@ -297,7 +302,16 @@ fn second_state(
     }
     if arrangement == Arrangement::DualThermal {
         // The prior of the unit's temperature coefficient (the tuning scans it).
-        return Ok(motion::DEFAULT_THERMAL);
+        return match a.thermal_prior_dph_per_c {
+            None => Ok(motion::DEFAULT_THERMAL),
+            Some(s) if s.is_finite() && s > 0.0 && s < 3.6e6 => Ok(GaussMarkov {
+                sigma_dps: s / 3600.0,
+                tau_s: 0.0,
+            }),
+            Some(s) => anyhow::bail!(
+                "--thermal-prior-dph-per-c {s}: must be finite and > 0 (deg/h per deg C)"
+            ),
+        };
     }
     let d = motion::DEFAULT_GAUSS_MARKOV;
     let g = GaussMarkov {
@@ -370,6 +384,18 @@ fn run_motion(a: &Args) -> Result<()> {
         anyhow::bail!(
             "--level-update bank / bank-dual / bank-guarded take --bank-b-dph / --bank-tau-max-s, not --gm-*"
         );
+    }
+    let thermal = arrangements
+        .iter()
+        .filter(|x| **x == Arrangement::DualThermal)
+        .count();
+    if thermal == arrangements.len() && (a.gm_sigma_dph.is_some() || a.gm_tau_s.is_some()) {
+        anyhow::bail!(
+            "--level-update dual-thermal (the default) has no Gauss-Markov state: its second state's prior is --thermal-prior-dph-per-c, not --gm-*"
+        );
+    }
+    if thermal == 0 && a.thermal_prior_dph_per_c.is_some() {
+        anyhow::bail!("--thermal-prior-dph-per-c needs --level-update dual-thermal (the default)");
     }
     if banks == 0 && (a.bank_b_dph.is_some() || a.bank_tau_max_s.is_some()) {
         anyhow::bail!(

@@ -176,6 +176,52 @@ fn bank_level_is_saved_and_replayed() {
     }
 }
 
+/// The default arrangement's second state is set by `--thermal-prior-dph-per-c` (it reaches
+/// the image: replay names it); `--gm-*` with it, a prior <= 0, or the prior with another
+/// arrangement are refused with one line naming the flag, and no image is written.
+#[test]
+fn thermal_prior_reaches_the_image_and_gm_flags_are_refused() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let train = train_dir(d);
+    let img = d.join("th.fogi");
+    identify(&train, &["--thermal-prior-dph-per-c", "4"], &img).success();
+    let rec = d.join("rec.csv");
+    simulate(3, "60", None, &rec);
+    host_sim()
+        .args(["replay", "--input"])
+        .arg(&rec)
+        .arg("--identifier")
+        .arg(&img)
+        .arg("--output")
+        .arg(d.join("out.csv"))
+        .assert()
+        .success()
+        .stderr(predicates::str::contains(
+            "temperature coefficient prior 4 deg/h per deg C",
+        ));
+    for (extra, says) in [
+        (
+            &["--gm-sigma-dph", "4"][..],
+            "its second state's prior is --thermal-prior-dph-per-c",
+        ),
+        (
+            &["--thermal-prior-dph-per-c", "0"][..],
+            "--thermal-prior-dph-per-c 0: must be",
+        ),
+        (
+            &["--level-update", "dual", "--thermal-prior-dph-per-c", "4"][..],
+            "--thermal-prior-dph-per-c needs --level-update dual-thermal",
+        ),
+    ] {
+        let bad = d.join("bad.fogi");
+        identify(&train, extra, &bad)
+            .failure()
+            .stderr(predicates::str::contains(says));
+        assert!(!bad.exists());
+    }
+}
+
 #[test]
 fn external_still_flag_column() {
     let dir = tempfile::tempdir().expect("test");
