@@ -222,6 +222,48 @@ fn thermal_prior_reaches_the_image_and_gm_flags_are_refused() {
     }
 }
 
+/// A CSV without `t_s` has no rate of its own: replaying it with an identifier alone (whose
+/// rate would pass the rate check by construction) or with nothing is refused, naming the
+/// file and the flags; `--rate-hz` or `--sensor` states it.
+#[test]
+fn a_csv_without_time_stamps_needs_its_rate_stated() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let (img, _) = setup(d);
+    let rec = d.join("no_t.csv");
+    let mut text = String::from("rate_dps,temp_c\n");
+    for k in 0..2000 {
+        text += &format!("{},25\n", 0.001 * (k % 7) as f64);
+    }
+    fs::write(&rec, text).expect("test");
+    let out = d.join("out.csv");
+    for with_image in [true, false] {
+        let mut c = host_sim();
+        c.args(["replay", "--input"])
+            .arg(&rec)
+            .arg("--output")
+            .arg(&out);
+        if with_image {
+            c.arg("--identifier").arg(&img);
+        }
+        let a = c.assert().failure();
+        let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+        assert!(err.contains("no_t.csv: no t_s column"), "{err}");
+        assert!(err.contains("give --rate-hz HZ or --sensor"), "{err}");
+        assert!(!out.exists());
+    }
+    host_sim()
+        .args(["replay", "--input"])
+        .arg(&rec)
+        .arg("--identifier")
+        .arg(&img)
+        .args(["--rate-hz", "100", "--output"])
+        .arg(&out)
+        .assert()
+        .success();
+    assert_eq!(rows(&out).len(), 2001);
+}
+
 #[test]
 fn external_still_flag_column() {
     let dir = tempfile::tempdir().expect("test");

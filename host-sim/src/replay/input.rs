@@ -42,6 +42,9 @@ pub struct Input {
     pub format: InputFormat,
     /// Where `t_s` came from.
     pub t_s_source: &'static str,
+    /// `t_s` is `row index / rate_hz` (no time stamps in the input): the rate is the
+    /// caller's, not the record's.
+    pub t_s_from_rate: bool,
     /// Byte counts of a capture.
     pub bytes: Option<BytesSummary>,
     /// DSP-3000 fault lines (no sample, no output row).
@@ -115,6 +118,7 @@ pub fn read(
         truth: None,
         format,
         t_s_source: "index / rate_hz (no time stamps in the capture)",
+        t_s_from_rate: true,
         bytes,
         fault_lines,
     })
@@ -256,6 +260,7 @@ pub fn read_csv(
         } else {
             "row index / rate_hz (the CSV has no t_s column)"
         },
+        t_s_from_rate: tc.is_none(),
         bytes: None,
         fault_lines: 0,
     })

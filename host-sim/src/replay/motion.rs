@@ -351,6 +351,20 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         sopts.full_scale_dps = decode_sensor.full_scale_dps;
     }
     let rec = input::read(input, &sopts, &o.rate, o.still_column.as_deref())?;
+    // A CSV without time stamps has no rate of its own: it must be stated (an identifier's
+    // rate would pass the rate check below by construction, whatever the record's is).
+    if rec.format == InputFormat::Csv
+        && rec.t_s_from_rate
+        && o.stream.rate_hz == 0.0
+        && o.sensor.is_none()
+    {
+        bail!(
+            "{}: no t_s column, so the record's sample rate is unknown: give --rate-hz HZ or --sensor NAME|FILE (the {} Hz of {} is not assumed)",
+            input.display(),
+            sopts.rate_hz,
+            if o.identifier.is_some() { "the identifier" } else { "the default sensor" }
+        );
+    }
     let s = &rec.record.series;
     let hz = (1.0 / s.sample_period_s()) as f32;
     let (image, identifier) = match file_image {
