@@ -264,6 +264,56 @@ fn a_csv_without_time_stamps_needs_its_rate_stated() {
     assert_eq!(rows(&out).len(), 2001);
 }
 
+/// The default image reads the temperature (the unit's temperature link): a record without
+/// `temp_c` runs, with a warning and `temperature_missing` in the summary; with `temp_c`,
+/// neither.
+#[test]
+fn a_record_without_temperature_is_said() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let (img, _) = setup(d);
+    for with_temp in [false, true] {
+        let rec = d.join(format!("r{with_temp}.csv"));
+        let mut text = String::from(if with_temp {
+            "t_s,rate_dps,temp_c\n"
+        } else {
+            "t_s,rate_dps\n"
+        });
+        for k in 0..2000 {
+            text += &format!(
+                "{},{}{}\n",
+                k as f64 * 0.01,
+                0.001,
+                if with_temp { ",25" } else { "" }
+            );
+        }
+        fs::write(&rec, text).expect("test");
+        let json = d.join(format!("s{with_temp}.json"));
+        let a = host_sim()
+            .args(["replay", "--input"])
+            .arg(&rec)
+            .arg("--identifier")
+            .arg(&img)
+            .arg("--output")
+            .arg(d.join(format!("o{with_temp}.csv")))
+            .arg("--json")
+            .arg(&json)
+            .assert()
+            .success();
+        let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+        assert_eq!(
+            err.contains("warning: no temp_c column"),
+            !with_temp,
+            "{err}"
+        );
+        let summary = fs::read_to_string(&json).expect("test");
+        assert!(
+            summary.contains(&format!("\"temperature_missing\": {}", !with_temp)),
+            "{summary}"
+        );
+    }
+}
+
 #[test]
 fn external_still_flag_column() {
     let dir = tempfile::tempdir().expect("test");

@@ -21,7 +21,9 @@ use crate::record;
 use crate::report::BytesSummary;
 use anyhow::{anyhow, bail, Result};
 use fog_core::image::Image;
+use fog_core::preset::Arrangement;
 use fog_core::still::SensorConfig;
+use fog_core::wnn::Neuron;
 use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -106,6 +108,9 @@ pub struct MotionSummary {
     pub rows: usize,
     /// Samples at or beyond the sensor's full scale (possibly saturated input).
     pub at_full_scale: usize,
+    /// The image reads the temperature ([`uses_temperature`]) but the record has no
+    /// `temp_c`: its temperature terms ran at the model's reference (off).
+    pub temperature_missing: bool,
     /// Largest |rate|, deg/s.
     pub max_abs_rate_dps: f32,
     /// Rows flagged still.
@@ -307,6 +312,25 @@ fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
     })
 }
 
+/// Whether `image` reads the temperature: the unit's own temperature link
+/// ([`Arrangement::DualThermal`]) or a model term on the temperature or its rate (inputs 1
+/// and 2) with a nonzero weight.
+pub fn uses_temperature(image: &Image) -> bool {
+    let m = &image.model;
+    image.arrangement == Arrangement::DualThermal
+        || m.weights
+            .iter()
+            .zip(m.shape.kind.iter().zip(m.shape.a.iter()))
+            .any(|(w, (k, a))| {
+                *w != 0.0
+                    && match k {
+                        Neuron::Linear(j) => *j >= 1,
+                        Neuron::Wavelet => a[1] != 0.0 || a[2] != 0.0,
+                        Neuron::Bias => false,
+                    }
+            })
+}
+
 /// Replays `input` into `output` (atomically; nothing written on any error).
 pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOutcome> {
     let mut inputs = vec![input];
@@ -442,6 +466,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         rate_scale: o.rate.scale,
         rows: out.len(),
         at_full_scale: s.rate_dps.iter().filter(|r| r.abs() >= fs).count(),
+        temperature_missing: s.temp_c.is_none() && uses_temperature(&image),
         max_abs_rate_dps: s.rate_dps.iter().fold(0.0f32, |a, r| a.max(r.abs())),
         still_rows: still.iter().filter(|&&b| b).count(),
         unverified_rows: out.iter().filter(|m| !m.verified).count(),
@@ -517,6 +542,13 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
             err,
             "{}: warning: {} samples at or beyond the sensor's full scale ({} deg/s; max |rate| {} deg/s): give the right --sensor",
             s.input, s.at_full_scale, s.sensor.full_scale_dps, s.max_abs_rate_dps
+        )?;
+    }
+    if s.temperature_missing {
+        writeln!(
+            err,
+            "{}: warning: no temp_c column, but the identifier reads the temperature (the unit's temperature link or the model's temperature terms): they ran at the reference temperature, i.e. off; the drift follows time since power-on and the level alone",
+            s.input
         )?;
     }
     if s.fault_lines > 0 {
