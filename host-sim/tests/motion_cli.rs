@@ -314,6 +314,55 @@ fn a_record_without_temperature_is_said() {
     }
 }
 
+/// A rate in rad/s read as deg/s runs, but the record's white noise (57x below the
+/// identifier's) draws a warning naming `--rate-scale 57.29578`; the same record in deg/s
+/// does not, and its ratio in the summary is near 1.
+#[test]
+fn a_rate_in_rad_per_s_is_said() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let (img, rec) = setup(d);
+    let text = fs::read_to_string(&rec).expect("test");
+    let mut lines = text.lines();
+    let header = lines.next().expect("test");
+    let col = header
+        .split(',')
+        .position(|h| h == "rate_dps")
+        .expect("test");
+    let mut rad = format!("{header}\n");
+    for l in lines {
+        let mut f: Vec<String> = l.split(',').map(String::from).collect();
+        f[col] = (f[col].parse::<f64>().expect("test") / 57.29578).to_string();
+        rad += &(f.join(",") + "\n");
+    }
+    let rad_rec = d.join("rad.csv");
+    fs::write(&rad_rec, rad).expect("test");
+    for (input, warned) in [(&rad_rec, true), (&rec, false)] {
+        let json = d.join("s.json");
+        let a = host_sim()
+            .args(["replay", "--input"])
+            .arg(input)
+            .arg("--identifier")
+            .arg(&img)
+            .arg("--output")
+            .arg(d.join("o.csv"))
+            .arg("--json")
+            .arg(&json)
+            .assert()
+            .success();
+        let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+        assert_eq!(err.contains("--rate-scale 57.29578"), warned, "{err}");
+        let v: serde_json::Value =
+            serde_json::from_str(&fs::read_to_string(&json).expect("test")).expect("test");
+        let k = v["noise_x_image"].as_f64().expect("test");
+        if warned {
+            assert!((k * 57.29578 - 1.0).abs() < 0.5, "{k}");
+        } else {
+            assert!((0.5..2.0).contains(&k), "{k}");
+        }
+    }
+}
+
 #[test]
 fn external_still_flag_column() {
     let dir = tempfile::tempdir().expect("test");

@@ -108,6 +108,9 @@ pub struct MotionSummary {
     pub rows: usize,
     /// Samples at or beyond the sensor's full scale (possibly saturated input).
     pub at_full_scale: usize,
+    /// The record's white noise over the image's, from the median |first difference|
+    /// ([`noise_ratio`]; `None`: not measurable, e.g. a coarse quantum).
+    pub noise_x_image: Option<f64>,
     /// The image reads the temperature ([`uses_temperature`]) but the record has no
     /// `temp_c`: its temperature terms ran at the model's reference (off).
     pub temperature_missing: bool,
@@ -312,6 +315,30 @@ fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
     })
 }
 
+/// A record's noise this many times above or below the image's is warned about (ASSUMED:
+/// 10; a family spreads 0.5x to 3x, vibration at stops adds up to about 3x more).
+pub const NOISE_WARN: f64 = 10.0;
+
+/// The record's one-sample white noise over the image's: the median |first difference|
+/// (robust to the few large steps of a turn's onset) over `0.6745 sqrt(2)`, against the
+/// sensor's noise plus quantization. `None` when the median is 0 (a coarse quantum or a
+/// stuck output: not measurable this way) or the record is too short.
+pub fn noise_ratio(rate_dps: &[f32], sensor: &SensorConfig) -> Option<f64> {
+    if rate_dps.len() < 16 {
+        return None;
+    }
+    let mut d: Vec<f64> = rate_dps
+        .windows(2)
+        .map(|w| (f64::from(w[1]) - f64::from(w[0])).abs())
+        .filter(|d| d.is_finite())
+        .collect();
+    let mid = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
+    let sigma = *m / (0.674_49 * std::f64::consts::SQRT_2);
+    let image = f64::from(sensor.sample_var_dps2()).sqrt();
+    (sigma > 0.0 && image > 0.0).then(|| sigma / image)
+}
+
 /// Whether `image` reads the temperature: the unit's own temperature link
 /// ([`Arrangement::DualThermal`]) or a model term on the temperature or its rate (inputs 1
 /// and 2) with a nonzero weight.
@@ -467,6 +494,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         rows: out.len(),
         at_full_scale: s.rate_dps.iter().filter(|r| r.abs() >= fs).count(),
         temperature_missing: s.temp_c.is_none() && uses_temperature(&image),
+        noise_x_image: noise_ratio(&s.rate_dps, &sensor),
         max_abs_rate_dps: s.rate_dps.iter().fold(0.0f32, |a, r| a.max(r.abs())),
         still_rows: still.iter().filter(|&&b| b).count(),
         unverified_rows: out.iter().filter(|m| !m.verified).count(),
@@ -542,6 +570,23 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
             err,
             "{}: warning: {} samples at or beyond the sensor's full scale ({} deg/s; max |rate| {} deg/s): give the right --sensor",
             s.input, s.at_full_scale, s.sensor.full_scale_dps, s.max_abs_rate_dps
+        )?;
+    }
+    if let Some(k) = s
+        .noise_x_image
+        .filter(|k| !(1.0 / NOISE_WARN..=NOISE_WARN).contains(k))
+    {
+        let hint = if (k * 57.29578 - 1.0).abs() < 0.5 {
+            ": a rate in rad/s read as deg/s? (--rate-scale 57.29578)"
+        } else if (k / 57.29578 - 1.0).abs() < 0.5 {
+            ": a rate in deg/s scaled as rad/s? (check --rate-scale)"
+        } else {
+            ": another sensor than the identifier's, or a wrong --rate-scale"
+        };
+        writeln!(
+            err,
+            "{}: warning: the record's white noise is {k:.3}x the identifier's{hint}",
+            s.input
         )?;
     }
     if s.temperature_missing {
