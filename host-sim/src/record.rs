@@ -128,6 +128,9 @@ pub(crate) fn parse_field<T: std::str::FromStr + Into<f64> + Copy>(
         .parse()
         .map_err(|_| anyhow::anyhow!("{name}:{line}: `{what}` is not a number: {raw:?}"))?;
     if !v.into().is_finite() {
+        if raw.trim().parse::<f64>().is_ok_and(f64::is_finite) {
+            bail!("{name}:{line}: `{what}` = {raw:?} is beyond the single-precision range (|x| <= 3.4e38)");
+        }
         bail!("{name}:{line}: `{what}` is not finite: {raw:?}");
     }
     Ok(v)

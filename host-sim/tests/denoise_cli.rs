@@ -173,6 +173,11 @@ fn nan_and_infinity() {
         Some(&format!("t_s,rate_dps\n{}70.0,-inf\n", good_rows(70))),
         "bad.csv:72: `rate_dps` is not finite",
     );
+    // Finite, but not in single precision: said so, not "not finite".
+    expect_error(
+        Some(&format!("t_s,rate_dps\n{}70.0,1e300\n", good_rows(70))),
+        "bad.csv:72: `rate_dps` = \"1e300\" is beyond the single-precision range",
+    );
 }
 
 #[test]

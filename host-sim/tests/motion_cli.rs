@@ -363,6 +363,52 @@ fn a_rate_in_rad_per_s_is_said() {
     }
 }
 
+/// One sample beyond the sensor's full scale in a calibration run is refused, naming the
+/// run, the sample and its time; a run without the rate column names the header it has.
+#[test]
+fn a_glitch_or_a_wrong_column_in_a_calibration_run_is_named() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let train = train_dir(d);
+    let text = fs::read_to_string(train.join("a.csv")).expect("test");
+    let header = text.lines().next().expect("test");
+    let col = header
+        .split(',')
+        .position(|h| h == "rate_dps")
+        .expect("test");
+    let glitch: String = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let mut f: Vec<&str> = l.split(',').collect();
+            if i == 101 {
+                f[col] = "1000000";
+            }
+            f.join(",") + "\n"
+        })
+        .collect();
+    let g = d.join("glitch.csv");
+    fs::write(&g, glitch).expect("test");
+    let img = d.join("g.fogi");
+    let run = |input: &Path| {
+        host_sim()
+            .args(["identify", "--preset", "motion", "--input"])
+            .arg(input)
+            .arg(train.join("b.csv"))
+            .arg("--save-identifier")
+            .arg(&img)
+            .assert()
+            .failure()
+    };
+    run(&g).stderr(predicates::str::contains(
+        "glitch.csv: sample 100 (t_s = 1 s): rate 1000000 deg/s beyond the sensor's full scale 60 deg/s",
+    ));
+    let renamed = d.join("renamed.csv");
+    fs::write(&renamed, text.replacen("rate_dps", "gz_dps", 1)).expect("test");
+    run(&renamed).stderr(predicates::str::contains("(the header has: t_s, gz_dps"));
+    assert!(!img.exists());
+}
+
 #[test]
 fn external_still_flag_column() {
     let dir = tempfile::tempdir().expect("test");

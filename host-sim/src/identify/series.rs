@@ -53,7 +53,10 @@ impl Series {
         let (mut rdr, header) = crate::record::csv_with_header(&name, input)?;
         let col = |want: &str| header.iter().position(|h| h.trim() == want);
         let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
-            bail!("{name}:1: needs columns `t_s` and `{rate_column}`");
+            bail!(
+                "{name}:1: needs columns `t_s` and `{rate_column}` (the header has: {})",
+                header.iter().collect::<Vec<_>>().join(", ")
+            );
         };
         let dc = col("drift_dps");
         let tc_c = col("temp_c");

@@ -253,6 +253,22 @@ pub fn check_rate(s: &Series, sensor: &SensorConfig) -> Result<f32> {
     Ok(hz)
 }
 
+/// Refuses a calibration run with a sample beyond the sensor's full scale (a glitch or
+/// another unit: one such sample decides the whole fit), naming the run, the sample and its
+/// time.
+pub fn check_full_scale(s: &Series, sensor: &SensorConfig) -> Result<()> {
+    let fs = sensor.full_scale_dps;
+    if let Some(k) = s.rate_dps.iter().position(|r| r.abs() > fs) {
+        bail!(
+            "{}: sample {k} (t_s = {} s): rate {} deg/s beyond the sensor's full scale {fs} deg/s (a glitch, or give the right --sensor); calibration runs are static records",
+            s.name,
+            s.t_s[k],
+            s.rate_dps[k]
+        );
+    }
+    Ok(())
+}
+
 /// Leave-one-record-out estimate of how well the family model transfers to an unseen unit,
 /// and the scale applied to the saved model.
 ///
@@ -371,6 +387,7 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
         .map(|i| {
             let s = records.get(i)?;
             check_rate(&s, &o.config.sensor)?;
+            check_full_scale(&s, &o.config.sensor)?;
             Ok(s)
         })
         .collect::<Result<_>>()?;
