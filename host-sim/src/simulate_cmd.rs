@@ -19,7 +19,7 @@ use anyhow::{bail, Context, Result};
 use fog_core::frame::ecore;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `host-sim simulate`.
 #[derive(clap::Args, Debug)]
@@ -159,6 +159,28 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(model) = &args.model {
         record::refuse_overwrite(model, out)?;
     }
+    // The size, estimated from the first 64 rows (a CSV row's length varies little), said
+    // when large and refused beyond the free space before anything is written.
+    let per_row = match args.format {
+        Format::EcoreBin => 8.0,
+        Format::Csv => {
+            let mut probe = simulator.clone();
+            let mut buf = Vec::new();
+            for _ in 0..64 {
+                write_csv_row(&mut buf, &probe.next_sample(), moving_column)?;
+            }
+            buf.len() as f64 / 64.0
+        }
+    };
+    let estimate = (expected as f64 * per_row).min(u64::MAX as f64) as u64;
+    if estimate >= 100_000_000 {
+        eprintln!(
+            "{}: about {} to write ({expected} samples)",
+            out.display(),
+            human_bytes(estimate)
+        );
+    }
+    check_free_space(out, estimate)?;
     let mut written = 0u64;
     record::write_atomic(out, |w| {
         let io = |e: std::io::Error| anyhow::anyhow!("{}: write failed: {e}", out.display());
@@ -196,4 +218,48 @@ pub fn run(args: &Args) -> Result<()> {
         out.display()
     );
     Ok(())
+}
+
+/// Refuses a write of about `bytes` to `path` when the file system holding it has less
+/// free space (for the caller's process), so that a run never fills the disk and fails at
+/// the end. Not checked where the platform gives no figure (non-Unix, or `statvfs` fails).
+fn check_free_space(path: &Path, bytes: u64) -> Result<()> {
+    #[cfg(unix)]
+    {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        if let Ok(st) = rustix::fs::statvfs(&dir) {
+            let free = st.f_bavail.saturating_mul(st.f_frsize);
+            if bytes > free {
+                bail!(
+                    "{}: about {} to write, {} free in {}",
+                    path.display(),
+                    human_bytes(bytes),
+                    human_bytes(free),
+                    dir.display()
+                );
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = (path, bytes);
+    Ok(())
+}
+
+/// `bytes` as B, kB, MB, GB or TB (powers of 1000), 3 significant digits.
+fn human_bytes(bytes: u64) -> String {
+    let units = ["B", "kB", "MB", "GB", "TB", "PB", "EB"];
+    let mut v = bytes as f64;
+    let mut u = 0;
+    while v >= 1000.0 && u + 1 < units.len() {
+        v /= 1000.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{v:.3} {}", units[u])
+    }
 }

@@ -263,3 +263,28 @@ fn needs_a_model_and_a_rate() {
     assert!(stderr.contains("--rate-hz"), "{stderr}");
     assert!(!out.exists());
 }
+
+/// A record larger than the free space is refused before anything is written, with its
+/// estimated size (10^14 samples at 100 Hz); a large one says its size first.
+#[test]
+fn a_record_beyond_the_free_space_is_refused_with_its_size() {
+    let dir = tempfile::tempdir().expect("test");
+    let out = dir.path().join("huge.csv");
+    simulate(
+        &[
+            "--preset",
+            "ecore2000",
+            "--seed",
+            "1",
+            "--duration-s",
+            "1e12",
+        ],
+        &out,
+    )
+    .failure()
+    .stderr(predicates::str::contains("huge.csv: about "))
+    .stderr(predicates::str::contains(" PB to write, "))
+    .stderr(predicates::str::contains(" free in "));
+    assert!(!out.exists());
+    assert_no_tmp(dir.path());
+}
