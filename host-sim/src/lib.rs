@@ -11,6 +11,7 @@ pub mod gap;
 pub mod gap_cmd;
 pub mod identify;
 pub mod identify_cmd;
+pub mod image_cmd;
 pub mod motion;
 pub mod nav;
 pub mod record;

@@ -4,7 +4,7 @@
 
 use clap::{Parser, Subcommand};
 use host_sim::{
-    allan_cmd, demo_cmd, denoise_cmd, gap_cmd, identify_cmd, replay_cmd, reproduce_cmd,
+    allan_cmd, demo_cmd, denoise_cmd, gap_cmd, identify_cmd, image_cmd, replay_cmd, reproduce_cmd,
     simulate_cmd,
 };
 use std::process::ExitCode;
@@ -31,6 +31,9 @@ enum Cmd {
     /// Train the on-line drift identifier on training records and score it, still on line,
     /// on validation records beside causal baselines; JSON report.
     Identify(identify_cmd::Args),
+    /// What an identifier image (`.fogi`) holds: format, checksum, arrangement, the sensor
+    /// and detector learned from the calibration runs, level noise, safety net, model.
+    Image(image_cmd::Args),
     /// The paper's section 5 on simulated records: 265 records of 1800 s (180 train, 85
     /// validate) at different seeds, sample periods and conditions; JSON report.
     Reproduce(reproduce_cmd::Args),
@@ -54,6 +57,7 @@ fn main() -> ExitCode {
         Cmd::Simulate(a) => simulate_cmd::run(a),
         Cmd::Allan(a) => allan_cmd::run(a),
         Cmd::Identify(a) => identify_cmd::run(a),
+        Cmd::Image(a) => image_cmd::run(a),
         Cmd::Reproduce(a) => reproduce_cmd::run(a),
         Cmd::Replay(a) => replay_cmd::run(a),
         Cmd::Demo(a) => demo_cmd::run(a),

@@ -409,6 +409,62 @@ fn a_glitch_or_a_wrong_column_in_a_calibration_run_is_named() {
     assert!(!img.exists());
 }
 
+/// `host-sim image` says what an image holds: its format, the CRC stored in its last 4
+/// bytes, the arrangement and prior it was saved with, the sensor's rate; JSON beside; a
+/// damaged image is refused naming it, and `--json` never overwrites the image.
+#[test]
+fn image_command_describes_an_image() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let train = train_dir(d);
+    let img = d.join("th.fogi");
+    identify(&train, &["--thermal-prior-dph-per-c", "4"], &img).success();
+    let bytes = fs::read(&img).expect("test");
+    let crc = u32::from_le_bytes(bytes[bytes.len() - 4..].try_into().expect("test"));
+    let json = d.join("i.json");
+    host_sim()
+        .args(["image", "--input"])
+        .arg(&img)
+        .arg("--json")
+        .arg(&json)
+        .assert()
+        .success()
+        .stdout(predicates::str::contains(format!(
+            "th.fogi: identifier image, format 3, 584 bytes, CRC-32 0x{crc:08x}"
+        )))
+        .stdout(predicates::str::contains(
+            "arrangement: dual-thermal (temperature coefficient prior 4 deg/h per deg C)",
+        ))
+        .stdout(predicates::str::contains(
+            "sensor: 100 Hz, full scale 60 deg/s",
+        ));
+    let v: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&json).expect("test")).expect("test");
+    assert_eq!(v["crc32"].as_u64(), Some(u64::from(crc)));
+    assert_eq!(v["arrangement"], "dual-thermal");
+    let mut bad = bytes.clone();
+    bad[300] ^= 1;
+    let bad_path = d.join("bad.fogi");
+    fs::write(&bad_path, &bad).expect("test");
+    host_sim()
+        .args(["image", "--input"])
+        .arg(&bad_path)
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("bad.fogi: checksum mismatch"));
+    host_sim()
+        .args(["image", "--input"])
+        .arg(&img)
+        .arg("--json")
+        .arg(&img)
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains(
+            "refusing to overwrite the input file",
+        ));
+    assert_eq!(fs::read(&img).expect("test"), bytes);
+}
+
 #[test]
 fn external_still_flag_column() {
     let dir = tempfile::tempdir().expect("test");

@@ -11,6 +11,7 @@
 //!   the per-record intercept).
 
 pub mod calibration;
+pub mod show;
 pub mod tune;
 
 use crate::identify::series::{Records, Series};
