@@ -1,9 +1,12 @@
 //! `host-sim allan`: overlapping Allan deviation of a record, chi-square bounds, the fit of
 //! the noise terms ([`crate::allan`] documents each method), JSON and an optional SVG plot.
 //!
-//! The sample period `tau0` is the median step of `t_s` (the record's stated rate is not
-//! trusted); gaps (steps over [`record::GAP_FACTOR`] x the median) are reported on stderr and
-//! in the JSON, and the samples are analysed as if evenly spaced. The input is read into
+//! The sample period `tau0` comes from `t_s` (the record's stated rate is not trusted)
+//! ([`sample_period`]): the mean step with the gaps left out (steps over
+//! [`record::GAP_FACTOR`] x the median, reported on stderr and in the JSON) when they are
+//! rare (at most [`RARE_GAPS`] of the steps: missing data), else the mean of every step
+//! (irregular or bursty stamps, where the median is not the rate: said on stderr). The
+//! samples are analysed as if evenly spaced. The input (CSV, or `.csv.gz`) is read into
 //! memory (`t_s` f64, rate f32: 12 bytes per sample) with only those two columns kept.
 
 use crate::allan::{self, edf, Taus};
@@ -16,9 +19,15 @@ use std::path::{Path, PathBuf};
 /// Arguments of `host-sim allan`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Interchange CSV (`t_s`, `rate_dps`; other columns ignored).
+    /// Interchange CSV (`t_s` and the rate column; other columns ignored), or `.csv.gz`.
     #[arg(long)]
     pub input: PathBuf,
+    /// The rate column (e.g. `gz_dps` of a multi-axis recording).
+    #[arg(long, default_value = "rate_dps")]
+    pub rate_column: String,
+    /// Factor from the column's unit to deg/s (e.g. 57.29578 for rad/s).
+    #[arg(long, default_value_t = 1.0)]
+    pub rate_scale: f64,
     /// JSON result to write.
     #[arg(long)]
     pub json: PathBuf,
@@ -44,21 +53,61 @@ pub struct Series {
     pub gaps: Vec<(u64, f64)>,
 }
 
-/// Reads `t_s` and `rate_dps` from an interchange CSV; errors name the file and line.
-pub fn read_series(path: &Path) -> Result<Series> {
+/// Steps over [`record::GAP_FACTOR`] x the median are gaps (missing data, left out of
+/// `tau0`) when at most this fraction of the steps are (ASSUMED: 1 %); beyond it the stamps
+/// are irregular and `tau0` is the mean of every step.
+pub const RARE_GAPS: f64 = 0.01;
+
+/// How `tau0` was found ([`sample_period`]).
+pub struct SamplePeriod {
+    /// Seconds.
+    pub tau0_s: f64,
+    /// The method, for the JSON and stderr.
+    pub method: &'static str,
+    /// Median step, s.
+    pub median_s: f64,
+    /// The steps over the gap factor are not rare: irregular stamps, not missing data.
+    pub irregular: bool,
+}
+
+/// `tau0` of `t_s` with `gaps` (module docs).
+pub fn sample_period(t_s: &[f64], gaps: &[(u64, f64)]) -> Result<SamplePeriod> {
+    let median_s = allan::median_step_s(t_s)?;
+    let steps = (t_s.len() - 1) as f64;
+    let span = t_s[t_s.len() - 1] - t_s[0];
+    if gaps.len() as f64 <= RARE_GAPS * steps {
+        let gap_sum: f64 = gaps.iter().map(|g| g.1).sum();
+        Ok(SamplePeriod {
+            tau0_s: (span - gap_sum) / (steps - gaps.len() as f64),
+            method: "mean t_s step, gaps left out",
+            median_s,
+            irregular: false,
+        })
+    } else {
+        Ok(SamplePeriod {
+            tau0_s: span / steps,
+            method: "mean of every t_s step (irregular stamps)",
+            median_s,
+            irregular: true,
+        })
+    }
+}
+
+/// Reads `t_s` and the rate (`rate_column` times `rate_scale`, deg/s) from an interchange
+/// CSV or `.csv.gz`; errors name the file and line.
+pub fn read_series(path: &Path, rate_column: &str, rate_scale: f64) -> Result<Series> {
     let name = path.display();
-    let file = std::fs::File::open(path).with_context(|| format!("{name}: cannot open"))?;
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
-        .from_reader(std::io::BufReader::new(file));
+        .from_reader(std::io::BufReader::new(record::open_maybe_gz(path)?));
     let header = rdr
         .headers()
         .with_context(|| format!("{name}:1: cannot read the header"))?
         .clone();
     let col = |want: &str| header.iter().position(|h| h.trim() == want);
-    let (Some(tc), Some(rc)) = (col("t_s"), col("rate_dps")) else {
+    let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
         bail!(
-            "{name}:1: need columns `t_s` and `rate_dps` (header: {})",
+            "{name}:1: need columns `t_s` and `{rate_column}` (header: {})",
             header.iter().collect::<Vec<_>>().join(",")
         );
     };
@@ -88,7 +137,10 @@ pub fn read_series(path: &Path) -> Result<Series> {
             Ok(v)
         };
         let t = field(tc, "t_s")?;
-        let r = field(rc, "rate_dps")?;
+        let r = field(rc, rate_column)? * rate_scale;
+        if !r.is_finite() || r.abs() > f64::from(f32::MAX) {
+            bail!("{name}:{line}: `{rate_column}` x {rate_scale} = {r} is beyond the single-precision range");
+        }
         if let Some(&prev) = t_s.last() {
             if t <= prev {
                 bail!("{name}:{line}: t_s = {t} does not increase (previous row {prev})");
@@ -138,9 +190,13 @@ pub fn run(args: &Args) -> Result<()> {
     for out in std::iter::once(&args.json).chain(args.svg.as_ref()) {
         record::refuse_overwrite(&args.input, out)?;
     }
-    let s = read_series(&args.input)?;
+    if !(args.rate_scale.is_finite() && args.rate_scale != 0.0) {
+        bail!("--rate-scale {}: must be finite and not 0", args.rate_scale);
+    }
+    let s = read_series(&args.input, &args.rate_column, args.rate_scale)?;
     let name = args.input.display().to_string();
-    let tau0_s = allan::median_step_s(&s.t_s).with_context(|| name.clone())?;
+    let period = sample_period(&s.t_s, &s.gaps).with_context(|| name.clone())?;
+    let tau0_s = period.tau0_s;
     let rate: Vec<f64> = s.rate_dps.iter().map(|&v| f64::from(v)).collect();
     let ms = allan::tau_factors(rate.len(), args.taus);
     let (points, fit) = allan::analyse(&rate, tau0_s, &ms, args.markov, edf::ONE_SIGMA)
@@ -154,7 +210,7 @@ pub fn run(args: &Args) -> Result<()> {
         input: name.clone(),
         n_samples: rate.len(),
         tau0_s,
-        tau0_method: "median of the t_s steps",
+        tau0_method: period.method,
         gaps: s.gaps.len(),
         largest_gap_s: largest,
         adev_method: "overlapping Allan deviation, NIST SP 1065 eq. 11, f64 cumulative sum (phase)",
@@ -190,11 +246,26 @@ pub fn run(args: &Args) -> Result<()> {
     let mut err = std::io::stderr().lock();
     writeln!(
         err,
-        "{name}: {} samples, tau0 = {tau0_s} s (median t_s step), {} taus -> {}",
+        "{name}: {} samples, tau0 = {} s ({}; median step {} s), {} taus -> {}",
         rate.len(),
+        round9(tau0_s),
+        period.method,
+        round9(period.median_s),
         points.len(),
         args.json.display()
     )?;
+    if let Some(p) = points
+        .iter()
+        .filter(|p| p.adev_dps.is_finite())
+        .min_by(|a, b| a.adev_dps.total_cmp(&b.adev_dps))
+    {
+        writeln!(
+            err,
+            "{name}: least Allan deviation {:.4} deg/h at tau {} s",
+            p.adev_dps * 3600.0,
+            round9(p.tau_s)
+        )?;
+    }
     for t in fit.terms.iter().filter(|t| t.active) {
         writeln!(
             err,
@@ -209,7 +280,15 @@ pub fn run(args: &Args) -> Result<()> {
             "T_gm"
         )?;
     }
-    if let Some(&(line, dt)) = s.gaps.iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
+    if period.irregular {
+        writeln!(
+            err,
+            "{name}: warning: irregular t_s: {} of {} steps over {} x the median step; tau0 is the mean step, and the samples are analysed as if evenly spaced",
+            s.gaps.len(),
+            s.t_s.len() - 1,
+            record::GAP_FACTOR,
+        )?;
+    } else if let Some(&(line, dt)) = s.gaps.iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
         writeln!(
             err,
             "{name}: warning: {} gap(s) in t_s (step > {} x median), largest {dt:.4} s before line {line}; samples are analysed as if evenly spaced",
@@ -218,4 +297,9 @@ pub fn run(args: &Args) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// `x` rounded to 9 decimals for printing (a tau of 0.010000000000218279 s prints 0.01).
+fn round9(x: f64) -> f64 {
+    (x * 1e9).round() / 1e9
 }

@@ -45,7 +45,11 @@ fn json_and_svg() {
     let svg = dir.path().join("a.svg");
     let a = allan(&input, &json, &["--svg", &svg.to_string_lossy()]).success();
     let stderr = String::from_utf8_lossy(&a.get_output().stderr).to_string();
-    assert!(stderr.contains("median t_s step"), "{stderr}");
+    assert!(
+        stderr.contains("tau0 = 0.1 s (mean t_s step, gaps left out"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("least Allan deviation"), "{stderr}");
     let v: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(&json).expect("json")).expect("valid JSON");
     let tau0 = v["tau0_s"].as_f64().expect("tau0");
@@ -173,4 +177,68 @@ fn gaps_are_reported() {
     let v: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(&json).expect("json")).expect("JSON");
     assert_eq!(v["gaps"], 1);
+}
+
+/// Bursty stamps (steps of 2 ms and 6 ms in turn: 250 Hz): tau0 is the mean step (4 ms), not
+/// the median (which alternates the two), and stderr says the stamps are irregular; the
+/// same samples as a `.csv.gz` with the rate in rad/s in another column give the same tau0
+/// and, scaled back with `--rate-scale`, the same deviations.
+#[test]
+fn bursty_stamps_gz_and_a_rate_column() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (mut plain, mut rad) = (
+        String::from("t_s,rate_dps\n"),
+        String::from("t_s,gz_rad_s\n"),
+    );
+    let mut t = 0.0f64;
+    for i in 0..4000u64 {
+        let r = ((i * 7919) % 13) as f64 * 1e-3;
+        plain.push_str(&format!("{t},{r}\n"));
+        rad.push_str(&format!("{t},{}\n", r / 57.29578));
+        t += if i % 2 == 0 { 0.002 } else { 0.006 };
+    }
+    let input = dir.path().join("bursty.csv");
+    fs::write(&input, plain).expect("write");
+    let gz = dir.path().join("bursty_rad.csv.gz");
+    {
+        use std::io::Write;
+        let mut e = flate2::write::GzEncoder::new(
+            fs::File::create(&gz).expect("gz"),
+            flate2::Compression::default(),
+        );
+        e.write_all(rad.as_bytes()).expect("gz");
+        e.finish().expect("gz");
+    }
+    let json = dir.path().join("b.json");
+    let a = allan(&input, &json, &[]).success();
+    let stderr = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert!(stderr.contains("irregular stamps"), "{stderr}");
+    let v: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&json).expect("json")).expect("JSON");
+    assert!(
+        (v["tau0_s"].as_f64().expect("tau0") - 0.004).abs() < 1e-6,
+        "{v}"
+    );
+    let json2 = dir.path().join("b2.json");
+    allan(
+        &gz,
+        &json2,
+        &["--rate-column", "gz_rad_s", "--rate-scale", "57.29578"],
+    )
+    .success();
+    let w: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&json2).expect("json")).expect("JSON");
+    assert_eq!(v["tau0_s"], w["tau0_s"]);
+    let (p, q) = (
+        v["points"].as_array().expect("p"),
+        w["points"].as_array().expect("q"),
+    );
+    assert_eq!(p.len(), q.len());
+    for (a, b) in p.iter().zip(q) {
+        let (a, b) = (
+            a["adev_dps"].as_f64().expect("a"),
+            b["adev_dps"].as_f64().expect("b"),
+        );
+        assert!((a / b - 1.0).abs() < 1e-5, "{a} {b}");
+    }
 }
