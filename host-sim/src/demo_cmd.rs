@@ -12,7 +12,8 @@ pub struct Args {
     /// Folder to write (created if missing; its demo files are replaced).
     #[arg(long)]
     pub out: PathBuf,
-    /// Records of 600 s instead of 1800 s and one validation record (the CI test's variant).
+    /// Records of 600 s instead of 1800 s, 2 validation and 2 test vehicles instead of 32
+    /// each (the CI test's variant).
     #[arg(long)]
     pub quick: bool,
     /// Shrink the trained model by leave-one-record-out (`identify --preset motion

@@ -59,6 +59,12 @@ pub fn run(a: &Args) -> Result<()> {
         None => None,
     };
     let (rec, time) = gap::read_rec(&a.real, &a.rate_column, a.reference_column.as_deref())?;
+    if let Some(why) = gap::not_static(&rec) {
+        anyhow::bail!(
+            "{}: {why}; gap diagnoses static records, or the residual against a reference rate (--reference-column)",
+            rec.name
+        );
+    }
     let mut o = gap::Options {
         seeds: a.seeds,
         task: !a.no_task,

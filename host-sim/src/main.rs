@@ -40,8 +40,10 @@ enum Cmd {
     /// Replay a recording (interchange CSV, E-Core binary capture or DSP-3000 lines) through
     /// the firmware's pipeline, streamed: per-sample CSV and an optional report folder.
     Replay(replay_cmd::Args),
-    /// The main job with no configuration: simulate an E-Core record, write it as binary
-    /// frames, replay it, and write a report folder (index.html, SVG figures, summary.json).
+    /// The main job with no configuration: train the motion identifier on 12 simulated
+    /// static E-Core records, tune it on 32 simulated vehicles, replay another vehicle
+    /// record (CSV) and score it and 32 test vehicles beside the causal baselines; report
+    /// folder (index.html, SVG figures, summary.json).
     Demo(demo_cmd::Args),
     /// Sim-to-real gap: where a real record departs from its model's simulations, which
     /// effect the model lacks, and how much of the gap closes on held-out data.

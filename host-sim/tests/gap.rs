@@ -112,17 +112,19 @@ fn cli_writes_json_with_gaps_reported() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (rec, _, _) = bench::make_record(Some(Effect::Dropouts), 11, 600.0, 25.0).expect("rec");
     let p = dir.path().join("rec.csv");
+    // With its turntable reference (the record turns: without it, not static).
     write_csv(
         &p,
         (0..rec.t_s.len()).map(|i| {
             format!(
-                "{},{},{}",
+                "{},{},{},{}",
                 rec.t_s[i],
                 rec.rate_dps[i],
-                rec.temp_c.as_ref().map_or(0.0, |v| v[i])
+                rec.temp_c.as_ref().map_or(0.0, |v| v[i]),
+                rec.ref_dps.as_ref().map_or(0.0, |v| v[i])
             )
         }),
-        "t_s,rate_dps,temp_c",
+        "t_s,rate_dps,temp_c,true_rate_dps",
     );
     let json = dir.path().join("gap.json");
     let report = dir.path().join("rep");
@@ -155,7 +157,9 @@ fn cli_writes_json_with_gaps_reported() {
         .iter()
         .find(|c| c["effect"] == "scale_factor")
         .expect("scale_factor listed");
-    assert!(sf["skipped"]
+    // With the reference the scale factor is measurable (without it the record is refused as
+    // not static).
+    assert!(!sf["skipped"]
         .as_str()
         .unwrap_or("")
         .contains("not applicable"));
@@ -378,4 +382,52 @@ fn spikes_test_counts_outliers_gaussian_noise_has_none() {
     assert!(!spikes_outcome(0.0, &[0.0; 12]).passed);
     // Inside the simulations' own spread: not passed.
     assert!(!spikes_outcome(5.0, &[3.0, 5.0, 4.0, 6.0, 2.0, 5.0]).passed);
+}
+
+/// A record that turns (a 20 deg/s turn for 5 s in 200 s at 100 Hz) is not diagnosed as a
+/// gyro's drift: refused in one line naming the file, the time of the turn and the way out
+/// (`--reference-column`); the same record with the turn as its reference passes the check.
+#[test]
+fn a_record_that_turns_is_said_not_static() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let p = dir.path().join("turn.csv");
+    let turn = |i: usize| {
+        if (10_000..10_500).contains(&i) {
+            20.0
+        } else {
+            0.0
+        }
+    };
+    write_csv(
+        &p,
+        (0..20_000).map(|i| {
+            format!(
+                "{},{},{}",
+                i as f64 * 0.01,
+                turn(i) + 0.001 * ((i * 7919) % 13) as f64,
+                turn(i)
+            )
+        }),
+        "t_s,rate_dps,table_dps",
+    );
+    let out = Command::cargo_bin("host-sim")
+        .expect("binary")
+        .args(["gap", "--real"])
+        .arg(&p)
+        .args(["--json"])
+        .arg(dir.path().join("o.json"))
+        .assert()
+        .failure();
+    let err = String::from_utf8_lossy(&out.get_output().stderr).to_string();
+    assert!(
+        err.contains("turn.csv: not a static record: its 1-s mean from t = 100.0 s")
+            && err.contains("--reference-column"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(!dir.path().join("o.json").exists());
+    let (rec, _) = gap::read_rec(&p, "rate_dps", Some("table_dps")).expect("read");
+    assert_eq!(gap::not_static(&rec), None);
+    let (rec, _) = gap::read_rec(&p, "rate_dps", None).expect("read");
+    assert!(gap::not_static(&rec).is_some());
 }

@@ -94,6 +94,43 @@ pub struct TimeInfo {
     pub gaps: Vec<(f64, f64)>,
 }
 
+/// A record whose 1-s means (of the rate, or of the rate minus the reference) leave their
+/// median by more than this is not static (ASSUMED: 1 deg/s = 3600 deg/h, beyond any
+/// gyro's drift within a run, far below a vehicle's or a turntable's rate).
+pub const NOT_STATIC_DPS: f64 = 1.0;
+
+/// `None` for a static record (or a residual against its reference); otherwise what shows it
+/// is not: the first 1-s mean beyond [`NOT_STATIC_DPS`] from the median, and when.
+pub fn not_static(rec: &Rec) -> Option<String> {
+    let per = ((1.0 / rec.dt_s).round() as usize).max(1);
+    let x: Vec<f64> = match &rec.ref_dps {
+        Some(r) => rec.rate_dps.iter().zip(r).map(|(a, b)| a - b).collect(),
+        None => rec.rate_dps.clone(),
+    };
+    let means: Vec<f64> = x
+        .chunks_exact(per)
+        .map(|c| c.iter().sum::<f64>() / per as f64)
+        .collect();
+    if means.len() < 2 {
+        return None;
+    }
+    let mut sorted = means.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    // The first 1-s mean beyond the bound: where the record starts to move.
+    let (k, far) = means
+        .iter()
+        .enumerate()
+        .map(|(k, m)| (k, m - median))
+        .find(|(_, d)| d.abs() > NOT_STATIC_DPS)?;
+    Some(format!(
+        "not a static record: its 1-s mean from t = {:.1} s is {:.3} deg/s from the median {:.4} deg/s (over {NOT_STATIC_DPS} deg/s)",
+        rec.t_s[k * per],
+        far,
+        median
+    ))
+}
+
 /// Reads a CSV (`.gz` too): `t_s`, the rate column, `temp_c` if present, the reference
 /// column if asked for (or `true_rate_dps` if present).
 pub fn read_rec(
@@ -106,7 +143,10 @@ pub fn read_rec(
         crate::record::csv_with_header(&name, crate::record::open_maybe_gz(path)?)?;
     let col = |want: &str| header.iter().position(|h| h.trim() == want);
     let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
-        bail!("{name}:1: needs columns `t_s` and `{rate_column}`");
+        bail!(
+            "{name}:1: needs columns `t_s` and `{rate_column}` (the header has: {})",
+            header.iter().collect::<Vec<_>>().join(", ")
+        );
     };
     let temp = col("temp_c");
     let refc = match ref_column {
