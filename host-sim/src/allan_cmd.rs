@@ -51,6 +51,8 @@ pub struct Series {
     pub rate_dps: Vec<f32>,
     /// Gaps: (line after the gap, step in s).
     pub gaps: Vec<(u64, f64)>,
+    /// Median step of `t_s`, s (the gaps' reference).
+    pub median_step_s: f64,
 }
 
 /// Steps over [`record::GAP_FACTOR`] x the median are gaps (missing data, left out of
@@ -70,26 +72,26 @@ pub struct SamplePeriod {
     pub irregular: bool,
 }
 
-/// `tau0` of `t_s` with `gaps` (module docs).
-pub fn sample_period(t_s: &[f64], gaps: &[(u64, f64)]) -> Result<SamplePeriod> {
-    let median_s = allan::median_step_s(t_s)?;
+/// `tau0` of a series read by [`read_series`] (module docs).
+pub fn sample_period(s: &Series) -> SamplePeriod {
+    let (t_s, gaps, median_s) = (&s.t_s, &s.gaps, s.median_step_s);
     let steps = (t_s.len() - 1) as f64;
     let span = t_s[t_s.len() - 1] - t_s[0];
     if gaps.len() as f64 <= RARE_GAPS * steps {
         let gap_sum: f64 = gaps.iter().map(|g| g.1).sum();
-        Ok(SamplePeriod {
+        SamplePeriod {
             tau0_s: (span - gap_sum) / (steps - gaps.len() as f64),
             method: "mean t_s step, gaps left out",
             median_s,
             irregular: false,
-        })
+        }
     } else {
-        Ok(SamplePeriod {
+        SamplePeriod {
             tau0_s: span / steps,
             method: "mean of every t_s step (irregular stamps)",
             median_s,
             irregular: true,
-        })
+        }
     }
 }
 
@@ -166,6 +168,7 @@ pub fn read_series(path: &Path, rate_column: &str, rate_scale: f64) -> Result<Se
         t_s,
         rate_dps,
         gaps,
+        median_step_s: med,
     })
 }
 
@@ -195,7 +198,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let s = read_series(&args.input, &args.rate_column, args.rate_scale)?;
     let name = args.input.display().to_string();
-    let period = sample_period(&s.t_s, &s.gaps).with_context(|| name.clone())?;
+    let period = sample_period(&s);
     let tau0_s = period.tau0_s;
     let rate: Vec<f64> = s.rate_dps.iter().map(|&v| f64::from(v)).collect();
     let ms = allan::tau_factors(rate.len(), args.taus);

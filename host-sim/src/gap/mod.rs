@@ -103,13 +103,15 @@ pub const NOT_STATIC_DPS: f64 = 1.0;
 /// is not: the first 1-s mean beyond [`NOT_STATIC_DPS`] from the median, and when.
 pub fn not_static(rec: &Rec) -> Option<String> {
     let per = ((1.0 / rec.dt_s).round() as usize).max(1);
-    let x: Vec<f64> = match &rec.ref_dps {
-        Some(r) => rec.rate_dps.iter().zip(r).map(|(a, b)| a - b).collect(),
-        None => rec.rate_dps.clone(),
-    };
-    let means: Vec<f64> = x
-        .chunks_exact(per)
-        .map(|c| c.iter().sum::<f64>() / per as f64)
+    // Residual against the reference when there is one (no copy of the record).
+    let reference = |i: usize| rec.ref_dps.as_ref().map_or(0.0, |r| r[i]);
+    let means: Vec<f64> = (0..rec.rate_dps.len() / per)
+        .map(|k| {
+            (k * per..(k + 1) * per)
+                .map(|i| rec.rate_dps[i] - reference(i))
+                .sum::<f64>()
+                / per as f64
+        })
         .collect();
     if means.len() < 2 {
         return None;
