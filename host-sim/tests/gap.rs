@@ -54,6 +54,24 @@ fn ci_bench_names_withheld_effects() {
     }
 }
 
+/// `host-sim gap --real p --json dir/o.json`, which must fail with one line on stderr and
+/// write no JSON; returns that line.
+fn gap_refused(p: &std::path::Path, dir: &std::path::Path) -> String {
+    let json = dir.join("o.json");
+    let out = Command::cargo_bin("host-sim")
+        .expect("binary")
+        .args(["gap", "--real"])
+        .arg(p)
+        .args(["--json"])
+        .arg(&json)
+        .assert()
+        .failure();
+    let err = String::from_utf8_lossy(&out.get_output().stderr).to_string();
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(!json.exists());
+    err
+}
+
 #[test]
 fn too_short_record_says_how_long_is_needed() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -63,21 +81,11 @@ fn too_short_record_says_how_long_is_needed() {
         (0..1000).map(|i| format!("{},{}", i as f64 * 0.01, 0.001 * ((i * 7919) % 13) as f64)),
         "t_s,rate_dps",
     );
-    let out = Command::cargo_bin("host-sim")
-        .expect("binary")
-        .args(["gap", "--real"])
-        .arg(&p)
-        .args(["--json"])
-        .arg(dir.path().join("o.json"))
-        .assert()
-        .failure();
-    let err = String::from_utf8_lossy(&out.get_output().stderr).to_string();
+    let err = gap_refused(&p, dir.path());
     assert!(
         err.contains("too short") && err.contains("12288 samples"),
         "{err}"
     );
-    assert_eq!(err.trim().lines().count(), 1, "{err}");
-    assert!(!dir.path().join("o.json").exists());
 }
 
 #[test]
@@ -410,22 +418,12 @@ fn a_record_that_turns_is_said_not_static() {
         }),
         "t_s,rate_dps,table_dps",
     );
-    let out = Command::cargo_bin("host-sim")
-        .expect("binary")
-        .args(["gap", "--real"])
-        .arg(&p)
-        .args(["--json"])
-        .arg(dir.path().join("o.json"))
-        .assert()
-        .failure();
-    let err = String::from_utf8_lossy(&out.get_output().stderr).to_string();
+    let err = gap_refused(&p, dir.path());
     assert!(
         err.contains("turn.csv: not a static record: its 1-s mean from t = 100.0 s")
             && err.contains("--reference-column"),
         "{err}"
     );
-    assert_eq!(err.trim().lines().count(), 1, "{err}");
-    assert!(!dir.path().join("o.json").exists());
     let (rec, _) = gap::read_rec(&p, "rate_dps", Some("table_dps")).expect("read");
     assert_eq!(gap::not_static(&rec), None);
     let (rec, _) = gap::read_rec(&p, "rate_dps", None).expect("read");
