@@ -10,8 +10,8 @@ step "rustfmt"
 cargo fmt --all -- --check
 step "clippy (host workspace, -D warnings)"
 cargo clippy --workspace --all-targets -- -D warnings
-step "rustdoc (fog-core, host-sim; warnings are errors: broken or private links)"
-RUSTDOCFLAGS="-D warnings" cargo doc -q -p fog-core -p host-sim --no-deps
+step "rustdoc (fog-core, host-sim, fog-lab; warnings are errors: broken or private links)"
+RUSTDOCFLAGS="-D warnings" cargo doc -q -p fog-core -p host-sim -p fog-lab --no-deps
 step "fog-core builds no_std for the Cortex-M4F (with and without defmt)"
 cargo build -q -p fog-core --target thumbv7em-none-eabihf
 cargo build -q -p fog-core --target thumbv7em-none-eabihf --features defmt

@@ -5,12 +5,13 @@
 //!
 //! Input: 60 s at 100 Hz of an E-Core-like rate (3 deg/h bias, the sensor's white noise),
 //! still for 30 s, then a 12 deg/s turn of 10 s and a slow 0.05 deg/s^2 ramp: the detector
-//! calls still, fails windows and rolls back, so every arrangement's paths run. The
-//! estimator restarts at each pass (a pass is the same work).
+//! calls still, fails windows and rolls back, so every arrangement's paths run; the
+//! temperature rises 1 deg C per minute (the thermal state's path). The estimator restarts
+//! at each pass (a pass is the same work).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use fog_core::motion::{MotionConfig, MotionModel};
-use fog_core::preset::{Arrangement, GaussMarkov, PresetEstimator};
+use fog_core::preset::{Arrangement, PresetEstimator, SecondState};
 use fog_core::still::SensorConfig;
 use std::hint::black_box;
 
@@ -38,6 +39,11 @@ fn rate() -> Vec<f32> {
         .collect()
 }
 
+/// Temperature of sample `k`, deg C: 25 rising 1 deg C per minute.
+fn temp_c(k: usize) -> f32 {
+    25.0 + k as f32 / 6000.0
+}
+
 fn arrangements(c: &mut Criterion) {
     let x = rate();
     let mut model = MotionModel::standard(1800.0).expect("valid");
@@ -45,29 +51,24 @@ fn arrangements(c: &mut Criterion) {
         *w = 1e-4 * (i as f32 - 7.0);
     }
     let cfg = MotionConfig::for_sensor(S);
-    let gm = GaussMarkov {
-        sigma_dps: 2.0 / 3600.0,
-        tau_s: 10.0,
-    };
-    let bank = GaussMarkov {
-        sigma_dps: 1.5 / 3600.0,
+    let thermal = SecondState::THERMAL;
+    let bank = SecondState {
+        sigma: 1.5 / 3600.0,
         tau_s: 10_000.0,
     };
     let mut g = c.benchmark_group("preset_push_per_sample");
     g.throughput(Throughput::Elements(x.len() as u64));
-    for (name, a, gm) in [
-        ("window", Arrangement::Window, gm),
-        ("sample", Arrangement::Sample, gm),
-        ("dual", Arrangement::Dual, gm),
-        ("bank", Arrangement::Bank, bank),
+    for (name, a, second) in [
+        ("dual_thermal", Arrangement::DualThermal, thermal),
         ("bank_dual", Arrangement::BankDual, bank),
         ("bank_guarded", Arrangement::BankGuarded, bank),
     ] {
-        let mut est = PresetEstimator::new(model, cfg, a, gm).expect("valid");
+        let mut est = PresetEstimator::new(model, cfg, a, second).expect("valid");
         // The input exercises both calls: still at rest, moving in the turn.
         let calls: Vec<bool> = x
             .iter()
-            .map(|&r| est.push(r, 25.0, None).is_ok_and(|o| o.still))
+            .enumerate()
+            .map(|(k, &r)| est.push(r, temp_c(k), None).is_ok_and(|o| o.still))
             .collect();
         assert!(
             calls[1000..3000].iter().filter(|c| **c).count() > 1500,
@@ -80,8 +81,8 @@ fn arrangements(c: &mut Criterion) {
         g.bench_function(name, |b| {
             b.iter(|| {
                 est.restart();
-                for &r in &x {
-                    let _ = black_box(est.push(black_box(r), 25.0, None));
+                for (k, &r) in x.iter().enumerate() {
+                    let _ = black_box(est.push(black_box(r), temp_c(k), None));
                 }
             })
         });

@@ -20,31 +20,31 @@
 //! | 468 | 4 x f32 + 4 | trainer (DRLS): lambda, u0, u_max, w_max, mode (0 parallel, 1 sequential), form (0 gain, 1 energy), 0, 0 |
 //! | 488 | L x f32 | trainer state (`U` or `S` per weight) |
 //! | 552 | u32 | records trained on (passes included) |
-//! | 556 | 1+3 | level arrangement ([`Arrangement`]: 0 window, 1 sample, 2 dual, 3 bank, 4 bank-dual, 5 bank-guarded, 6 dual-thermal), 0, 0, 0 |
-//! | 560 | 2 x f32 | Gauss-Markov state: sigma deg/s (0 = off), tau s (0 when off); bank (3, 4, 5): its `B` deg/s (> 0) and longest correlation time s (1 to 10^4); dual-thermal (6): the temperature coefficient's prior sigma deg/s per deg C (> 0) and 0 |
+//! | 556 | 1+3 | level arrangement ([`Arrangement`]: 4 bank-dual, 5 bank-guarded, 6 dual-thermal; 0 to 3 are refused, [`ImageError::RetiredArrangement`]), 0, 0, 0 |
+//! | 560 | 2 x f32 | second state ([`SecondState`]): dual-thermal (6): the temperature coefficient's prior sigma deg/s per deg C (> 0) and 0; bank (4, 5): its `B` deg/s (> 0) and longest correlation time s (1 to 10^4) |
 //! | 568 | 3 x f32 | the family's white-noise range as multiples of the sensor's sigma (`noise_lo`, `noise_hi` of [`StillConfig`]), the safety net's time s ([`MotionConfig::stale_s`]) |
 //! | 580 | u32 | CRC-32/ISO-HDLC of bytes 0..580 |
 //!
 //! Version 2 ([`IMAGE_LEN_V2`] = 572 bytes) is version 3 without bytes 568..580 (its CRC at
 //! 568): it loads with the noise range 1..1 (the specification) and the default
-//! [`MotionConfig::DEFAULT_STALE_S`]. Version 1 ([`IMAGE_LEN_V1`] = 560 bytes) is version 2
-//! without bytes 556..568 (its CRC at 556 covers 0..556): it loads as that and as
-//! [`Arrangement::Window`] without a Gauss-Markov state (what a version-1 image ran).
-//! [`Image::to_bytes`] writes version 3 only.
+//! [`MotionConfig::DEFAULT_STALE_S`]. Version 1 (560 bytes, no arrangement byte) ran an
+//! arrangement this code no longer runs: it is refused
+//! ([`ImageError::RetiredArrangement`]); retrain the image. [`Image::to_bytes`] writes
+//! version 3 only.
 //!
 //! [`Image::parse`] never panics (fuzzed by a proptest) and returns a typed [`ImageError`]:
 //! the magic and version are checked first (so that another version's layout is named as
 //! such), then the length, the checksum, then the content.
 
 use crate::motion::{MotionConfig, MotionError, MotionModel, MOTION_L, MOTION_N};
-use crate::preset::{Arrangement, GaussMarkov, PresetEstimator};
+use crate::preset::{Arrangement, PresetEstimator, SecondState};
 use crate::still::{SensorConfig, StillConfig};
 use crate::train::{Drls, DrlsConfig, DrlsForm, DrlsMode};
 use crate::wnn::{Activation, Evaluation, Neuron, WnnShape};
 
 /// `FOGI`.
 pub const MAGIC: [u8; 4] = *b"FOGI";
-/// The format this code writes (it reads this one and versions 1 and 2).
+/// The format this code writes (it reads this one and version 2).
 pub const FORMAT_VERSION: u16 = 3;
 /// Preset id of [`crate::motion`].
 pub const PRESET_MOTION: u16 = 1;
@@ -52,8 +52,6 @@ pub const PRESET_MOTION: u16 = 1;
 pub const IMAGE_LEN: usize = 584;
 /// Bytes of a version-2 image (still read: module docs).
 pub const IMAGE_LEN_V2: usize = 572;
-/// Bytes of a version-1 image (still read: module docs).
-pub const IMAGE_LEN_V1: usize = 560;
 /// A stream's rate may differ from the image's by this fraction (timing of a real unit).
 pub const RATE_TOLERANCE: f32 = 0.01;
 
@@ -76,6 +74,10 @@ pub enum ImageError {
     },
     /// A format version this code does not read.
     UnsupportedVersion(u16),
+    /// The image names an arrangement this code no longer runs (window 0, sample 1, dual 2,
+    /// bank 3; a version-1 image is window): they lost to the others on every measured
+    /// vehicle family (docs/unit-fit.md). Retrain with `host-sim identify`.
+    RetiredArrangement(u8),
     /// Bytes after the end of the image (count of them).
     TrailingBytes(usize),
     /// The stored CRC-32 is not that of the content.
@@ -118,9 +120,19 @@ impl core::fmt::Display for ImageError {
             Self::UnsupportedVersion(v) => {
                 write!(
                     f,
-                    "format version {v} unsupported (this build reads 1 to {FORMAT_VERSION})"
+                    "format version {v} unsupported (this build reads 2 to {FORMAT_VERSION})"
                 )
             }
+            Self::RetiredArrangement(a) => write!(
+                f,
+                "arrangement {a} ({}) is no longer run: retrain the image with `host-sim identify --preset motion`",
+                match a {
+                    0 => "window",
+                    1 => "sample",
+                    2 => "dual",
+                    _ => "bank",
+                }
+            ),
             Self::TrailingBytes(n) => write!(f, "{n} bytes after the end of the image"),
             Self::Checksum { stored, computed } => write!(
                 f,
@@ -188,10 +200,10 @@ pub struct Image {
     pub drls_state: [f32; MOTION_L],
     /// Records trained on (passes included).
     pub records_trained: u32,
-    /// How the level learns (version 1: [`Arrangement::Window`]).
+    /// How the level learns.
     pub arrangement: Arrangement,
-    /// The Gauss-Markov state beside the level (version 1: off).
-    pub gauss_markov: GaussMarkov,
+    /// The second state's parameters (the thermal prior or the bank's).
+    pub second_state: SecondState,
 }
 
 struct Writer<'a> {
@@ -259,7 +271,8 @@ impl Reader<'_> {
 
 impl Image {
     /// An image of `model` trained by `drls` (state included) for `config`, with the
-    /// window arrangement and no Gauss-Markov state ([`Image::with_arrangement`]).
+    /// default arrangement and its default prior ([`Arrangement::DualThermal`],
+    /// [`SecondState::THERMAL`]; another: [`Image::with_arrangement`]).
     pub fn new(
         config: MotionConfig,
         model: MotionModel,
@@ -272,15 +285,15 @@ impl Image {
             drls: *drls.config(),
             drls_state: *drls.state(),
             records_trained,
-            arrangement: Arrangement::Window,
-            gauss_markov: GaussMarkov::OFF,
+            arrangement: Arrangement::DualThermal,
+            second_state: SecondState::THERMAL,
         }
     }
 
-    /// The same image with `arrangement` and the Gauss-Markov state `gm`.
-    pub fn with_arrangement(mut self, arrangement: Arrangement, gm: GaussMarkov) -> Self {
+    /// The same image with `arrangement` and its second state's parameters.
+    pub fn with_arrangement(mut self, arrangement: Arrangement, second: SecondState) -> Self {
         self.arrangement = arrangement;
-        self.gauss_markov = gm;
+        self.second_state = second;
         self
     }
 
@@ -358,8 +371,8 @@ impl Image {
         }
         w.bytes(&self.records_trained.to_le_bytes());
         w.bytes(&[self.arrangement.to_byte(), 0, 0, 0]);
-        w.f32(self.gauss_markov.sigma_dps);
-        w.f32(self.gauss_markov.tau_s);
+        w.f32(self.second_state.sigma);
+        w.f32(self.second_state.tau_s);
         w.f32(d.noise_lo);
         w.f32(d.noise_hi);
         w.f32(self.config.stale_s);
@@ -383,7 +396,7 @@ impl Image {
         let v = head(6)?;
         let version = u16::from_le_bytes([v[4], v[5]]);
         let len = match version {
-            1 => IMAGE_LEN_V1,
+            1 => return Err(ImageError::RetiredArrangement(0)),
             2 => IMAGE_LEN_V2,
             FORMAT_VERSION => IMAGE_LEN,
             _ => return Err(ImageError::UnsupportedVersion(version)),
@@ -527,31 +540,27 @@ impl Image {
             }
         }
         let records_trained = r.u32();
-        let (arrangement, gauss_markov) = if version == 1 {
-            (Arrangement::Window, GaussMarkov::OFF)
-        } else {
-            let [a, _, _, _] = r.take::<4>();
-            let arrangement = Arrangement::from_byte(a).ok_or(ImageError::BadValue {
-                offset: ARRANGEMENT_AT,
-            })?;
-            let gm = GaussMarkov {
-                sigma_dps: r.f32()?,
-                tau_s: r.f32()?,
-            };
-            let ok = if arrangement == Arrangement::DualThermal {
-                // The temperature coefficient's prior: sigma > 0, tau 0.
-                gm.sigma_dps.is_finite() && gm.sigma_dps > 0.0 && gm.tau_s == 0.0
-            } else {
-                gm.is_valid()
-                    && (!arrangement.is_bank() || gm.bank(config.level_q_dps2_per_s).is_valid())
-            };
-            if !ok {
+        let [a, _, _, _] = r.take::<4>();
+        let arrangement = match Arrangement::from_byte(a) {
+            Some(arrangement) => arrangement,
+            None if a <= 3 => return Err(ImageError::RetiredArrangement(a)),
+            None => {
                 return Err(ImageError::BadValue {
-                    offset: ARRANGEMENT_AT + 4,
-                });
+                    offset: ARRANGEMENT_AT,
+                })
             }
-            (arrangement, gm)
         };
+        let second_state = SecondState {
+            sigma: r.f32()?,
+            tau_s: r.f32()?,
+        };
+        if !second_state.is_valid_for(arrangement)
+            || (arrangement.is_bank() && !second_state.bank(config.level_q_dps2_per_s).is_valid())
+        {
+            return Err(ImageError::BadValue {
+                offset: ARRANGEMENT_AT + 4,
+            });
+        }
         if version >= 3 {
             config.still.noise_lo = r.f32()?;
             config.still.noise_hi = r.f32()?;
@@ -572,7 +581,7 @@ impl Image {
             drls_state,
             records_trained,
             arrangement,
-            gauss_markov,
+            second_state,
         })
     }
 
@@ -590,9 +599,9 @@ impl Image {
         }
     }
 
-    /// The estimator at power-on: the image's arrangement and Gauss-Markov state.
+    /// The estimator at power-on: the image's arrangement and second state.
     pub fn estimator(&self) -> Result<PresetEstimator, MotionError> {
-        PresetEstimator::new(self.model, self.config, self.arrangement, self.gauss_markov)
+        PresetEstimator::new(self.model, self.config, self.arrangement, self.second_state)
     }
 
     /// The trainer's state, to continue training (on line, or on more records).
@@ -619,18 +628,18 @@ mod tests {
         config.still.noise_hi = 1.7;
         config.stale_s = 300.0;
         Image::new(config, model, tr.drls(), 12).with_arrangement(
-            Arrangement::Dual,
-            GaussMarkov {
-                sigma_dps: 3.0 / 3600.0,
-                tau_s: 4.0,
+            Arrangement::DualThermal,
+            SecondState {
+                sigma: 3.0 / 3600.0,
+                tau_s: 0.0,
             },
         )
     }
 
     /// The version-1 image of the same content: bytes 0..556 with version 1, and its CRC.
-    fn bytes_v1(img: &Image) -> [u8; IMAGE_LEN_V1] {
+    fn bytes_v1(img: &Image) -> [u8; 560] {
         let b = bytes(img);
-        let mut v1 = [0u8; IMAGE_LEN_V1];
+        let mut v1 = [0u8; 560];
         v1[..556].copy_from_slice(&b[..556]);
         v1[4..6].copy_from_slice(&1u16.to_le_bytes());
         let crc = crc32(&v1[..556]);
@@ -711,44 +720,28 @@ mod tests {
         assert_eq!(img.to_bytes(&mut small), Err(ImageError::BufferTooSmall));
         assert_eq!(
             back.estimator().map(|e| e.arrangement()),
-            Ok(Arrangement::Dual)
+            Ok(Arrangement::DualThermal)
         );
     }
 
     #[test]
-    fn version_1_loads_as_window_without_gauss_markov() {
+    fn retired_arrangements_and_version_1_are_refused_by_name() {
         let img = sample();
-        let v1 = Image::parse(&bytes_v1(&img)).expect("test");
-        assert_eq!(v1.arrangement, Arrangement::Window);
-        assert_eq!(v1.gauss_markov, GaussMarkov::OFF);
-        let mut as_v1 = img
-            .clone()
-            .with_arrangement(Arrangement::Window, GaussMarkov::OFF);
-        as_v1.config.still.noise_lo = 1.0;
-        as_v1.config.still.noise_hi = 1.0;
-        as_v1.config.stale_s = MotionConfig::DEFAULT_STALE_S;
-        assert_eq!(v1, as_v1);
-        // Written back as version 3.
-        assert_eq!(bytes(&v1), bytes(&as_v1));
         assert_eq!(
-            v1.estimator().map(|e| e.arrangement()),
-            Ok(Arrangement::Window)
+            Image::parse(&bytes_v1(&img)),
+            Err(ImageError::RetiredArrangement(0))
         );
-        let b = bytes_v1(&img);
-        for i in 0..IMAGE_LEN_V1 {
-            let mut c = b;
-            c[i] ^= 0x01;
-            assert!(Image::parse(&c).is_err(), "v1 byte {i} accepted");
+        for a in 0u8..=3 {
+            let mut c = bytes(&img);
+            c[ARRANGEMENT_AT] = a;
+            let crc = crc32(&c[..CRC_AT]);
+            c[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+            let e = Image::parse(&c);
+            assert_eq!(e, Err(ImageError::RetiredArrangement(a)));
+            extern crate std;
+            let msg = std::format!("{}", ImageError::RetiredArrangement(a));
+            assert!(msg.contains("retrain"), "{msg}");
         }
-        for n in 6..IMAGE_LEN_V1 {
-            assert_eq!(
-                Image::parse(&b[..n]),
-                Err(ImageError::Truncated { offset: n })
-            );
-        }
-        let mut long = [0u8; IMAGE_LEN_V1 + 1];
-        long[..IMAGE_LEN_V1].copy_from_slice(&b);
-        assert_eq!(Image::parse(&long), Err(ImageError::TrailingBytes(1)));
     }
 
     #[test]
@@ -834,13 +827,7 @@ mod tests {
             );
         }
         // The dual-thermal: its prior sigma with tau 0 is valid (round trip), a tau is not.
-        let th = sample().with_arrangement(
-            Arrangement::DualThermal,
-            GaussMarkov {
-                sigma_dps: 1.0 / 3600.0,
-                tau_s: 0.0,
-            },
-        );
+        let th = sample().with_arrangement(Arrangement::DualThermal, SecondState::THERMAL);
         let back = Image::parse(&bytes(&th)).expect("dual-thermal image");
         assert_eq!(back, th);
         assert_eq!(
@@ -850,11 +837,7 @@ mod tests {
         let c = patched(bytes(&th), 564, 4.0f32.to_le_bytes());
         assert_eq!(Image::parse(&c), Err(ImageError::BadValue { offset: 560 }));
         // Each bank arrangement with a longest correlation time below 1 s, then valid.
-        for a in [
-            Arrangement::Bank,
-            Arrangement::BankDual,
-            Arrangement::BankGuarded,
-        ] {
+        for a in [Arrangement::BankDual, Arrangement::BankGuarded] {
             let mut c = b;
             c[ARRANGEMENT_AT] = a.to_byte();
             c[564..568].copy_from_slice(&0.5f32.to_le_bytes());
@@ -877,7 +860,7 @@ mod tests {
         }
 
         #[test]
-        fn parse_never_panics_near_valid_v1(i in 0usize..IMAGE_LEN_V1, v in any::<u8>(), cut in 0usize..=IMAGE_LEN_V1) {
+        fn parse_never_panics_near_valid_v1(i in 0usize..560, v in any::<u8>(), cut in 0usize..=560) {
             let mut b = bytes_v1(&sample());
             b[i] = v;
             let crc = crc32(&b[..556]);

@@ -106,6 +106,7 @@ fn image_error_reason(e: &fog_core::image::ImageError) -> &'static str {
         E::BadMagic => "bad magic",
         E::Truncated { .. } => "truncated",
         E::UnsupportedVersion(_) => "unsupported format version",
+        E::RetiredArrangement(_) => "retired arrangement: retrain the image",
         E::TrailingBytes(_) => "trailing bytes",
         E::Checksum { .. } => "checksum mismatch",
         E::UnknownPreset(_) => "unknown preset",

@@ -8,11 +8,12 @@
 //!
 //! # The estimation stage
 //! [`Stage`] is the motion-safe estimator the identifier image names,
-//! `fog_core::preset::PresetEstimator` (drift = clamp(level + g + m(time since power-on,
-//! temperature, its rate)), the level a stillness-gated random-walk Kalman state, `g` an
-//! optional Gauss-Markov state; the image's arrangement: window level, per-sample level, or
-//! the dual = both side by side, the per-sample one's output while it flags the sample
-//! still, the window one's otherwise; see `docs/motion.md`) loaded from an identifier image
+//! `fog_core::preset::PresetEstimator` (drift = clamp(level + c (T - T0) + m(time since
+//! power-on, temperature, its rate)), the level a stillness-gated random-walk Kalman state,
+//! `c` the unit's own temperature coefficient; the default arrangement, dual-thermal, runs a
+//! per-sample and a per-window level side by side, the per-sample one's output while it
+//! flags the sample still, the window one's otherwise; the image may name one of the two
+//! bank arrangements instead; see `docs/motion.md`) loaded from an identifier image
 //! ([`new_stage`]: `fog_core::image::Image::parse`, the image's rate within
 //! [`MIN_RATE_HZ`] .. [`MAX_RATE_HZ`]), plus the paper's block
 //! denoiser (db4, 3 levels, `B` = 512) in its resumable form
@@ -77,9 +78,8 @@ pub const STATUS_STILL: u8 = 1 << 0;
 pub const STATUS_BLOCK_DONE: u8 = 1 << 1;
 /// Status bit: an external still flag was given for this sample (it overrides the detector).
 pub const STATUS_EXTERNAL: u8 = 1 << 2;
-/// Status bit: the level learned at this sample: a still window released into it (window
-/// arrangement) or a still sample (sample arrangement, and the dual's per-sample level,
-/// whose counters the status follows).
+/// Status bit: the per-sample level learned at this sample (a still sample; the status
+/// follows the per-sample estimator's counters in every arrangement).
 pub const STATUS_LEVEL_UPDATE: u8 = 1 << 3;
 /// Status bit: a temperature reading went into the estimator with this sample.
 pub const STATUS_TEMPERATURE: u8 = 1 << 4;

@@ -8,7 +8,7 @@ use crate::record;
 use crate::sensor::SensorSpec;
 use anyhow::{Context, Result};
 use fog_core::image::Image;
-use fog_core::preset::{Arrangement, GaussMarkov};
+use fog_core::preset::{Arrangement, SecondState};
 use std::path::PathBuf;
 
 /// The identifier's options, shared by `identify` and `reproduce`.
@@ -134,37 +134,33 @@ pub struct Args {
     /// `--preset motion`: how the saved image's level learns (default dual-thermal:
     /// per-sample level at rest, window level in motion, each with the unit's own
     /// temperature link; fog_core::preset). Several values (e.g.
-    /// `dual bank-guarded`) need `--tune-on`: each is tuned there and the best is saved.
+    /// `dual-thermal bank-guarded`) need `--tune-on`: each is tuned there and the best is
+    /// saved.
     #[arg(long, value_enum, num_args = 1.., default_values_t = [motion::LevelUpdateArg::DualThermal])]
     pub level_update: Vec<motion::LevelUpdateArg>,
     /// `--preset motion`: vehicle records with truth (`true_rate_dps`, `drift_dps`; CSV
     /// files or folders; other units than the training records') on which the level noise,
-    /// the second state (Gauss-Markov sigma and tau, or the bank's B and longest tau) and,
+    /// the second state (the thermal prior, or the bank's B and longest tau) and,
     /// with several `--level-update` values, the arrangement are picked by the least mean
     /// heading-error RMS with the identifier's own detector (host_sim::motion::tune); the
-    /// picks overrule `--level-q-dph2-per-h` (the whole q grid is scanned) and `--gm-*` /
-    /// `--bank-*` (the second state's start, kept when no grid point scores lower).
+    /// picks overrule `--level-q-dph2-per-h` (the whole q grid is scanned) and
+    /// `--thermal-prior-dph-per-c` / `--bank-*` (the second state's start, kept when no grid
+    /// point scores lower).
     /// Score the result on other records (`--validate`).
     #[arg(long, num_args = 1..)]
     pub tune_on: Vec<PathBuf>,
-    /// `--preset motion`: Gauss-Markov sigma of the level, deg/h (0: off; default
-    /// host_sim::motion::GAUSS_MARKOV_SIGMA_DPH = 2, ASSUMED from the static tuning).
-    #[arg(long)]
-    pub gm_sigma_dph: Option<f32>,
-    /// `--preset motion`: Gauss-Markov correlation time, s (default
-    /// host_sim::motion::GAUSS_MARKOV_TAU_S = 10).
-    #[arg(long)]
-    pub gm_tau_s: Option<f32>,
     /// `--level-update dual-thermal` (the default): the prior standard deviation of the
     /// unit's temperature coefficient, deg/h per deg C, > 0 (default
-    /// host_sim::motion::THERMAL_SIGMA_DPH_PER_C = 1, ASSUMED; `--tune-on` scans it).
+    /// fog_core::preset::SecondState::THERMAL_SIGMA_DPH_PER_C = 1, ASSUMED; `--tune-on`
+    /// scans it).
     #[arg(long)]
     pub thermal_prior_dph_per_c: Option<f32>,
-    /// `--level-update bank`: the bank's bias instability B, deg/h (default
+    /// `--level-update bank-dual|bank-guarded`: the bank's bias instability B, deg/h (default
     /// host_sim::motion::BANK_B_DPH = 1.5, the E-Core class's, ASSUMED).
     #[arg(long)]
     pub bank_b_dph: Option<f32>,
-    /// `--level-update bank`: the bank's longest correlation time, s, 1 to 10000 (default
+    /// `--level-update bank-dual|bank-guarded`: the bank's longest correlation time, s, 1 to
+    /// 10000 (default
     /// host_sim::motion::BANK_TAU_MAX_S = 10000).
     #[arg(long)]
     pub bank_tau_max_s: Option<f32>,
@@ -278,57 +274,39 @@ pub fn run(a: &Args) -> Result<()> {
     write_report(json, &report, &report)
 }
 
-/// The image's Gauss-Markov fields for `arrangement` from the arguments: the bank's B and
-/// longest tau for a bank arrangement, else the Gauss-Markov state (defaults
-/// [`motion::DEFAULT_BANK`], [`motion::DEFAULT_GAUSS_MARKOV`]).
+/// The image's second-state fields for `arrangement` from the arguments: the bank's B and
+/// longest tau for a bank arrangement, else the thermal prior (defaults
+/// [`motion::DEFAULT_BANK`], [`SecondState::THERMAL`]).
 fn second_state(
     a: &Args,
     arrangement: Arrangement,
     level_q_dps2_per_s: f32,
-) -> Result<GaussMarkov> {
+) -> Result<SecondState> {
     if arrangement.is_bank() {
-        let g = GaussMarkov {
-            sigma_dps: a.bank_b_dph.unwrap_or(motion::BANK_B_DPH) / 3600.0,
+        let g = SecondState {
+            sigma: a.bank_b_dph.unwrap_or(motion::BANK_B_DPH) / 3600.0,
             tau_s: a.bank_tau_max_s.unwrap_or(motion::BANK_TAU_MAX_S),
         };
         if !g.bank(level_q_dps2_per_s).is_valid() {
             anyhow::bail!(
                 "--bank-b-dph {} --bank-tau-max-s {}: B must be > 0 and the longest tau 1 to 10000 s",
-                g.sigma_dps * 3600.0,
+                g.sigma * 3600.0,
                 g.tau_s
             );
         }
         return Ok(g);
     }
-    if arrangement == Arrangement::DualThermal {
-        // The prior of the unit's temperature coefficient (the tuning scans it).
-        return match a.thermal_prior_dph_per_c {
-            None => Ok(motion::DEFAULT_THERMAL),
-            Some(s) if s.is_finite() && s > 0.0 && s < 3.6e6 => Ok(GaussMarkov {
-                sigma_dps: s / 3600.0,
-                tau_s: 0.0,
-            }),
-            Some(s) => anyhow::bail!(
-                "--thermal-prior-dph-per-c {s}: must be finite and > 0 (deg/h per deg C)"
-            ),
-        };
+    // The prior of the unit's temperature coefficient (the tuning scans it).
+    match a.thermal_prior_dph_per_c {
+        None => Ok(SecondState::THERMAL),
+        Some(s) if s.is_finite() && s > 0.0 && s < 3.6e6 => Ok(SecondState {
+            sigma: s / 3600.0,
+            tau_s: 0.0,
+        }),
+        Some(s) => {
+            anyhow::bail!("--thermal-prior-dph-per-c {s}: must be finite and > 0 (deg/h per deg C)")
+        }
     }
-    let d = motion::DEFAULT_GAUSS_MARKOV;
-    let g = GaussMarkov {
-        sigma_dps: a.gm_sigma_dph.map_or(d.sigma_dps, |s| s / 3600.0),
-        tau_s: a.gm_tau_s.unwrap_or(d.tau_s),
-    };
-    if g.sigma_dps == 0.0 {
-        return Ok(GaussMarkov::OFF);
-    }
-    if !g.is_valid() {
-        anyhow::bail!(
-            "--gm-sigma-dph {} --gm-tau-s {}: sigma must be >= 0 and tau > 0, both finite",
-            g.sigma_dps * 3600.0,
-            g.tau_s
-        );
-    }
-    Ok(g)
 }
 
 /// `--tune-on`: the vehicle records with truth, each at `image`'s sample rate.
@@ -380,26 +358,13 @@ fn run_motion(a: &Args) -> Result<()> {
         anyhow::bail!("several --level-update values need --tune-on VEHICLE_RECORDS to pick one");
     }
     let banks = arrangements.iter().filter(|x| x.is_bank()).count();
-    if banks == arrangements.len() && (a.gm_sigma_dph.is_some() || a.gm_tau_s.is_some()) {
-        anyhow::bail!(
-            "--level-update bank / bank-dual / bank-guarded take --bank-b-dph / --bank-tau-max-s, not --gm-*"
-        );
-    }
-    let thermal = arrangements
-        .iter()
-        .filter(|x| **x == Arrangement::DualThermal)
-        .count();
-    if thermal == arrangements.len() && (a.gm_sigma_dph.is_some() || a.gm_tau_s.is_some()) {
-        anyhow::bail!(
-            "--level-update dual-thermal (the default) has no Gauss-Markov state: its second state's prior is --thermal-prior-dph-per-c, not --gm-*"
-        );
-    }
+    let thermal = arrangements.len() - banks;
     if thermal == 0 && a.thermal_prior_dph_per_c.is_some() {
         anyhow::bail!("--thermal-prior-dph-per-c needs --level-update dual-thermal (the default)");
     }
     if banks == 0 && (a.bank_b_dph.is_some() || a.bank_tau_max_s.is_some()) {
         anyhow::bail!(
-            "--bank-b-dph / --bank-tau-max-s need --level-update bank, bank-dual or bank-guarded"
+            "--bank-b-dph / --bank-tau-max-s need --level-update bank-dual or bank-guarded"
         );
     }
     let mut seconds = Vec::with_capacity(arrangements.len());
@@ -407,7 +372,7 @@ fn run_motion(a: &Args) -> Result<()> {
         seconds.push(second_state(a, arr, o.config.level_q_dps2_per_s)?);
     }
     o.arrangement = arrangements[0];
-    o.gauss_markov = seconds[0];
+    o.second_state = seconds[0];
     let trained = motion::train(&train, &o)?;
     // What the calibration runs showed, beside the sensor file; the image carries it.
     eprintln!(

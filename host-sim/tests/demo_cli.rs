@@ -149,14 +149,14 @@ fn demo_runs_another_arrangement() {
         fog_core::preset::Arrangement::BankGuarded
     );
     // B and the longest tau tuned on the validation vehicles, from the bank's grid.
-    let b_dph = image.gauss_markov.sigma_dps * 3600.0;
+    let b_dph = image.second_state.sigma * 3600.0;
     assert!(
         host_sim::motion::tune::BANK_B_GRID_DPH
             .iter()
             .any(|b| (b - b_dph).abs() < 1e-4),
         "B {b_dph} deg/h"
     );
-    assert!(host_sim::motion::tune::BANK_TAU_MAX_GRID_S.contains(&image.gauss_markov.tau_s));
+    assert!(host_sim::motion::tune::BANK_TAU_MAX_GRID_S.contains(&image.second_state.tau_s));
     let s: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(out.join("summary.json")).expect("summary"))
             .expect("json");

@@ -111,7 +111,7 @@ fn train_save_and_replay() {
     assert!(still > n * 8 / 10, "{still}");
 }
 
-/// `--level-update bank` and `bank-guarded` save an image whose level is the Allan noise
+/// `--level-update bank-dual` and `bank-guarded` save an image whose level is the Allan noise
 /// model; `replay` runs it (one row per input row, compensated = rate - drift, still at
 /// rest), and its summary names it as `identify` does; bad bank settings are one-line
 /// errors with nothing written.
@@ -124,7 +124,7 @@ fn bank_level_is_saved_and_replayed() {
     simulate(3, "60", None, &rec);
     use fog_core::preset::Arrangement;
     for (name, arrangement) in [
-        ("bank", Arrangement::Bank),
+        ("bank-dual", Arrangement::BankDual),
         ("bank-guarded", Arrangement::BankGuarded),
     ] {
         let img = d.join(format!("{name}.fogi"));
@@ -143,8 +143,8 @@ fn bank_level_is_saved_and_replayed() {
         .success();
         let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("test");
         assert_eq!(image.arrangement, arrangement);
-        assert!((image.gauss_markov.sigma_dps * 3600.0 - 1.0).abs() < 1e-5);
-        assert_eq!(image.gauss_markov.tau_s, 1000.0);
+        assert!((image.second_state.sigma * 3600.0 - 1.0).abs() < 1e-5);
+        assert_eq!(image.second_state.tau_s, 1000.0);
         let json = d.join("out.json");
         let (n, still) = replay_checked(&img, &rec, &d.join("out.csv"), Some(&json));
         assert!(still > n * 8 / 10, "{still}");
@@ -155,7 +155,7 @@ fn bank_level_is_saved_and_replayed() {
         );
     }
     let bank = |extra: &[&str], out: &Path| {
-        let mut args = vec!["--level-update", "bank"];
+        let mut args = vec!["--level-update", "bank-dual"];
         args.extend_from_slice(extra);
         identify(&train, &args, out)
     };
@@ -164,8 +164,8 @@ fn bank_level_is_saved_and_replayed() {
         (&["--bank-tau-max-s", "0.5"][..], "--bank-tau-max-s"),
         (&["--bank-b-dph", "0"][..], "--bank-b-dph"),
         (
-            &["--gm-sigma-dph", "2"][..],
-            "--level-update bank / bank-dual / bank-guarded take",
+            &["--thermal-prior-dph-per-c", "2"][..],
+            "--thermal-prior-dph-per-c needs --level-update dual-thermal",
         ),
     ] {
         let bad = d.join("bad.fogi");
@@ -177,10 +177,11 @@ fn bank_level_is_saved_and_replayed() {
 }
 
 /// The default arrangement's second state is set by `--thermal-prior-dph-per-c` (it reaches
-/// the image: replay names it); `--gm-*` with it, a prior <= 0, or the prior with another
-/// arrangement are refused with one line naming the flag, and no image is written.
+/// the image: replay names it); a prior <= 0, the prior with another arrangement, the bank's
+/// flags with it, and the retired arrangements and Gauss-Markov flags are refused with one
+/// line naming the flag, and no image is written.
 #[test]
-fn thermal_prior_reaches_the_image_and_gm_flags_are_refused() {
+fn thermal_prior_reaches_the_image_and_retired_flags_are_refused() {
     let dir = tempfile::tempdir().expect("test");
     let d = dir.path();
     let train = train_dir(d);
@@ -203,14 +204,25 @@ fn thermal_prior_reaches_the_image_and_gm_flags_are_refused() {
     for (extra, says) in [
         (
             &["--gm-sigma-dph", "4"][..],
-            "its second state's prior is --thermal-prior-dph-per-c",
+            "unexpected argument '--gm-sigma-dph'",
+        ),
+        (&["--level-update", "dual"][..], "invalid value 'dual'"),
+        (&["--level-update", "window"][..], "invalid value 'window'"),
+        (
+            &["--bank-b-dph", "1"][..],
+            "--bank-b-dph / --bank-tau-max-s need --level-update bank-dual or bank-guarded",
         ),
         (
             &["--thermal-prior-dph-per-c", "0"][..],
             "--thermal-prior-dph-per-c 0: must be",
         ),
         (
-            &["--level-update", "dual", "--thermal-prior-dph-per-c", "4"][..],
+            &[
+                "--level-update",
+                "bank-dual",
+                "--thermal-prior-dph-per-c",
+                "4",
+            ][..],
             "--thermal-prior-dph-per-c needs --level-update dual-thermal",
         ),
     ] {
@@ -807,7 +819,7 @@ fn tune_on_vehicles_picks_the_arrangement_and_its_level() {
         &train,
         &[
             "--level-update",
-            "dual",
+            "dual-thermal",
             "bank-guarded",
             "--tune-on",
             veh_s,
@@ -818,7 +830,7 @@ fn tune_on_vehicles_picks_the_arrangement_and_its_level() {
     )
     .success()
     .stderr(predicates::str::contains(
-        "tuned on 2 validation vehicles: identifier dual:",
+        "tuned on 2 validation vehicles: identifier dual-thermal:",
     ))
     .stderr(predicates::str::contains(
         "tuned on 2 validation vehicles: identifier bank-guarded:",
@@ -832,19 +844,23 @@ fn tune_on_vehicles_picks_the_arrangement_and_its_level() {
     assert_eq!(v["tuning"]["picked"], c[best]["level_update"]);
     let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("image");
     use fog_core::preset::Arrangement;
-    let arr = [Arrangement::Dual, Arrangement::BankGuarded][best];
+    let arr = [Arrangement::DualThermal, Arrangement::BankGuarded][best];
     assert_eq!(image.arrangement, arr);
     let q = c[best]["level_q_dph2_per_h"].as_f64().expect("q");
     let q_image = f64::from(image.config.level_q_dps2_per_s) * 3600f64.powi(3);
     assert!((q_image / q - 1.0).abs() < 1e-5, "{q_image} vs {q}");
-    let s = c[best]["second_sigma_or_b_dph"].as_f64().expect("sigma");
-    assert!((f64::from(image.gauss_markov.sigma_dps) * 3600.0 - s).abs() < 1e-4);
+    let s = c[best]["second_sigma_per_h"].as_f64().expect("sigma");
+    assert!((f64::from(image.second_state.sigma) * 3600.0 - s).abs() < 1e-4);
     // Several arrangements without vehicles to tune on, or vehicles without truth: one
     // line, no file.
     let bad = d.join("bad.fogi");
-    identify(&train, &["--level-update", "dual", "bank-guarded"], &bad)
-        .failure()
-        .stderr(predicates::str::contains("need --tune-on"));
+    identify(
+        &train,
+        &["--level-update", "dual-thermal", "bank-guarded"],
+        &bad,
+    )
+    .failure()
+    .stderr(predicates::str::contains("need --tune-on"));
     let bare = d.join("bare.csv");
     let mut text = String::from("t_s,rate_dps\n");
     for k in 0..1000 {

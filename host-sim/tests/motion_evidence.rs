@@ -132,25 +132,12 @@ fn image_with_q(img: &Image, q_dph2_per_h: f32) -> Image {
     i
 }
 
-/// Mean heading-error RMS (deg) of `img` over records.
+/// Mean heading RMS and mean |final heading| over `recs`, deg (the estimator restarted at
+/// every record: each record is a new power-on of a freshly flashed unit).
 fn heading_rms(img: &Image, recs: &[MotionRecord]) -> (f64, f64) {
-    heading_rms_with(img, recs, false)
-}
-
-/// [`heading_rms`], optionally with on-line refinement (from the image's trainer state,
-/// restarted at every record: each record is a new power-on of a freshly flashed unit).
-fn heading_rms_with(img: &Image, recs: &[MotionRecord], refine: bool) -> (f64, f64) {
-    let fresh = || {
-        let e = img.estimator().expect("estimator");
-        if refine {
-            e.with_online_refinement(img.trainer().expect("trainer"))
-        } else {
-            e
-        }
-    };
     let (mut rms, mut fin) = (0.0, 0.0);
     for r in recs {
-        let mut est = fresh();
+        let mut est = img.estimator().expect("estimator");
         let out = motion::run(&mut est, r);
         let comp: Vec<f32> = out.iter().map(|o| o.compensated_dps).collect();
         let h = eval::heading(
@@ -249,7 +236,6 @@ fn motion_vs_baselines() {
         let g = heading_rms(&image_with_q(&gated, q_gated), recs);
         let m = heading_rms(&image_with_q(&trained, q_motion), recs);
         let m_same_q = heading_rms(&image_with_q(&trained, q_gated), recs);
-        let m_refine = heading_rms_with(&image_with_q(&trained, q_motion), recs, true);
         println!(
             "{name}, {} records, heading error RMS deg (mean |final| deg):",
             recs.len()
@@ -258,10 +244,6 @@ fn motion_vs_baselines() {
         println!("  alignment bias (100 s) {:.4}", mean(&align));
         println!("  gated RW Kalman        {:.4} ({:.4})", g.0, g.1);
         println!("  motion (trained m)     {:.4} ({:.4})", m.0, m.1);
-        println!(
-            "  motion + on-line DRLS  {:.4} ({:.4})",
-            m_refine.0, m_refine.1
-        );
         println!(
             "  motion at gated's q    {:.4} ({:.4})",
             m_same_q.0, m_same_q.1

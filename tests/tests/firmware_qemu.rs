@@ -468,7 +468,7 @@ fn the_default_image_parses_and_says_how_it_was_made() {
         image.arrangement,
         fog_core::preset::Arrangement::DualThermal
     );
-    assert!(image.gauss_markov.sigma_dps > 0.0 && image.gauss_markov.tau_s == 0.0);
+    assert!(image.second_state.sigma > 0.0 && image.second_state.tau_s == 0.0);
     let readme =
         std::fs::read_to_string(fog_system_tests::firmware_dir().join("identifier/README.md"))
             .expect("identifier/README.md");
@@ -483,24 +483,24 @@ fn the_default_image_parses_and_says_how_it_was_made() {
     );
 }
 
-/// The same damaged vehicle capture through a firmware built with each bank image that
-/// is not only measured on the host: `bank` (arrangement byte 3) and `bank-guarded` (byte 5,
-/// its rollback runs at the capture's turns); the default image's model and configuration,
+/// The same damaged vehicle capture through a firmware built with each bank image:
+/// `bank-dual` (arrangement byte 4) and `bank-guarded` (byte 5, its rollback runs at the
+/// capture's turns); the default image's model and configuration,
 /// B 1.5 deg/h, states up to 10^4 s. Every record bit-identical with the host's pipeline
 /// given the same image and with `PresetEstimator` from the parsed image; prints the stack
 /// high-water mark with each image.
 #[test]
 fn a_bank_image_runs_bit_for_bit() {
     use fog_core::image::Image;
-    use fog_core::preset::{Arrangement, GaussMarkov};
+    use fog_core::preset::{Arrangement, SecondState};
     let Some(qemu) = qemu_system_arm() else {
         return;
     };
-    let bank = GaussMarkov {
-        sigma_dps: 1.5 / 3600.0,
+    let bank = SecondState {
+        sigma: 1.5 / 3600.0,
         tau_s: 10_000.0,
     };
-    for arrangement in [Arrangement::Bank, Arrangement::BankGuarded] {
+    for arrangement in [Arrangement::BankDual, Arrangement::BankGuarded] {
         let name = format!("{arrangement:?}").to_lowercase();
         let image = Image::parse(&default_image())
             .expect("default image")

@@ -9,7 +9,7 @@
 //!    simulated again at each pass (the simulator is deterministic), so memory holds one.
 //! 3. Tunes the gated Kalman baseline's q on `validate_records` simulated `vehicle` records
 //!    of other units ([`nav::tune_gated_q`], truth still flags, [`BASELINE_Q_GRID`]), and
-//!    the identifier's level noise and second state (Gauss-Markov state or bank) on the
+//!    the identifier's level noise and second state (thermal prior or bank) on the
 //!    same records ([`motion::tune`], its own detector's flags), then writes the image. A pick at
 //!    an end of a grid is printed as a warning (and, for the baseline, written into its
 //!    label; never silent).
@@ -85,10 +85,10 @@ pub struct DemoConfig {
     /// Test vehicle records (units [`VEHICLE_UNIT`].., seeds [`VEHICLE_SEED`]..; the first
     /// is the replayed record) scored beside the baselines.
     pub test_records: u64,
-    /// The identifier's candidate arrangements, each starting from its default
-    /// Gauss-Markov state or bank ([`motion::default_second_state`]) and tuned on the
-    /// validation vehicles; the best is kept ([`motion::tune::pick_arrangement`], as
-    /// `identify --level-update A B --tune-on`). Default: the dual and `bank-guarded`.
+    /// The identifier's candidate arrangements, each starting from its default second
+    /// state ([`motion::default_second_state`]) and tuned on the validation vehicles; the
+    /// best is kept ([`motion::tune::pick_arrangement`], as `identify --level-update A B
+    /// --tune-on`). Default: the dual-thermal alone ([`DEFAULT_ARRANGEMENTS`]).
     pub arrangements: Vec<fog_core::preset::Arrangement>,
 }
 

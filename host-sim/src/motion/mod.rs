@@ -22,46 +22,29 @@ use fog_core::motion::{
     MotionConfig, MotionModel, MotionOutput, MotionTrainer, RecordFit, Transfer, MOTION_DRLS,
 };
 use fog_core::motion_fit::{cross_validate, NormalEquations, RIDGE_GRID};
-use fog_core::preset::{Arrangement, GaussMarkov, PresetEstimator};
+use fog_core::preset::{Arrangement, PresetEstimator, SecondState};
 use fog_core::still::SensorConfig;
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
 
-/// Default Gauss-Markov sigma of the level, deg/h. ASSUMED from the static tuning: the
-/// per-sample RW+GM Kalman filter tuned by truth error on host-sim's 3 static validation
-/// units picks 2 deg/h, 10 s (the Python generator's nominal units 2 deg/h, 3 s; its OOD
-/// units 4 deg/h, 1 s at the grid end), measured by
-/// `cargo run --release -p host-sim --example nav_baselines` (docs/motion.md).
-pub const GAUSS_MARKOV_SIGMA_DPH: f32 = 2.0;
-/// Default Gauss-Markov correlation time, s (ASSUMED: see [`GAUSS_MARKOV_SIGMA_DPH`]).
-pub const GAUSS_MARKOV_TAU_S: f32 = 10.0;
-/// The Gauss-Markov state a saved image carries by default, for every sensor (ASSUMED for
-/// the DSP-1750 too, which has no static validation records here).
-pub const DEFAULT_GAUSS_MARKOV: GaussMarkov = GaussMarkov {
-    sigma_dps: GAUSS_MARKOV_SIGMA_DPH / 3600.0,
-    tau_s: GAUSS_MARKOV_TAU_S,
-};
-
 /// Default level noise of a saved image, (deg/h)^2 per hour: 85.7, the grid point that
-/// minimises the mean test heading RMS of the dual on 16 host-sim and 16 second-generator
-/// test vehicles and on 32 demo-family vehicles (test score by q in
-/// `nav_baselines --trainers --vehicles 16` and `demo_q_sets`), and that the static
-/// tuning of the dual picks on both generators' nominal units (docs/motion.md). fog-core's
-/// `MotionConfig::DEFAULT_LEVEL_Q` (4) is 4 to 40 times too small in motion by these
-/// figures (host-sim dual at q 4: about 0.21 deg vs 0.148 at 85.7).
+/// minimised the mean test heading RMS of the dual on 16 host-sim and 16 second-generator
+/// test vehicles and on 32 demo-family vehicles (ASSUMED for the dual-thermal; a
+/// calibration with `--tune-on` scans q). fog-core's `MotionConfig::DEFAULT_LEVEL_Q` (4)
+/// is the level of a static record; in motion it is too small by these figures.
 pub const DEFAULT_LEVEL_Q_DPH2_PER_H: f32 = 85.7;
 
-/// `--level-update bank`: the bank's bias instability `B`, deg/h (ASSUMED: the E-Core
+/// The bank arrangements: the bank's bias instability `B`, deg/h (ASSUMED: the E-Core
 /// class's 1.5 deg/h, `host-sim/presets/ecore2000.toml`).
 pub const BANK_B_DPH: f32 = 1.5;
-/// `--level-update bank`: the bank's longest correlation time, s (states at 1, 10, ...,
+/// The bank arrangements: the bank's longest correlation time, s (states at 1, 10, ...,
 /// 10^4 s).
 pub const BANK_TAU_MAX_S: f32 = 10_000.0;
 /// The bank a saved image carries by default in a bank arrangement ([`BANK_B_DPH`],
-/// [`BANK_TAU_MAX_S`] in the image's Gauss-Markov fields).
-pub const DEFAULT_BANK: GaussMarkov = GaussMarkov {
-    sigma_dps: BANK_B_DPH / 3600.0,
+/// [`BANK_TAU_MAX_S`] in the image's second-state fields).
+pub const DEFAULT_BANK: SecondState = SecondState {
+    sigma: BANK_B_DPH / 3600.0,
     tau_s: BANK_TAU_MAX_S,
 };
 
@@ -69,23 +52,16 @@ pub const DEFAULT_BANK: GaussMarkov = GaussMarkov {
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum LevelUpdateArg {
-    /// Level per released still window.
-    Window,
-    /// Level per still sample with rollback.
-    Sample,
-    /// Per-sample level at rest, window level in motion.
-    Dual,
-    /// The level as the sensor's Allan noise model: random walk + one Gauss-Markov state
-    /// per decade of correlation time (fog_core::bank), per still sample, in motion too.
-    Bank,
-    /// The bank protected as the dual: rolled back when a window fails, and in motion a
-    /// second bank that only released windows reached.
+    /// The level as the sensor's Allan noise model (random walk + one Gauss-Markov state
+    /// per decade of correlation time, fog_core::bank) protected as the dual: rolled back
+    /// when a window fails, and in motion a second bank that only released windows reached.
     BankDual,
     /// The bank with a failed window's samples rolled back (the windows before it kept),
     /// the output at rest and in motion.
     BankGuarded,
-    /// The dual with the unit's own temperature link `c (T - T0)` learned at rest as its
-    /// second state, instead of a Gauss-Markov state (fog_core::preset). The default.
+    /// Per-sample level at rest, window level in motion, each with the unit's own
+    /// temperature link `c (T - T0)` learned at rest as second state (fog_core::preset).
+    /// The default.
     #[default]
     DualThermal,
 }
@@ -94,10 +70,6 @@ impl LevelUpdateArg {
     /// The image's arrangement.
     pub fn arrangement(self) -> Arrangement {
         match self {
-            Self::Window => Arrangement::Window,
-            Self::Sample => Arrangement::Sample,
-            Self::Dual => Arrangement::Dual,
-            Self::Bank => Arrangement::Bank,
             Self::BankDual => Arrangement::BankDual,
             Self::BankGuarded => Arrangement::BankGuarded,
             Self::DualThermal => Arrangement::DualThermal,
@@ -107,10 +79,6 @@ impl LevelUpdateArg {
     /// The argument that gives `arrangement` (the inverse of [`Self::arrangement`]).
     pub fn of(arrangement: Arrangement) -> Self {
         match arrangement {
-            Arrangement::Window => Self::Window,
-            Arrangement::Sample => Self::Sample,
-            Arrangement::Dual => Self::Dual,
-            Arrangement::Bank => Self::Bank,
             Arrangement::BankDual => Self::BankDual,
             Arrangement::BankGuarded => Self::BankGuarded,
             Arrangement::DualThermal => Self::DualThermal,
@@ -168,9 +136,8 @@ pub struct TrainOptions {
     pub shrink_lag_windows: usize,
     /// How the image's level learns (default [`Arrangement::DualThermal`]).
     pub arrangement: Arrangement,
-    /// The image's Gauss-Markov state (default [`GAUSS_MARKOV_SIGMA_DPH`],
-    /// [`GAUSS_MARKOV_TAU_S`]).
-    pub gauss_markov: GaussMarkov,
+    /// The image's second-state parameters (default [`SecondState::THERMAL`]).
+    pub second_state: SecondState,
 }
 
 /// Default drive of the shrinkage: 60 windows (60 s with the default 1-s window). ASSUMED:
@@ -180,7 +147,7 @@ pub const SHRINK_LAG_WINDOWS: usize = 60;
 
 impl TrainOptions {
     /// Defaults for `sensor`: 3 passes, 1800 s, no shrinkage, the dual-thermal with the
-    /// default prior [`DEFAULT_THERMAL`], level noise [`DEFAULT_LEVEL_Q_DPH2_PER_H`].
+    /// default prior [`SecondState::THERMAL`], level noise [`DEFAULT_LEVEL_Q_DPH2_PER_H`].
     pub fn new(sensor: SensorConfig) -> Self {
         let mut config = MotionConfig::for_sensor(sensor);
         config.level_q_dps2_per_s = DEFAULT_LEVEL_Q_DPH2_PER_H / (3600.0 * 3600.0 * 3600.0);
@@ -192,41 +159,28 @@ impl TrainOptions {
             shrink: false,
             shrink_lag_windows: SHRINK_LAG_WINDOWS,
             arrangement: Arrangement::DualThermal,
-            gauss_markov: DEFAULT_THERMAL,
+            second_state: SecondState::THERMAL,
         }
     }
 
-    /// The same options with `arrangement` and its default Gauss-Markov fields
-    /// ([`DEFAULT_BANK`] for a bank arrangement, else [`DEFAULT_GAUSS_MARKOV`]).
+    /// The same options with `arrangement` and its default second state
+    /// ([`default_second_state`]).
     pub fn with_arrangement(mut self, arrangement: Arrangement) -> Self {
         self.arrangement = arrangement;
-        self.gauss_markov = default_second_state(arrangement);
+        self.second_state = default_second_state(arrangement);
         self
     }
 }
 
-/// The image's default Gauss-Markov fields for `arrangement`: [`DEFAULT_BANK`] for a bank
-/// arrangement, else [`DEFAULT_GAUSS_MARKOV`].
-pub fn default_second_state(arrangement: Arrangement) -> GaussMarkov {
+/// The image's default second-state fields for `arrangement`: [`DEFAULT_BANK`] for a bank
+/// arrangement, else the thermal prior [`SecondState::THERMAL`].
+pub fn default_second_state(arrangement: Arrangement) -> SecondState {
     if arrangement.is_bank() {
         DEFAULT_BANK
-    } else if arrangement == Arrangement::DualThermal {
-        DEFAULT_THERMAL
     } else {
-        DEFAULT_GAUSS_MARKOV
+        SecondState::THERMAL
     }
 }
-
-/// Prior standard deviation of the unit's temperature coefficient, deg/h per deg C
-/// (ASSUMED: 1, the gated Kalman + temperature regression baseline's prior, host_sim::nav).
-pub const THERMAL_SIGMA_DPH_PER_C: f32 = 1.0;
-
-/// The image's second-state fields for [`Arrangement::DualThermal`]: the prior
-/// [`THERMAL_SIGMA_DPH_PER_C`] (deg/s per deg C) and tau 0.
-pub const DEFAULT_THERMAL: GaussMarkov = GaussMarkov {
-    sigma_dps: THERMAL_SIGMA_DPH_PER_C / 3600.0,
-    tau_s: 0.0,
-};
 
 /// What training did, per record of the last pass.
 #[derive(Debug, Clone, Serialize)]
@@ -465,7 +419,7 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
             &drls,
             records_trained,
         )
-        .with_arrangement(o.arrangement, o.gauss_markov),
+        .with_arrangement(o.arrangement, o.second_state),
         records: rows,
         shrinkage,
         least_squares: ls,
@@ -706,7 +660,7 @@ fn trainer(o: &TrainOptions) -> Result<MotionTrainer> {
 pub fn untrained(o: &TrainOptions) -> Result<Image> {
     let tr = trainer(o)?;
     Ok(Image::new(o.config, *tr.model(), tr.drls(), 0)
-        .with_arrangement(o.arrangement, o.gauss_markov))
+        .with_arrangement(o.arrangement, o.second_state))
 }
 
 /// Writes `image` to `path` atomically.

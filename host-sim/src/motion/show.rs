@@ -5,7 +5,6 @@
 use super::LevelUpdateArg;
 use crate::replay::motion::uses_temperature;
 use fog_core::image::Image;
-use fog_core::preset::Arrangement;
 use fog_core::wnn::Neuron;
 use serde::Serialize;
 
@@ -21,8 +20,7 @@ pub struct ImageInfo {
     /// `--level-update` name of the arrangement.
     pub arrangement: String,
     /// The second state's fields as the image stores them (dual-thermal: the temperature
-    /// coefficient's prior, deg/h per deg C; bank: B deg/h and the longest tau s;
-    /// Gauss-Markov: sigma deg/h and tau s).
+    /// coefficient's prior, deg/h per deg C; bank: B deg/h and the longest tau s).
     pub second_state: String,
     /// Sample rate, Hz.
     pub sample_rate_hz: f32,
@@ -60,23 +58,18 @@ pub struct ImageInfo {
 pub fn describe(image: &Image, bytes: &[u8]) -> ImageInfo {
     let c = &image.config;
     let s = &c.sensor;
-    let g = image.gauss_markov;
-    let second_state = match image.arrangement {
-        Arrangement::DualThermal => format!(
-            "temperature coefficient prior {} deg/h per deg C",
-            g.sigma_dps * 3600.0
-        ),
-        a if a.is_bank() => format!(
+    let g = image.second_state;
+    let second_state = if image.arrangement.is_bank() {
+        format!(
             "bank B {} deg/h, longest tau {} s",
-            g.sigma_dps * 3600.0,
+            g.sigma * 3600.0,
             g.tau_s
-        ),
-        _ if g.sigma_dps == 0.0 => "none".into(),
-        _ => format!(
-            "Gauss-Markov {} deg/h, tau {} s",
-            g.sigma_dps * 3600.0,
-            g.tau_s
-        ),
+        )
+    } else {
+        format!(
+            "temperature coefficient prior {} deg/h per deg C",
+            g.sigma * 3600.0
+        )
     };
     let m = &image.model;
     let mut terms = (0, 0, 0);

@@ -2,8 +2,8 @@
 //!
 //! The gated Kalman baseline gets its q from the validation vehicles; the identifier gets
 //! the same chance for both of its level's parameters: the random walk `q` and the second
-//! state (the Gauss-Markov state of the dual, window and sample arrangements, or the bank's
-//! bias instability `B` and longest correlation time in the bank arrangements). Coordinate
+//! state (the thermal coefficient's prior in the dual-thermal, or the bank's bias
+//! instability `B` and longest correlation time in the bank arrangements). Coordinate
 //! descent from the image's defaults: `q` at the default second state, the second state at
 //! that `q`, `q` again. Score: the mean heading RMS over the validation vehicles with the
 //! identifier's own detector.
@@ -11,11 +11,11 @@
 use crate::nav::{self, NavRecord};
 use anyhow::Result;
 use fog_core::image::Image;
-use fog_core::preset::GaussMarkov;
+use fog_core::preset::{Arrangement, SecondState};
 use serde::Serialize;
 
 /// The identifier's level-noise grid, (deg/h)^2/h: (low, high, points per decade), the
-/// range of `examples/nav_baselines.rs`.
+/// range the arrangements were compared over (docs/unit-fit.md).
 pub const LEVEL_Q_GRID_DPH2_PER_H: (f64, f64, usize) = (0.25, 16384.0, 4);
 /// The bank's bias instability grid, deg/h (a factor 8 below to 2 above the E-Core class's
 /// 1.5 deg/h specification, ASSUMED), each with the longest correlation times in
@@ -24,11 +24,6 @@ pub const BANK_B_GRID_DPH: [f32; 5] = [0.1875, 0.375, 0.75, 1.5, 3.0];
 /// The bank's longest correlation time grid, s (10^4 s is the bank's limit, not a grid
 /// end).
 pub const BANK_TAU_MAX_GRID_S: [f32; 2] = [1_000.0, 10_000.0];
-/// The Gauss-Markov state's sigma grid, deg/h (a factor 16 below to 8 above the default
-/// 2 deg/h), each with the correlation times in [`GM_TAU_GRID_S`].
-pub const GM_SIGMA_GRID_DPH: [f32; 8] = [0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
-/// The Gauss-Markov state's correlation time grid, s.
-pub const GM_TAU_GRID_S: [f32; 3] = [10.0, 100.0, 1_000.0];
 /// The thermal state's prior sigma grid, deg/h per deg C (a factor 32 below to 16 above the
 /// default 1; its low end is a state that is all but off).
 pub const THERMAL_SIGMA_GRID_DPH_PER_C: [f32; 10] =
@@ -39,22 +34,23 @@ pub const THERMAL_SIGMA_GRID_DPH_PER_C: [f32; 10] =
 pub struct TunedLevel {
     /// Level random walk, (deg/h)^2/h.
     pub q_dph2_per_h: f64,
-    /// Second state (sigma or `B`, deg/s; tau or `tau_max`, s).
-    pub second: GaussMarkov,
+    /// Second state (thermal prior, deg/s per deg C, or the bank's `B`, deg/s, and
+    /// `tau_max`, s).
+    pub second: SecondState,
     /// Mean heading RMS over the validation vehicles, deg.
     pub heading_rms_deg: f64,
     /// `q` at an end of its grid (the grid does not bracket the optimum).
     pub q_at_grid_end: bool,
-    /// The second state at an end of its sigma (or `B`) range, or (Gauss-Markov state
-    /// only) of its tau range.
+    /// The second state at an end of its sigma (or `B`) range, or (bank) at the short end of
+    /// its tau range.
     pub second_at_grid_end: bool,
 }
 
 /// `image` with level noise `q_dph2_per_h` and second state `second`.
-pub fn with_level(image: &Image, q_dph2_per_h: f64, second: GaussMarkov) -> Image {
+pub fn with_level(image: &Image, q_dph2_per_h: f64, second: SecondState) -> Image {
     let mut im = image.clone();
     im.config.level_q_dps2_per_s = (q_dph2_per_h / 3600f64.powi(3)) as f32;
-    im.gauss_markov = second;
+    im.second_state = second;
     im
 }
 
@@ -70,23 +66,18 @@ pub fn mean_heading_rms(image: &Image, val: &[NavRecord]) -> Result<f64> {
     Ok(sum / val.len() as f64)
 }
 
-/// The second-state grid of `image`'s arrangement (empty when it has none to tune: a
-/// window or sample arrangement with the Gauss-Markov state off).
-pub fn second_grid(image: &Image) -> Vec<GaussMarkov> {
+/// The second-state grid of `image`'s arrangement.
+pub fn second_grid(image: &Image) -> Vec<SecondState> {
     let (sigmas_dph, taus_s): (&[f32], &[f32]) = if image.arrangement.is_bank() {
         (&BANK_B_GRID_DPH, &BANK_TAU_MAX_GRID_S)
-    } else if image.arrangement == fog_core::preset::Arrangement::DualThermal {
-        (&THERMAL_SIGMA_GRID_DPH_PER_C, &[0.0])
-    } else if image.gauss_markov.sigma_dps > 0.0 {
-        (&GM_SIGMA_GRID_DPH, &GM_TAU_GRID_S)
     } else {
-        (&[], &[])
+        (&THERMAL_SIGMA_GRID_DPH_PER_C, &[0.0])
     };
     sigmas_dph
         .iter()
         .flat_map(|&s| {
-            taus_s.iter().map(move |&tau_s| GaussMarkov {
-                sigma_dps: s / 3600.0,
+            taus_s.iter().map(move |&tau_s| SecondState {
+                sigma: s / 3600.0,
                 tau_s,
             })
         })
@@ -99,8 +90,8 @@ pub fn tune(image: &Image, val: &[NavRecord]) -> Result<TunedLevel> {
     let (lo, hi, per) = LEVEL_Q_GRID_DPH2_PER_H;
     let q_grid = nav::log_grid(lo, hi, per);
     let seconds = second_grid(image);
-    let score = |q: f64, g: GaussMarkov| mean_heading_rms(&with_level(image, q, g), val);
-    let pick_q = |g: GaussMarkov| -> Result<(f64, f64)> {
+    let score = |q: f64, g: SecondState| mean_heading_rms(&with_level(image, q, g), val);
+    let pick_q = |g: SecondState| -> Result<(f64, f64)> {
         let mut best = (f64::INFINITY, q_grid.first().copied().unwrap_or(0.0));
         for &q in &q_grid {
             let s = score(q, g)?;
@@ -114,7 +105,7 @@ pub fn tune(image: &Image, val: &[NavRecord]) -> Result<TunedLevel> {
         );
         Ok(best)
     };
-    let start = image.gauss_markov;
+    let start = image.second_state;
     let (mut best, mut q) = pick_q(start)?;
     let mut second = start;
     for &g in &seconds {
@@ -127,17 +118,14 @@ pub fn tune(image: &Image, val: &[NavRecord]) -> Result<TunedLevel> {
     if second != start {
         (best, q) = pick_q(second)?;
     }
-    let sigma_dph = second.sigma_dps * 3600.0;
-    let second_at_grid_end = !seconds.is_empty()
-        && if image.arrangement.is_bank() {
-            // 10^4 s is the bank's limit, not a grid end; the 10^3 s end is one.
-            at_grid_end(sigma_dph, &BANK_B_GRID_DPH)
-                || BANK_TAU_MAX_GRID_S.first() == Some(&second.tau_s)
-        } else if image.arrangement == fog_core::preset::Arrangement::DualThermal {
-            at_grid_end(sigma_dph, &THERMAL_SIGMA_GRID_DPH_PER_C)
-        } else {
-            at_grid_end(sigma_dph, &GM_SIGMA_GRID_DPH) || at_grid_end(second.tau_s, &GM_TAU_GRID_S)
-        };
+    let sigma_dph = second.sigma * 3600.0;
+    let second_at_grid_end = if image.arrangement.is_bank() {
+        // 10^4 s is the bank's limit, not a grid end; the 10^3 s end is one.
+        at_grid_end(sigma_dph, &BANK_B_GRID_DPH)
+            || BANK_TAU_MAX_GRID_S.first() == Some(&second.tau_s)
+    } else {
+        at_grid_end(sigma_dph, &THERMAL_SIGMA_GRID_DPH_PER_C)
+    };
     Ok(TunedLevel {
         q_dph2_per_h: q,
         second,
@@ -165,9 +153,9 @@ pub struct Candidate {
     pub level_update: String,
     /// Level random walk, (deg/h)^2/h.
     pub level_q_dph2_per_h: f64,
-    /// Gauss-Markov sigma or the bank's B, deg/h.
-    pub second_sigma_or_b_dph: f32,
-    /// Gauss-Markov tau or the bank's longest tau, s.
+    /// The thermal prior, deg/h per deg C, or the bank's B, deg/h.
+    pub second_sigma_per_h: f32,
+    /// The bank's longest tau, s (0 for the thermal prior).
     pub second_tau_s: f32,
     /// Mean heading RMS over the vehicles, deg.
     pub mean_heading_rms_deg: f64,
@@ -249,7 +237,7 @@ pub fn pick_arrangement(candidates: &[Image], val: &[NavRecord]) -> Result<(Imag
             .map(|(im, t)| Candidate {
                 level_update: name(im),
                 level_q_dph2_per_h: t.q_dph2_per_h,
-                second_sigma_or_b_dph: t.second.sigma_dps * 3600.0,
+                second_sigma_per_h: t.second.sigma * 3600.0,
                 second_tau_s: t.second.tau_s,
                 mean_heading_rms_deg: t.heading_rms_deg,
                 q_at_grid_end: t.q_at_grid_end,
@@ -264,29 +252,21 @@ pub fn pick_arrangement(candidates: &[Image], val: &[NavRecord]) -> Result<(Imag
     ))
 }
 
-/// What a tuning picked, one line (`q 47.8 (deg/h)^2/h, Gauss-Markov sigma 2.000 deg/h,
-/// tau 1 s (AT AN END OF ITS GRID); mean heading RMS 0.1425 deg`).
-pub fn describe(arrangement: fog_core::preset::Arrangement, t: &TunedLevel) -> String {
+/// What a tuning picked, one line (`level q 47.8 (deg/h)^2/h, temperature coefficient
+/// prior 1.000 deg/h per deg C (AT AN END OF ITS GRID); mean heading RMS 0.1425 deg`).
+pub fn describe(arrangement: Arrangement, t: &TunedLevel) -> String {
     let end = |at: bool| if at { " (AT AN END OF ITS GRID)" } else { "" };
     let second = if arrangement.is_bank() {
         format!(
             "bank B {:.4} deg/h, tau_max {} s",
-            t.second.sigma_dps * 3600.0,
-            t.second.tau_s
-        )
-    } else if arrangement == fog_core::preset::Arrangement::DualThermal {
-        format!(
-            "temperature coefficient prior {:.3} deg/h per deg C",
-            t.second.sigma_dps * 3600.0
-        )
-    } else if t.second.sigma_dps > 0.0 {
-        format!(
-            "Gauss-Markov sigma {:.3} deg/h, tau {} s",
-            t.second.sigma_dps * 3600.0,
+            t.second.sigma * 3600.0,
             t.second.tau_s
         )
     } else {
-        "no Gauss-Markov state".to_string()
+        format!(
+            "temperature coefficient prior {:.3} deg/h per deg C",
+            t.second.sigma * 3600.0
+        )
     };
     format!(
         "level q {:.3} (deg/h)^2/h{}, {second}{}; mean heading RMS {:.4} deg",
@@ -324,13 +304,11 @@ pub fn run_image(image: &Image, rec: &NavRecord) -> Result<(Vec<f64>, Vec<bool>)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fog_core::preset::Arrangement;
-
-    fn image(arrangement: Arrangement, gm: GaussMarkov) -> Image {
+    fn image(arrangement: Arrangement, gm: SecondState) -> Image {
         let o = crate::motion::TrainOptions::new(fog_core::still::SensorConfig::ECORE_2000)
             .with_arrangement(arrangement);
         let mut im = crate::motion::untrained(&o).expect("untrained image");
-        im.gauss_markov = gm;
+        im.second_state = gm;
         im
     }
 
@@ -346,28 +324,23 @@ mod tests {
         );
         assert!(bank
             .iter()
-            .any(|g| (g.sigma_dps * 3600.0 - 1.5).abs() < 1e-4 && g.tau_s == 10_000.0));
-        let dual = second_grid(&image(
-            Arrangement::Dual,
-            crate::motion::DEFAULT_GAUSS_MARKOV,
-        ));
-        assert_eq!(dual.len(), GM_SIGMA_GRID_DPH.len() * GM_TAU_GRID_S.len());
-        assert!(dual
-            .iter()
-            .any(|g| (g.sigma_dps * 3600.0 - 2.0).abs() < 1e-4 && g.tau_s == 10.0));
-        assert!(second_grid(&image(Arrangement::Window, GaussMarkov::OFF)).is_empty());
+            .any(|g| (g.sigma * 3600.0 - 1.5).abs() < 1e-4 && g.tau_s == 10_000.0));
+        let thermal = second_grid(&image(Arrangement::DualThermal, SecondState::THERMAL));
+        assert_eq!(thermal.len(), THERMAL_SIGMA_GRID_DPH_PER_C.len());
+        assert!(thermal.contains(&SecondState::THERMAL));
+        assert!(thermal.iter().all(|g| g.tau_s == 0.0));
     }
 
     #[test]
     fn with_level_sets_both_parameters_and_nothing_else() {
-        let im = image(Arrangement::Dual, crate::motion::DEFAULT_GAUSS_MARKOV);
-        let g = GaussMarkov {
-            sigma_dps: 4.0 / 3600.0,
-            tau_s: 100.0,
+        let im = image(Arrangement::DualThermal, SecondState::THERMAL);
+        let g = SecondState {
+            sigma: 4.0 / 3600.0,
+            tau_s: 0.0,
         };
         let t = with_level(&im, 3600.0, g);
         assert!((t.config.level_q_dps2_per_s * 3600.0 * 3600.0 - 1.0).abs() < 1e-6);
-        assert_eq!(t.gauss_markov, g);
+        assert_eq!(t.second_state, g);
         assert_eq!(t.model, im.model);
         assert_eq!(t.arrangement, im.arrangement);
     }
@@ -389,7 +362,7 @@ mod tests {
         let im = image(Arrangement::BankGuarded, crate::motion::DEFAULT_BANK);
         let t = tune(&im, &val).expect("tune");
         let score =
-            |q: f64, g: GaussMarkov| mean_heading_rms(&with_level(&im, q, g), &val).expect("score");
+            |q: f64, g: SecondState| mean_heading_rms(&with_level(&im, q, g), &val).expect("score");
         assert_eq!(t.heading_rms_deg, score(t.q_dph2_per_h, t.second));
         let (lo, hi, per) = LEVEL_Q_GRID_DPH2_PER_H;
         for q in nav::log_grid(lo, hi, per) {
@@ -398,33 +371,31 @@ mod tests {
                 "q {q} beats the pick"
             );
             assert!(
-                score(q, im.gauss_markov) >= t.heading_rms_deg,
+                score(q, im.second_state) >= t.heading_rms_deg,
                 "default state, q {q} beats the pick"
             );
         }
-        assert!(second_grid(&im).contains(&t.second) || t.second == im.gauss_markov);
+        assert!(second_grid(&im).contains(&t.second) || t.second == im.second_state);
         assert!(tune(&im, &[]).is_err());
     }
 
     #[test]
     fn the_arrangement_with_the_least_tuned_score_is_kept() {
         let val = vehicles(810, 301);
-        let dual = image(Arrangement::Dual, crate::motion::DEFAULT_GAUSS_MARKOV);
+        let dual = image(Arrangement::DualThermal, SecondState::THERMAL);
         let bank = image(Arrangement::BankGuarded, crate::motion::DEFAULT_BANK);
         let (picked, t) = pick_arrangement(&[dual.clone(), bank.clone()], &val).expect("pick");
         let c = &t.candidates;
         assert_eq!(c.len(), 2);
         let least = usize::from(c[1].mean_heading_rms_deg < c[0].mean_heading_rms_deg);
         assert_eq!(t.picked_index, least);
-        assert_eq!(t.picked, ["dual", "bank-guarded"][least]);
+        assert_eq!(t.picked, ["dual-thermal", "bank-guarded"][least]);
         assert_eq!(
             picked.arrangement,
             [dual.arrangement, bank.arrangement][least]
         );
-        assert!(
-            (picked.gauss_markov.sigma_dps * 3600.0 - c[least].second_sigma_or_b_dph).abs() < 1e-6
-        );
-        assert_eq!(picked.gauss_markov.tau_s, c[least].second_tau_s);
+        assert!((picked.second_state.sigma * 3600.0 - c[least].second_sigma_per_h).abs() < 1e-6);
+        assert_eq!(picked.second_state.tau_s, c[least].second_tau_s);
         assert_eq!(
             mean_heading_rms(&picked, &val).expect("score"),
             c[least].mean_heading_rms_deg

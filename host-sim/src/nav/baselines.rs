@@ -57,33 +57,6 @@ impl DriftEstimator for AlignmentBias {
     }
 }
 
-/// A Kalman filter on the drift that is predicted over the time between samples, still or
-/// not, and updated only at samples flagged still ([`crate::nav::GatedRwGm`],
-/// [`crate::nav::GatedBank`]). [`Gated::gated_push`] is their [`DriftEstimator::push`].
-pub(super) trait Gated {
-    /// Time of the previous sample, s (None before the first).
-    fn last_t_s(&mut self) -> &mut Option<f64>;
-    /// Prediction over `dt_s` seconds (nothing when `dt_s` is not > 0).
-    fn predict_s(&mut self, dt_s: f64);
-    /// Measurement update with a still sample's rate, deg/s (finite).
-    fn update_still(&mut self, rate_dps: f64);
-    /// The drift estimate, deg/s.
-    fn drift_dps(&self) -> f64;
-
-    /// The estimate for the sample at `t_s` from the samples before it; then the sample
-    /// is learnt from when `still` and its rate is finite.
-    fn gated_push(&mut self, t_s: f64, rate_dps: f64, still: bool) -> f64 {
-        if let Some(t0) = self.last_t_s().replace(t_s) {
-            self.predict_s(t_s - t0);
-        }
-        let est = self.drift_dps();
-        if still && rate_dps.is_finite() {
-            self.update_still(rate_dps);
-        }
-        est
-    }
-}
-
 /// Stillness-gated random-walk Kalman filter (zero-angular-rate update, ZARU):
 /// `b(k) = b(k-1) + w`, `var w = q_dps2` per sample, ALWAYS (so the variance grows in
 /// motion and the filter re-converges quickly at the next stop); measurement

@@ -7,8 +7,7 @@
 //!   missed-still rates of a stillness detector against the `moving` truth.
 //! - [`DriftEstimator`] baselines: [`NoCompensation`], [`AlignmentBias`], [`GatedKalman`]
 //!   (ZARU), [`ThermalKalman`] (ZARU + temperature regression, on-line RLS or coefficients
-//!   from [`fit_thermal`] on training records); [`GatedRwGm`] (ZARU with a random walk plus
-//!   a Gauss-Markov state); [`SelfCalKalman`] (ZARU with its OWN detector, the noise
+//!   from [`fit_thermal`] on training records); [`SelfCalKalman`] (ZARU with its OWN detector, the noise
 //!   reference measured on the unit's alignment; it ignores the still flags it is given).
 //! - [`compare`] / [`table`]: an identifier's drift beside the five baselines (the first
 //!   four with the identifier's still flags), as scores and as the text table of `replay` /
@@ -17,16 +16,13 @@
 //!   log grid, picked by mean heading-error RMS on validation records ([`tune_selfcal_q`]:
 //!   the same for [`SelfCalKalman`]).
 
-mod bank;
 mod baselines;
 mod compare;
-mod gm;
 mod record;
 mod score;
 pub mod selfcal;
 mod tune;
 
-pub use bank::{BankConfig, GatedBank};
 pub use baselines::{
     fit_thermal, AlignmentBias, DriftEstimator, GatedKalman, NoCompensation, TempRate, ThermalFit,
     ThermalKalman, ThermalKalmanConfig,
@@ -35,7 +31,6 @@ pub use compare::{
     compare, table, BaselineConfig, Compared, Comparison, Precomputed, Row, NO_COMPENSATION,
     SELFCAL_LABEL,
 };
-pub use gm::{GatedRwGm, RwGmConfig};
 pub use record::NavRecord;
 pub use score::{DetectorAcc, DetectorScores, HeadingAcc, NavScores, DPH_PER_DPS};
 pub use selfcal::{tune_selfcal_q, SelfCalConfig, SelfCalKalman};

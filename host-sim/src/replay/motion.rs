@@ -86,13 +86,14 @@ pub struct MotionSummary {
     pub output: String,
     /// The identifier image, or the built-in default.
     pub identifier: String,
-    /// The image's level arrangement as `identify --level-update` names it: `window`,
-    /// `sample`, `dual`, `bank`, `bank-dual` or `bank-guarded` (fog_core::preset).
+    /// The image's level arrangement as `identify --level-update` names it:
+    /// `dual-thermal`, `bank-dual` or `bank-guarded` (fog_core::preset).
     pub level_update: String,
-    /// The image's Gauss-Markov sigma, deg/h (0: off; `bank`: its bias instability B).
-    pub gm_sigma_dph: f32,
-    /// The image's Gauss-Markov correlation time, s (0: off; `bank`: its longest).
-    pub gm_tau_s: f32,
+    /// The image's second state: the thermal prior, deg/h per deg C, or the bank's bias
+    /// instability B, deg/h.
+    pub second_sigma_per_h: f32,
+    /// The bank's longest correlation time, s (0 for the thermal prior).
+    pub second_tau_s: f32,
     /// Record passes trained into the image (least squares: the records, e.g. 12; DRLS:
     /// records x passes, e.g. 36; 0: untrained, the gated level alone).
     pub records_trained: u32,
@@ -484,8 +485,8 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         output: output.display().to_string(),
         identifier,
         level_update: motion::LevelUpdateArg::of(image.arrangement).cli_name(),
-        gm_sigma_dph: image.gauss_markov.sigma_dps * 3600.0,
-        gm_tau_s: image.gauss_markov.tau_s,
+        second_sigma_per_h: image.second_state.sigma * 3600.0,
+        second_tau_s: image.second_state.tau_s,
         records_trained: image.records_trained,
         sensor: sensor.into(),
         t_s_source: rec.t_s_source,
@@ -547,10 +548,13 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
         if s.level_update == "dual-thermal" {
             format!(
                 "temperature coefficient prior {} deg/h per deg C",
-                s.gm_sigma_dph
+                s.second_sigma_per_h
             )
         } else {
-            format!("GM {} deg/h {} s", s.gm_sigma_dph, s.gm_tau_s)
+            format!(
+                "bank B {} deg/h, longest tau {} s",
+                s.second_sigma_per_h, s.second_tau_s
+            )
         },
         s.sensor.full_scale_dps,
         s.sensor.sample_rate_hz,

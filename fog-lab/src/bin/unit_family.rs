@@ -32,7 +32,7 @@
 //!
 //! ```sh
 //! cargo build --release -p host-sim
-//! cargo run --release -p host-sim --example unit_family -- --family DIR [--family DIR2 ...] \
+//! cargo run --release -p fog-lab --bin unit_family -- --family DIR [--family DIR2 ...] \
 //!     [--host-sim PATH] [--json OUT.json] [--work DIR] [-- extra identify args, e.g. --sensor kvh1750]
 //! ```
 
