@@ -21,7 +21,7 @@ use fog_core::frame::ecore;
 use fog_system_tests::{firmware_elf, firmware_elf_in, host_sim, qemu_system_arm};
 
 mod hil;
-use hil::{default_image, host_reference, parse_records, pipeline, run_qemu, Rng};
+use hil::{default_image, defmt_payloads, host_reference, parse_records, pipeline, run_qemu, Rng};
 
 /// Length of the vehicle capture, s (100 Hz).
 const DURATION_S: u32 = 70;
@@ -360,46 +360,6 @@ fn run_with_image(
 
 fn contains(haystack: &[u8], needle: &[u8]) -> bool {
     haystack.windows(needle.len()).any(|w| w == needle)
-}
-
-/// The payloads of defmt's frames in `log` (rzCOBS-encoded frames, each ended by a zero
-/// byte), concatenated: a `{=str}` argument appears there verbatim. Written here from the
-/// rzCOBS format (the encoding is read from the end: a byte 0x01..=0x7F is a mask of 7
-/// bytes, bit set = zero byte; 0x80..=0xFE is a zero byte after `(b & 0x7F) + 7` non-zero
-/// bytes; 0xFF is 134 non-zero bytes).
-fn defmt_payloads(log: &[u8]) -> Vec<u8> {
-    let mut text = Vec::new();
-    for frame in log.split(|&b| b == 0).filter(|f| !f.is_empty()) {
-        let mut out = Vec::new();
-        let mut it = frame.iter().rev().copied();
-        while let Some(x) = it.next() {
-            match x {
-                0x01..=0x7F => {
-                    for i in 0..7 {
-                        if x & (1 << (6 - i)) == 0 {
-                            out.extend(it.next());
-                        } else {
-                            out.push(0);
-                        }
-                    }
-                }
-                0x80..=0xFE => {
-                    out.push(0);
-                    for _ in 0..usize::from(x & 0x7F) + 7 {
-                        out.extend(it.next());
-                    }
-                }
-                _ => {
-                    for _ in 0..134 {
-                        out.extend(it.next());
-                    }
-                }
-            }
-        }
-        out.reverse();
-        text.extend(out);
-    }
-    text
 }
 
 #[test]
