@@ -439,8 +439,8 @@ impl Qmp {
         let stream = loop {
             match std::os::unix::net::UnixStream::connect(path) {
                 Ok(s) => break s,
-                Err(e) if start.elapsed() < Duration::from_secs(10) => {
-                    let _ = e;
+                // Not listening yet: QEMU is starting.
+                Err(_) if start.elapsed() < Duration::from_secs(10) => {
                     std::thread::sleep(Duration::from_millis(20));
                 }
                 Err(e) => panic!("QMP socket {}: {e}", path.display()),
