@@ -22,7 +22,7 @@ cargo test --workspace
 # Its hardware-in-the-loop test under QEMU runs above, in `cargo test --workspace`
 # (tests/tests/firmware_qemu.rs). The STM32F407 board builds into its own target directory so
 # that switching boards does not rebuild the QEMU board's dependencies.
-step "fog-firmware: rustfmt, clippy -D warnings, build (QEMU mps2-an386 and STM32F407 boards)"
+step "fog-firmware: rustfmt, clippy -D warnings, build (QEMU mps2-an386, STM32F407 and its netduinoplus2 variant)"
 (
   cd fog-firmware
   unset RUSTFLAGS
@@ -36,6 +36,8 @@ step "fog-firmware: rustfmt, clippy -D warnings, build (QEMU mps2-an386 and STM3
   cargo build -q --release
   cargo clippy -q --release --no-default-features --features board-stm32f407 --target-dir target/stm32 -- -D warnings
   cargo build -q --release --no-default-features --features board-stm32f407 --target-dir target/stm32
+  # The STM32 build's QEMU variant (netduinoplus2; the HIL test in firmware_qemu.rs runs it).
+  cargo clippy -q --release --no-default-features --features qemu-netduinoplus2 --target-dir target/netduino -- -D warnings
 )
 
 # Coverage-guided fuzzing (libFuzzer, plain cargo on the pinned stable toolchain): fuzz/ is its

@@ -14,7 +14,8 @@
 //! - [`image`]: the trained identifier as a versioned, checksummed binary image;
 //! - [`baseline`]: causal estimators to compare with;
 //! - [`frame`], [`driver`]: gyro serial frames and the serial reader;
-//! - [`tmp117`]: driver for the TI TMP117 I2C temperature sensor.
+//! - [`tmp117`], [`tmp105`]: drivers for the TI TMP117 and TMP105 I2C temperature sensors,
+//!   both read through [`temp_sensor::TemperatureSensor`].
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -32,9 +33,11 @@ pub mod motion;
 pub mod motion_fit;
 pub mod preset;
 pub mod still;
+pub mod temp_sensor;
 #[cfg(test)]
 mod test_noise;
 pub mod threshold;
+pub mod tmp105;
 pub mod tmp117;
 pub mod train;
 pub mod wnn;

@@ -2,7 +2,8 @@
 //!
 //! Generic over [`embedded_hal::i2c::I2c`] (embedded-hal 1.0) and over its bus error: every
 //! method returns [`Error<E>`] with the bus's own error inside. No heap, no panic path, no
-//! floating point besides the final conversion in [`Tmp117::read_temp_c`].
+//! floating point besides the final conversion in [`Tmp117::read_temp_c`]. Implements
+//! [`TemperatureSensor`], as the TMP105 driver does.
 //!
 //! # Register map used here
 //! Source: TI TMP117 datasheet (SNOSD82, "TMP117 High-Accuracy, Low-Power, Digital Temperature
@@ -39,6 +40,8 @@
 //! ```
 
 use embedded_hal::i2c::{self, I2c};
+
+use crate::temp_sensor::TemperatureSensor;
 
 /// Temperature of one LSB of the result register, °C (7.8125 m°C).
 pub const CELSIUS_PER_LSB: f32 = 1.0 / 128.0;
@@ -384,6 +387,27 @@ impl<I2C: I2c> Tmp117<I2C> {
         self.i2c
             .write(self.address, &[register, msb, lsb])
             .map_err(Error::I2c)
+    }
+}
+
+impl<I2C: I2c> TemperatureSensor for Tmp117<I2C> {
+    type Error = Error<I2C::Error>;
+
+    fn model(&self) -> &'static str {
+        "TMP117"
+    }
+
+    fn bus_address(&self) -> u8 {
+        self.address
+    }
+
+    /// 7.8125 m°C whatever the averaging.
+    fn resolution_c(&self) -> f32 {
+        CELSIUS_PER_LSB
+    }
+
+    fn read_temp_c(&mut self) -> Result<f32, Self::Error> {
+        Tmp117::read_temp_c(self)
     }
 }
 

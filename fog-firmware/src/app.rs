@@ -282,8 +282,8 @@ where
         totals.still_commands
     );
     defmt::info!(
-        "temperature: sensor present {=bool}, failed reads {=u32}",
-        temperature.present(),
+        "temperature: sensor {=str}, failed reads {=u32}",
+        temperature.model().unwrap_or("none"),
         temperature.failures()
     );
     write_all(tx, &pipeline::stats_record(&stats, &totals));

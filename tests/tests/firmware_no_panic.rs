@@ -183,7 +183,8 @@ fn release_firmware_has_no_unlisted_panic_path() {
         return;
     };
     // Both boards' release ELFs: QEMU mps2-an386 (default) and STM32F407 (its own target
-    // directory, as scripts/test-all.sh builds it).
+    // directory, as scripts/test-all.sh builds it), and the STM32 build's QEMU variant
+    // (feature qemu-netduinoplus2, as the HIL test builds it).
     let boards = [
         ("mps2-an386", firmware_elf(&[])),
         (
@@ -191,6 +192,14 @@ fn release_firmware_has_no_unlisted_panic_path() {
             firmware_elf_in(
                 "target/stm32",
                 &["--no-default-features", "--features", "board-stm32f407"],
+                &[],
+            ),
+        ),
+        (
+            "stm32f407 qemu-netduinoplus2",
+            firmware_elf_in(
+                "target/netduino",
+                &["--no-default-features", "--features", "qemu-netduinoplus2"],
                 &[],
             ),
         ),

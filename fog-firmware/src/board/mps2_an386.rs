@@ -1,7 +1,8 @@
 //! QEMU `-machine mps2-an386` (Cortex-M4 with FPU): CMSDK APB UART0, SysTick as the
-//! instruction counter, exit through semihosting, a TMP117 probed at 0x48 on the Shield1
-//! SBCon I2C port (bit-banged, `sbcon_i2c.rs`; QEMU attaches nothing there by default: the
-//! firmware then reports "no sensor").
+//! instruction counter, exit through semihosting, a TMP117, else a TMP105, probed at 0x48 on
+//! the Shield1 SBCon I2C port (bit-banged, `sbcon_i2c.rs`; QEMU attaches nothing there by
+//! default: the firmware then reports "no sensor"; `-device tmp105,address=0x48` puts QEMU's
+//! TMP105 there, which the firmware then reads).
 //!
 //! Under `-icount shift=6,align=off,sleep=off` each instruction takes 64 ns of virtual time
 //! and SysTick runs on the 25 MHz core clock, so it advances 1.6 ticks per instruction,
@@ -16,7 +17,7 @@ use cortex_m_semihosting::debug;
 use embedded_hal_nb::serial::{ErrorKind, ErrorType, Write};
 
 #[cfg(not(feature = "budget"))]
-use fog_core::tmp117::Address;
+use fog_core::{tmp105, tmp117};
 
 #[cfg(not(feature = "budget"))]
 use super::sbcon_i2c::{self, SbconI2c};
@@ -237,7 +238,8 @@ fn main() -> ! {
     let ok = {
         // SAFETY: SHIELD1_BASE is an SBCon port of this machine, and only this driver uses it.
         let i2c = unsafe { SbconI2c::new(sbcon_i2c::SHIELD1_BASE) };
-        let temperature = TemperatureSource::probe(Some(i2c), Address::Gnd);
+        let temperature =
+            TemperatureSource::probe(Some(i2c), tmp117::Address::Gnd, tmp105::Address::A0Low);
         crate::app::run(
             rx,
             &mut tx,

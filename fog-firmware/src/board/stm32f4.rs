@@ -14,31 +14,71 @@
 //!
 //! At the end marker the final record is written and the core sleeps (no semihosting on a
 //! board without a debugger).
+//!
+//! **Feature `qemu-netduinoplus2`**: this build, made to run under QEMU 7.2's
+//! `-machine netduinoplus2` (STM32F405: same core, same USART block at the same addresses
+//! and interrupt numbers as the F407). QEMU 7.2 models the USARTs (receive interrupt on
+//! RXNE with RXNEIE), SysTick, TIM2-5, EXTI and SYSCFG; RCC, the flash interface, GPIO and
+//! I2C1-3 are "unimplemented devices" (writes ignored, reads 0; `-d unimp` logs them). The
+//! build differs from the board build in exactly these places, each marked
+//! `QEMU-DIFFERENCE` below:
+//!
+//! 1. **Clock tree**: `RCC.freeze(hse 8 MHz, sysclk 168 MHz)` waits for HSERDY in RCC_CR,
+//!    which reads 0 under QEMU: the unmodified ELF spins there for ever (measured: 629,345
+//!    reads of RCC offset 0x000 in 5 s, `-d unimp`). The variant takes the HAL's reset clocks
+//!    (`constrain`: 16 MHz HSI, nothing written); QEMU runs the core at a fixed 168 MHz
+//!    whatever RCC says, and its USART ignores BRR.
+//! 2. **I2C1**: not modelled, so the HAL's blocking start waits for SB in I2C1_SR1 for ever
+//!    (measured with the probe left in: 1,284,595 reads of I2C1 offset 0x14 in 5 s); the
+//!    variant passes no bus (`temp_c` is `None`, as on a board without the sensor).
+//! 3. **PA0** (`still-pa0`): GPIO is not modelled (IDR reads 0: "moving" for ever); the
+//!    variant refuses that feature at compile time.
+//!
+//! The USART2 set-up (HAL `serial`, `listen`), the receive interrupt, the queue, the main
+//! loop, the DWT set-up and the RTT logger are the board build's code unchanged.
 
 use cortex_m::peripheral::{DWT, NVIC};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use embedded_hal_nb::serial::{Error as _, ErrorKind, Read};
-use fog_core::tmp117::Address;
+#[cfg(not(feature = "qemu-netduinoplus2"))]
+use fog_core::{tmp105, tmp117};
+#[cfg(feature = "qemu-netduinoplus2")]
+use stm32f4xx_hal::i2c::I2c;
 use stm32f4xx_hal::pac::{interrupt, Interrupt};
 use stm32f4xx_hal::serial::{Rx, RxListen};
-use stm32f4xx_hal::{i2c::Mode, pac, prelude::*, rcc, serial::config::Config};
+#[cfg(not(feature = "qemu-netduinoplus2"))]
+use stm32f4xx_hal::{i2c::Mode, rcc};
+use stm32f4xx_hal::{pac, prelude::*, serial::config::Config};
 
 use crate::temperature::TemperatureSource;
+
+// QEMU-DIFFERENCE 3: GPIO is not modelled, so PA0 cannot be the still input there.
+#[cfg(all(feature = "qemu-netduinoplus2", feature = "still-pa0"))]
+compile_error!(
+    "still-pa0 cannot run under QEMU netduinoplus2: GPIO is not modelled (PA0 would read 0)"
+);
 
 use super::rx::RxIsr;
 
 use crate::app::TickCounter;
 
 /// HSE crystal of the board, Hz.
+#[cfg(not(feature = "qemu-netduinoplus2"))]
 const HSE_MHZ: u32 = 8;
 /// Core clock, Hz.
+#[cfg(not(feature = "qemu-netduinoplus2"))]
 const SYSCLK_MHZ: u32 = 168;
 /// Gyro link baud rate.
 const BAUD: u32 = 115_200;
 /// I2C1 clock (standard mode), kHz.
+#[cfg(not(feature = "qemu-netduinoplus2"))]
 const I2C_KHZ: u32 = 100;
 /// TMP117 address (ADD0 to ground).
-const TMP117_ADDRESS: Address = Address::Gnd;
+#[cfg(not(feature = "qemu-netduinoplus2"))]
+const TMP117_ADDRESS: tmp117::Address = tmp117::Address::Gnd;
+/// TMP105 address (A0 low), probed when no TMP117 answers.
+#[cfg(not(feature = "qemu-netduinoplus2"))]
+const TMP105_ADDRESS: tmp105::Address = tmp105::Address::A0Low;
 
 /// GPIOA input data register (RM0090: GPIOA at 0x4002_0000, IDR at offset 0x10).
 #[cfg(feature = "still-pa0")]
@@ -126,9 +166,14 @@ fn main() -> ! {
     let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
         halt()
     };
+    #[cfg(not(feature = "qemu-netduinoplus2"))]
     let mut rcc = dp
         .RCC
         .freeze(rcc::Config::hse(HSE_MHZ.MHz()).sysclk(SYSCLK_MHZ.MHz()));
+    // QEMU-DIFFERENCE 1: RCC is not modelled (HSERDY never reads 1): the reset clocks,
+    // nothing written. QEMU's core runs at 168 MHz regardless.
+    #[cfg(feature = "qemu-netduinoplus2")]
+    let mut rcc = dp.RCC.constrain();
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();
 
@@ -162,13 +207,23 @@ fn main() -> ! {
 
     #[cfg(not(feature = "budget"))]
     {
-        let gpiob = dp.GPIOB.split(&mut rcc);
-        let i2c = dp.I2C1.i2c(
-            (gpiob.pb8, gpiob.pb9),
-            Mode::standard(I2C_KHZ.kHz()),
-            &mut rcc,
+        #[cfg(not(feature = "qemu-netduinoplus2"))]
+        let temperature = {
+            let gpiob = dp.GPIOB.split(&mut rcc);
+            let i2c = dp.I2C1.i2c(
+                (gpiob.pb8, gpiob.pb9),
+                Mode::standard(I2C_KHZ.kHz()),
+                &mut rcc,
+            );
+            TemperatureSource::probe(Some(i2c), TMP117_ADDRESS, TMP105_ADDRESS)
+        };
+        // QEMU-DIFFERENCE 2: I2C1 is not modelled (the HAL waits for SB for ever): no bus.
+        #[cfg(feature = "qemu-netduinoplus2")]
+        let temperature = TemperatureSource::<I2c<pac::I2C1>>::probe(
+            None,
+            fog_core::tmp117::Address::Gnd,
+            fog_core::tmp105::Address::A0Low,
         );
-        let temperature = TemperatureSource::probe(Some(i2c), TMP117_ADDRESS);
         let stop = crate::app::run(
             queue_rx,
             &mut tx,

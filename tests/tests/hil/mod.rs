@@ -81,9 +81,19 @@ pub fn host_reference(stream: &[u8]) -> Expected {
 
 /// The firmware's loop on the host: the same bytes through the command detector and the
 /// decoder, each good frame through `pipeline::process` with the stage built from `image`
-/// (no temperature sensor under QEMU, no still input pin: the external flag comes from the
-/// in-band commands only).
+/// (no temperature sensor, no still input pin: the external flag comes from the in-band
+/// commands only).
 pub fn host_reference_with(stream: &[u8], image: &[u8]) -> Expected {
+    host_reference_temps(stream, image, |_| None)
+}
+
+/// [`host_reference_with`] with a temperature: `temp_c(k)` is what the firmware's
+/// `TemperatureSource::sample` is expected to give for good frame `k` (0-based).
+pub fn host_reference_temps(
+    stream: &[u8],
+    image: &[u8],
+    mut temp_c: impl FnMut(usize) -> Option<f32>,
+) -> Expected {
     let mut decoder = EcoreDecoder::new(pipeline::FULL_SCALE_DPS).expect("valid full scale");
     let mut stage = pipeline::new_stage(image).expect("valid identifier image");
     let mut commands = pipeline::CommandDetector::default();
@@ -105,7 +115,8 @@ pub fn host_reference_with(stream: &[u8], image: &[u8]) -> Expected {
             None => {}
         }
         if let Some(frame) = decoder.push(b) {
-            let (out, status) = pipeline::process(&mut stage, frame.rate_dps, None, still);
+            let t = temp_c(samples.len());
+            let (out, status) = pipeline::process(&mut stage, frame.rate_dps, t, still);
             samples.push((frame.rate_dps, out, status));
             frames.push(frame);
             external.push(still);
@@ -361,6 +372,285 @@ pub fn run_qemu_paced(qemu: &Path, elf: &Path, pieces: Vec<Piece>, defmt_log: &P
         }
         std::thread::sleep(Duration::from_millis(20));
     }
+    let resumed = writer
+        .join()
+        .expect("writer thread")
+        .expect("writing QEMU's stdin");
+    QemuRun {
+        out,
+        code,
+        arrivals,
+        resumed,
+    }
+}
+
+/// The payloads of defmt's frames in `log` (rzCOBS-encoded frames, each ended by a zero
+/// byte), concatenated: a `{=str}` argument appears there verbatim. Written here from the
+/// rzCOBS format (the encoding is read from the end: a byte 0x01..=0x7F is a mask of 7
+/// bytes, bit set = zero byte; 0x80..=0xFE is a zero byte after `(b & 0x7F) + 7` non-zero
+/// bytes; 0xFF is 134 non-zero bytes).
+pub fn defmt_payloads(log: &[u8]) -> Vec<u8> {
+    let mut text = Vec::new();
+    for frame in log.split(|&b| b == 0).filter(|f| !f.is_empty()) {
+        let mut out = Vec::new();
+        let mut it = frame.iter().rev().copied();
+        while let Some(x) = it.next() {
+            match x {
+                0x01..=0x7F => {
+                    for i in 0..7 {
+                        if x & (1 << (6 - i)) == 0 {
+                            out.extend(it.next());
+                        } else {
+                            out.push(0);
+                        }
+                    }
+                }
+                0x80..=0xFE => {
+                    out.push(0);
+                    for _ in 0..usize::from(x & 0x7F) + 7 {
+                        out.extend(it.next());
+                    }
+                }
+                _ => {
+                    for _ in 0..134 {
+                        out.extend(it.next());
+                    }
+                }
+            }
+        }
+        out.reverse();
+        text.extend(out);
+    }
+    text
+}
+
+/// A QMP client (QEMU `-qmp unix:PATH,server=on,wait=off`), line-delimited JSON written and
+/// matched as text (no JSON crate here).
+pub struct Qmp {
+    reader: std::io::BufReader<std::os::unix::net::UnixStream>,
+    writer: std::os::unix::net::UnixStream,
+}
+
+impl Qmp {
+    /// Connects (retrying while QEMU starts, up to 10 s), reads the greeting and leaves the
+    /// capabilities negotiation mode.
+    pub fn connect(path: &Path) -> Qmp {
+        let start = Instant::now();
+        let stream = loop {
+            match std::os::unix::net::UnixStream::connect(path) {
+                Ok(s) => break s,
+                // Not listening yet: QEMU is starting.
+                Err(_) if start.elapsed() < Duration::from_secs(10) => {
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                Err(e) => panic!("QMP socket {}: {e}", path.display()),
+            }
+        };
+        stream
+            .set_read_timeout(Some(DEADLINE))
+            .expect("QMP read timeout");
+        let writer = stream.try_clone().expect("QMP socket clone");
+        let mut qmp = Qmp {
+            reader: std::io::BufReader::new(stream),
+            writer,
+        };
+        let greeting = qmp.line();
+        assert!(greeting.contains("\"QMP\""), "QMP greeting: {greeting}");
+        qmp.execute(r#"{"execute": "qmp_capabilities"}"#);
+        qmp
+    }
+
+    fn line(&mut self) -> String {
+        use std::io::BufRead;
+        let mut l = String::new();
+        self.reader.read_line(&mut l).expect("QMP reply");
+        assert!(!l.is_empty(), "QMP socket closed");
+        l
+    }
+
+    /// Sends one command; returns its reply line (`{"return": ...}`), events skipped.
+    /// Panics on an `{"error": ...}` reply.
+    pub fn execute(&mut self, command: &str) -> String {
+        let reply = self.try_execute(command);
+        assert!(reply.starts_with("{\"return\""), "QMP {command}: {reply}");
+        reply
+    }
+
+    /// Sends one command; returns its reply line, error or not (events skipped).
+    pub fn try_execute(&mut self, command: &str) -> String {
+        self.writer
+            .write_all(command.as_bytes())
+            .and_then(|()| self.writer.write_all(b"\n"))
+            .expect("QMP command written");
+        loop {
+            let l = self.line();
+            if !l.starts_with("{\"event\"") {
+                return l.trim().to_string();
+            }
+        }
+    }
+
+    /// `qom-set PATH PROPERTY VALUE` (an integer).
+    pub fn qom_set_int(&mut self, path: &str, property: &str, value: i64) {
+        self.execute(&format!(
+            r#"{{"execute": "qom-set", "arguments": {{"path": "{path}", "property": "{property}", "value": {value}}}}}"#
+        ));
+    }
+
+    /// `qom-get PATH PROPERTY` of an integer property.
+    pub fn qom_get_int(&mut self, path: &str, property: &str) -> i64 {
+        let reply = self.execute(&format!(
+            r#"{{"execute": "qom-get", "arguments": {{"path": "{path}", "property": "{property}"}}}}"#
+        ));
+        reply
+            .trim_start_matches("{\"return\":")
+            .trim_end_matches('}')
+            .trim()
+            .parse()
+            .unwrap_or_else(|e| panic!("qom-get {path} {property}: {reply}: {e}"))
+    }
+
+    /// A 32-bit word of the guest's physical address space, read by the monitor (HMP `xp`;
+    /// an MMIO register is read through its device model).
+    pub fn read_word(&mut self, address: u32) -> u32 {
+        let reply = self.execute(&format!(
+            r#"{{"execute": "human-monitor-command", "arguments": {{"command-line": "xp /1wx {address:#x}"}}}}"#
+        ));
+        // {"return": "0000000040004400: 0x0000200c\r\n"}
+        let hex = reply
+            .rsplit("0x")
+            .next()
+            .map(|h| h.trim_start_matches("0x"))
+            .and_then(|h| h.get(..8))
+            .unwrap_or_else(|| panic!("xp reply: {reply}"));
+        u32::from_str_radix(hex, 16).unwrap_or_else(|e| panic!("xp reply {reply}: {e}"))
+    }
+}
+
+/// One step of a QMP-driven run: wait until UART output has `wait_output` bytes in all, run
+/// the step's QMP action, then write `bytes`.
+pub struct Step {
+    pub wait_output: usize,
+    pub bytes: Vec<u8>,
+}
+
+/// Whether `out` holds a complete statistics record (the firmware's last output), records
+/// walked by their headers. Malformed output also ends the run (the parser then says why).
+pub fn stats_record_complete(out: &[u8]) -> bool {
+    let mut i = 0;
+    while i + 3 <= out.len() {
+        if out[i] != 0xA5 {
+            return true;
+        }
+        let end = i + 3 + usize::from(out[i + 2]) + 2;
+        if end > out.len() {
+            return false;
+        }
+        if out[i + 1] == 0x02 {
+            return true;
+        }
+        i = end;
+    }
+    false
+}
+
+/// Runs `qemu args... -qmp unix:QMP -kernel ELF` (stdin = the UART's input, stdout piped,
+/// stderr into `log`), feeding `steps` from a writer thread: before each step's bytes it
+/// waits for the step's output count, then calls `action(qmp, step index)`. The run ends
+/// at EOF on stdout (QEMU exited: semihosting) or, when `end` says so, as soon as the output
+/// is complete (a board that sleeps at the end); QEMU is then killed.
+pub fn run_qemu_steps(
+    qemu: &Path,
+    args: &[&str],
+    elf: &Path,
+    steps: Vec<Step>,
+    mut action: impl FnMut(&mut Qmp, usize) + Send + 'static,
+    end: Option<fn(&[u8]) -> bool>,
+    log: &Path,
+) -> QemuRun {
+    let start = Instant::now();
+    let qmp_path = log.with_extension("qmp.sock");
+    let _ = std::fs::remove_file(&qmp_path);
+    let log_file = std::fs::File::create(log).expect("log file");
+    let child = Command::new(qemu)
+        .args(args)
+        .arg("-qmp")
+        .arg(format!("unix:{},server=on,wait=off", qmp_path.display()))
+        .arg("-kernel")
+        .arg(elf)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::from(log_file))
+        .spawn()
+        .expect("qemu-system-arm starts");
+    let mut qemu_proc = KillOnDrop(child);
+    let mut stdin = qemu_proc.0.stdin.take().expect("piped stdin");
+    let mut stdout = qemu_proc.0.stdout.take().expect("piped stdout");
+
+    let (done_tx, done_rx) = mpsc::channel();
+    let out_bytes = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let out_seen = std::sync::Arc::clone(&out_bytes);
+    let writer = std::thread::spawn(move || {
+        let mut qmp = Qmp::connect(&qmp_path);
+        let mut resumed = Vec::new();
+        for (i, step) in steps.into_iter().enumerate() {
+            while out_seen.load(std::sync::atomic::Ordering::SeqCst) < step.wait_output {
+                assert!(
+                    start.elapsed() < DEADLINE,
+                    "step {i}: waiting for {} output bytes",
+                    step.wait_output
+                );
+                std::thread::sleep(Duration::from_millis(2));
+            }
+            action(&mut qmp, i);
+            resumed.push(start.elapsed());
+            stdin.write_all(&step.bytes).and_then(|()| stdin.flush())?;
+        }
+        let _ = done_rx.recv_timeout(DEADLINE);
+        Ok::<_, std::io::Error>(resumed)
+    });
+    let (out_tx, out_rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mut out = Vec::new();
+        let mut arrivals = Vec::new();
+        let mut buf = [0u8; 4096];
+        let r = loop {
+            match stdout.read(&mut buf) {
+                Ok(0) => break Ok(false),
+                Ok(n) => {
+                    out.extend_from_slice(&buf[..n]);
+                    arrivals.push((start.elapsed(), out.len()));
+                    out_bytes.store(out.len(), std::sync::atomic::Ordering::SeqCst);
+                    if end.is_some_and(|f| f(&out)) {
+                        break Ok(true);
+                    }
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => break Err(e),
+            }
+        };
+        let _ = out_tx.send((out, arrivals, r));
+    });
+
+    let received = out_rx.recv_timeout(DEADLINE.saturating_sub(start.elapsed()));
+    let _ = done_tx.send(());
+    let Ok((out, arrivals, read_result)) = received else {
+        drop(qemu_proc);
+        panic!("QEMU did not finish within {DEADLINE:?}");
+    };
+    let ended_by_output = read_result.expect("reading QEMU's stdout");
+    let mut code = None;
+    if !ended_by_output {
+        let wait_until = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < wait_until {
+            if let Ok(Some(status)) = qemu_proc.0.try_wait() {
+                code = status.code();
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+    drop(qemu_proc);
     let resumed = writer
         .join()
         .expect("writer thread")
