@@ -49,8 +49,8 @@ pub enum Arrangement {
     /// The dual with the unit's own temperature link as second state (module docs); the
     /// image's second-state fields carry the coefficient's prior standard deviation (sigma,
     /// deg/s per deg C) and tau 0. The product's default (docs/unit-fit.md: the least
-    /// heading error on two of four measured vehicle families and the least static error
-    /// of the arrangements on all three).
+    /// heading error on two of four measured vehicle families, below the best causal
+    /// baseline on the three independent ones).
     #[default]
     DualThermal,
 }

@@ -140,19 +140,18 @@ pub struct Args {
     pub level_update: Vec<motion::LevelUpdateArg>,
     /// `--preset motion`: vehicle records with truth (`true_rate_dps`, `drift_dps`; CSV
     /// files or folders; other units than the training records') on which the level noise,
-    /// the second state (the thermal prior, or the bank's B and longest tau) and,
-    /// with several `--level-update` values, the arrangement are picked by the least mean
-    /// heading-error RMS with the identifier's own detector (host_sim::motion::tune); the
-    /// picks overrule `--level-q-dph2-per-h` (the whole q grid is scanned) and
-    /// `--thermal-prior-dph-per-c` / `--bank-*` (the second state's start, kept when no grid
-    /// point scores lower).
+    /// a bank's B and longest tau and, with several `--level-update` values, the arrangement
+    /// are picked by the least mean heading-error RMS with the identifier's own detector
+    /// (host_sim::motion::tune); the picks overrule `--level-q-dph2-per-h` (the whole q
+    /// grid is scanned) and `--bank-*` (the start, kept when no grid point scores lower).
+    /// The dual-thermal's prior is not tuned (docs/unit-fit.md).
     /// Score the result on other records (`--validate`).
     #[arg(long, num_args = 1..)]
     pub tune_on: Vec<PathBuf>,
     /// `--level-update dual-thermal` (the default): the prior standard deviation of the
     /// unit's temperature coefficient, deg/h per deg C, > 0 (default
-    /// fog_core::preset::SecondState::THERMAL_SIGMA_DPH_PER_C = 1, ASSUMED; `--tune-on`
-    /// scans it).
+    /// fog_core::preset::SecondState::THERMAL_SIGMA_DPH_PER_C = 1, ASSUMED; not tuned by
+    /// `--tune-on`: six vehicles pick it badly, docs/unit-fit.md).
     #[arg(long)]
     pub thermal_prior_dph_per_c: Option<f32>,
     /// `--level-update bank-dual|bank-guarded`: the bank's bias instability B, deg/h (default
@@ -296,7 +295,7 @@ fn second_state(
         }
         return Ok(g);
     }
-    // The prior of the unit's temperature coefficient (the tuning scans it).
+    // The prior of the unit's temperature coefficient (as given; the tuning keeps it).
     match a.thermal_prior_dph_per_c {
         None => Ok(SecondState::THERMAL),
         Some(s) if s.is_finite() && s > 0.0 && s < 3.6e6 => Ok(SecondState {

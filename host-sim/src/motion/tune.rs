@@ -2,8 +2,10 @@
 //!
 //! The gated Kalman baseline gets its q from the validation vehicles; the identifier gets
 //! the same chance for both of its level's parameters: the random walk `q` and the second
-//! state (the thermal coefficient's prior in the dual-thermal, or the bank's bias
-//! instability `B` and longest correlation time in the bank arrangements). Coordinate
+//! state of the bank arrangements (their bias instability `B` and longest correlation time).
+//! The dual-thermal's second state, the prior of the unit's temperature coefficient, is not
+//! tuned here: the calibration runs measure it (`super::thermal_prior`), and a scan over
+//! it on a handful of vehicles picked values that cost on others (docs/unit-fit.md). Coordinate
 //! descent from the image's defaults: `q` at the default second state, the second state at
 //! that `q`, `q` again. Score: the mean heading RMS over the validation vehicles with the
 //! identifier's own detector.
@@ -24,10 +26,6 @@ pub const BANK_B_GRID_DPH: [f32; 5] = [0.1875, 0.375, 0.75, 1.5, 3.0];
 /// The bank's longest correlation time grid, s (10^4 s is the bank's limit, not a grid
 /// end).
 pub const BANK_TAU_MAX_GRID_S: [f32; 2] = [1_000.0, 10_000.0];
-/// The thermal state's prior sigma grid, deg/h per deg C (a factor 32 below to 16 above the
-/// default 1; its low end is a state that is all but off).
-pub const THERMAL_SIGMA_GRID_DPH_PER_C: [f32; 10] =
-    [0.03125, 0.0625, 0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
 
 /// What the tuning picked, and its score.
 #[derive(Debug, Clone, Copy)]
@@ -66,12 +64,13 @@ pub fn mean_heading_rms(image: &Image, val: &[NavRecord]) -> Result<f64> {
     Ok(sum / val.len() as f64)
 }
 
-/// The second-state grid of `image`'s arrangement.
+/// The second-state grid of `image`'s arrangement (empty for the dual-thermal: its prior
+/// is measured, module docs).
 pub fn second_grid(image: &Image) -> Vec<SecondState> {
     let (sigmas_dph, taus_s): (&[f32], &[f32]) = if image.arrangement.is_bank() {
         (&BANK_B_GRID_DPH, &BANK_TAU_MAX_GRID_S)
     } else {
-        (&THERMAL_SIGMA_GRID_DPH_PER_C, &[0.0])
+        (&[], &[])
     };
     sigmas_dph
         .iter()
@@ -119,13 +118,10 @@ pub fn tune(image: &Image, val: &[NavRecord]) -> Result<TunedLevel> {
         (best, q) = pick_q(second)?;
     }
     let sigma_dph = second.sigma * 3600.0;
-    let second_at_grid_end = if image.arrangement.is_bank() {
-        // 10^4 s is the bank's limit, not a grid end; the 10^3 s end is one.
-        at_grid_end(sigma_dph, &BANK_B_GRID_DPH)
-            || BANK_TAU_MAX_GRID_S.first() == Some(&second.tau_s)
-    } else {
-        at_grid_end(sigma_dph, &THERMAL_SIGMA_GRID_DPH_PER_C)
-    };
+    // 10^4 s is the bank's limit, not a grid end; the 10^3 s end is one.
+    let second_at_grid_end = image.arrangement.is_bank()
+        && (at_grid_end(sigma_dph, &BANK_B_GRID_DPH)
+            || BANK_TAU_MAX_GRID_S.first() == Some(&second.tau_s));
     Ok(TunedLevel {
         q_dph2_per_h: q,
         second,
@@ -325,10 +321,8 @@ mod tests {
         assert!(bank
             .iter()
             .any(|g| (g.sigma * 3600.0 - 1.5).abs() < 1e-4 && g.tau_s == 10_000.0));
-        let thermal = second_grid(&image(Arrangement::DualThermal, SecondState::THERMAL));
-        assert_eq!(thermal.len(), THERMAL_SIGMA_GRID_DPH_PER_C.len());
-        assert!(thermal.contains(&SecondState::THERMAL));
-        assert!(thermal.iter().all(|g| g.tau_s == 0.0));
+        // The dual-thermal's prior is measured on the calibration runs, not tuned.
+        assert!(second_grid(&image(Arrangement::DualThermal, SecondState::THERMAL)).is_empty());
     }
 
     #[test]
