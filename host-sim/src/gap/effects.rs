@@ -486,42 +486,13 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
     let mut excluded = None;
     let t_rec = real.t_s.last().copied().unwrap_or(1.0) + dt;
     match effect {
-        Effect::Quantization => {
-            let mut v: Vec<f64> = idx.iter().map(|&i| ctx.raw[i]).collect();
-            v.sort_by(f64::total_cmp);
-            v.dedup();
-            let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            let d: Vec<f64> = v
-                .windows(2)
-                .map(|w| w[1] - w[0])
-                .filter(|&d| d > 1e-9 * scale)
-                .collect();
-            let q0 = d.iter().copied().fold(f64::INFINITY, f64::min);
-            let on = d
-                .iter()
-                .filter(|&&x| ((x / q0) - (x / q0).round()).abs() < 0.01)
-                .count();
-            if d.len() < 2 || !q0.is_finite() || (on as f64) < 0.95 * d.len() as f64 {
-                return Ok(Fitted::NotApplicable(format!(
-                    "values are not on a lattice ({} distinct in {} samples)",
-                    v.len(),
-                    idx.len()
-                )));
+        Effect::Quantization => match quantum(ctx, &idx) {
+            Ok(q) => {
+                spec.quantum_dps = q;
+                p.insert("quantum_dps".into(), q);
             }
-            // Refine: mean step of the differences that are one quantum.
-            let ones: Vec<f64> = d
-                .iter()
-                .copied()
-                .filter(|&x| (x / q0).round() == 1.0)
-                .collect();
-            let q = if ones.is_empty() {
-                q0
-            } else {
-                super::features::mean(&ones)
-            };
-            spec.quantum_dps = q;
-            p.insert("quantum_dps".into(), q);
-        }
+            Err(why) => return Ok(Fitted::NotApplicable(why)),
+        },
         Effect::WhiteNoise => {
             let (c, _) = excess_fit(ctx, dt, &|tau| 1.0 / tau);
             n.arw_dps_per_rthz = (n.arw_dps_per_rthz.powi(2) + c).sqrt();
@@ -568,22 +539,8 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             }
         }
         Effect::Markov => {
-            // Correlation time on an 8-per-decade grid from 4 samples to 3 record lengths,
-            // fitted jointly to the fit blocks' AVAR and their long-lag drift variogram.
+            let (chi2, c, tc) = markov_grid(ctx, dt, t_rec);
             let w = ctx.drift_window_s;
-            let t_hi = 3.0 * t_rec;
-            let mut best = (f64::INFINITY, 0.0, 1.0);
-            let mut tc = (4.0 * dt).max(1e-3);
-            while tc <= t_hi {
-                let (c, chi2, _) = drift_fit(ctx, dt, &|tau| gm_avar(1.0, tc, tau), &|l| {
-                    gm_variogram(tc, l, w)
-                });
-                if chi2 < best.0 {
-                    best = (chi2, c, tc);
-                }
-                tc *= 10f64.powf(1.0 / 8.0);
-            }
-            let (chi2, c, tc) = best;
             let (_, chi2_rrw, npts) =
                 drift_fit(ctx, dt, &|tau| tau / 3.0, &|l| rrw_variogram(l, w));
             if n.gm_sigma_dps > 0.0 {
@@ -622,65 +579,24 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             p.insert("rate_ramp_dps_per_s".into(), beta[1]);
         }
         Effect::Warmup => {
-            // A warm-up decays within the record: tau up to a third of it (a longer one is a
-            // ramp, which has its own candidate).
-            let t_hi = real.t_s.last().copied().unwrap_or(1.0) / 3.0;
-            let mut best = (f64::INFINITY, 0.0, 1.0);
-            let mut tau = (10.0 * dt).max(5.0);
-            while tau <= t_hi {
-                let mut row = |k: usize, r: &mut [f64]| {
-                    r[0] = 1.0;
-                    r[1] = (-real.t_s[idx[k]] / tau).exp();
-                    y[k]
-                };
-                if let Some(beta) = lstsq(idx.len(), 2, &mut row) {
-                    let sse: f64 = idx
-                        .iter()
-                        .zip(&y)
-                        .map(|(&i, v)| (v - beta[0] - beta[1] * (-real.t_s[i] / tau).exp()).powi(2))
-                        .sum();
-                    if sse < best.0 {
-                        best = (sse, beta[1], tau);
-                    }
-                }
-                tau *= 10f64.powf(1.0 / 16.0);
-            }
-            spec.warmup = Some((best.1, best.2));
-            p.insert("warmup_dps".into(), best.1);
-            p.insert("warmup_tau_s".into(), best.2);
+            let (amplitude_dps, tau_s) = warmup(real, &idx, &y);
+            spec.warmup = Some((amplitude_dps, tau_s));
+            p.insert("warmup_dps".into(), amplitude_dps);
+            p.insert("warmup_tau_s".into(), tau_s);
         }
-        Effect::Temperature => {
-            let Some(tc) = &real.temp_c else {
-                return Ok(Fitted::NotApplicable(
-                    "the record has no `temp_c` column".into(),
-                ));
-            };
-            let tv: Vec<f64> = idx.iter().map(|&i| tc[i]).collect();
-            let tref = super::features::mean(&tv);
-            let dtemp = &ctx.base.dtemp_c_per_s;
-            let with_rate = dtemp.len() == real.t_s.len();
-            let np = if with_rate { 3 } else { 2 };
-            let Some(beta) = lstsq(idx.len(), np, &mut |k, r| {
-                r[0] = 1.0;
-                r[1] = tv[k] - tref;
-                if with_rate {
-                    r[2] = dtemp[idx[k]];
+        Effect::Temperature => match temperature_link(ctx, &idx, &y) {
+            Ok((beta, tref)) => {
+                spec.temp_dps_per_c += beta[1];
+                spec.temp_ref_c = tref;
+                p.insert("bias_dps_per_c".into(), beta[1]);
+                p.insert("reference_c".into(), tref);
+                if let Some(b2) = beta.get(2) {
+                    spec.temp_rate_dps_per_c_per_s += b2;
+                    p.insert("bias_dps_per_c_per_s".into(), *b2);
                 }
-                y[k]
-            }) else {
-                return Ok(Fitted::NotApplicable(
-                    "`temp_c` does not vary on the fit blocks".into(),
-                ));
-            };
-            spec.temp_dps_per_c += beta[1];
-            spec.temp_ref_c = tref;
-            p.insert("bias_dps_per_c".into(), beta[1]);
-            p.insert("reference_c".into(), tref);
-            if with_rate {
-                spec.temp_rate_dps_per_c_per_s += beta[2];
-                p.insert("bias_dps_per_c_per_s".into(), beta[2]);
             }
-        }
+            Err(why) => return Ok(Fitted::NotApplicable(why)),
+        },
         Effect::Sinusoid => {
             let (f, a, ph) = fit_sine(real, &ctx.fit_ranges);
             spec.sine = Some((a, f, ph));
@@ -713,27 +629,149 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             f.drop_probability = (f.drop_probability + extra).min(0.5);
             p.insert("drop_probability".into(), extra);
         }
-        Effect::ScaleFactor => {
-            let Some(r) = &real.ref_dps else {
-                return Ok(Fitted::NotApplicable(
-                    "not applicable: the record has no reference rate column".into(),
-                ));
-            };
-            let Some(beta) = lstsq(idx.len(), 2, &mut |k, row| {
-                let i = idx[k];
-                row[0] = 1.0;
-                row[1] = r[i];
-                real.rate_dps[i]
-            }) else {
-                return Ok(Fitted::NotApplicable(
-                    "not applicable: the reference rate does not vary on the fit blocks".into(),
-                ));
-            };
-            spec.sf_ppm += beta[1] * 1e6;
-            p.insert("scale_factor_error_ppm".into(), beta[1] * 1e6);
-        }
+        Effect::ScaleFactor => match scale_factor(real, &idx) {
+            Ok(k) => {
+                spec.sf_ppm += k * 1e6;
+                p.insert("scale_factor_error_ppm".into(), k * 1e6);
+            }
+            Err(why) => return Ok(Fitted::NotApplicable(why)),
+        },
     }
     Ok(Fitted::Spec(Box::new(spec), p, excluded))
+}
+
+/// The Gauss-Markov term that fits the fit blocks' AVAR and their long-lag drift variogram
+/// jointly best, its correlation time on an 8-per-decade grid from 4 samples to 3 record
+/// lengths: (chi2, sigma^2 in (deg/s)^2, tau s).
+fn markov_grid(ctx: &FitCtx, dt: f64, t_rec: f64) -> (f64, f64, f64) {
+    let w = ctx.drift_window_s;
+    let mut best = (f64::INFINITY, 0.0, 1.0);
+    let mut tc = (4.0 * dt).max(1e-3);
+    while tc <= 3.0 * t_rec {
+        let (c, chi2, _) = drift_fit(ctx, dt, &|tau| gm_avar(1.0, tc, tau), &|l| {
+            gm_variogram(tc, l, w)
+        });
+        if chi2 < best.0 {
+            best = (chi2, c, tc);
+        }
+        tc *= 10f64.powf(1.0 / 8.0);
+    }
+    best
+}
+
+/// The rate's linear link to the recorded temperature (about its mean on the fit samples
+/// `idx`, rates `y`) and, when the baseline carries it, to the temperature's rate:
+/// `(beta, reference_c)` with `beta` = [offset, deg/s per deg C, (deg/s per deg C/s)];
+/// `Err(why)` without a `temp_c` column or when it does not vary.
+fn temperature_link(
+    ctx: &FitCtx,
+    idx: &[usize],
+    y: &[f64],
+) -> std::result::Result<(Vec<f64>, f64), String> {
+    let real = ctx.real;
+    let Some(tc) = &real.temp_c else {
+        return Err("the record has no `temp_c` column".into());
+    };
+    let tv: Vec<f64> = idx.iter().map(|&i| tc[i]).collect();
+    let tref = super::features::mean(&tv);
+    let dtemp = &ctx.base.dtemp_c_per_s;
+    let with_rate = dtemp.len() == real.t_s.len();
+    let np = if with_rate { 3 } else { 2 };
+    lstsq(idx.len(), np, &mut |k, r| {
+        r[0] = 1.0;
+        r[1] = tv[k] - tref;
+        if with_rate {
+            r[2] = dtemp[idx[k]];
+        }
+        y[k]
+    })
+    .map(|beta| (beta, tref))
+    .ok_or_else(|| "`temp_c` does not vary on the fit blocks".into())
+}
+
+/// The scale-factor error against the reference rate on the fit samples `idx` (slope of
+/// the rate on the reference, with an offset); `Err(why)` without a reference or when it
+/// does not vary.
+fn scale_factor(real: &Rec, idx: &[usize]) -> std::result::Result<f64, String> {
+    let Some(r) = &real.ref_dps else {
+        return Err("not applicable: the record has no reference rate column".into());
+    };
+    lstsq(idx.len(), 2, &mut |k, row| {
+        let i = idx[k];
+        row[0] = 1.0;
+        row[1] = r[i];
+        real.rate_dps[i]
+    })
+    .map(|beta| beta[1])
+    .ok_or_else(|| "not applicable: the reference rate does not vary on the fit blocks".into())
+}
+
+/// The quantum of the raw rate on the fit samples `idx`, deg/s: the least step between
+/// distinct values, refined by the mean of the steps that are one quantum; `Err(why)` when
+/// the values are not on a lattice.
+fn quantum(ctx: &FitCtx, idx: &[usize]) -> std::result::Result<f64, String> {
+    let mut v: Vec<f64> = idx.iter().map(|&i| ctx.raw[i]).collect();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let d: Vec<f64> = v
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|&d| d > 1e-9 * scale)
+        .collect();
+    let q0 = d.iter().copied().fold(f64::INFINITY, f64::min);
+    let on = d
+        .iter()
+        .filter(|&&x| ((x / q0) - (x / q0).round()).abs() < 0.01)
+        .count();
+    if d.len() < 2 || !q0.is_finite() || (on as f64) < 0.95 * d.len() as f64 {
+        return Err(format!(
+            "values are not on a lattice ({} distinct in {} samples)",
+            v.len(),
+            idx.len()
+        ));
+    }
+    // Refine: mean step of the differences that are one quantum.
+    let ones: Vec<f64> = d
+        .iter()
+        .copied()
+        .filter(|&x| (x / q0).round() == 1.0)
+        .collect();
+    let q = if ones.is_empty() {
+        q0
+    } else {
+        super::features::mean(&ones)
+    };
+    Ok(q)
+}
+
+/// The warm-up `a exp(-t / tau)` (with an offset) that fits the fit samples `idx` (rates
+/// `y`) best: (amplitude deg/s, tau s), tau on a 16-per-decade grid.
+fn warmup(real: &Rec, idx: &[usize], y: &[f64]) -> (f64, f64) {
+    // A warm-up decays within the record: tau up to a third of it (a longer one is a
+    // ramp, which has its own candidate).
+    let t_hi = real.t_s.last().copied().unwrap_or(1.0) / 3.0;
+    let mut best = (f64::INFINITY, 0.0, 1.0);
+    let mut tau = (10.0 * real.dt_s).max(5.0);
+    while tau <= t_hi {
+        let mut row = |k: usize, r: &mut [f64]| {
+            r[0] = 1.0;
+            r[1] = (-real.t_s[idx[k]] / tau).exp();
+            y[k]
+        };
+        if let Some(beta) = lstsq(idx.len(), 2, &mut row) {
+            let sse: f64 = idx
+                .iter()
+                .zip(y)
+                .map(|(&i, v)| (v - beta[0] - beta[1] * (-real.t_s[i] / tau).exp()).powi(2))
+                .sum();
+            if sse < best.0 {
+                best = (sse, beta[1], tau);
+            }
+        }
+        tau *= 10f64.powf(1.0 / 16.0);
+    }
+    (best.1, best.2)
 }
 
 /// The strongest sinusoid in the fit blocks: (frequency Hz, amplitude deg/s, phase rad at

@@ -333,9 +333,8 @@ impl Model {
         Ok(model)
     }
 
-    /// Checks every value; the first bad one as (section, key, value, reason).
-    #[allow(clippy::type_complexity)]
-    fn validate(&self) -> Result<(), (&'static str, &'static str, f64, String)> {
+    /// Every single-value rule: (section, key, value, rule).
+    fn checks(&self) -> Vec<(&'static str, &'static str, f64, Rule)> {
         use Rule::*;
         const DENSITY: &str = "a noise density must be >= 0";
         const SIZE: &str = "must be >= 0";
@@ -344,7 +343,7 @@ impl Model {
         let t = &self.temperature;
         let m = &self.motion;
         let v = &m.vehicle;
-        let checks: Vec<(&str, &str, f64, Rule)> = vec![
+        vec![
             (
                 "",
                 "sample_rate_hz",
@@ -543,8 +542,16 @@ impl Model {
                 self.faults.spike_amplitude_dps,
                 NonNegative(SIZE),
             ),
-        ];
-        for (section, key, v, rule) in checks {
+        ]
+    }
+
+    /// Checks every value ([`Self::checks`], then the ranges' order); the first bad one as
+    /// (section, key, value, reason).
+    #[allow(clippy::type_complexity)]
+    fn validate(&self) -> Result<(), (&'static str, &'static str, f64, String)> {
+        use Rule::*;
+        let (n, v) = (&self.noise, &self.motion.vehicle);
+        for (section, key, v, rule) in self.checks() {
             let why = match rule {
                 _ if !v.is_finite() => Some("must be finite".to_string()),
                 NonNegative(why) if v < 0.0 => Some(why.to_string()),
