@@ -13,7 +13,7 @@
 //! - A record shorter than the smallest block the levels allow (`8 * 2^levels` samples, 64
 //!   for 3 levels) is refused with an error that says so.
 
-use crate::record::{self, Record};
+use crate::record::{self, ReadOptions, Record};
 use anyhow::{bail, Context, Result};
 use fog_core::denoise::{denoise_in_place, DenoiseConfig};
 use fog_core::{Sigma, ThresholdRule};
@@ -148,8 +148,14 @@ pub fn denoise_blocks(
 /// Runs the command.
 pub fn run(args: &Args) -> Result<()> {
     record::refuse_overwrite(&args.input, &args.output)?;
-    let rec = Record::read(&args.input)?;
-    let n = rec.rate_dps.len();
+    let opts = ReadOptions {
+        optional_columns: false,
+        keep_rows: true,
+        ..ReadOptions::default()
+    };
+    let rec = Record::read(&args.input, &opts)?;
+    let rate: Vec<f32> = rec.rate_dps.iter().map(|&x| x as f32).collect();
+    let n = rate.len();
     let blocks =
         plan(n, args.block, args.levels).with_context(|| args.input.display().to_string())?;
     let cfg = DenoiseConfig {
@@ -160,10 +166,9 @@ pub fn run(args: &Args) -> Result<()> {
         },
         sigma: args.sigma.0,
     };
-    let (denoised, sigma_sum) =
-        denoise_blocks(&rec.rate_dps, &blocks, &cfg).map_err(|(start, e)| {
-            anyhow::anyhow!("{}: block at line {}: {e}", args.input.display(), start + 2)
-        })?;
+    let (denoised, sigma_sum) = denoise_blocks(&rate, &blocks, &cfg).map_err(|(start, e)| {
+        anyhow::anyhow!("{}: block at line {}: {e}", args.input.display(), start + 2)
+    })?;
     let out_path = &args.output;
     record::write_atomic(out_path, |w| {
         let mut wtr = csv::Writer::from_writer(w);

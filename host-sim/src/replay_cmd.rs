@@ -2,7 +2,7 @@
 //! (default; [`crate::replay::motion`]) or the streamed level-trend / paper presets
 //! ([`crate::replay::stream`]).
 
-use crate::replay::input::RateSpec;
+use crate::record::ReadOptions;
 use crate::replay::motion::{self, MotionOptions};
 use crate::replay::stream::{self, IdPreset, InputFormat, Options, Outcome};
 use crate::report;
@@ -157,11 +157,10 @@ fn run_motion(args: &Args, sensor: Option<fog_core::still::SensorConfig>) -> Res
             preset: IdPreset::LevelTrend,
             collect: false,
         },
-        rate: RateSpec {
-            column: args.rate_column.clone(),
-            scale: args.rate_scale,
+        csv: ReadOptions {
+            still_column: args.still_column.clone(),
+            ..ReadOptions::rate(&args.rate_column, args.rate_scale)
         },
-        still_column: args.still_column.clone(),
         baseline_q: args.baseline_q.map(|q| (q, "--baseline-q".to_string())),
         validate: args.validate.clone(),
     };

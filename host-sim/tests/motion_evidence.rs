@@ -14,7 +14,17 @@ use assert_cmd::Command;
 use fog_core::image::Image;
 use host_sim::identify::series::Series;
 use host_sim::motion::{self, MotionRecord};
+use host_sim::record::{ReadOptions, Record};
 use std::path::{Path, PathBuf};
+
+/// A simulated record (a CSV without `t_s` would be taken at 100 Hz).
+fn read(p: &Path) -> Record {
+    let opts = ReadOptions {
+        rate_hz: Some(100.0),
+        ..ReadOptions::default()
+    };
+    Record::read(p, &opts).expect("record reads")
+}
 
 fn host_sim() -> Command {
     Command::cargo_bin("host-sim").expect("binary built")
@@ -98,7 +108,7 @@ pub fn vehicle_profile(seed: u64, n: usize, dt: f64) -> Vec<f32> {
 
 /// A static record made into a vehicle record (the rate re-quantized to one count).
 fn vehicle(static_csv: &Path, seed: u64) -> MotionRecord {
-    let mut s = Series::read_csv(static_csv).expect("static record");
+    let mut s = Series::from(&read(static_csv));
     let q = 60.0f32 / 32768.0;
     let tr = vehicle_profile(seed, s.rate_dps.len(), s.sample_period_s());
     for (x, t) in s.rate_dps.iter_mut().zip(&tr) {
@@ -274,7 +284,7 @@ fn motion_vs_baselines() {
     for seed in 201..205 {
         let p = d.join(format!("st{seed}.csv"));
         simulate(None, seed, &p);
-        let r = motion::read_record(&p, None).expect("test");
+        let r = MotionRecord::from(&read(&p));
         let truth = r.series.drift_dps.clone().expect("test");
         for (i, img) in [
             image_with_q(&gated, q_gated),
@@ -324,7 +334,7 @@ fn static_level_q_sweep() {
         .map(|seed| {
             let p = d.join(format!("st{seed}.csv"));
             simulate(None, seed, &p);
-            motion::read_record(&p, None).expect("test")
+            MotionRecord::from(&read(&p))
         })
         .collect();
     for q in Q_GRID {

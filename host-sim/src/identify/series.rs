@@ -1,8 +1,8 @@
 //! One record as columns, and where records come from (files or the simulator).
 
-use crate::record::parse_field;
+use crate::record::{ReadOptions, Record};
 use anyhow::{bail, Context, Result};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// A record's columns. `drift_dps` is the ground truth, present in simulated records.
 #[derive(Debug, Clone)]
@@ -25,71 +25,21 @@ impl Series {
     /// times in bursts (the MPU6050 set: median step 2 ms, mean 10 ms), where only the mean
     /// gives the sensor's rate; a gap lengthens it by the gap's share of the record.
     pub fn sample_period_s(&self) -> f64 {
-        match (self.t_s.first(), self.t_s.last()) {
-            (Some(a), Some(b)) if self.t_s.len() > 1 && b > a => {
-                (b - a) / (self.t_s.len() - 1) as f64
-            }
-            _ => 1.0,
-        }
+        crate::record::mean_step_s(&self.t_s)
     }
+}
 
-    /// Reads an interchange CSV (`t_s`, `rate_dps`, optional `drift_dps` and `temp_c`), with the same
-    /// checks and messages as every host-sim reader.
-    pub fn read_csv(path: &Path) -> Result<Self> {
-        Self::read_csv_column(path, "rate_dps")
-    }
-
-    /// [`Series::read_csv`] taking the rate from column `rate_column` (e.g. `gz_dps` of a
-    /// multi-axis recording); a `.gz` file is decompressed on the fly.
-    pub fn read_csv_column(path: &Path, rate_column: &str) -> Result<Self> {
-        Self::from_reader(path, crate::record::open_maybe_gz(path)?, rate_column)
-    }
-
-    /// [`Series::read_csv_column`] from any (already decompressed) reader; `path` only names
-    /// the input in messages (the fuzz target `fuzz/fuzz_targets/csv_record.rs` feeds it
-    /// arbitrary bytes).
-    pub fn from_reader<R: std::io::Read>(path: &Path, input: R, rate_column: &str) -> Result<Self> {
-        let name = path.display().to_string();
-        let (mut rdr, header) = crate::record::csv_with_header(&name, input)?;
-        let col = |want: &str| header.iter().position(|h| h.trim() == want);
-        let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
-            bail!(
-                "{name}:1: needs columns `t_s` and `{rate_column}` (the header has: {})",
-                header.iter().collect::<Vec<_>>().join(", ")
-            );
-        };
-        let dc = col("drift_dps");
-        let tc_c = col("temp_c");
-        let mut s = Series {
-            name: name.clone(),
-            t_s: Vec::new(),
-            rate_dps: Vec::new(),
-            drift_dps: dc.map(|_| Vec::new()),
-            temp_c: tc_c.map(|_| Vec::new()),
-        };
-        for rec in rdr.records() {
-            let rec = rec.map_err(|e| {
-                anyhow::anyhow!("{name}:{}: {e}", e.position().map_or(0, |p| p.line()))
-            })?;
-            let line = rec.position().map_or(0, |p| p.line());
-            let t: f64 = parse_field(&rec, tc, "t_s", path, line)?;
-            if s.t_s.last().is_some_and(|&p| t <= p) {
-                bail!("{name}:{line}: t_s = {t} does not increase");
-            }
-            s.t_s.push(t);
-            s.rate_dps
-                .push(parse_field(&rec, rc, "rate_dps", path, line)?);
-            if let (Some(c), Some(v)) = (dc, s.drift_dps.as_mut()) {
-                v.push(parse_field(&rec, c, "drift_dps", path, line)?);
-            }
-            if let (Some(c), Some(v)) = (tc_c, s.temp_c.as_mut()) {
-                v.push(parse_field(&rec, c, "temp_c", path, line)?);
-            }
+impl From<&Record> for Series {
+    /// The columns the trainers read, in single precision.
+    fn from(r: &Record) -> Self {
+        let single = |v: &Vec<f64>| v.iter().map(|&x| x as f32).collect();
+        Self {
+            name: r.name.clone(),
+            t_s: r.t_s.clone(),
+            rate_dps: single(&r.rate_dps),
+            drift_dps: r.drift_dps.as_ref().map(single),
+            temp_c: r.temp_c.as_ref().map(single),
         }
-        if s.t_s.is_empty() {
-            bail!("{name}: no data rows");
-        }
-        Ok(s)
     }
 }
 
@@ -146,6 +96,6 @@ impl Records for CsvFiles {
         self.0.len()
     }
     fn get(&self, i: usize) -> Result<Series> {
-        Series::read_csv_column(&self.0[i], &self.1)
+        Ok((&Record::read(&self.0[i], &ReadOptions::rate(&self.1, 1.0))?).into())
     }
 }

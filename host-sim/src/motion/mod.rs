@@ -692,17 +692,18 @@ pub struct MotionRecord {
     pub true_rate_dps: Option<Vec<f32>>,
 }
 
-/// Reads an interchange CSV (`t_s`, `rate_dps`, optional `temp_c`, `drift_dps`,
-/// `true_rate_dps` and the still flag column `still_column`), with
-/// [`crate::replay::input::read_csv`] (a CSV without `t_s` is taken at 100 Hz).
-pub fn read_record(path: &Path, still_column: Option<&str>) -> Result<MotionRecord> {
-    let r = crate::replay::input::read_csv(
-        path,
-        &crate::replay::input::RateSpec::default(),
-        100.0,
-        still_column,
-    )?;
-    Ok(r.record)
+impl From<&crate::record::Record> for MotionRecord {
+    /// The columns the estimator runs on, in single precision.
+    fn from(r: &crate::record::Record) -> Self {
+        Self {
+            series: r.into(),
+            still: r.still.clone(),
+            true_rate_dps: r
+                .true_rate_dps
+                .as_ref()
+                .map(|v| v.iter().map(|&x| x as f32).collect()),
+        }
+    }
 }
 
 /// Runs `estimator` over a record from power-on: one output per row.
