@@ -522,7 +522,7 @@ fn external_still_flag_column() {
         .assert()
         .failure()
         .stderr(predicates::str::contains(
-            "no_t.csv:1: missing column `nope` (the header has: rate_dps, temp_c)",
+            "turn.csv:1: missing column `nope` (the header has: t_s, rate_dps, zupt)",
         ));
 }
 
