@@ -173,6 +173,7 @@ impl Records for TrainingSet {
             rate_dps: x.iter().map(|s| s.rate_dps as f32).collect(),
             drift_dps: Some(x.iter().map(|s| s.drift_dps as f32).collect()),
             temp_c: Some(x.iter().map(|s| s.temp_c as f32).collect()),
+            ..Default::default()
         })
     }
 }

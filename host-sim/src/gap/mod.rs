@@ -1102,6 +1102,7 @@ fn series(name: &str, t: &[f64], y: &[f64]) -> Series {
         rate_dps: y.iter().map(|&v| v as f32).collect(),
         drift_dps: None,
         temp_c: None,
+        ..Default::default()
     }
 }
 

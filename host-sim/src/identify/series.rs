@@ -4,8 +4,10 @@ use crate::record::{ReadOptions, Record};
 use anyhow::{bail, Context, Result};
 use std::path::PathBuf;
 
-/// A record's columns. `drift_dps` is the ground truth, present in simulated records.
-#[derive(Debug, Clone)]
+/// A record's columns in single precision, as the estimator and the trainers read them
+/// (from a [`Record`], or from the simulator). `drift_dps` and `true_rate_dps` are the
+/// ground truth, present in simulated records.
+#[derive(Debug, Clone, Default)]
 pub struct Series {
     /// Where it came from (file path or simulator seed), for messages.
     pub name: String,
@@ -17,6 +19,10 @@ pub struct Series {
     pub drift_dps: Option<Vec<f32>>,
     /// Sensor temperature, deg C, when the record carries it (column `temp_c`, optional).
     pub temp_c: Option<Vec<f32>>,
+    /// External still flag per row (`--still-column`): `None` where the cell is empty.
+    pub still: Option<Vec<Option<bool>>>,
+    /// True rate, deg/s (`true_rate_dps`, simulator records).
+    pub true_rate_dps: Option<Vec<f32>>,
 }
 
 impl Series {
@@ -30,7 +36,7 @@ impl Series {
 }
 
 impl From<&Record> for Series {
-    /// The columns the trainers read, in single precision.
+    /// The columns the estimator and the trainers read, in single precision.
     fn from(r: &Record) -> Self {
         let single = |v: &Vec<f64>| v.iter().map(|&x| x as f32).collect();
         Self {
@@ -39,6 +45,8 @@ impl From<&Record> for Series {
             rate_dps: single(&r.rate_dps),
             drift_dps: r.drift_dps.as_ref().map(single),
             temp_c: r.temp_c.as_ref().map(single),
+            still: r.still.clone(),
+            true_rate_dps: r.true_rate_dps.as_ref().map(single),
         }
     }
 }

@@ -681,35 +681,9 @@ pub fn read_image(path: &Path) -> Result<Image> {
     Image::parse(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))
 }
 
-/// A record to run: rate, optional temperature, external still flag and truth.
-#[derive(Debug, Clone)]
-pub struct MotionRecord {
-    /// The columns every tool reads (`t_s`, `rate_dps`, `temp_c`, `drift_dps`).
-    pub series: Series,
-    /// External still flag per row (`--still-column`): `None` where the cell is empty.
-    pub still: Option<Vec<Option<bool>>>,
-    /// True rate, deg/s (`true_rate_dps`, simulator records).
-    pub true_rate_dps: Option<Vec<f32>>,
-}
-
-impl From<&crate::record::Record> for MotionRecord {
-    /// The columns the estimator runs on, in single precision.
-    fn from(r: &crate::record::Record) -> Self {
-        Self {
-            series: r.into(),
-            still: r.still.clone(),
-            true_rate_dps: r
-                .true_rate_dps
-                .as_ref()
-                .map(|v| v.iter().map(|&x| x as f32).collect()),
-        }
-    }
-}
-
 /// Runs `estimator` over a record from power-on: one output per row.
-pub fn run(estimator: &mut PresetEstimator, r: &MotionRecord) -> Vec<MotionOutput> {
+pub fn run(estimator: &mut PresetEstimator, s: &Series) -> Vec<MotionOutput> {
     estimator.restart();
-    let s = &r.series;
     (0..s.rate_dps.len())
         .map(|k| {
             let temp = s
@@ -717,7 +691,7 @@ pub fn run(estimator: &mut PresetEstimator, r: &MotionRecord) -> Vec<MotionOutpu
                 .as_ref()
                 .and_then(|t| t.get(k).copied())
                 .unwrap_or(f32::NAN);
-            let ext = r.still.as_ref().and_then(|v| v.get(k).copied().flatten());
+            let ext = s.still.as_ref().and_then(|v| v.get(k).copied().flatten());
             // Rows are validated finite by the reader: a refusal cannot happen; if it did,
             // the row keeps the previous drift (reported as such by the caller's counts).
             estimator
@@ -791,6 +765,7 @@ mod tests {
                 rate_dps,
                 drift_dps: None,
                 temp_c: None,
+                ..Default::default()
             })
         }
     }

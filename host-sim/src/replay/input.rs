@@ -4,7 +4,6 @@
 
 use super::stream::{self, Decoded, InputFormat, Options};
 use crate::identify::series::Series;
-use crate::motion::MotionRecord;
 use crate::nav::NavRecord;
 use crate::record::{ReadOptions, Record};
 use crate::report::BytesSummary;
@@ -15,7 +14,7 @@ use std::path::Path;
 #[derive(Debug, Clone)]
 pub struct Input {
     /// What the estimator runs on.
-    pub record: MotionRecord,
+    pub record: Series,
     /// The truth, when the record has both `true_rate_dps` and `drift_dps` (`moving`
     /// optional: without it every sample counts as still).
     pub truth: Option<NavRecord>,
@@ -80,16 +79,11 @@ pub fn read(path: &Path, opts: &Options, csv: &ReadOptions) -> Result<Input> {
         bail!("{}: no sample decoded", path.display());
     }
     Ok(Input {
-        record: MotionRecord {
-            series: Series {
-                name: path.display().to_string(),
-                t_s,
-                rate_dps,
-                drift_dps: None,
-                temp_c: None,
-            },
-            still: None,
-            true_rate_dps: None,
+        record: Series {
+            name: path.display().to_string(),
+            t_s,
+            rate_dps,
+            ..Series::default()
         },
         truth: None,
         has_moving: false,

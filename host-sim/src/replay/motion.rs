@@ -417,7 +417,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
             if o.identifier.is_some() { "the identifier" } else { "the default sensor" }
         );
     }
-    let s = &rec.record.series;
+    let s = &rec.record;
     let hz = (1.0 / s.sample_period_s()) as f32;
     let (image, identifier) = match file_image {
         Some(f) => f,
@@ -638,7 +638,7 @@ pub fn read_truth_csv(image: &Image, p: &Path) -> Result<(Input, NavRecord)> {
             p.display()
         );
     };
-    let hz = (1.0 / r.record.series.sample_period_s()) as f32;
+    let hz = (1.0 / r.record.sample_period_s()) as f32;
     image
         .check_rate(hz)
         .map_err(|e| anyhow!("{}: {e}", p.display()))?;
