@@ -11,6 +11,7 @@
 
 use crate::allan::{self, edf, Taus};
 use crate::record::{self, ReadOptions, Record};
+use crate::record_args::RecordArgs;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
 use std::io::Write;
@@ -22,12 +23,9 @@ pub struct Args {
     /// Interchange CSV (`t_s` and the rate column; other columns ignored), or `.csv.gz`.
     #[arg(long)]
     pub input: PathBuf,
-    /// The rate column (e.g. `gz_dps` of a multi-axis recording).
-    #[arg(long, default_value = "rate_dps")]
-    pub rate_column: String,
-    /// Factor from the column's unit to deg/s (e.g. 57.29578 for rad/s).
-    #[arg(long, default_value_t = 1.0)]
-    pub rate_scale: f64,
+    /// The rate column and scale, the sample rate of a record without `t_s`.
+    #[command(flatten)]
+    pub record: RecordArgs,
     /// JSON result to write.
     #[arg(long)]
     pub json: PathBuf,
@@ -92,13 +90,13 @@ pub fn sample_period(s: &AllanInput) -> SamplePeriod {
     }
 }
 
-/// Reads `t_s` and the rate (`rate_column` times `rate_scale`, deg/s) from an interchange
+/// Reads `t_s` and the rate (the rate column times the scale, deg/s) from an interchange
 /// CSV or `.csv.gz` ([`Record::read`]; other columns are not read); errors name the file
 /// and line.
-pub fn read_series(path: &Path, rate_column: &str, rate_scale: f64) -> Result<AllanInput> {
+pub fn read_series(path: &Path, args: &RecordArgs) -> Result<AllanInput> {
     let opts = ReadOptions {
         optional_columns: false,
-        ..ReadOptions::rate(rate_column, rate_scale)
+        ..args.options()
     };
     let record = Record::read(path, &opts)?;
     let name = path.display();
@@ -144,7 +142,7 @@ pub fn run(args: &Args) -> Result<()> {
     for out in std::iter::once(&args.json).chain(args.svg.as_ref()) {
         record::refuse_overwrite(&args.input, out)?;
     }
-    let s = read_series(&args.input, &args.rate_column, args.rate_scale)?;
+    let s = read_series(&args.input, &args.record)?;
     let name = args.input.display().to_string();
     let period = sample_period(&s);
     let tau0_s = period.tau0_s;

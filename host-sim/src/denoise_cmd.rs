@@ -14,6 +14,7 @@
 //!   for 3 levels) is refused with an error that says so.
 
 use crate::record::{self, ReadOptions, Record};
+use crate::record_args::RecordArgs;
 use anyhow::{bail, Context, Result};
 use fog_core::denoise::{denoise_in_place, DenoiseConfig};
 use fog_core::{Sigma, ThresholdRule};
@@ -32,6 +33,10 @@ pub struct Args {
     /// CSV to write: the input rows with a `denoised_dps` column added.
     #[arg(long)]
     pub output: PathBuf,
+    /// The rate column and scale (the denoised rate is in deg/s), the sample rate of a
+    /// record without `t_s`.
+    #[command(flatten)]
+    pub record: RecordArgs,
     /// Decomposition levels (the paper uses 3).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=16))]
     pub levels: u32,
@@ -151,7 +156,7 @@ pub fn run(args: &Args) -> Result<()> {
     let opts = ReadOptions {
         optional_columns: false,
         keep_rows: true,
-        ..ReadOptions::default()
+        ..args.record.options()
     };
     let rec = Record::read(&args.input, &opts)?;
     let rate: Vec<f32> = rec.rate_dps.iter().map(|&x| x as f32).collect();

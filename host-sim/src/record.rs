@@ -549,3 +549,111 @@ pub fn write_atomic(
     })?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(text: &str, opts: &ReadOptions) -> Result<Record> {
+        Record::from_reader("r.csv", text.as_bytes(), opts)
+    }
+
+    fn err(text: &str, opts: &ReadOptions) -> String {
+        format!("{:#}", read(text, opts).expect_err("refused"))
+    }
+
+    #[test]
+    fn every_column_by_name_and_the_rows_reader_agrees() {
+        let text = "moving,t_s,temp_c,rate_dps,drift_dps,true_rate_dps,zupt\n\
+                    0,0,25,0.5,0.01,0.4,1\n1,0.5,25.5,1.5,0.02,1.4,\n";
+        let opts = ReadOptions {
+            still_column: Some("zupt".into()),
+            ..ReadOptions::default()
+        };
+        let r = read(text, &opts).expect("reads");
+        assert_eq!(r.t_s, [0.0, 0.5]);
+        assert_eq!(r.rate_dps, [0.5, 1.5]);
+        assert_eq!(r.temp_c.as_deref(), Some(&[25.0, 25.5][..]));
+        assert_eq!(r.drift_dps.as_deref(), Some(&[0.01, 0.02][..]));
+        assert_eq!(r.true_rate_dps.as_deref(), Some(&[0.4, 1.4][..]));
+        assert_eq!(r.moving.as_deref(), Some(&[false, true][..]));
+        assert_eq!(r.still.as_deref(), Some(&[Some(true), None][..]));
+        assert!(!r.t_s_from_rate && r.rows.is_empty());
+        assert_eq!(r.sample_period_s(), 0.5);
+        let mut rows = Rows::new("r.csv", text.as_bytes(), &opts).expect("header");
+        let first = rows.next_row().expect("row").expect("some");
+        assert_eq!((first.line, first.t_s, first.moving), (2, 0.0, Some(false)));
+        assert_eq!(rows.next_row().expect("row").map(|r| r.line), Some(3));
+        assert!(rows.next_row().expect("end").is_none());
+        // Only `t_s` and the rate: the others are not read (a bad cell passes).
+        let plain = ReadOptions {
+            optional_columns: false,
+            keep_rows: true,
+            ..ReadOptions::default()
+        };
+        let r = read("t_s,rate_dps,temp_c\n0,1,hot\n", &plain).expect("reads");
+        assert!(r.temp_c.is_none() && r.rows.len() == 1);
+        assert!(
+            err("t_s,rate_dps,temp_c\n0,1,hot\n", &ReadOptions::default())
+                .contains("r.csv:2: `temp_c` is not a number: \"hot\"")
+        );
+    }
+
+    #[test]
+    fn rate_column_scale_and_time_from_the_rate() {
+        let opts = ReadOptions {
+            rate_hz: Some(4.0),
+            ..ReadOptions::rate("gz_rads", 2.0)
+        };
+        let r = read("gz_rads\n1\n2\n3\n", &opts).expect("reads");
+        assert!(r.t_s_from_rate);
+        assert_eq!(r.t_s, [0.0, 0.25, 0.5]);
+        assert_eq!(r.rate_dps, [2.0, 4.0, 6.0]);
+        // A `t_s` column wins over the rate.
+        let r = read("t_s,gz_rads\n0,1\n1,2\n", &opts).expect("reads");
+        assert!(!r.t_s_from_rate && r.t_s == [0.0, 1.0]);
+        assert!(err("gz_rads\n3e38\n", &opts).contains(
+            "r.csv:2: `gz_rads` x 2 = 600000000000000000000000000000000000000 is beyond"
+        ));
+        assert!(err("gz_rads\n1\n", &ReadOptions::rate("gz_rads", 0.0)).contains("--rate-scale 0"));
+    }
+
+    #[test]
+    fn the_same_messages_for_every_option() {
+        let d = ReadOptions::default();
+        assert_eq!(
+            err("t_s,gyro\n0,1\n", &d),
+            "r.csv:1: missing column `rate_dps` (the header has: t_s, gyro)"
+        );
+        assert_eq!(
+            err("rate_dps\n1\n", &d),
+            "r.csv:1: missing column `t_s` (the header has: rate_dps)"
+        );
+        let still = ReadOptions {
+            still_column: Some("zupt".into()),
+            ..ReadOptions::default()
+        };
+        assert_eq!(
+            err("t_s,rate_dps\n0,1\n", &still),
+            "r.csv:1: missing column `zupt` (the header has: t_s, rate_dps)"
+        );
+        let reference = ReadOptions {
+            reference_column: Some("table_dps".into()),
+            ..ReadOptions::default()
+        };
+        assert!(err("t_s,rate_dps\n0,1\n", &reference).contains("missing column `table_dps`"));
+        assert!(err("t_s,rate_dps,zupt\n0,1,maybe\n", &still)
+            .contains("r.csv:2: still flag \"maybe\" is not 1/0/true/false/empty"));
+        assert!(err("t_s,rate_dps,moving\n0,1,2\n", &d)
+            .contains("r.csv:2: `moving` = `2`: must be 0 or 1"));
+        assert!(err("t_s,rate_dps\n0,1\n0,1\n", &d)
+            .contains("r.csv:3: t_s = 0 does not increase (previous row 0)"));
+        assert!(err("t_s,rate_dps\n0,1e39\n", &d).contains("beyond the single-precision range"));
+        assert!(err("t_s,rate_dps\n0,inf\n", &d).contains("r.csv:2: `rate_dps` is not finite"));
+        assert_eq!(
+            err("t_s,rate_dps\n", &d),
+            "r.csv: no data rows after the header"
+        );
+        assert_eq!(err("", &d), "r.csv: empty file (no header line)");
+    }
+}

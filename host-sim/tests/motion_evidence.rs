@@ -316,8 +316,8 @@ fn static_level_q_sweep() {
     for seed in 101..113 {
         simulate(None, seed, &train.join(format!("s{seed}.csv")));
     }
-    let files =
-        host_sim::identify::series::CsvFiles::from_args(&[train], "rate_dps").expect("test");
+    let files = host_sim::identify::series::CsvFiles::from_args(&[train], &ReadOptions::default())
+        .expect("test");
     let sensor = fog_core::still::SensorConfig::ECORE_2000;
     let trained = motion::train(&files, &motion::TrainOptions::new(sensor))
         .expect("test")

@@ -239,7 +239,7 @@ fn main() -> Result<()> {
 }
 
 fn csvs(dir: &Path) -> Result<Vec<PathBuf>> {
-    Ok(CsvFiles::from_args(&[dir.to_path_buf()], "rate_dps")?.0)
+    Ok(CsvFiles::from_args(&[dir.to_path_buf()], &ReadOptions::default())?.0)
 }
 
 fn file_name(p: &Path) -> String {

@@ -137,16 +137,8 @@ pub fn not_static(rec: &Rec) -> Option<String> {
 /// Reads a CSV (`.gz` too) with [`Record::read`]: `t_s`, the rate column, `temp_c` if
 /// present, the reference column if asked for (or `true_rate_dps` if present); `t_s` from
 /// the first sample, regularised ([`regularise`]).
-pub fn read_rec(
-    path: &Path,
-    rate_column: &str,
-    ref_column: Option<&str>,
-) -> Result<(Rec, TimeInfo)> {
-    let opts = ReadOptions {
-        reference_column: ref_column.map(str::to_string),
-        ..ReadOptions::rate(rate_column, 1.0)
-    };
-    let r = Record::read(path, &opts)?;
+pub fn read_rec(path: &Path, opts: &ReadOptions) -> Result<(Rec, TimeInfo)> {
+    let r = Record::read(path, opts)?;
     if r.len() < 2 {
         bail!("{}: fewer than 2 data rows", r.name);
     }

@@ -64,12 +64,12 @@ pub trait Records {
 }
 
 /// CSV files given on the command line: files, or folders whose `*.csv` (and `*.csv.gz`)
-/// files are taken in name order; the rate is read from `rate_column`.
-pub struct CsvFiles(pub Vec<PathBuf>, pub String);
+/// files are taken in name order, each read with the options given.
+pub struct CsvFiles(pub Vec<PathBuf>, pub ReadOptions);
 
 impl CsvFiles {
     /// Expands folders; refuses a path that does not exist or a set with no file.
-    pub fn from_args(paths: &[PathBuf], rate_column: &str) -> Result<Self> {
+    pub fn from_args(paths: &[PathBuf], opts: &ReadOptions) -> Result<Self> {
         let mut out = Vec::new();
         for p in paths {
             if p.is_dir() {
@@ -95,7 +95,7 @@ impl CsvFiles {
         if out.is_empty() {
             bail!("no record given");
         }
-        Ok(Self(out, rate_column.to_string()))
+        Ok(Self(out, opts.clone()))
     }
 }
 
@@ -104,6 +104,6 @@ impl Records for CsvFiles {
         self.0.len()
     }
     fn get(&self, i: usize) -> Result<Series> {
-        Ok((&Record::read(&self.0[i], &ReadOptions::rate(&self.1, 1.0))?).into())
+        Ok((&Record::read(&self.0[i], &self.1)?).into())
     }
 }

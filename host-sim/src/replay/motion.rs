@@ -287,7 +287,7 @@ fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
         });
     }
     if !o.validate.is_empty() {
-        let files = CsvFiles::from_args(&o.validate, "rate_dps")?;
+        let files = CsvFiles::from_args(&o.validate, &ReadOptions::default())?;
         let mut recs = Vec::new();
         for i in 0..files.len() {
             let p = &files.0[i];
@@ -653,7 +653,7 @@ pub fn score_records(
     paths: &[PathBuf],
     baseline_q: Option<(f64, String)>,
 ) -> Result<ValidationScores> {
-    let files = CsvFiles::from_args(paths, "rate_dps")?;
+    let files = CsvFiles::from_args(paths, &ReadOptions::default())?;
     let mut recs = Vec::new();
     for p in &files.0 {
         let (r, truth) = read_truth_csv(image, p)?;
