@@ -73,28 +73,22 @@ pub fn missing_column(name: &str, header: &csv::StringRecord, column: &str) -> a
     )
 }
 
-/// Where each column is in the header.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Columns {
-    /// `t_s` (None: `row index / rate_hz`).
-    pub t_s: Option<usize>,
-    /// The rate column.
-    pub rate: usize,
-    /// `temp_c`.
-    pub temp_c: Option<usize>,
-    /// `drift_dps`.
-    pub drift_dps: Option<usize>,
-    /// The reference column, or `true_rate_dps`.
-    pub true_rate_dps: Option<usize>,
-    /// `moving`.
-    pub moving: Option<usize>,
-    /// The still flag column.
-    pub still: Option<usize>,
+/// Where each column is in the header (`t_s`: None for `row index / rate_hz`; `true_rate_dps`:
+/// the reference column).
+#[derive(Debug, Clone, Copy)]
+struct Columns {
+    t_s: Option<usize>,
+    rate: usize,
+    temp_c: Option<usize>,
+    drift_dps: Option<usize>,
+    true_rate_dps: Option<usize>,
+    moving: Option<usize>,
+    still: Option<usize>,
 }
 
 impl Columns {
     /// Finds the columns `opts` asks for in `header`; refuses a missing required one.
-    pub fn resolve(name: &str, header: &csv::StringRecord, opts: &ReadOptions) -> Result<Self> {
+    fn resolve(name: &str, header: &csv::StringRecord, opts: &ReadOptions) -> Result<Self> {
         let col = |want: &str| header.iter().position(|h| h.trim() == want);
         let need = |want: &str| col(want).ok_or_else(|| missing_column(name, header, want));
         let t_s = match (col("t_s"), opts.rate_hz) {
@@ -190,6 +184,11 @@ impl<R: std::io::Read> Rows<R> {
             bail!("{name}: empty file (no header line)");
         }
         let cols = Columns::resolve(name, &header, opts)?;
+        if let (None, Some(hz)) = (cols.t_s, opts.rate_hz) {
+            if !(hz.is_finite() && hz > 0.0) {
+                bail!("--rate-hz {hz}: must be finite and > 0");
+            }
+        }
         Ok(Self {
             name: name.to_string(),
             rdr,
@@ -207,11 +206,6 @@ impl<R: std::io::Read> Rows<R> {
     /// The header, as in the file.
     pub fn header(&self) -> &csv::StringRecord {
         &self.header
-    }
-
-    /// Where the columns are.
-    pub fn columns(&self) -> &Columns {
-        &self.cols
     }
 
     /// The fields of the row [`Rows::next_row`] returned last, as in the file.
@@ -236,10 +230,10 @@ impl<R: std::io::Read> Rows<R> {
         }
         let rec = &self.rec;
         let line = rec.position().map_or(self.index + 2, |p| p.line());
-        let num = |c: usize, what: &str| field(name, rec, c, what, line);
+        let num = |c: usize, what: &str| field(name, rec, c, what, line, true);
         let c = &self.cols;
         let t = match c.t_s {
-            Some(col) => num(col, "t_s")?,
+            Some(col) => field(name, rec, col, "t_s", line, false)?,
             None => self.index as f64 / self.rate_hz,
         };
         if let Some(prev) = self.prev_t {
@@ -297,9 +291,16 @@ fn single(x: f64) -> bool {
     x.is_finite() && x.abs() <= f64::from(f32::MAX)
 }
 
-/// Field `col` of `rec` (line `line`) as a number finite in single precision (`t_s`: in
-/// double precision); `what` names it in messages.
-fn field(name: &str, rec: &csv::StringRecord, col: usize, what: &str, line: u64) -> Result<f64> {
+/// Field `col` of `rec` (line `line`) as a finite number, within the single-precision range
+/// if `single_range`; `what` names it in messages.
+fn field(
+    name: &str,
+    rec: &csv::StringRecord,
+    col: usize,
+    what: &str,
+    line: u64,
+    single_range: bool,
+) -> Result<f64> {
     let Some(raw) = rec.get(col) else {
         bail!(
             "{name}:{line}: missing field `{what}` (row has {} fields)",
@@ -313,7 +314,7 @@ fn field(name: &str, rec: &csv::StringRecord, col: usize, what: &str, line: u64)
     if !v.is_finite() {
         bail!("{name}:{line}: `{what}` is not finite: {raw:?}");
     }
-    if what != "t_s" && !single(v) {
+    if single_range && !single(v) {
         bail!("{name}:{line}: `{what}` = {raw:?} is beyond the single-precision range (|x| <= 3.4e38)");
     }
     Ok(v)
@@ -365,7 +366,7 @@ impl Record {
     /// messages (the fuzz target `fuzz/fuzz_targets/csv_record.rs` feeds it arbitrary bytes).
     pub fn from_reader<R: std::io::Read>(name: &str, input: R, opts: &ReadOptions) -> Result<Self> {
         let mut rows = Rows::new(name, input, opts)?;
-        let c = *rows.columns();
+        let c = rows.cols;
         let mut r = Self {
             name: name.to_string(),
             header: rows.header().clone(),
@@ -403,11 +404,6 @@ impl Record {
     /// True when there is no sample (never, for a record read from a file).
     pub fn is_empty(&self) -> bool {
         self.t_s.is_empty()
-    }
-
-    /// Whether the header has `column`.
-    pub fn has_column(&self, column: &str) -> bool {
-        self.header.iter().any(|h| h.trim() == column)
     }
 
     /// The error for a column this record lacks ([`missing_column`]).
@@ -616,6 +612,11 @@ mod tests {
             "r.csv:2: `gz_rads` x 2 = 600000000000000000000000000000000000000 is beyond"
         ));
         assert!(err("gz_rads\n1\n", &ReadOptions::rate("gz_rads", 0.0)).contains("--rate-scale 0"));
+        let stopped = ReadOptions {
+            rate_hz: Some(0.0),
+            ..ReadOptions::rate("gz_rads", 1.0)
+        };
+        assert!(err("gz_rads\n1\n", &stopped).contains("--rate-hz 0: must be finite and > 0"));
     }
 
     #[test]
