@@ -94,9 +94,15 @@ impl Columns {
         let t_s = match (col("t_s"), opts.rate_hz) {
             (Some(c), _) => Some(c),
             (None, Some(_)) => None,
-            (None, None) => return Err(missing_column(name, header, "t_s")),
+            (None, None) => {
+                let e = missing_column(name, header, "t_s");
+                bail!("{e}; a record without time stamps needs its rate (--rate-hz)");
+            }
         };
-        let rate = need(&opts.rate_column)?;
+        let rate = col(&opts.rate_column).ok_or_else(|| {
+            let e = missing_column(name, header, &opts.rate_column);
+            anyhow!("{e}; the rate is read from --rate-column")
+        })?;
         let still = opts.still_column.as_deref().map(need).transpose()?;
         let extra = |want: &str| {
             if opts.optional_columns {
@@ -624,11 +630,11 @@ mod tests {
         let d = ReadOptions::default();
         assert_eq!(
             err("t_s,gyro\n0,1\n", &d),
-            "r.csv:1: missing column `rate_dps` (the header has: t_s, gyro)"
+            "r.csv:1: missing column `rate_dps` (the header has: t_s, gyro); the rate is read from --rate-column"
         );
         assert_eq!(
             err("rate_dps\n1\n", &d),
-            "r.csv:1: missing column `t_s` (the header has: rate_dps)"
+            "r.csv:1: missing column `t_s` (the header has: rate_dps); a record without time stamps needs its rate (--rate-hz)"
         );
         let still = ReadOptions {
             still_column: Some("zupt".into()),
