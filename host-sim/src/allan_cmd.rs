@@ -7,7 +7,8 @@
 //! rare (at most [`RARE_GAPS`] of the steps: missing data), else the mean of every step
 //! (irregular or bursty stamps, where the median is not the rate: said on stderr). The
 //! samples are analysed as if evenly spaced. The input (CSV, or `.csv.gz`) is read into
-//! memory ([`Record`]: `t_s` and the rate, f64: 16 bytes per sample) with only those two columns read.
+//! memory ([`Record`]: `t_s` and the rate, f64: 16 bytes per sample) with only those two
+//! columns read.
 
 use crate::allan::{self, edf, Taus};
 use crate::record::{self, ReadOptions, Record};
