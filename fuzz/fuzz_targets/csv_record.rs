@@ -1,31 +1,29 @@
-//! Fuzz target: host-sim's interchange CSV readers (`host_sim::record::Record::from_reader`,
-//! used by `denoise` and `allan`, and `host_sim::identify::series::Series::from_reader`, used
-//! by `identify`, `reproduce` and `gap`) on any bytes. Both are compiled here from host-sim's
-//! source files, so the fuzz build does not depend on the whole host-sim crate.
+//! Fuzz target: host-sim's one interchange CSV reader (`host_sim::record`: [`Record`], read
+//! by every subcommand, and [`Rows`], the streamed replay's) on any bytes, with the options
+//! of `denoise` and `allan` (`t_s` and the rate only, rows kept), of `identify` and `replay`
+//! (every optional column) and of a record without `t_s` (`--rate-hz`). The reader is
+//! compiled here from host-sim's source file, so the fuzz build does not depend on the whole
+//! host-sim crate.
 //!
 //! Invariants checked:
 //! - no panic; an error names the file (`fuzz.csv`) and never says "line 0";
 //! - on success: at least one row; every data row the CSV layer yields is kept (the count
-//!   equals an independent `csv::Reader`'s); `t_s` and `rate_dps` finite; `t_s` strictly
-//!   increasing; `Record::gaps` points at lines inside the file;
-//! - the two readers agree: `Series` succeeds only where `Record` does, with the same
-//!   columns, and `Record` succeeds where `Series` does unless a `drift_dps` column failed.
+//!   equals an independent `csv::Reader`'s); `t_s` finite and strictly increasing; the rate
+//!   and every optional column finite in single precision, each as long as `t_s`;
+//!   `Record::gaps` points at lines inside the file;
+//! - the options agree: reading every optional column succeeds only where reading `t_s` and
+//!   the rate does, with the same `t_s` and rate, and fails where that succeeds only on an
+//!   optional column's value; the row by row reader gives the same rows as `Record`.
 #![no_main]
-
-use std::path::Path;
 
 use libfuzzer_sys::fuzz_target;
 
-// The readers' own source files (their only crate-internal path is `crate::record`).
+// The reader's own source file (no crate-internal path).
 #[allow(dead_code)]
 #[path = "../../host-sim/src/record.rs"]
 mod record;
-#[allow(dead_code)]
-#[path = "../../host-sim/src/identify/series.rs"]
-mod series;
 
-use record::Record;
-use series::Series;
+use record::{ReadOptions, Record, Rows};
 
 const NAME: &str = "fuzz.csv";
 
@@ -38,60 +36,111 @@ fn check_error(e: &anyhow::Error) {
     );
 }
 
+fn single(x: f64) -> bool {
+    x.is_finite() && x.abs() <= f64::from(f32::MAX)
+}
+
+fn check_record(r: &Record, data: &[u8]) {
+    let n = r.len();
+    assert!(n > 0);
+    assert_eq!(n, r.rate_dps.len());
+    assert!(r.t_s.iter().all(|t| t.is_finite()));
+    assert!(r.rate_dps.iter().all(|&x| single(x)));
+    assert!(r.t_s.windows(2).all(|w| w[0] < w[1]), "t_s not increasing");
+    for c in [&r.temp_c, &r.drift_dps, &r.true_rate_dps]
+        .into_iter()
+        .flatten()
+    {
+        assert_eq!(c.len(), n);
+        assert!(c.iter().all(|&x| single(x)));
+    }
+    if let Some(m) = &r.moving {
+        assert_eq!(m.len(), n);
+    }
+    let mut independent = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .from_reader(data);
+    let mut rows = 0usize;
+    for rec in independent.records() {
+        assert!(
+            rec.is_ok(),
+            "csv::Reader fails where Record succeeded: {rec:?}"
+        );
+        rows += 1;
+    }
+    assert_eq!(rows, n, "rows lost");
+    let lines = data.iter().filter(|&&b| b == b'\n' || b == b'\r').count() as u64 + 1;
+    for g in r.gaps() {
+        assert!(g.line >= 2 && g.line <= lines, "gap at line {}", g.line);
+        assert!(g.dt_s.is_finite() && g.dt_s > 0.0);
+    }
+}
+
 fuzz_target!(|data: &[u8]| {
-    let path = Path::new(NAME);
-    let record = Record::from_reader(path, data);
-    let series = Series::from_reader(path, data, "rate_dps");
-    match &record {
+    let plain = ReadOptions {
+        optional_columns: false,
+        keep_rows: true,
+        ..ReadOptions::default()
+    };
+    let base = Record::from_reader(NAME, data, &plain);
+    let full = Record::from_reader(NAME, data, &ReadOptions::default());
+    match &base {
         Ok(r) => {
-            assert!(!r.rows.is_empty());
-            assert_eq!(r.rows.len(), r.t_s.len());
-            assert_eq!(r.rows.len(), r.rate_dps.len());
-            assert!(r.t_s.iter().all(|t| t.is_finite()));
-            assert!(r.rate_dps.iter().all(|x| x.is_finite()));
-            assert!(r.t_s.windows(2).all(|w| w[0] < w[1]), "t_s not increasing");
-            let mut independent = csv::ReaderBuilder::new()
-                .has_headers(true)
-                .from_reader(data);
-            let mut n = 0usize;
-            for rec in independent.records() {
-                assert!(
-                    rec.is_ok(),
-                    "csv::Reader fails where Record succeeded: {rec:?}"
-                );
-                n += 1;
-            }
-            assert_eq!(n, r.rows.len(), "rows lost");
-            let lines = data.iter().filter(|&&b| b == b'\n' || b == b'\r').count() as u64 + 1;
-            for g in r.gaps() {
-                assert!(g.line >= 2 && g.line <= lines, "gap at line {}", g.line);
-                assert!(g.dt_s.is_finite() && g.dt_s > 0.0);
-            }
+            check_record(r, data);
+            assert_eq!(r.rows.len(), r.len());
         }
         Err(e) => check_error(e),
     }
-    match (&series, &record) {
-        (Ok(s), Ok(r)) => {
-            assert_eq!(s.t_s, r.t_s);
-            assert_eq!(s.rate_dps, r.rate_dps);
-            if let Some(d) = &s.drift_dps {
-                assert_eq!(d.len(), s.t_s.len());
-                assert!(d.iter().all(|x| x.is_finite()));
-            }
-            assert!(s.sample_period_s().is_finite() && s.sample_period_s() > 0.0);
+    match (&full, &base) {
+        (Ok(f), Ok(b)) => {
+            check_record(f, data);
+            assert_eq!(f.t_s, b.t_s);
+            assert_eq!(f.rate_dps, b.rate_dps);
         }
-        (Ok(_), Err(e)) => panic!("Series read what Record refused: {e:#}"),
-        (Err(e), Ok(r)) => {
+        (Ok(_), Err(e)) => panic!("every column read where t_s and the rate were refused: {e:#}"),
+        (Err(e), Ok(b)) => {
             check_error(e);
-            // Series (identify) also parses the optional numeric columns that Record
-            // (denoise) passes through unchanged: drift_dps and temp_c.
             assert!(
-                r.header
-                    .iter()
-                    .any(|h| matches!(h.trim(), "drift_dps" | "temp_c")),
-                "Series refused what Record read, without a drift_dps or temp_c column: {e:#}"
+                b.header.iter().any(|h| matches!(
+                    h.trim(),
+                    "temp_c" | "drift_dps" | "true_rate_dps" | "moving"
+                )),
+                "refused on an optional column the header lacks: {e:#}"
             );
         }
         (Err(e), Err(_)) => check_error(e),
+    }
+    // Row by row: the same rows as the whole record.
+    if let Ok(mut rows) = Rows::new(NAME, data, &ReadOptions::default()) {
+        let mut t = Vec::new();
+        let streamed = loop {
+            match rows.next_row() {
+                Ok(Some(row)) => t.push(row.t_s),
+                Ok(None) => break Ok(()),
+                Err(e) => break Err(e),
+            }
+        };
+        match (&streamed, &full) {
+            (Ok(()), Ok(f)) => assert_eq!(t, f.t_s),
+            (Ok(()), Err(e)) => assert!(t.is_empty(), "{e:#}"),
+            (Err(e), _) => {
+                check_error(e);
+                assert!(full.is_err());
+            }
+        }
+    }
+    // Without `t_s`: the rows' index over the rate.
+    let timed = ReadOptions {
+        rate_hz: Some(100.0),
+        ..ReadOptions::default()
+    };
+    match Record::from_reader(NAME, data, &timed) {
+        Ok(r) => {
+            check_record(&r, data);
+            if !r.t_s_from_rate {
+                assert!(full.is_ok());
+            }
+        }
+        Err(e) => check_error(&e),
     }
 });

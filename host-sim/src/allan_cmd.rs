@@ -7,10 +7,12 @@
 //! rare (at most [`RARE_GAPS`] of the steps: missing data), else the mean of every step
 //! (irregular or bursty stamps, where the median is not the rate: said on stderr). The
 //! samples are analysed as if evenly spaced. The input (CSV, or `.csv.gz`) is read into
-//! memory (`t_s` f64, rate f32: 12 bytes per sample) with only those two columns kept.
+//! memory ([`Record`]: `t_s` and the rate, f64: 16 bytes per sample) with only those two
+//! columns read.
 
 use crate::allan::{self, edf, Taus};
-use crate::record;
+use crate::record::{self, ReadOptions, Record};
+use crate::record_args::RecordArgs;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
 use std::io::Write;
@@ -22,12 +24,9 @@ pub struct Args {
     /// Interchange CSV (`t_s` and the rate column; other columns ignored), or `.csv.gz`.
     #[arg(long)]
     pub input: PathBuf,
-    /// The rate column (e.g. `gz_dps` of a multi-axis recording).
-    #[arg(long, default_value = "rate_dps")]
-    pub rate_column: String,
-    /// Factor from the column's unit to deg/s (e.g. 57.29578 for rad/s).
-    #[arg(long, default_value_t = 1.0)]
-    pub rate_scale: f64,
+    /// The rate column and scale, the sample rate of a record without `t_s`.
+    #[command(flatten)]
+    pub record: RecordArgs,
     /// JSON result to write.
     #[arg(long)]
     pub json: PathBuf,
@@ -42,13 +41,10 @@ pub struct Args {
     pub markov: bool,
 }
 
-/// `t_s` and `rate_dps` of a record, validated like [`record::Record::read`] but without
-/// keeping the rows.
-pub struct Series {
-    /// Sample times, s.
-    pub t_s: Vec<f64>,
-    /// Rates, deg/s.
-    pub rate_dps: Vec<f32>,
+/// `t_s` and the rate of a record ([`read_series`]) with its gaps.
+pub struct AllanInput {
+    /// The record (`t_s`, the rate column times the scale).
+    pub record: Record,
     /// Gaps: (line after the gap, step in s).
     pub gaps: Vec<(u64, f64)>,
     /// Median step of `t_s`, s (the gaps' reference).
@@ -73,8 +69,8 @@ pub struct SamplePeriod {
 }
 
 /// `tau0` of a series read by [`read_series`] (module docs).
-pub fn sample_period(s: &Series) -> SamplePeriod {
-    let (t_s, gaps, median_s) = (&s.t_s, &s.gaps, s.median_step_s);
+pub fn sample_period(s: &AllanInput) -> SamplePeriod {
+    let (t_s, gaps, median_s) = (&s.record.t_s, &s.gaps, s.median_step_s);
     let steps = (t_s.len() - 1) as f64;
     let span = t_s[t_s.len() - 1] - t_s[0];
     if gaps.len() as f64 <= RARE_GAPS * steps {
@@ -95,78 +91,32 @@ pub fn sample_period(s: &Series) -> SamplePeriod {
     }
 }
 
-/// Reads `t_s` and the rate (`rate_column` times `rate_scale`, deg/s) from an interchange
-/// CSV or `.csv.gz`; errors name the file and line.
-pub fn read_series(path: &Path, rate_column: &str, rate_scale: f64) -> Result<Series> {
-    let name = path.display();
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .from_reader(std::io::BufReader::new(record::open_maybe_gz(path)?));
-    let header = rdr
-        .headers()
-        .with_context(|| format!("{name}:1: cannot read the header"))?
-        .clone();
-    let col = |want: &str| header.iter().position(|h| h.trim() == want);
-    let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
-        bail!(
-            "{name}:1: need columns `t_s` and `{rate_column}` (header: {})",
-            header.iter().collect::<Vec<_>>().join(",")
-        );
+/// Reads `t_s` and the rate (the rate column times the scale, deg/s) from an interchange
+/// CSV or `.csv.gz` ([`Record::read`]; other columns are not read); errors name the file
+/// and line.
+pub fn read_series(path: &Path, args: &RecordArgs) -> Result<AllanInput> {
+    let opts = ReadOptions {
+        optional_columns: false,
+        ..args.options()
     };
-    let mut t_s: Vec<f64> = Vec::new();
-    let mut rate_dps: Vec<f32> = Vec::new();
-    let mut rec = csv::StringRecord::new();
-    loop {
-        let more = rdr.read_record(&mut rec).map_err(|e| {
-            let line = e.position().map_or(0, |p| p.line());
-            anyhow::anyhow!("{name}:{line}: {e}")
-        })?;
-        if !more {
-            break;
-        }
-        let line = rec.position().map_or(0, |p| p.line());
-        let field = |c: usize, what: &str| -> Result<f64> {
-            let raw = rec
-                .get(c)
-                .with_context(|| format!("{name}:{line}: missing field `{what}`"))?;
-            let v: f64 = raw
-                .trim()
-                .parse()
-                .map_err(|_| anyhow::anyhow!("{name}:{line}: `{what}` is not a number: {raw:?}"))?;
-            if !v.is_finite() {
-                bail!("{name}:{line}: `{what}` is not finite: {raw:?}");
-            }
-            Ok(v)
-        };
-        let t = field(tc, "t_s")?;
-        let r = field(rc, rate_column)? * rate_scale;
-        if !r.is_finite() || r.abs() > f64::from(f32::MAX) {
-            bail!("{name}:{line}: `{rate_column}` x {rate_scale} = {r} is beyond the single-precision range");
-        }
-        if let Some(&prev) = t_s.last() {
-            if t <= prev {
-                bail!("{name}:{line}: t_s = {t} does not increase (previous row {prev})");
-            }
-        }
-        t_s.push(t);
-        rate_dps.push(r as f32);
-    }
+    let record = Record::read(path, &opts)?;
+    let name = path.display();
+    let t_s = &record.t_s;
     if t_s.len() < 8 {
         bail!(
             "{name}: {} data rows; the Allan analysis needs at least 8",
             t_s.len()
         );
     }
-    let med = allan::median_step_s(&t_s).with_context(|| name.to_string())?;
+    let med = allan::median_step_s(t_s).with_context(|| name.to_string())?;
     let gaps = t_s
         .windows(2)
         .enumerate()
         .filter(|(_, w)| w[1] - w[0] > record::GAP_FACTOR * med)
-        .map(|(i, w)| (i as u64 + 3, w[1] - w[0]))
+        .map(|(i, w)| (record.line(i + 1), w[1] - w[0]))
         .collect();
-    Ok(Series {
-        t_s,
-        rate_dps,
+    Ok(AllanInput {
+        record,
         gaps,
         median_step_s: med,
     })
@@ -193,14 +143,17 @@ pub fn run(args: &Args) -> Result<()> {
     for out in std::iter::once(&args.json).chain(args.svg.as_ref()) {
         record::refuse_overwrite(&args.input, out)?;
     }
-    if !(args.rate_scale.is_finite() && args.rate_scale != 0.0) {
-        bail!("--rate-scale {}: must be finite and not 0", args.rate_scale);
-    }
-    let s = read_series(&args.input, &args.rate_column, args.rate_scale)?;
+    let s = read_series(&args.input, &args.record)?;
     let name = args.input.display().to_string();
     let period = sample_period(&s);
     let tau0_s = period.tau0_s;
-    let rate: Vec<f64> = s.rate_dps.iter().map(|&v| f64::from(v)).collect();
+    // The rate in single precision, as the firmware holds it.
+    let rate: Vec<f64> = s
+        .record
+        .rate_dps
+        .iter()
+        .map(|&v| f64::from(v as f32))
+        .collect();
     let ms = allan::tau_factors(rate.len(), args.taus);
     let (points, fit) = allan::analyse(&rate, tau0_s, &ms, args.markov, edf::ONE_SIGMA)
         .with_context(|| name.clone())?;
@@ -288,7 +241,7 @@ pub fn run(args: &Args) -> Result<()> {
             err,
             "{name}: warning: irregular t_s: {} of {} steps over {} x the median step; tau0 is the mean step, and the samples are analysed as if evenly spaced",
             s.gaps.len(),
-            s.t_s.len() - 1,
+            s.record.len() - 1,
             record::GAP_FACTOR,
         )?;
     } else if let Some(&(line, dt)) = s.gaps.iter().max_by(|a, b| a.1.total_cmp(&b.1)) {

@@ -13,7 +13,8 @@
 //! - A record shorter than the smallest block the levels allow (`8 * 2^levels` samples, 64
 //!   for 3 levels) is refused with an error that says so.
 
-use crate::record::{self, Record};
+use crate::record::{self, ReadOptions, Record};
+use crate::record_args::RecordArgs;
 use anyhow::{bail, Context, Result};
 use fog_core::denoise::{denoise_in_place, DenoiseConfig};
 use fog_core::{Sigma, ThresholdRule};
@@ -32,6 +33,10 @@ pub struct Args {
     /// CSV to write: the input rows with a `denoised_dps` column added.
     #[arg(long)]
     pub output: PathBuf,
+    /// The rate column and scale (the denoised rate is in deg/s), the sample rate of a
+    /// record without `t_s`.
+    #[command(flatten)]
+    pub record: RecordArgs,
     /// Decomposition levels (the paper uses 3).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=16))]
     pub levels: u32,
@@ -148,8 +153,14 @@ pub fn denoise_blocks(
 /// Runs the command.
 pub fn run(args: &Args) -> Result<()> {
     record::refuse_overwrite(&args.input, &args.output)?;
-    let rec = Record::read(&args.input)?;
-    let n = rec.rate_dps.len();
+    let opts = ReadOptions {
+        optional_columns: false,
+        keep_rows: true,
+        ..args.record.options()
+    };
+    let rec = Record::read(&args.input, &opts)?;
+    let rate: Vec<f32> = rec.rate_dps.iter().map(|&x| x as f32).collect();
+    let n = rate.len();
     let blocks =
         plan(n, args.block, args.levels).with_context(|| args.input.display().to_string())?;
     let cfg = DenoiseConfig {
@@ -160,10 +171,9 @@ pub fn run(args: &Args) -> Result<()> {
         },
         sigma: args.sigma.0,
     };
-    let (denoised, sigma_sum) =
-        denoise_blocks(&rec.rate_dps, &blocks, &cfg).map_err(|(start, e)| {
-            anyhow::anyhow!("{}: block at line {}: {e}", args.input.display(), start + 2)
-        })?;
+    let (denoised, sigma_sum) = denoise_blocks(&rate, &blocks, &cfg).map_err(|(start, e)| {
+        anyhow::anyhow!("{}: block at line {}: {e}", args.input.display(), start + 2)
+    })?;
     let out_path = &args.output;
     record::write_atomic(out_path, |w| {
         let mut wtr = csv::Writer::from_writer(w);

@@ -2,6 +2,7 @@
 //! on simulated records with a withheld effect (see `docs/gap.md`).
 
 use crate::gap::{self, bench, effects::Effect};
+use crate::record_args::RecordArgs;
 use crate::sim::Model;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
@@ -22,9 +23,9 @@ pub struct Args {
     /// Report folder (index.html, adev.svg, psd.svg).
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// Column holding the rate, deg/s.
-    #[arg(long, default_value = "rate_dps")]
-    pub rate_column: String,
+    /// The rate column and scale, the sample rate of a record without `t_s`.
+    #[command(flatten)]
+    pub record: RecordArgs,
     /// Reference (true) rate column for `scale_factor` (default: `true_rate_dps` if present).
     #[arg(long)]
     pub reference_column: Option<String>,
@@ -58,7 +59,11 @@ pub fn run(a: &Args) -> Result<()> {
         Some(p) => Some(Model::load(p)?),
         None => None,
     };
-    let (rec, time) = gap::read_rec(&a.real, &a.rate_column, a.reference_column.as_deref())?;
+    let opts = crate::record::ReadOptions {
+        reference_column: a.reference_column.clone(),
+        ..a.record.options()
+    };
+    let (rec, time) = gap::read_rec(&a.real, &opts)?;
     if let Some(why) = gap::not_static(&rec) {
         anyhow::bail!(
             "{}: {why}; gap diagnoses static records, or the residual against a reference rate (--reference-column)",

@@ -5,6 +5,8 @@ use crate::identify::{self, Act, DrlsFormArg, LevelInput, Options, Preset, Train
 use crate::motion;
 use crate::nav::NavRecord;
 use crate::record;
+use crate::record::ReadOptions;
+use crate::record_args::RecordArgs;
 use crate::sensor::SensorSpec;
 use anyhow::{Context, Result};
 use fog_core::image::Image;
@@ -91,9 +93,10 @@ pub struct Args {
     /// records with truth on which the trained identifier is scored beside the baselines).
     #[arg(long, num_args = 1.., required_unless_present = "save_identifier")]
     pub validate: Vec<PathBuf>,
-    /// Column holding the rate in deg/s (e.g. `gz_dps` of a multi-axis recording).
-    #[arg(long, default_value = "rate_dps")]
-    pub rate_column: String,
+    /// The training (and, except with `--preset motion`, validation) records' rate column
+    /// and scale, the sample rate of a record without `t_s`.
+    #[command(flatten)]
+    pub record: RecordArgs,
     /// Identifier options.
     #[command(flatten)]
     pub id: IdentifierArgs,
@@ -264,8 +267,8 @@ pub fn run(a: &Args) -> Result<()> {
     let (Some(json), false) = (&a.json, a.validate.is_empty()) else {
         anyhow::bail!("--validate and --json are required (except with --preset motion)");
     };
-    let train = CsvFiles::from_args(&a.train, &a.rate_column)?;
-    let validate = CsvFiles::from_args(&a.validate, &a.rate_column)?;
+    let train = CsvFiles::from_args(&a.train, &a.record.options())?;
+    let validate = CsvFiles::from_args(&a.validate, &a.record.options())?;
     for p in train.0.iter().chain(&validate.0) {
         record::refuse_overwrite(p, json)?;
     }
@@ -310,7 +313,7 @@ fn second_state(
 
 /// `--tune-on`: the vehicle records with truth, each at `image`'s sample rate.
 fn read_vehicles(image: &Image, paths: &[PathBuf]) -> Result<Vec<NavRecord>> {
-    CsvFiles::from_args(paths, "rate_dps")?
+    CsvFiles::from_args(paths, &ReadOptions::default())?
         .0
         .iter()
         .map(|p| Ok(crate::replay::motion::read_truth_csv(image, p)?.1))
@@ -322,16 +325,16 @@ fn run_motion(a: &Args) -> Result<()> {
     let Some(out) = &a.save_identifier else {
         anyhow::bail!("--preset motion needs --save-identifier FILE");
     };
-    let train = CsvFiles::from_args(&a.train, &a.rate_column)?;
+    let train = CsvFiles::from_args(&a.train, &a.record.options())?;
     let validate = if a.validate.is_empty() {
         Vec::new()
     } else {
-        CsvFiles::from_args(&a.validate, "rate_dps")?.0
+        CsvFiles::from_args(&a.validate, &ReadOptions::default())?.0
     };
     let tune_on = if a.tune_on.is_empty() {
         Vec::new()
     } else {
-        CsvFiles::from_args(&a.tune_on, "rate_dps")?.0
+        CsvFiles::from_args(&a.tune_on, &ReadOptions::default())?.0
     };
     for p in train.0.iter().chain(&validate).chain(&tune_on) {
         record::refuse_overwrite(p, out)?;

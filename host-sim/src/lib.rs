@@ -15,6 +15,7 @@ pub mod image_cmd;
 pub mod motion;
 pub mod nav;
 pub mod record;
+pub mod record_args;
 pub mod replay;
 pub mod replay_cmd;
 pub mod report;

@@ -2,7 +2,8 @@
 //! (default; [`crate::replay::motion`]) or the streamed level-trend / paper presets
 //! ([`crate::replay::stream`]).
 
-use crate::replay::input::RateSpec;
+use crate::record::ReadOptions;
+use crate::record_args::RecordArgs;
 use crate::replay::motion::{self, MotionOptions};
 use crate::replay::stream::{self, IdPreset, InputFormat, Options, Outcome};
 use crate::report;
@@ -28,10 +29,6 @@ pub struct Args {
     /// Full scale of E-Core binary frames, deg/s (32768 counts); default: the sensor's.
     #[arg(long)]
     pub full_scale_dps: Option<f32>,
-    /// Sample rate, Hz, for binary and ASCII input and CSVs without `t_s`
-    /// (`t_s = index / rate_hz`); default: the sensor's.
-    #[arg(long)]
-    pub rate_hz: Option<f64>,
     /// Identifier: `motion` (default: motion-safe, `--identifier` image or the built-in
     /// untrained one); `level-trend` and `paper` are the references (low-passes of the rate:
     /// they take rotation for drift).
@@ -54,13 +51,10 @@ pub struct Args {
     /// leave the detector in charge).
     #[arg(long)]
     pub still_column: Option<String>,
-    /// Motion preset, CSV: the rate column (e.g. `dtheta_x_deg` of the KVH log).
-    #[arg(long, default_value = "rate_dps")]
-    pub rate_column: String,
-    /// Motion preset, CSV: factor from the rate column to deg/s (e.g. 1000 for angle
-    /// increments in deg per 1-ms sample).
-    #[arg(long, default_value_t = 1.0)]
-    pub rate_scale: f64,
+    /// The rate column and scale (motion preset) and the sample rate of a record without
+    /// time stamps.
+    #[command(flatten)]
+    pub record: RecordArgs,
     /// Motion preset: the baselines' gated Kalman q, (deg/s)^2 per sample (default: tuned
     /// on `--validate`, else the identifier's level noise).
     #[arg(long)]
@@ -102,8 +96,8 @@ pub fn run(args: &Args) -> Result<()> {
     };
     if args.identifier.is_some()
         || args.still_column.is_some()
-        || args.rate_column != "rate_dps"
-        || args.rate_scale != 1.0
+        || args.record.rate_column != "rate_dps"
+        || args.record.rate_scale != 1.0
         || args.baseline_q.is_some()
         || !args.validate.is_empty()
         || args.json.is_some()
@@ -114,7 +108,7 @@ pub fn run(args: &Args) -> Result<()> {
     let opts = Options {
         format: args.format,
         full_scale_dps: args.full_scale_dps.unwrap_or(s.full_scale_dps),
-        rate_hz: args.rate_hz.unwrap_or(f64::from(s.sample_rate_hz)),
+        rate_hz: args.record.rate_hz.unwrap_or(f64::from(s.sample_rate_hz)),
         preset: id_preset,
         collect: args.report.is_some(),
     };
@@ -153,15 +147,14 @@ fn run_motion(args: &Args, sensor: Option<fog_core::still::SensorConfig>) -> Res
         stream: Options {
             format: args.format,
             full_scale_dps: args.full_scale_dps.unwrap_or(0.0),
-            rate_hz: args.rate_hz.unwrap_or(0.0),
+            rate_hz: args.record.rate_hz.unwrap_or(0.0),
             preset: IdPreset::LevelTrend,
             collect: false,
         },
-        rate: RateSpec {
-            column: args.rate_column.clone(),
-            scale: args.rate_scale,
+        csv: ReadOptions {
+            still_column: args.still_column.clone(),
+            ..args.record.options()
         },
-        still_column: args.still_column.clone(),
         baseline_q: args.baseline_q.map(|q| (q, "--baseline-q".to_string())),
         validate: args.validate.clone(),
     };

@@ -140,7 +140,7 @@ fn nan_is_refused_with_file_and_line() {
 fn other_bad_inputs() {
     expect_error(
         "t_s,gyro\n0,1\n",
-        "bad.csv:1: need columns `t_s` and `rate_dps`",
+        "bad.csv:1: missing column `rate_dps` (the header has: t_s, gyro)",
     );
     expect_error(&format!("t_s,rate_dps\n{}", rows(5)), "at least 8");
     expect_error(

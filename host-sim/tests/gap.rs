@@ -3,6 +3,7 @@
 
 use assert_cmd::Command;
 use host_sim::gap::{self, bench, effects::Effect};
+use host_sim::record::ReadOptions;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -424,8 +425,15 @@ fn a_record_that_turns_is_said_not_static() {
             && err.contains("--reference-column"),
         "{err}"
     );
-    let (rec, _) = gap::read_rec(&p, "rate_dps", Some("table_dps")).expect("read");
+    let (rec, _) = gap::read_rec(
+        &p,
+        &ReadOptions {
+            reference_column: Some("table_dps".into()),
+            ..ReadOptions::default()
+        },
+    )
+    .expect("read");
     assert_eq!(gap::not_static(&rec), None);
-    let (rec, _) = gap::read_rec(&p, "rate_dps", None).expect("read");
+    let (rec, _) = gap::read_rec(&p, &ReadOptions::default()).expect("read");
     assert!(gap::not_static(&rec).is_some());
 }

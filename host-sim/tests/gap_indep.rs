@@ -40,7 +40,8 @@ fn generate(dir: &Path, class: &str, seed: u64, strength: Option<f64>) -> std::p
 }
 
 fn named(path: &Path) -> String {
-    let (rec, time) = gap::read_rec(path, "rate_dps", None).expect("record reads");
+    let (rec, time) =
+        gap::read_rec(path, &host_sim::record::ReadOptions::default()).expect("record reads");
     let o = Options {
         seeds: 6,
         task: false,

@@ -521,7 +521,9 @@ fn external_still_flag_column() {
         .arg(dir.path().join("x.csv"))
         .assert()
         .failure()
-        .stderr(predicates::str::contains("no column `nope`"));
+        .stderr(predicates::str::contains(
+            "turn.csv:1: missing column `nope` (the header has: t_s, rate_dps, zupt)",
+        ));
 }
 
 /// Replay with a damaged image: fails with one line naming it, writes nothing.

@@ -13,8 +13,18 @@
 use assert_cmd::Command;
 use fog_core::image::Image;
 use host_sim::identify::series::Series;
-use host_sim::motion::{self, MotionRecord};
+use host_sim::motion;
+use host_sim::record::{ReadOptions, Record};
 use std::path::{Path, PathBuf};
+
+/// A simulated record (a CSV without `t_s` would be taken at 100 Hz).
+fn read(p: &Path) -> Record {
+    let opts = ReadOptions {
+        rate_hz: Some(100.0),
+        ..ReadOptions::default()
+    };
+    Record::read(p, &opts).expect("record reads")
+}
 
 fn host_sim() -> Command {
     Command::cargo_bin("host-sim").expect("binary built")
@@ -97,17 +107,16 @@ pub fn vehicle_profile(seed: u64, n: usize, dt: f64) -> Vec<f32> {
 }
 
 /// A static record made into a vehicle record (the rate re-quantized to one count).
-fn vehicle(static_csv: &Path, seed: u64) -> MotionRecord {
-    let mut s = Series::read_csv(static_csv).expect("static record");
+fn vehicle(static_csv: &Path, seed: u64) -> Series {
+    let mut s = Series::from(&read(static_csv));
     let q = 60.0f32 / 32768.0;
     let tr = vehicle_profile(seed, s.rate_dps.len(), s.sample_period_s());
     for (x, t) in s.rate_dps.iter_mut().zip(&tr) {
         *x = ((*x + *t) / q).round() * q;
     }
-    MotionRecord {
-        series: s,
-        still: None,
+    Series {
         true_rate_dps: Some(tr),
+        ..s
     }
 }
 
@@ -134,7 +143,7 @@ fn image_with_q(img: &Image, q_dph2_per_h: f32) -> Image {
 
 /// Mean heading RMS and mean |final heading| over `recs`, deg (the estimator restarted at
 /// every record: each record is a new power-on of a freshly flashed unit).
-fn heading_rms(img: &Image, recs: &[MotionRecord]) -> (f64, f64) {
+fn heading_rms(img: &Image, recs: &[Series]) -> (f64, f64) {
     let (mut rms, mut fin) = (0.0, 0.0);
     for r in recs {
         let mut est = img.estimator().expect("estimator");
@@ -143,7 +152,7 @@ fn heading_rms(img: &Image, recs: &[MotionRecord]) -> (f64, f64) {
         let h = eval::heading(
             &comp,
             r.true_rate_dps.as_ref().expect("test"),
-            r.series.sample_period_s(),
+            r.sample_period_s(),
         );
         rms += h.rms_deg;
         fin += h.final_deg.abs();
@@ -154,7 +163,7 @@ fn heading_rms(img: &Image, recs: &[MotionRecord]) -> (f64, f64) {
 const Q_GRID: [f32; 9] = [0.25, 1.0, 4.0, 16.0, 64.0, 256.0, 1024.0, 4096.0, 16384.0];
 
 /// The level noise with the lowest mean heading RMS on the validation records.
-fn tune(img: &Image, val: &[MotionRecord]) -> f32 {
+fn tune(img: &Image, val: &[Series]) -> f32 {
     let mut best = (f64::INFINITY, Q_GRID[0]);
     for q in Q_GRID {
         let (r, _) = heading_rms(&image_with_q(img, q), val);
@@ -194,7 +203,7 @@ fn motion_vs_baselines() {
     let trained = motion::read_image(&fogi).expect("test");
     let gated = motion::read_image(&untrained).expect("test");
 
-    let make = |model: Option<&Path>, seeds: std::ops::Range<u64>| -> Vec<MotionRecord> {
+    let make = |model: Option<&Path>, seeds: std::ops::Range<u64>| -> Vec<Series> {
         seeds
             .map(|seed| {
                 let p = d.join(format!("v{seed}.csv"));
@@ -217,18 +226,14 @@ fn motion_vs_baselines() {
         let none: Vec<f64> = recs
             .iter()
             .map(|r| {
-                let h = eval::heading(
-                    &r.series.rate_dps,
-                    r.true_rate_dps.as_ref().expect("test"),
-                    0.01,
-                );
+                let h = eval::heading(&r.rate_dps, r.true_rate_dps.as_ref().expect("test"), 0.01);
                 h.rms_deg
             })
             .collect();
         let align: Vec<f64> = recs
             .iter()
             .map(|r| {
-                let c = eval::alignment_bias(&r.series.rate_dps, 10_000);
+                let c = eval::alignment_bias(&r.rate_dps, 10_000);
                 eval::heading(&c, r.true_rate_dps.as_ref().expect("test"), 0.01).rms_deg
             })
             .collect();
@@ -274,8 +279,8 @@ fn motion_vs_baselines() {
     for seed in 201..205 {
         let p = d.join(format!("st{seed}.csv"));
         simulate(None, seed, &p);
-        let r = motion::read_record(&p, None).expect("test");
-        let truth = r.series.drift_dps.clone().expect("test");
+        let r = Series::from(&read(&p));
+        let truth = r.drift_dps.clone().expect("test");
         for (i, img) in [
             image_with_q(&gated, q_gated),
             image_with_q(&trained, q_motion),
@@ -311,8 +316,8 @@ fn static_level_q_sweep() {
     for seed in 101..113 {
         simulate(None, seed, &train.join(format!("s{seed}.csv")));
     }
-    let files =
-        host_sim::identify::series::CsvFiles::from_args(&[train], "rate_dps").expect("test");
+    let files = host_sim::identify::series::CsvFiles::from_args(&[train], &ReadOptions::default())
+        .expect("test");
     let sensor = fog_core::still::SensorConfig::ECORE_2000;
     let trained = motion::train(&files, &motion::TrainOptions::new(sensor))
         .expect("test")
@@ -320,11 +325,11 @@ fn static_level_q_sweep() {
     let mut o = motion::TrainOptions::new(sensor);
     o.epochs = 0;
     let gated = motion::train(&files, &o).expect("test").image;
-    let recs: Vec<MotionRecord> = (201..205)
+    let recs: Vec<Series> = (201..205)
         .map(|seed| {
             let p = d.join(format!("st{seed}.csv"));
             simulate(None, seed, &p);
-            motion::read_record(&p, None).expect("test")
+            Series::from(&read(&p))
         })
         .collect();
     for q in Q_GRID {
@@ -337,7 +342,7 @@ fn static_level_q_sweep() {
                 let out = motion::run(&mut est, r);
                 for (o, t) in out
                     .iter()
-                    .zip(r.series.drift_dps.as_ref().expect("test"))
+                    .zip(r.drift_dps.as_ref().expect("test"))
                     .skip(1024)
                 {
                     let e = f64::from(o.drift_dps) - f64::from(*t);

@@ -3,6 +3,7 @@
 //! python3 or numpy is absent.
 
 use host_sim::nav::{run, AlignmentBias, GatedKalman, NavRecord, NoCompensation};
+use host_sim::record::{ReadOptions, Record};
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -54,7 +55,8 @@ fn second_generator_records_are_scored() {
         .status()
         .expect("run python3");
     assert!(status.success());
-    let rec = NavRecord::read(&csv).expect("reads as a NavRecord");
+    let rec = NavRecord::try_from(&Record::read(&csv, &ReadOptions::default()).expect("reads"))
+        .expect("reads as a NavRecord");
     assert_eq!(rec.len(), 90_000);
     assert!(rec.temp_c.is_some());
     assert!(rec.moving.iter().any(|&m| m) && rec.moving[..30_000].iter().all(|&m| !m));

@@ -40,6 +40,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use clap::Parser;
 use host_sim::identify::series::CsvFiles;
 use host_sim::nav::{self, GatedKalman, NavRecord, SelfCalConfig, SelfCalKalman};
+use host_sim::record::{ReadOptions, Record};
 use serde::Serialize;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -238,7 +239,7 @@ fn main() -> Result<()> {
 }
 
 fn csvs(dir: &Path) -> Result<Vec<PathBuf>> {
-    Ok(CsvFiles::from_args(&[dir.to_path_buf()], "rate_dps")?.0)
+    Ok(CsvFiles::from_args(&[dir.to_path_buf()], &ReadOptions::default())?.0)
 }
 
 fn file_name(p: &Path) -> String {
@@ -272,32 +273,25 @@ fn read_json(p: &Path) -> Result<Value> {
     serde_json::from_str(&text).with_context(|| format!("{}: not JSON", p.display()))
 }
 
-/// The replay output's `drift_dps` (deg/s) and `still` (0/1) columns.
+/// The replay output's `drift_dps` (deg/s) and `still` (0/1) columns (host-sim's record
+/// reader: the output has `t_s`).
 fn read_replay_csv(p: &Path) -> Result<(Vec<f64>, Vec<bool>)> {
-    let name = p.display().to_string();
-    let file = std::fs::File::open(p).with_context(|| format!("{name}: cannot open"))?;
-    let (mut rdr, header) =
-        host_sim::record::csv_with_header(&name, std::io::BufReader::new(file))?;
-    let col = |w: &str| {
-        header
-            .iter()
-            .position(|h| h.trim() == w)
-            .ok_or_else(|| anyhow!("{name}:1: no column `{w}`"))
+    let opts = ReadOptions {
+        still_column: Some("still".into()),
+        optional_columns: false,
+        ..ReadOptions::rate("drift_dps", 1.0)
     };
-    let (dc, sc) = (col("drift_dps")?, col("still")?);
-    let (mut drift, mut still) = (Vec::new(), Vec::new());
-    for (i, row) in rdr.records().enumerate() {
-        let row = row.with_context(|| format!("{name}:{}", i + 2))?;
-        let d: f64 = row
-            .get(dc)
-            .unwrap_or("")
-            .trim()
-            .parse()
-            .with_context(|| format!("{name}:{}: drift_dps", i + 2))?;
-        drift.push(d);
-        still.push(row.get(sc).is_some_and(|s| s.trim() == "1"));
-    }
-    Ok((drift, still))
+    let r = Record::read(p, &opts)?;
+    let still = r.still.unwrap_or_default();
+    Ok((
+        r.rate_dps,
+        still.into_iter().map(|s| s == Some(true)).collect(),
+    ))
+}
+
+/// A record with its truth, as host-sim scores it.
+fn read_truth(p: &Path) -> Result<NavRecord> {
+    NavRecord::try_from(&Record::read(p, &ReadOptions::default())?)
 }
 
 /// The noise variance per sample of the sensor in a replay's JSON (`sensor`), (deg/s)^2:
@@ -412,7 +406,7 @@ fn family(fam: &Path, exe: &Path, extra: &[String], dir: &Path) -> Result<Family
         eprintln!("{}: replay", p.display());
         let (out_csv, out_json) = replay(exe, &img, &p, dir, "static", &[])?;
         let (drift_est, still) = read_replay_csv(&out_csv)?;
-        let truth = NavRecord::read(&p)?;
+        let truth = read_truth(&p)?;
         if drift_est.len() != truth.len() {
             bail!(
                 "{}: {} replay rows for {} samples",
@@ -460,7 +454,7 @@ fn family(fam: &Path, exe: &Path, extra: &[String], dir: &Path) -> Result<Family
     // Self-calibrated filter: q tuned on the tune vehicles (its own detector).
     let tune_recs: Vec<NavRecord> = csvs(&vtune)?
         .iter()
-        .map(|p| NavRecord::read(p))
+        .map(|p| read_truth(p))
         .collect::<Result<_>>()?;
     let sg = SELFCAL_Q_GRID;
     let st = nav::tune_selfcal_q(
@@ -521,7 +515,7 @@ fn family(fam: &Path, exe: &Path, extra: &[String], dir: &Path) -> Result<Family
         )?;
         let (_, still) = read_replay_csv(&out_csv)?;
         let j = read_json(&out_json)?;
-        let truth = NavRecord::read(&p)?;
+        let truth = read_truth(&p)?;
         let rms_drift_dph = rms(truth.drift_dps.iter().copied()) * nav::DPH_PER_DPS;
         let scores = &j["scores"];
         bq = scores["baselines"]["q_dps2"].as_f64();

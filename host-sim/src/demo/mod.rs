@@ -24,7 +24,6 @@ use crate::motion::{self, TrainOptions};
 use crate::nav::BaselineConfig;
 use crate::nav::{self, NavRecord};
 use crate::record;
-use crate::replay::input::RateSpec;
 use crate::replay::motion::{replay, MotionOptions, TestSet};
 use crate::replay::stream::{IdPreset, InputFormat, Options};
 use crate::report;
@@ -174,6 +173,7 @@ impl Records for TrainingSet {
             rate_dps: x.iter().map(|s| s.rate_dps as f32).collect(),
             drift_dps: Some(x.iter().map(|s| s.drift_dps as f32).collect()),
             temp_c: Some(x.iter().map(|s| s.temp_c as f32).collect()),
+            ..Default::default()
         })
     }
 }
@@ -291,8 +291,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
             preset: IdPreset::LevelTrend,
             collect: false,
         },
-        rate: RateSpec::default(),
-        still_column: None,
+        csv: crate::record::ReadOptions::default(),
         baseline_q: Some((
             tuned.q_dps2,
             format!(

@@ -30,6 +30,7 @@ pub mod plain;
 pub mod report;
 
 use crate::identify::series::{Records, Series};
+use crate::record::{ReadOptions, Record};
 use crate::sim::Model;
 use anyhow::{bail, Context, Result};
 use effects::{Effect, FitCtx, Fitted, Spec};
@@ -133,70 +134,17 @@ pub fn not_static(rec: &Rec) -> Option<String> {
     ))
 }
 
-/// Reads a CSV (`.gz` too): `t_s`, the rate column, `temp_c` if present, the reference
-/// column if asked for (or `true_rate_dps` if present).
-pub fn read_rec(
-    path: &Path,
-    rate_column: &str,
-    ref_column: Option<&str>,
-) -> Result<(Rec, TimeInfo)> {
-    let name = path.display().to_string();
-    let (mut rdr, header) =
-        crate::record::csv_with_header(&name, crate::record::open_maybe_gz(path)?)?;
-    let col = |want: &str| header.iter().position(|h| h.trim() == want);
-    let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
-        bail!(
-            "{name}:1: needs columns `t_s` and `{rate_column}` (the header has: {})",
-            header.iter().collect::<Vec<_>>().join(", ")
-        );
-    };
-    let temp = col("temp_c");
-    let refc = match ref_column {
-        Some(c) => Some(col(c).with_context(|| format!("{name}:1: no reference column `{c}`"))?),
-        None => col("true_rate_dps"),
-    };
-    let mut t = Vec::new();
-    let mut y = Vec::new();
-    let mut tv = temp.map(|_| Vec::new());
-    let mut rv = refc.map(|_| Vec::new());
-    for rec in rdr.records() {
-        let rec = rec
-            .map_err(|e| anyhow::anyhow!("{name}:{}: {e}", e.position().map_or(0, |p| p.line())))?;
-        let line = rec.position().map_or(0, |p| p.line());
-        let get = |c: usize, what: &str| -> Result<f64> {
-            let raw = rec
-                .get(c)
-                .with_context(|| format!("{name}:{line}: missing field `{what}`"))?;
-            let v: f64 = raw.trim().parse().map_err(|_| {
-                anyhow::anyhow!("{name}:{line}: `{what}` = {raw:?} is not a number")
-            })?;
-            if !v.is_finite() {
-                bail!("{name}:{line}: `{what}` = {raw} is not finite");
-            }
-            Ok(v)
-        };
-        let tt = get(tc, "t_s")?;
-        if t.last().is_some_and(|&p| tt <= p) {
-            bail!("{name}:{line}: t_s = {tt} does not increase");
-        }
-        t.push(tt);
-        y.push(get(rc, rate_column)?);
-        if let (Some(c), Some(v)) = (temp, tv.as_mut()) {
-            v.push(get(c, "temp_c")?);
-        }
-        if let (Some(c), Some(v)) = (refc, rv.as_mut()) {
-            v.push(get(c, ref_column.unwrap_or("true_rate_dps"))?);
-        }
+/// Reads a CSV (`.gz` too) with [`Record::read`]: `t_s`, the rate column, `temp_c` if
+/// present, the reference column if asked for (or `true_rate_dps` if present); `t_s` from
+/// the first sample, regularised ([`regularise`]).
+pub fn read_rec(path: &Path, opts: &ReadOptions) -> Result<(Rec, TimeInfo)> {
+    let r = Record::read(path, opts)?;
+    if r.len() < 2 {
+        bail!("{}: fewer than 2 data rows", r.name);
     }
-    if t.len() < 2 {
-        bail!("{name}: fewer than 2 data rows");
-    }
-    let t0 = t[0];
-    for v in &mut t {
-        *v -= t0;
-    }
-    let (rec, info) = regularise(name, t, y, tv, rv)?;
-    Ok((rec, info))
+    let t0 = r.t_s[0];
+    let t = r.t_s.iter().map(|v| v - t0).collect();
+    regularise(r.name, t, r.rate_dps, r.temp_c, r.true_rate_dps)
 }
 
 /// Finds the period and the gaps; bursty stamps become evenly spaced at the mean step.
@@ -1146,6 +1094,7 @@ fn series(name: &str, t: &[f64], y: &[f64]) -> Series {
         rate_dps: y.iter().map(|&v| v as f32).collect(),
         drift_dps: None,
         temp_c: None,
+        ..Default::default()
     }
 }
 

@@ -119,6 +119,7 @@ impl Records for SimRecords {
             rate_dps: Vec::with_capacity(n),
             drift_dps: Some(Vec::with_capacity(n)),
             temp_c: Some(Vec::with_capacity(n)),
+            ..Default::default()
         };
         for _ in 0..n {
             let x = sim.next_sample();

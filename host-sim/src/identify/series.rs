@@ -1,11 +1,13 @@
 //! One record as columns, and where records come from (files or the simulator).
 
-use crate::record::parse_field;
+use crate::record::{ReadOptions, Record};
 use anyhow::{bail, Context, Result};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-/// A record's columns. `drift_dps` is the ground truth, present in simulated records.
-#[derive(Debug, Clone)]
+/// A record's columns in single precision, as the estimator and the trainers read them
+/// (from a [`Record`], or from the simulator). `drift_dps` and `true_rate_dps` are the
+/// ground truth, present in simulated records.
+#[derive(Debug, Clone, Default)]
 pub struct Series {
     /// Where it came from (file path or simulator seed), for messages.
     pub name: String,
@@ -17,6 +19,10 @@ pub struct Series {
     pub drift_dps: Option<Vec<f32>>,
     /// Sensor temperature, deg C, when the record carries it (column `temp_c`, optional).
     pub temp_c: Option<Vec<f32>>,
+    /// External still flag per row (`--still-column`): `None` where the cell is empty.
+    pub still: Option<Vec<Option<bool>>>,
+    /// True rate, deg/s (`true_rate_dps`, simulator records).
+    pub true_rate_dps: Option<Vec<f32>>,
 }
 
 impl Series {
@@ -25,71 +31,23 @@ impl Series {
     /// times in bursts (the MPU6050 set: median step 2 ms, mean 10 ms), where only the mean
     /// gives the sensor's rate; a gap lengthens it by the gap's share of the record.
     pub fn sample_period_s(&self) -> f64 {
-        match (self.t_s.first(), self.t_s.last()) {
-            (Some(a), Some(b)) if self.t_s.len() > 1 && b > a => {
-                (b - a) / (self.t_s.len() - 1) as f64
-            }
-            _ => 1.0,
-        }
+        crate::record::mean_step_s(&self.t_s)
     }
+}
 
-    /// Reads an interchange CSV (`t_s`, `rate_dps`, optional `drift_dps` and `temp_c`), with the same
-    /// checks and messages as every host-sim reader.
-    pub fn read_csv(path: &Path) -> Result<Self> {
-        Self::read_csv_column(path, "rate_dps")
-    }
-
-    /// [`Series::read_csv`] taking the rate from column `rate_column` (e.g. `gz_dps` of a
-    /// multi-axis recording); a `.gz` file is decompressed on the fly.
-    pub fn read_csv_column(path: &Path, rate_column: &str) -> Result<Self> {
-        Self::from_reader(path, crate::record::open_maybe_gz(path)?, rate_column)
-    }
-
-    /// [`Series::read_csv_column`] from any (already decompressed) reader; `path` only names
-    /// the input in messages (the fuzz target `fuzz/fuzz_targets/csv_record.rs` feeds it
-    /// arbitrary bytes).
-    pub fn from_reader<R: std::io::Read>(path: &Path, input: R, rate_column: &str) -> Result<Self> {
-        let name = path.display().to_string();
-        let (mut rdr, header) = crate::record::csv_with_header(&name, input)?;
-        let col = |want: &str| header.iter().position(|h| h.trim() == want);
-        let (Some(tc), Some(rc)) = (col("t_s"), col(rate_column)) else {
-            bail!(
-                "{name}:1: needs columns `t_s` and `{rate_column}` (the header has: {})",
-                header.iter().collect::<Vec<_>>().join(", ")
-            );
-        };
-        let dc = col("drift_dps");
-        let tc_c = col("temp_c");
-        let mut s = Series {
-            name: name.clone(),
-            t_s: Vec::new(),
-            rate_dps: Vec::new(),
-            drift_dps: dc.map(|_| Vec::new()),
-            temp_c: tc_c.map(|_| Vec::new()),
-        };
-        for rec in rdr.records() {
-            let rec = rec.map_err(|e| {
-                anyhow::anyhow!("{name}:{}: {e}", e.position().map_or(0, |p| p.line()))
-            })?;
-            let line = rec.position().map_or(0, |p| p.line());
-            let t: f64 = parse_field(&rec, tc, "t_s", path, line)?;
-            if s.t_s.last().is_some_and(|&p| t <= p) {
-                bail!("{name}:{line}: t_s = {t} does not increase");
-            }
-            s.t_s.push(t);
-            s.rate_dps
-                .push(parse_field(&rec, rc, "rate_dps", path, line)?);
-            if let (Some(c), Some(v)) = (dc, s.drift_dps.as_mut()) {
-                v.push(parse_field(&rec, c, "drift_dps", path, line)?);
-            }
-            if let (Some(c), Some(v)) = (tc_c, s.temp_c.as_mut()) {
-                v.push(parse_field(&rec, c, "temp_c", path, line)?);
-            }
+impl From<&Record> for Series {
+    /// The columns the estimator and the trainers read, in single precision.
+    fn from(r: &Record) -> Self {
+        let single = |v: &Vec<f64>| v.iter().map(|&x| x as f32).collect();
+        Self {
+            name: r.name.clone(),
+            t_s: r.t_s.clone(),
+            rate_dps: single(&r.rate_dps),
+            drift_dps: r.drift_dps.as_ref().map(single),
+            temp_c: r.temp_c.as_ref().map(single),
+            still: r.still.clone(),
+            true_rate_dps: r.true_rate_dps.as_ref().map(single),
         }
-        if s.t_s.is_empty() {
-            bail!("{name}: no data rows");
-        }
-        Ok(s)
     }
 }
 
@@ -106,12 +64,12 @@ pub trait Records {
 }
 
 /// CSV files given on the command line: files, or folders whose `*.csv` (and `*.csv.gz`)
-/// files are taken in name order; the rate is read from `rate_column`.
-pub struct CsvFiles(pub Vec<PathBuf>, pub String);
+/// files are taken in name order, each read with the options given.
+pub struct CsvFiles(pub Vec<PathBuf>, pub ReadOptions);
 
 impl CsvFiles {
     /// Expands folders; refuses a path that does not exist or a set with no file.
-    pub fn from_args(paths: &[PathBuf], rate_column: &str) -> Result<Self> {
+    pub fn from_args(paths: &[PathBuf], opts: &ReadOptions) -> Result<Self> {
         let mut out = Vec::new();
         for p in paths {
             if p.is_dir() {
@@ -137,7 +95,7 @@ impl CsvFiles {
         if out.is_empty() {
             bail!("no record given");
         }
-        Ok(Self(out, rate_column.to_string()))
+        Ok(Self(out, opts.clone()))
     }
 }
 
@@ -146,6 +104,6 @@ impl Records for CsvFiles {
         self.0.len()
     }
     fn get(&self, i: usize) -> Result<Series> {
-        Series::read_csv_column(&self.0[i], &self.1)
+        Ok((&Record::read(&self.0[i], &self.1)?).into())
     }
 }

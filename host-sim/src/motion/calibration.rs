@@ -340,6 +340,7 @@ mod tests {
             rate_dps: (0..n).map(f).collect(),
             drift_dps: None,
             temp_c: None,
+            ..Default::default()
         }
     }
 

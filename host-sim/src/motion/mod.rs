@@ -681,34 +681,9 @@ pub fn read_image(path: &Path) -> Result<Image> {
     Image::parse(&bytes).map_err(|e| anyhow!("{}: {e}", path.display()))
 }
 
-/// A record to run: rate, optional temperature, external still flag and truth.
-#[derive(Debug, Clone)]
-pub struct MotionRecord {
-    /// The columns every tool reads (`t_s`, `rate_dps`, `temp_c`, `drift_dps`).
-    pub series: Series,
-    /// External still flag per row (`--still-column`): `None` where the cell is empty.
-    pub still: Option<Vec<Option<bool>>>,
-    /// True rate, deg/s (`true_rate_dps`, simulator records).
-    pub true_rate_dps: Option<Vec<f32>>,
-}
-
-/// Reads an interchange CSV (`t_s`, `rate_dps`, optional `temp_c`, `drift_dps`,
-/// `true_rate_dps` and the still flag column `still_column`), with
-/// [`crate::replay::input::read_csv`] (a CSV without `t_s` is taken at 100 Hz).
-pub fn read_record(path: &Path, still_column: Option<&str>) -> Result<MotionRecord> {
-    let r = crate::replay::input::read_csv(
-        path,
-        &crate::replay::input::RateSpec::default(),
-        100.0,
-        still_column,
-    )?;
-    Ok(r.record)
-}
-
 /// Runs `estimator` over a record from power-on: one output per row.
-pub fn run(estimator: &mut PresetEstimator, r: &MotionRecord) -> Vec<MotionOutput> {
+pub fn run(estimator: &mut PresetEstimator, s: &Series) -> Vec<MotionOutput> {
     estimator.restart();
-    let s = &r.series;
     (0..s.rate_dps.len())
         .map(|k| {
             let temp = s
@@ -716,7 +691,7 @@ pub fn run(estimator: &mut PresetEstimator, r: &MotionRecord) -> Vec<MotionOutpu
                 .as_ref()
                 .and_then(|t| t.get(k).copied())
                 .unwrap_or(f32::NAN);
-            let ext = r.still.as_ref().and_then(|v| v.get(k).copied().flatten());
+            let ext = s.still.as_ref().and_then(|v| v.get(k).copied().flatten());
             // Rows are validated finite by the reader: a refusal cannot happen; if it did,
             // the row keeps the previous drift (reported as such by the caller's counts).
             estimator
@@ -790,6 +765,7 @@ mod tests {
                 rate_dps,
                 drift_dps: None,
                 temp_c: None,
+                ..Default::default()
             })
         }
     }

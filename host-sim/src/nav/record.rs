@@ -1,7 +1,8 @@
-//! A record with its ground truth, read from the simulators' CSV.
+//! A record with its ground truth, for scoring: from the simulator's samples or from a
+//! [`Record`] read from a CSV.
 
-use anyhow::{anyhow, bail, Context, Result};
-use std::path::Path;
+use crate::record::Record;
+use anyhow::Result;
 
 /// Columns of a scored record (one entry per sample).
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -48,55 +49,23 @@ impl NavRecord {
             moving: samples.iter().map(|s| s.moving).collect(),
         }
     }
+}
 
-    /// Reads a CSV with the columns `t_s`, `rate_dps`, `true_rate_dps`, `drift_dps`, and
-    /// optionally `temp_c` and `moving` (0/1), in any order (both simulators' output).
-    /// Errors name the file and the line.
-    pub fn read(path: &Path) -> Result<Self> {
-        let name = path.display().to_string();
-        let file = std::fs::File::open(path).with_context(|| format!("{name}: cannot open"))?;
-        let mut rdr = csv::Reader::from_reader(std::io::BufReader::new(file));
-        let header = rdr.headers().map_err(|e| anyhow!("{name}:1: {e}"))?.clone();
-        let col = |w: &str| header.iter().position(|h| h.trim() == w);
-        let need = |w: &str| col(w).ok_or_else(|| anyhow!("{name}:1: missing column `{w}`"));
-        let (tc, rc, vc, dc) = (
-            need("t_s")?,
-            need("rate_dps")?,
-            need("true_rate_dps")?,
-            need("drift_dps")?,
-        );
-        let (cc, mc) = (col("temp_c"), col("moving"));
-        let mut rec = Self {
-            temp_c: cc.map(|_| Vec::new()),
-            ..Self::default()
-        };
-        for (i, row) in rdr.records().enumerate() {
-            let line = i + 2;
-            let row = row.map_err(|e| anyhow!("{name}:{line}: {e}"))?;
-            let num = |c: usize| -> Result<f64> {
-                let f = row.get(c).unwrap_or("").trim();
-                match f.parse::<f64>() {
-                    Ok(v) if v.is_finite() => Ok(v),
-                    _ => bail!(
-                        "{name}:{line}: `{}` = `{f}`: not a finite number",
-                        &header[c]
-                    ),
-                }
-            };
-            rec.t_s.push(num(tc)?);
-            rec.rate_dps.push(num(rc)?);
-            rec.true_rate_dps.push(num(vc)?);
-            rec.drift_dps.push(num(dc)?);
-            if let (Some(c), Some(v)) = (cc, rec.temp_c.as_mut()) {
-                v.push(num(c)?);
-            }
-            rec.moving
-                .push(match mc.map(|c| row.get(c).unwrap_or("").trim()) {
-                    None | Some("0") => false,
-                    Some("1") => true,
-                    Some(f) => bail!("{name}:{line}: `moving` = `{f}`: must be 0 or 1"),
-                });
-        }
-        Ok(rec)
+impl TryFrom<&Record> for NavRecord {
+    type Error = anyhow::Error;
+
+    /// The scored shape of a record read with [`crate::record::Record::read`]: refused,
+    /// naming the file and its header, without `true_rate_dps` or `drift_dps`; without
+    /// `moving` every sample counts as still.
+    fn try_from(r: &Record) -> Result<Self> {
+        let need = |v: &Option<Vec<f64>>, c: &str| v.clone().ok_or_else(|| r.missing(c));
+        Ok(Self {
+            t_s: r.t_s.clone(),
+            rate_dps: r.rate_dps.clone(),
+            temp_c: r.temp_c.clone(),
+            true_rate_dps: need(&r.true_rate_dps, "true_rate_dps")?,
+            drift_dps: need(&r.drift_dps, "drift_dps")?,
+            moving: r.moving.clone().unwrap_or_else(|| vec![false; r.len()]),
+        })
     }
 }

@@ -12,12 +12,13 @@
 //! The record is read whole (one f32 rate, f64 time and a few flags per sample: 24 B per
 //! sample, 43 MB for the 1.8-M-sample KVH log); the level-trend / paper presets stream.
 
-use super::input::{self, Input, RateSpec};
+use super::input::{self, Input};
 use super::stream::{self, InputFormat};
 use crate::identify::series::{CsvFiles, Records};
 use crate::motion::{self, OUTPUT_HEADER};
 use crate::nav::{self, BaselineConfig, Compared, NavRecord};
 use crate::record;
+use crate::record::{ReadOptions, Record};
 use crate::report::BytesSummary;
 use anyhow::{anyhow, bail, Result};
 use fog_core::image::Image;
@@ -37,10 +38,9 @@ pub struct MotionOptions {
     pub sensor: Option<SensorConfig>,
     /// Format, full scale and rate for decoding captures (and `t_s` without a column).
     pub stream: stream::Options,
-    /// The CSV's rate column and scale.
-    pub rate: RateSpec,
-    /// External still flag column.
-    pub still_column: Option<String>,
+    /// The CSV's rate column and scale and the external still flag column (`rate_hz` is
+    /// `stream.rate_hz`).
+    pub csv: ReadOptions,
     /// The gated Kalman filters' q, (deg/s)^2 per sample, and where it came from (e.g.
     /// `--baseline-q`).
     pub baseline_q: Option<(f64, String)>,
@@ -287,11 +287,11 @@ fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
         });
     }
     if !o.validate.is_empty() {
-        let files = CsvFiles::from_args(&o.validate, "rate_dps")?;
+        let files = CsvFiles::from_args(&o.validate, &ReadOptions::default())?;
         let mut recs = Vec::new();
         for i in 0..files.len() {
             let p = &files.0[i];
-            let r = NavRecord::read(p)?;
+            let r = NavRecord::try_from(&Record::read(p, &ReadOptions::default())?)?;
             recs.push(r);
         }
         let grid = nav::log_grid(1e-18, 1e-8, 2);
@@ -402,7 +402,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
     if sopts.full_scale_dps == 0.0 {
         sopts.full_scale_dps = decode_sensor.full_scale_dps;
     }
-    let rec = input::read(input, &sopts, &o.rate, o.still_column.as_deref())?;
+    let rec = input::read(input, &sopts, &o.csv)?;
     // A CSV without time stamps has no rate of its own: it must be stated (an identifier's
     // rate would pass the rate check below by construction, whatever the record's is).
     if rec.format == InputFormat::Csv
@@ -417,7 +417,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
             if o.identifier.is_some() { "the identifier" } else { "the default sensor" }
         );
     }
-    let s = &rec.record.series;
+    let s = &rec.record;
     let hz = (1.0 / s.sample_period_s()) as f32;
     let (image, identifier) = match file_image {
         Some(f) => f,
@@ -474,7 +474,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
             "motion identifier",
             &drift_dps,
             &still,
-            has_moving(input, &rec)?,
+            rec.has_moving,
             baseline_config(o, &image)?,
         )),
         None => None,
@@ -490,8 +490,8 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         records_trained: image.records_trained,
         sensor: sensor.into(),
         t_s_source: rec.t_s_source,
-        rate_column: (rec.format == InputFormat::Csv).then(|| o.rate.column.clone()),
-        rate_scale: o.rate.scale,
+        rate_column: (rec.format == InputFormat::Csv).then(|| o.csv.rate_column.clone()),
+        rate_scale: o.csv.rate_scale,
         rows: out.len(),
         at_full_scale: s.rate_dps.iter().filter(|r| r.abs() >= fs).count(),
         temperature_missing: s.temp_c.is_none() && uses_temperature(&image),
@@ -522,16 +522,6 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         still,
         compared,
     })
-}
-
-/// The record has a `moving` column (the header is read again: cheap).
-fn has_moving(path: &Path, rec: &Input) -> Result<bool> {
-    if rec.format != InputFormat::Csv {
-        return Ok(false);
-    }
-    let name = path.display().to_string();
-    let (_, header) = record::csv_with_header(&name, record::open_maybe_gz(path)?)?;
-    Ok(header.iter().any(|h| h.trim() == "moving"))
 }
 
 /// Prints the summary (and the score table) on stderr.
@@ -635,14 +625,20 @@ pub struct ValidationScores {
 /// the file, without truth (`true_rate_dps` and `drift_dps`) or at another rate.
 pub fn read_truth_csv(image: &Image, p: &Path) -> Result<(Input, NavRecord)> {
     let rate_hz = f64::from(image.config.sensor.sample_rate_hz);
-    let mut r = input::read_csv(p, &RateSpec::default(), rate_hz, None)?;
+    let mut r = input::read_csv(
+        p,
+        &ReadOptions {
+            rate_hz: Some(rate_hz),
+            ..ReadOptions::default()
+        },
+    )?;
     let Some(truth) = r.truth.take() else {
         bail!(
             "{}: no truth (`true_rate_dps` and `drift_dps`): cannot score",
             p.display()
         );
     };
-    let hz = (1.0 / r.record.series.sample_period_s()) as f32;
+    let hz = (1.0 / r.record.sample_period_s()) as f32;
     image
         .check_rate(hz)
         .map_err(|e| anyhow!("{}: {e}", p.display()))?;
@@ -657,11 +653,11 @@ pub fn score_records(
     paths: &[PathBuf],
     baseline_q: Option<(f64, String)>,
 ) -> Result<ValidationScores> {
-    let files = CsvFiles::from_args(paths, "rate_dps")?;
+    let files = CsvFiles::from_args(paths, &ReadOptions::default())?;
     let mut recs = Vec::new();
     for p in &files.0 {
         let (r, truth) = read_truth_csv(image, p)?;
-        let moving = has_moving(p, &r)?;
+        let moving = r.has_moving;
         recs.push((p.display().to_string(), r, truth, moving));
     }
     let r_dps2 = f64::from(image.config.sensor.sample_var_dps2());

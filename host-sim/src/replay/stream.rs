@@ -60,7 +60,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::collections::VecDeque;
 use std::fs::File;
 use std::io::{BufRead, BufReader, IsTerminal, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Denoising block of the pipeline, samples (the firmware's).
 pub const BLOCK: usize = 512;
@@ -197,17 +197,12 @@ enum Event {
     Fault,
 }
 
-/// Interchange CSV, row by row.
+/// Interchange CSV, row by row ([`record::Rows`]: the columns and checks of every reader).
 struct CsvSource {
     name: String,
-    rdr: csv::Reader<BufReader<File>>,
-    rec: csv::StringRecord,
-    t_col: usize,
-    r_col: usize,
-    truth_col: Option<usize>,
-    path: PathBuf,
+    rows: record::Rows<BufReader<File>>,
     nominal_dt_s: f64,
-    rows: u64,
+    rows_read: u64,
     first_t: Option<f64>,
     prev_t: Option<f64>,
     gaps: u64,
@@ -217,25 +212,11 @@ struct CsvSource {
 impl CsvSource {
     fn new(path: &Path, reader: BufReader<File>, rate_hz: f64) -> Result<Self> {
         let name = path.display().to_string();
-        let (rdr, header) = crate::record::csv_with_header(&name, reader)?;
-        let col = |want: &str| header.iter().position(|h| h.trim() == want);
-        let joined = || header.iter().collect::<Vec<_>>().join(",");
-        let Some(t_col) = col("t_s") else {
-            bail!("{name}:1: missing column `t_s` (header: {})", joined());
-        };
-        let Some(r_col) = col("rate_dps") else {
-            bail!("{name}:1: missing column `rate_dps` (header: {})", joined());
-        };
         Ok(Self {
+            rows: record::Rows::new(&name, reader, &record::ReadOptions::default())?,
             name,
-            truth_col: col("drift_dps"),
-            rdr,
-            rec: csv::StringRecord::new(),
-            t_col,
-            r_col,
-            path: path.to_path_buf(),
             nominal_dt_s: 1.0 / rate_hz,
-            rows: 0,
+            rows_read: 0,
             first_t: None,
             prev_t: None,
             gaps: 0,
@@ -244,63 +225,43 @@ impl CsvSource {
     }
 
     fn next(&mut self) -> Result<Option<Event>> {
-        let name = &self.name;
-        let more = self.rdr.read_record(&mut self.rec).map_err(|e| {
-            let line = e.position().map_or(0, |p| p.line());
-            anyhow!("{name}:{line}: {e}")
-        })?;
-        if !more {
-            if self.rows == 0 {
-                bail!("{name}: no data rows after the header");
+        let Some(row) = self.rows.next_row()? else {
+            if self.rows_read == 0 {
+                bail!("{}: no data rows after the header", self.name);
             }
             return Ok(None);
-        }
-        let line = self.rec.position().map_or(0, |p| p.line());
-        let t: f64 = record::parse_field(&self.rec, self.t_col, "t_s", &self.path, line)?;
-        let r: f32 = record::parse_field(&self.rec, self.r_col, "rate_dps", &self.path, line)?;
-        let truth: Option<f64> = match self.truth_col {
-            Some(c) => Some(record::parse_field(
-                &self.rec,
-                c,
-                "drift_dps",
-                &self.path,
-                line,
-            )?),
-            None => None,
         };
+        let t = row.t_s;
         if let Some(prev) = self.prev_t {
-            if t <= prev {
-                bail!("{name}:{line}: t_s = {t} does not increase (previous row {prev})");
-            }
             let dt = t - prev;
             if dt > record::GAP_FACTOR * self.nominal_dt_s {
                 self.gaps += 1;
                 if self.largest_gap.is_none_or(|(g, _)| dt > g) {
-                    self.largest_gap = Some((dt, line));
+                    self.largest_gap = Some((dt, row.line));
                 }
             }
         }
         self.first_t.get_or_insert(t);
         self.prev_t = Some(t);
-        self.rows += 1;
+        self.rows_read += 1;
         Ok(Some(Event::Sample {
             t_s: Some(t),
-            rate_dps: r,
-            truth,
+            rate_dps: row.rate_dps as f32,
+            truth: row.drift_dps,
         }))
     }
 
     fn position(&self) -> u64 {
-        self.rdr.position().byte()
+        self.rows.byte_position()
     }
 
     fn summary(&self) -> CsvSummary {
         let mean = match (self.first_t, self.prev_t) {
-            (Some(a), Some(b)) if self.rows > 1 => Some((b - a) / (self.rows - 1) as f64),
+            (Some(a), Some(b)) if self.rows_read > 1 => Some((b - a) / (self.rows_read - 1) as f64),
             _ => None,
         };
         CsvSummary {
-            rows: self.rows,
+            rows: self.rows_read,
             gaps: self.gaps,
             largest_gap_s: self.largest_gap.map(|g| g.0),
             largest_gap_line: self.largest_gap.map(|g| g.1),

@@ -25,7 +25,7 @@ const BLUE_: RGBColor = RGBColor(31, 119, 180);
 
 /// The figures: `(file name, SVG, caption)`.
 pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)>> {
-    let s = &out.input.record.series;
+    let s = &out.input.record;
     let name = &out.summary.input;
     let mut figs = Vec::new();
     if let (Some(c), Some(t)) = (&out.compared, &out.input.truth) {

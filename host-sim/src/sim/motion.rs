@@ -22,7 +22,7 @@
 //! whole drive (even where the yaw rate crosses 0); for the other profiles, when the
 //! platform rate (Earth rate excluded) is not exactly 0.
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use rand::Rng;
 use rand_distr::{Distribution, Exp, StandardNormal};
 use rand_pcg::Pcg64Mcg;
@@ -247,49 +247,22 @@ pub struct RateTable {
 }
 
 impl RateTable {
-    /// Reads a CSV with a header holding `t_s` and `true_rate_dps` (other columns ignored).
-    /// Errors name the file and the line (header = line 1).
+    /// Reads a CSV (or `.csv.gz`) with a header holding `t_s` and `true_rate_dps` (other
+    /// columns ignored), with [`crate::record::Record::read`]: errors name the file and
+    /// the line (header = line 1).
     pub fn read(path: &Path) -> Result<Self> {
-        let name = path.display().to_string();
-        let file = std::fs::File::open(path).map_err(|e| anyhow!("{name}: cannot open: {e}"))?;
-        let mut rdr = csv::ReaderBuilder::new()
-            .has_headers(true)
-            .flexible(false)
-            .from_reader(std::io::BufReader::new(file));
-        let header = rdr.headers().map_err(|e| anyhow!("{name}:1: {e}"))?.clone();
-        let col = |w: &str| header.iter().position(|h| h.trim() == w);
-        let (Some(tc), Some(rc)) = (col("t_s"), col("true_rate_dps")) else {
-            bail!(
-                "{name}:1: needs columns `t_s` and `true_rate_dps` (header: {})",
-                header.iter().collect::<Vec<_>>().join(",")
-            );
+        let opts = crate::record::ReadOptions {
+            optional_columns: false,
+            ..crate::record::ReadOptions::rate("true_rate_dps", 1.0)
         };
-        let mut t_s: Vec<f64> = Vec::new();
-        let mut rate_dps = Vec::new();
-        for (i, row) in rdr.records().enumerate() {
-            let line = i + 2;
-            let row = row.map_err(|e| anyhow!("{name}:{line}: {e}"))?;
-            let num = |c: usize, what: &str| -> Result<f64> {
-                let f = row.get(c).unwrap_or("").trim();
-                match f.parse::<f64>() {
-                    Ok(v) if v.is_finite() => Ok(v),
-                    _ => bail!("{name}:{line}: `{what}` = `{f}`: not a finite number"),
-                }
-            };
-            let t = num(tc, "t_s")?;
-            let r = num(rc, "true_rate_dps")?;
-            if let Some(&prev) = t_s.last() {
-                if t <= prev {
-                    bail!("{name}:{line}: t_s = {t} does not increase (previous {prev})");
-                }
-            }
-            t_s.push(t);
-            rate_dps.push(r);
+        let r = crate::record::Record::read(path, &opts)?;
+        if r.len() < 2 {
+            bail!("{}: needs at least 2 rows, found {}", r.name, r.len());
         }
-        if t_s.len() < 2 {
-            bail!("{name}: needs at least 2 rows, found {}", t_s.len());
-        }
-        Ok(Self { t_s, rate_dps })
+        Ok(Self {
+            t_s: r.t_s,
+            rate_dps: r.rate_dps,
+        })
     }
 
     /// Linearly interpolated rate at `t_s`, deg/s; the end values outside the span.
