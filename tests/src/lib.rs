@@ -113,3 +113,5 @@ pub fn qemu_system_arm() -> Option<PathBuf> {
         }
     }
 }
+
+pub mod cycles;
