@@ -84,6 +84,8 @@ pub struct Insn {
     pub size: u32,
     /// The mnemonic as objdump prints it.
     pub mnemonic: String,
+    /// Mnemonic and operands.
+    pub text: String,
     /// Its cost class.
     pub class: Class,
     /// Registers moved (LDM/STM/PUSH/POP and their FP forms, in 32-bit words).
@@ -356,6 +358,7 @@ pub fn classify(size: u32, mnemonic: &str, operands: &str, comment: &str) -> Ins
     Insn {
         size,
         mnemonic: mnemonic.to_string(),
+        text: format!("{mnemonic} {ops}").trim().to_string(),
         class,
         regs,
         writes_pc,
@@ -608,6 +611,36 @@ impl Model {
             Class::FpLoadStore => 2,
             Class::FpMultiple => 1 + insn.regs,
         }
+    }
+}
+
+/// The TRM's timing rule of an instruction, as text (for `fw-cycles --explain`).
+pub fn rule(insn: &Insn) -> String {
+    match insn.class {
+        Class::Alu if insn.writes_pc => "1+P (writes PC)".into(),
+        Class::Alu => "1".into(),
+        Class::Unknown => "1 (not in the table)".into(),
+        Class::Mul => "1".into(),
+        Class::Div => "2..12 (operands)".into(),
+        Class::LoadSingle if insn.writes_pc => "2+P (loads PC)".into(),
+        Class::LoadSingle | Class::StoreSingle if insn.writeback => {
+            "2 (write-back: not pipelined)".into()
+        }
+        Class::LoadSingle | Class::StoreSingle => "2, 1 right after a load".into(),
+        Class::Double => format!("1+N = {}", 1 + insn.regs),
+        Class::Multiple if insn.writes_pc => format!("1+N+P = {}+P", 1 + insn.regs),
+        Class::Multiple => format!("1+N = {}", 1 + insn.regs),
+        Class::Branch | Class::CompareBranch => "1+P taken, 1 not".into(),
+        Class::Table => "2+P".into(),
+        Class::It => "1 (folding not assumed)".into(),
+        Class::Barrier => "1 (ISB 1+P)".into(),
+        Class::System => "2".into(),
+        Class::FpSimple => "1".into(),
+        Class::FpMove2 => "2".into(),
+        Class::FpMac => "3".into(),
+        Class::FpDivSqrt => "14".into(),
+        Class::FpLoadStore => "2".into(),
+        Class::FpMultiple => format!("1+N = {}", 1 + insn.regs),
     }
 }
 

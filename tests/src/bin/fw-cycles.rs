@@ -7,7 +7,10 @@
 //! Exit status 1 when the cross-check fails or an executed address maps to no function.
 //!
 //! Options: `--keep DIR` keeps the trace (`trace.bin`) and the firmware's output
-//! (`table.txt`) in DIR; `--top N` functions in the profile (default 15).
+//! (`table.txt`) in DIR; `--offline DIR` analyses a kept run instead of running QEMU;
+//! `--top N` functions in the profile (default 15); `--explain NAME` prints, for each
+//! function whose name contains NAME, every instruction with its TRM rule and its cycles in
+//! each model when executed alone (no flash), a check by hand against the TRM.
 
 use std::fs::File;
 use std::io::BufReader;
@@ -37,29 +40,101 @@ fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
     let mut elf: Option<PathBuf> = None;
     let mut keep: Option<PathBuf> = None;
+    let mut offline: Option<PathBuf> = None;
+    let mut explain: Option<String> = None;
     let mut top = 15usize;
     while let Some(a) = args.next() {
         match a.as_str() {
             "--keep" => keep = args.next().map(PathBuf::from),
+            "--offline" => offline = args.next().map(PathBuf::from),
+            "--explain" => explain = args.next(),
             "--top" => top = args.next().and_then(|v| v.parse().ok()).unwrap_or(top),
             "-h" | "--help" => {
-                eprintln!("usage: fw-cycles [--keep DIR] [--top N] BUDGET_ELF");
+                eprintln!("{USAGE}");
                 return ExitCode::SUCCESS;
             }
             _ => elf = Some(PathBuf::from(a)),
         }
     }
     let Some(elf) = elf else {
-        eprintln!("usage: fw-cycles [--keep DIR] [--top N] BUDGET_ELF");
+        eprintln!("{USAGE}");
         return ExitCode::from(2);
     };
-    match run(&elf, keep.as_deref(), top) {
+    if let Some(name) = explain {
+        return match explain_functions(&elf, &name) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("fw-cycles: {e}");
+                ExitCode::from(2)
+            }
+        };
+    }
+    let result = match offline {
+        Some(dir) => analyse_dir(&elf, &dir, top, false),
+        None => run(&elf, keep.as_deref(), top),
+    };
+    match result {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::FAILURE,
         Err(e) => {
             eprintln!("fw-cycles: {e}");
             ExitCode::from(2)
         }
+    }
+}
+
+const USAGE: &str =
+    "usage: fw-cycles [--keep DIR | --offline DIR] [--top N] [--explain NAME] BUDGET_ELF";
+
+/// Prints each instruction of the functions whose name contains `name` with its TRM rule and
+/// its cycles alone (taken for branches), in each model, without flash wait states.
+fn explain_functions(elf: &Path, name: &str) -> Result<(), String> {
+    let disasm = Disassembly::of(elf)?;
+    let funcs = cycles::functions(elf)?;
+    let mut found = false;
+    for f in funcs.iter().filter(|f| f.name.contains(name)) {
+        found = true;
+        println!("{} ({:#x}, {} bytes):", f.name, f.start, f.size);
+        println!(
+            "  {:>8}  {:<40} {:<30} {:>4} {:>4} {:>4}",
+            "address", "instruction", "TRM rule", "low", "est", "high"
+        );
+        let mut addrs: Vec<u32> = disasm
+            .insns
+            .keys()
+            .copied()
+            .filter(|&a| a >= f.start && a < f.start + f.size)
+            .collect();
+        addrs.sort_unstable();
+        let mut sums = [0u32; 3];
+        let mut after_load = false;
+        for a in addrs {
+            let i = &disasm.insns[&a];
+            // Straight-line reading: branches and PC writes counted as taken.
+            let taken = true;
+            let c = MODELS.map(|m| m.cost(i, taken, after_load));
+            for (s, x) in sums.iter_mut().zip(c) {
+                *s += x;
+            }
+            after_load = i.class == cycles::Class::LoadSingle;
+            println!(
+                "  {a:>8x}  {:<40} {:<30} {:>4} {:>4} {:>4}",
+                i.text,
+                cycles::rule(i),
+                c[0],
+                c[1],
+                c[2]
+            );
+        }
+        println!(
+            "  straight through (branches taken, no flash wait states): {} / {} / {} cycles (low / estimate / high)",
+            sums[0], sums[1], sums[2]
+        );
+    }
+    if found {
+        Ok(())
+    } else {
+        Err(format!("no function symbol contains '{name}'"))
     }
 }
 
@@ -108,8 +183,7 @@ fn run_in(elf: &Path, dir: &Path, top: usize) -> Result<bool, String> {
         .stdin(std::process::Stdio::null())
         .output()
         .map_err(|e| format!("qemu-system-arm: {e}"))?;
-    let table = String::from_utf8_lossy(&out.stdout).into_owned();
-    std::fs::write(dir.join("table.txt"), &table).map_err(|e| e.to_string())?;
+    std::fs::write(dir.join("table.txt"), &out.stdout).map_err(|e| e.to_string())?;
     if !out.status.success() {
         return Err(format!(
             "QEMU exited with {}: {}",
@@ -117,9 +191,18 @@ fn run_in(elf: &Path, dir: &Path, top: usize) -> Result<bool, String> {
             String::from_utf8_lossy(&out.stderr)
         ));
     }
-    println!("== the firmware's table (QEMU -icount: INSTRUCTIONS, not cycles) ==");
-    print!("{table}");
+    analyse_dir(elf, dir, top, true)
+}
 
+/// Analyses `DIR/trace.bin` against `DIR/table.txt` (a run of `elf`).
+fn analyse_dir(elf: &Path, dir: &Path, top: usize, print_table: bool) -> Result<bool, String> {
+    let trace_path = dir.join("trace.bin");
+    let table = std::fs::read_to_string(dir.join("table.txt"))
+        .map_err(|e| format!("{}: {e}", dir.join("table.txt").display()))?;
+    if print_table {
+        println!("== the firmware's table (QEMU -icount: INSTRUCTIONS, not cycles) ==");
+        print!("{table}");
+    }
     let disasm = Disassembly::of(elf)?;
     let funcs = cycles::functions(elf)?;
     let f = File::open(&trace_path).map_err(|e| format!("{}: {e}", trace_path.display()))?;
