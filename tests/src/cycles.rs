@@ -96,6 +96,9 @@ pub struct Insn {
     pub writeback: bool,
     /// A PC-relative load's literal address (read from flash through the ART's data cache).
     pub literal: Option<u32>,
+    /// A load whose address is in a register other than SP and PC: it may read flash
+    /// (`.rodata`), which the trace cannot tell; costed as SRAM and counted for a bound.
+    pub register_load: bool,
 }
 
 const CONDITIONS: [&str; 17] = [
@@ -346,6 +349,17 @@ pub fn classify(size: u32, mnemonic: &str, operands: &str, comment: &str) -> Ins
         _ => false,
     };
     let writeback = ops.contains('!') || ops.contains("], ");
+    let is_load = match class {
+        Class::LoadSingle | Class::Double | Class::Multiple => base.starts_with("ld"),
+        Class::FpLoadStore | Class::FpMultiple => base.starts_with("vld"),
+        _ => false,
+    };
+    // The base register: inside `[...]`, or the first operand of LDM/VLDM (`r0!, {...}`).
+    let base_reg = match ops.find('[') {
+        Some(i) => ops[i + 1..].split([',', ']']).next().unwrap_or("").trim(),
+        None => first.trim_end_matches('!'),
+    };
+    let register_load = is_load && base_reg != "sp" && base_reg != "pc";
     // `ldr r0, [pc, #72]	@ (450 <Reset+0x50>)`: the literal's address is in the comment.
     let literal = if ops.contains("[pc") {
         comment
@@ -364,6 +378,7 @@ pub fn classify(size: u32, mnemonic: &str, operands: &str, comment: &str) -> Ins
         writes_pc,
         writeback,
         literal,
+        register_load,
     }
 }
 
@@ -756,6 +771,9 @@ pub struct WindowStats {
     /// Raw (overhead not removed) values, for the overhead window itself.
     pub instr_min_raw: u64,
     pub cycles_min_raw: [u64; 3],
+    /// Loads through a register other than SP/PC ([`Insn::register_load`]).
+    pub register_loads_sum: u64,
+    pub register_loads_max: u64,
 }
 
 /// Per-function instructions and cycles (estimate model) in the pipeline windows.
@@ -785,6 +803,8 @@ pub struct Analysis {
     pub exceptions: u64,
     /// Per window kind (probe name, e.g. "Pipeline"), overhead (`Empty`) not removed yet.
     pub raw: BTreeMap<String, Vec<(u64, [u64; 3])>>,
+    /// Per window kind, the register loads of each window (same order as `raw`).
+    pub raw_register_loads: BTreeMap<String, Vec<u64>>,
     /// Per function (index into the function list) in the `Pipeline` windows.
     pub functions: Vec<FunctionStats>,
     pub function_names: Vec<String>,
@@ -884,6 +904,9 @@ pub fn analyse(
         s
     };
     let mut raw: Vec<Vec<(u64, [u64; 3])>> = vec![Vec::new(); kinds.len()];
+    let mut raw_loads: Vec<Vec<u64>> = vec![Vec::new(); kinds.len()];
+    let mut register_loads = 0u64;
+    let mut load_stack: Vec<u64> = Vec::new();
     let mut sims = MODELS.map(Sim::new);
     // Open windows: kind, instruction index and cycles at the open's entry.
     let mut stack: Vec<(usize, u64, [u64; 3])> = Vec::new();
@@ -936,6 +959,9 @@ pub fn analyse(
                 }
                 after_load = pinsn.class == Class::LoadSingle;
                 jumped = taken;
+                if pinsn.register_load {
+                    register_loads += 1;
+                }
                 if in_pipeline > 0 {
                     if let Some(fi) = ps.func {
                         let e = cur.entry(fi).or_default();
@@ -959,6 +985,7 @@ pub fn analyse(
             let slot = &slots[si];
             if let Some(k) = slot.open {
                 stack.push((k, index, totals));
+                load_stack.push(register_loads);
                 if Some(k) == pipeline_kind {
                     in_pipeline += 1;
                 }
@@ -974,6 +1001,7 @@ pub fn analyse(
                 }
                 let cyc = [totals[0] - c0[0], totals[1] - c0[1], totals[2] - c0[2]];
                 raw[k].push((index - i0, cyc));
+                raw_loads[k].push(register_loads - load_stack.pop().unwrap_or(register_loads));
                 if Some(k) == pipeline_kind {
                     in_pipeline -= 1;
                     a.pipeline_windows += 1;
@@ -1016,6 +1044,8 @@ pub fn analyse(
     a.undisassembled = undisassembled.into_iter().collect();
     for (k, name) in kinds.iter().enumerate() {
         a.raw.insert(name.clone(), std::mem::take(&mut raw[k]));
+        a.raw_register_loads
+            .insert(name.clone(), std::mem::take(&mut raw_loads[k]));
     }
     Ok(a)
 }
@@ -1041,6 +1071,10 @@ impl Analysis {
             cycles_min_raw: [u64::MAX; 3],
             ..WindowStats::default()
         };
+        if let Some(l) = self.raw_register_loads.get(kind) {
+            s.register_loads_sum = l.iter().sum();
+            s.register_loads_max = l.iter().copied().max().unwrap_or(0);
+        }
         for &(i, c) in w {
             s.n += 1;
             let net = i.saturating_sub(oi);
@@ -1206,7 +1240,13 @@ mod tests {
         assert_eq!(i.literal, Some(0x450));
         let v = classify(4, "vpush", "{d8-d15}", "");
         assert_eq!(v.regs, 16);
+        assert!(!i.register_load);
+        assert!(classify(2, "ldr", "r1, [r1, #0]", "").register_load);
+        assert!(!classify(2, "ldr", "r1, [sp, #4]", "").register_load);
+        assert!(classify(4, "vldr", "s0, [r2, #8]", "").register_load);
+        assert!(!classify(2, "str", "r1, [r2, #0]", "").register_load);
         let p = classify(4, "ldmia.w", "sp!, {r4, r5, r6, r7, r8, pc}", "");
+        assert!(!p.register_load);
         assert!(p.writes_pc);
         assert_eq!(p.regs, 6);
     }
