@@ -157,35 +157,14 @@ impl core::fmt::Display for ImageError {
 
 impl core::error::Error for ImageError {}
 
-/// CRC-32/ISO-HDLC (the zlib/PNG CRC: reflected polynomial 0xEDB88320, initial and final
-/// XOR 0xFFFFFFFF), from a 256-entry table built at compile time.
+/// CRC-32/ISO-HDLC (the zlib/PNG CRC) of `bytes`, the image checksum.
 pub fn crc32(bytes: &[u8]) -> u32 {
-    let mut c = 0xFFFF_FFFFu32;
-    for &b in bytes {
-        c = CRC_TABLE[((c ^ u32::from(b)) & 0xFF) as usize] ^ (c >> 8);
-    }
-    !c
+    CRC32.checksum(bytes)
 }
 
-const CRC_TABLE: [u32; 256] = {
-    let mut t = [0u32; 256];
-    let mut i = 0;
-    while i < 256 {
-        let mut c = i as u32;
-        let mut k = 0;
-        while k < 8 {
-            c = if c & 1 != 0 {
-                0xEDB8_8320 ^ (c >> 1)
-            } else {
-                c >> 1
-            };
-            k += 1;
-        }
-        t[i] = c;
-        i += 1;
-    }
-    t
-};
+/// CRC-32/ISO-HDLC (the `crc` crate's catalogue entry: poly 0x04C11DB7 reflected, init and
+/// xor-out 0xFFFFFFFF; check value 0xCBF43926).
+const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 /// A trained motion identifier: everything the estimator and further training need.
 #[derive(Debug, Clone, PartialEq)]
