@@ -4,7 +4,9 @@
 //! of ticks per instruction; the ratio is calibrated here with a loop of known length.
 //!
 //! Figures are **instructions** executed, not cycles: on a real Cortex-M4F, VDIV (14
-//! cycles), loads, taken branches and flash wait states make cycles larger.
+//! cycles), loads, taken branches and flash wait states make cycles larger. The cycle
+//! estimate comes from the instruction trace of this run (`fw-cycles`, see [`probe`] and
+//! `tests/src/cycles.rs`).
 #![forbid(unsafe_code)]
 
 use core::fmt::Write as _;

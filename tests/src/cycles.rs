@@ -533,7 +533,7 @@ pub enum Flash {
     /// it does not hold: `wait_states` cycles on top of the refill. A PC-relative literal
     /// load that misses the data cache: `wait_states`.
     Art,
-    /// No cache hits (a worst case): every taken branch pays `wait_states`, every literal
+    /// No cache hits (pessimistic): every taken branch pays `wait_states`, every literal
     /// load too; sequential lines as with [`Flash::Art`]'s prefetch.
     NoCache,
 }
@@ -558,7 +558,8 @@ impl Model {
         flash: Flash::Art,
         pipelined_loads: true,
     };
-    /// A worst case: P = 3, divides 12, no cache hits, no load pipelining.
+    /// A pessimistic case (not a proof of an upper bound: see the module docs for what is not
+    /// modelled): P = 3, divides 12, no cache hits, no load pipelining.
     pub const HIGH: Model = Model {
         name: "high",
         refill: 3,
