@@ -99,6 +99,25 @@ pub struct Insn {
     /// A load whose address is in a register other than SP and PC: it may read flash
     /// (`.rodata`), which the trace cannot tell; costed as SRAM and counted for a bound.
     pub register_load: bool,
+    /// Core registers written (bit n = rn; 13 SP, 14 LR, 15 PC), for the address dependency.
+    pub writes: u16,
+    /// The base register of a load or store (PUSH/POP/VPUSH/VPOP: SP).
+    pub base: Option<u8>,
+    /// A single store with an immediate offset and no write-back (`STR Rx, [Ry, #imm]`).
+    pub store_imm: bool,
+}
+
+/// A core register's number (`r0`..`r12`, `sl`, `fp`, `ip`, `sp`, `lr`, `pc`).
+pub fn reg_num(r: &str) -> Option<u8> {
+    match r.trim().trim_end_matches('!') {
+        "sl" => Some(10),
+        "fp" => Some(11),
+        "ip" => Some(12),
+        "sp" => Some(13),
+        "lr" => Some(14),
+        "pc" => Some(15),
+        x => x.strip_prefix('r')?.parse::<u8>().ok().filter(|&n| n < 16),
+    }
 }
 
 const CONDITIONS: [&str; 17] = [
@@ -360,6 +379,63 @@ pub fn classify(size: u32, mnemonic: &str, operands: &str, comment: &str) -> Ins
         None => first.trim_end_matches('!'),
     };
     let register_load = is_load && base_reg != "sp" && base_reg != "pc";
+    let memory = matches!(
+        class,
+        Class::LoadSingle
+            | Class::StoreSingle
+            | Class::Double
+            | Class::Multiple
+            | Class::FpLoadStore
+            | Class::FpMultiple
+    );
+    let base_num = if !memory {
+        None
+    } else if matches!(base.as_str(), "push" | "pop" | "vpush" | "vpop") {
+        Some(13)
+    } else {
+        reg_num(base_reg)
+    };
+    let operands: Vec<&str> = ops.split(',').map(str::trim).collect();
+    let mut writes = 0u16;
+    let mut write = |r: &str| {
+        if let Some(n) = reg_num(r) {
+            writes |= 1 << n;
+        }
+    };
+    match class {
+        Class::Alu if !matches!(base.as_str(), "cmp" | "cmn" | "tst" | "teq" | "nop") => {
+            write(first)
+        }
+        Class::Mul
+            if matches!(
+                base.as_str(),
+                "umull" | "smull" | "umlal" | "smlal" | "umaal"
+            ) =>
+        {
+            write(first);
+            write(operands.get(1).copied().unwrap_or(""));
+        }
+        Class::Mul | Class::Div | Class::LoadSingle => write(first),
+        Class::Double if base.starts_with("ld") => {
+            write(first);
+            write(operands.get(1).copied().unwrap_or(""));
+        }
+        _ => {}
+    }
+    // Base write-back writes the base too (`ldr r0, [r1], #4`, `ldmia r0!, {..}`).
+    if writeback {
+        if let Some(b) = base_num {
+            writes |= 1 << b;
+        }
+    }
+    let store_imm = class == Class::StoreSingle
+        && !writeback
+        && ops.find('[').is_some_and(|i| {
+            ops[i..]
+                .split(',')
+                .nth(1)
+                .is_none_or(|o| o.trim().starts_with('#'))
+        });
     // `ldr r0, [pc, #72]	@ (450 <Reset+0x50>)`: the literal's address is in the comment.
     let literal = if ops.contains("[pc") {
         comment
@@ -379,6 +455,9 @@ pub fn classify(size: u32, mnemonic: &str, operands: &str, comment: &str) -> Ins
         writeback,
         literal,
         register_load,
+        writes,
+        base: base_num,
+        store_imm,
     }
 }
 
@@ -514,9 +593,15 @@ pub struct Model {
     /// Flash model: see [`Flash`].
     pub flash: Flash,
     /// A load or store right after a load costs 1 instead of 2 (TRM: neighbouring load and
-    /// store single instructions pipeline; nothing pipelines after a store; not after a
-    /// base write-back).
+    /// store single instructions pipeline; nothing pipelines after a store; not with a base
+    /// write-back; not when the load's result is the next one's address).
     pub pipelined_loads: bool,
+    /// `STR Rx, [Ry, #imm]` costs 1 (TRM 3.3.2: "always one cycle", the data phase overlaps
+    /// the next instruction through the write buffer); otherwise Table 3-1's 2.
+    pub store_imm_one: bool,
+    /// Extra cycles of a PC-relative load (TRM 3.3.2: `LDR Rx,[PC,#imm]` "might add a cycle
+    /// because of contention with the fetch unit").
+    pub literal_extra: u32,
 }
 
 /// How the flash is seen by the core.
@@ -547,6 +632,8 @@ impl Model {
         wait_states: 5,
         flash: Flash::Perfect,
         pipelined_loads: true,
+        store_imm_one: true,
+        literal_extra: 0,
     };
     /// The estimate: P = 2 (the middle of 1-3), divides 12 (their worst: the operands are
     /// not in the trace), the ART as [`Flash::Art`].
@@ -557,9 +644,12 @@ impl Model {
         wait_states: 5,
         flash: Flash::Art,
         pipelined_loads: true,
+        store_imm_one: true,
+        literal_extra: 0,
     };
     /// A pessimistic case (not a proof of an upper bound: see the module docs for what is not
-    /// modelled): P = 3, divides 12, no cache hits, no load pipelining.
+    /// modelled): P = 3, divides 12, no cache hits, no load pipelining, stores 2, literal
+    /// loads + 1.
     pub const HIGH: Model = Model {
         name: "high",
         refill: 3,
@@ -567,14 +657,36 @@ impl Model {
         wait_states: 5,
         flash: Flash::NoCache,
         pipelined_loads: false,
+        store_imm_one: false,
+        literal_extra: 1,
     };
 
     /// Cycles of `insn` alone (no flash), given whether it branched (`taken`: the next
-    /// executed address is not the next instruction) and whether the previous one was a
-    /// single load.
-    pub fn cost(&self, insn: &Insn, taken: bool, after_load: bool) -> u32 {
+    /// executed address is not the next instruction) and the instruction executed before it
+    /// (`prev`).
+    pub fn cost(&self, insn: &Insn, taken: bool, prev: Option<&Insn>) -> u32 {
+        // The previous instruction wrote this one's base register.
+        let dependent = match (prev, insn.base) {
+            (Some(q), Some(b)) => q.writes & (1 << b) != 0,
+            _ => false,
+        };
+        let after_load = prev.is_some_and(|q| q.class == Class::LoadSingle);
+        let pipelined = self.pipelined_loads && after_load && !insn.writeback && !dependent;
+        // TRM 3.3.2: "Any load or store that generates an address dependent on the result of
+        // a preceding data processing operation stalls the pipeline for an additional cycle".
+        let stall = u32::from(
+            dependent && prev.is_some_and(|q| matches!(q.class, Class::Alu | Class::Mul)),
+        );
+        let literal = if insn.literal.is_some() {
+            self.literal_extra
+        } else {
+            0
+        };
+        stall + literal + self.base_cost(insn, taken, pipelined)
+    }
+
+    fn base_cost(&self, insn: &Insn, taken: bool, pipelined: bool) -> u32 {
         let p = self.refill;
-        let pipelined = self.pipelined_loads && after_load && !insn.writeback;
         match insn.class {
             Class::Alu | Class::Unknown => {
                 if insn.writes_pc {
@@ -595,7 +707,7 @@ impl Model {
                 }
             }
             Class::StoreSingle => {
-                if pipelined {
+                if pipelined || (self.store_imm_one && insn.store_imm) {
                     1
                 } else {
                     2
@@ -642,6 +754,7 @@ pub fn rule(insn: &Insn) -> String {
         Class::LoadSingle | Class::StoreSingle if insn.writeback => {
             "2 (write-back: not pipelined)".into()
         }
+        Class::StoreSingle if insn.store_imm => "1 (STR #imm; high: 2)".into(),
         Class::LoadSingle | Class::StoreSingle => "2, 1 right after a load".into(),
         Class::Double => format!("1+N = {}", 1 + insn.regs),
         Class::Multiple if insn.writes_pc => format!("1+N+P = {}+P", 1 + insn.regs),
@@ -717,7 +830,14 @@ impl Sim {
 
     /// Cycles of one executed instruction at `pc`; `arrived_by_jump`: the previous one
     /// branched (or an exception was taken) to here.
-    fn step(&mut self, pc: u32, insn: &Insn, taken: bool, after_load: bool, jumped: bool) -> u32 {
+    fn step(
+        &mut self,
+        pc: u32,
+        insn: &Insn,
+        taken: bool,
+        prev: Option<&Insn>,
+        jumped: bool,
+    ) -> u32 {
         let ws = self.model.wait_states;
         let line = pc >> 4;
         let mut stall = 0;
@@ -751,7 +871,7 @@ impl Sim {
                 Flash::NoCache => ws,
             };
         }
-        let c = self.model.cost(insn, taken, after_load) + stall;
+        let c = self.model.cost(insn, taken, prev) + stall;
         self.cycles_in_line += c;
         self.total += u64::from(c);
         c
@@ -920,7 +1040,8 @@ pub fn analyse(
     let mut classes: HashMap<String, (u64, u64)> = HashMap::new();
 
     let mut prev: Option<(u32, usize)> = None;
-    let mut after_load = false;
+    // The slot of the instruction executed before the one being costed.
+    let mut before: Option<usize> = None;
     let mut jumped = true;
     let mut index: u64 = 0;
     let mut buf = vec![0u8; 1 << 20];
@@ -948,7 +1069,8 @@ pub fn analyse(
                 let exception = taken && !branches;
                 let mut c = [0u64; 3];
                 for (i, s) in sims.iter_mut().enumerate() {
-                    let mut x = s.step(ppc, pinsn, taken && branches, after_load, jumped);
+                    let q = before.map(|b| &slots[b].insn);
+                    let mut x = s.step(ppc, pinsn, taken && branches, q, jumped);
                     if exception {
                         x += EXCEPTION_ENTRY;
                         s.total += u64::from(EXCEPTION_ENTRY);
@@ -958,7 +1080,7 @@ pub fn analyse(
                 if exception {
                     a.exceptions += 1;
                 }
-                after_load = pinsn.class == Class::LoadSingle;
+                before = Some(psi);
                 jumped = taken;
                 if pinsn.register_load {
                     register_loads += 1;
@@ -1220,16 +1342,23 @@ mod tests {
         assert_eq!(d.insns.len(), 11);
         let m = Model::LOW;
         let mut total = 0;
-        let mut after_load = false;
+        let mut prev: Option<&Insn> = None;
         let mut addrs: Vec<u32> = d.insns.keys().copied().collect();
         addrs.sort_unstable();
         for (i, a) in addrs.iter().enumerate() {
             let insn = &d.insns[a];
             let taken = i + 1 == addrs.len();
-            total += m.cost(insn, taken, after_load);
-            after_load = insn.class == Class::LoadSingle;
+            total += m.cost(insn, taken, prev);
+            prev = Some(insn);
         }
-        assert_eq!(total, 3 + 1 + 1 + 1 + 2 + 1 + 1 + 1 + 2 + 1 + (1 + 2 + 1));
+        // str [sp, #0] right after `movs r0` (no dependency on sp): 1 (STR #imm); the ldr
+        // after `movt r0` (its base) stalls 1: 2 + 1; the pop after `add sp` (its base)
+        // too: 1 + N + P + 1.
+        assert_eq!(
+            total,
+            3 + 1 + 1 + 1 + 1 + 1 + 1 + 1 + 3 + 1 + (1 + 2 + 1 + 1)
+        );
+        assert_eq!(Model::HIGH.cost(&d.insns[&0x5210], false, None), 2);
         assert_eq!(d.insns[&0x5214].size, 4);
         assert_eq!(d.insns[&0x5220].regs, 2);
         assert!(d.insns[&0x5220].writes_pc);
@@ -1242,6 +1371,23 @@ mod tests {
         let v = classify(4, "vpush", "{d8-d15}", "");
         assert_eq!(v.regs, 16);
         assert!(!i.register_load);
+        assert_eq!(i.base, Some(15));
+        let add = classify(2, "adds", "r1, #4", "");
+        assert_eq!(add.writes, 1 << 1);
+        let ld = classify(2, "ldr", "r2, [r1, #0]", "");
+        assert_eq!(ld.base, Some(1));
+        // Address from the preceding data-processing result: + 1 (TRM 3.3.2).
+        assert_eq!(Model::LOW.cost(&ld, false, Some(&add)), 3);
+        assert_eq!(Model::LOW.cost(&ld, false, None), 2);
+        // Pipelined after a load, unless the load produced the address.
+        let ld2 = classify(2, "ldr", "r3, [r4, #0]", "");
+        assert_eq!(Model::LOW.cost(&ld2, false, Some(&ld)), 1);
+        let ld3 = classify(2, "ldr", "r3, [r2, #0]", "");
+        assert_eq!(Model::LOW.cost(&ld3, false, Some(&ld)), 2);
+        assert!(classify(2, "str", "r1, [r2, #8]", "").store_imm);
+        assert!(!classify(2, "str", "r1, [r2, r3]", "").store_imm);
+        assert!(!classify(2, "str", "r1, [r2], #4", "").store_imm);
+        assert_eq!(classify(2, "push", "{r4, lr}", "").base, Some(13));
         assert!(classify(2, "ldr", "r1, [r1, #0]", "").register_load);
         assert!(!classify(2, "ldr", "r1, [sp, #4]", "").register_load);
         assert!(classify(4, "vldr", "s0, [r2, #8]", "").register_load);

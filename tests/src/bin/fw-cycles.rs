@@ -96,7 +96,7 @@ fn explain_functions(elf: &Path, name: &str) -> Result<(), String> {
         found = true;
         println!("{} ({:#x}, {} bytes):", f.name, f.start, f.size);
         println!(
-            "  {:>8}  {:<40} {:<30} {:>4} {:>4} {:>4}",
+            "  {:>8}  {:<36} {:<40} {:>4} {:>4} {:>4}",
             "address", "instruction", "TRM rule", "low", "est", "high"
         );
         let mut addrs: Vec<u32> = disasm
@@ -107,23 +107,25 @@ fn explain_functions(elf: &Path, name: &str) -> Result<(), String> {
             .collect();
         addrs.sort_unstable();
         let mut sums = [0u32; 3];
-        let mut after_load = false;
+        let mut prev: Option<&cycles::Insn> = None;
         for a in addrs {
             let i = &disasm.insns[&a];
             // Straight-line reading: branches and PC writes counted as taken.
             let taken = true;
-            let c = MODELS.map(|m| m.cost(i, taken, after_load));
+            let c = MODELS.map(|m| m.cost(i, taken, prev));
             for (s, x) in sums.iter_mut().zip(c) {
                 *s += x;
             }
-            after_load = i.class == cycles::Class::LoadSingle;
+            prev = Some(i);
+            let stalled = c[0] > MODELS[0].cost(i, taken, None);
+            let rule = if stalled {
+                format!("{} +1 address dep.", cycles::rule(i))
+            } else {
+                cycles::rule(i)
+            };
             println!(
-                "  {a:>8x}  {:<40} {:<30} {:>4} {:>4} {:>4}",
-                i.text,
-                cycles::rule(i),
-                c[0],
-                c[1],
-                c[2]
+                "  {a:>8x}  {:<36} {:<40} {:>4} {:>4} {:>4}",
+                i.text, rule, c[0], c[1], c[2]
             );
         }
         println!(
@@ -248,7 +250,7 @@ fn report(a: &cycles::Analysis, table: &str, top: usize) -> Result<bool, String>
         );
     }
     println!(
-        "not modelled: loads from flash through a register (.rodata tables: costed as SRAM, 0 wait states), bus contention; exception entry {EXCEPTION_ENTRY} cycles"
+        "not modelled: loads from flash through a register (.rodata tables: costed as SRAM, 0 wait states; bounded below), bus contention, FPU result latencies; exception entry {EXCEPTION_ENTRY} cycles"
     );
     println!("ASSUMPTION: the mps2-an386 budget image's code and layout stand for the STM32F407 build's (same fog-core code and compiler settings, other board code)");
 
