@@ -250,7 +250,7 @@ fn report(a: &cycles::Analysis, table: &str, top: usize) -> Result<bool, String>
         );
     }
     println!(
-        "not modelled: loads from flash through a register (.rodata tables: costed as SRAM, 0 wait states; bounded below), bus contention, FPU result latencies; exception entry {EXCEPTION_ENTRY} cycles"
+        "not modelled: loads from flash through a register (.rodata tables: costed as SRAM, 0 wait states; a bound follows), bus contention, FPU result latencies; exception entry {EXCEPTION_ENTRY} cycles"
     );
     println!("ASSUMPTION: the mps2-an386 budget image's code and layout stand for the STM32F407 build's (same fog-core code and compiler settings, other board code)");
 
