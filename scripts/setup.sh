@@ -4,7 +4,9 @@
 # - qemu-system-arm for the firmware's hardware-in-the-loop tests, when the firmware exists;
 # - chromium (headless) for the test that loads the demo's index.html;
 # - binutils-arm-none-eabi for the firmware's panic-path test;
-# - a C++ compiler (g++) for libFuzzer, built by the fuzz crate (scripts/fuzz.sh).
+# - a C++ compiler (g++) for libFuzzer, built by the fuzz crate (scripts/fuzz.sh); its C
+#   compiler (cc) also builds the QEMU trace plugin of the cycle estimate
+#   (scripts/qemu-trace/fogtrace.c, built by fw-cycles).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -40,7 +42,8 @@ if [ -d fog-firmware ] && ! command -v arm-none-eabi-objdump >/dev/null 2>&1 \
 fi
 
 # A C++ compiler: libfuzzer-sys builds libFuzzer (scripts/fuzz.sh).
-if ! command -v c++ >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1; then
+if { ! command -v c++ >/dev/null 2>&1 || ! command -v cc >/dev/null 2>&1; } \
+   && command -v apt-get >/dev/null 2>&1; then
   echo "setup: installing g++" >&2
   SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
   $SUDO apt-get update -qq

@@ -4,7 +4,9 @@
 //! of ticks per instruction; the ratio is calibrated here with a loop of known length.
 //!
 //! Figures are **instructions** executed, not cycles: on a real Cortex-M4F, VDIV (14
-//! cycles), loads, taken branches and flash wait states make cycles larger.
+//! cycles), loads, taken branches and flash wait states make cycles larger. The cycle
+//! estimate comes from the instruction trace of this run (`fw-cycles`, see [`probe`] and
+//! `tests/src/cycles.rs`).
 #![forbid(unsafe_code)]
 
 use core::fmt::Write as _;
@@ -18,7 +20,10 @@ use fog_core::still::Stillness;
 use crate::app::{TickCounter, IDENTIFIER_IMAGE};
 use crate::pipeline::{self, BLOCK};
 
+mod probe;
 mod resumable;
+
+use probe::Window;
 
 /// Samples measured: 8 blocks (41 s at 100 Hz).
 const SAMPLES: usize = 8 * BLOCK;
@@ -71,20 +76,30 @@ impl Acc {
     }
 }
 
-/// Times `f` once, in ticks.
+/// Times `f` once, in ticks, in a window of kind `W` (see [`probe`]: the counter is read in
+/// functions the cycle tool finds in the trace).
 #[inline(always)]
-fn time<C: TickCounter, R>(c: &C, f: impl FnOnce() -> R) -> (R, u32) {
-    let t0 = c.stamp();
+fn time<W: Window, C: TickCounter, R>(c: &C, f: impl FnOnce() -> R) -> (R, u32) {
+    let t0 = W::open(c);
     let r = f();
-    (r, c.ticks_since(t0))
+    (r, W::close(c, t0))
 }
 
 fn calibrate<C: TickCounter>(c: &C, spin: fn(u32)) -> Calibration {
-    let overhead_ticks = (0..16).map(|_| time(c, || ()).1).min().unwrap_or(0);
+    let overhead_ticks = (0..16)
+        .map(|_| time::<probe::Empty, _, _>(c, || ()).1)
+        .min()
+        .unwrap_or(0);
     // Two loop lengths: the difference cancels the call and the counter overhead.
     let (n1, n2) = (1_000u32, 101_000u32);
-    let t1 = (0..4).map(|_| time(c, || spin(n1)).1).min().unwrap_or(0);
-    let t2 = (0..4).map(|_| time(c, || spin(n2)).1).min().unwrap_or(0);
+    let t1 = (0..4)
+        .map(|_| time::<probe::Spin, _, _>(c, || spin(n1)).1)
+        .min()
+        .unwrap_or(0);
+    let t2 = (0..4)
+        .map(|_| time::<probe::Spin, _, _>(c, || spin(n2)).1)
+        .min()
+        .unwrap_or(0);
     Calibration {
         overhead_ticks,
         cal_ticks: u64::from(t2.saturating_sub(t1)),
@@ -163,7 +178,7 @@ fn exp_row<C: TickCounter>(c: &C, cal: &Calibration, f: fn(f32) -> f32) -> (u64,
         worst = worst.max(libm::fabs(got - want) / want);
     }
     let inputs: [f32; EXP_POINTS] = core::array::from_fn(x);
-    let (sum, ticks) = time(c, || {
+    let (sum, ticks) = time::<probe::Exp, _, _>(c, || {
         let mut acc = 0.0f32;
         for &v in &inputs {
             acc += f(v);
@@ -262,11 +277,12 @@ where
         // record; the stage is also timed on its own, inside.
         let mut rate_dps = f32::NAN;
         let mut stage_ticks = 0;
-        let (_, ticks) = time(c, || {
+        let (_, ticks) = time::<probe::Pipeline, _, _>(c, || {
             for &b in &wire {
                 if let Some(f) = decoder.push(b) {
-                    let ((out, status), t) =
-                        time(c, || pipeline::process(&mut stage, f.rate_dps, None, None));
+                    let ((out, status), t) = time::<probe::Stage, _, _>(c, || {
+                        pipeline::process(&mut stage, f.rate_dps, None, None)
+                    });
                     stage_ticks = t;
                     let r = pipeline::sample_record(frames, f.rate_dps, &out, status);
                     frames += 1;
@@ -283,7 +299,7 @@ where
 
         // Frame decode alone, on a second decoder fed the same bytes.
         let mut d2 = decoder.clone();
-        let (_, t) = time(c, || {
+        let (_, t) = time::<probe::Decode, _, _>(c, || {
             let mut n = 0u32;
             for &b in &wire {
                 if d2.push(b).is_some() {
@@ -296,7 +312,7 @@ where
 
         // The stillness detector alone, against the estimator copy's drift of the previous
         // sample (what the estimator gives it).
-        let (s, t) = time(c, || {
+        let (s, t) = time::<probe::Detect, _, _>(c, || {
             detector.push(rate_dps, drift_dps, cfg.sensor.sample_var_dps2(), None)
         });
         a_detect.add(t);
@@ -304,7 +320,7 @@ where
 
         // The estimator alone (detector included): model once per window, level update on
         // released still windows, clamp.
-        let (m, t) = time(c, || estimator.push(rate_dps, f32::NAN, None));
+        let (m, t) = time::<probe::Estimate, _, _>(c, || estimator.push(rate_dps, f32::NAN, None));
         a_estimate.add(t);
         if let Ok(m) = m {
             drift_dps = m.drift_dps;
@@ -312,7 +328,7 @@ where
         }
 
         // The resumable denoiser alone (db4, 3 levels, B = 512), every push.
-        let (d, t) = time(c, || match denoiser.push(rate_dps) {
+        let (d, t) = time::<probe::Denoise, _, _>(c, || match denoiser.push(rate_dps) {
             Ok(Some(v)) => v,
             _ => 0.0,
         });

@@ -113,3 +113,29 @@ pub fn qemu_system_arm() -> Option<PathBuf> {
         }
     }
 }
+
+/// The `fw-cycles` tool (this crate's binary), built once per test process in the release
+/// profile: it reads traces of about 10^8 instructions, over a minute unoptimised. Returns
+/// its path.
+///
+/// # Panics
+/// If the build fails.
+pub fn fw_cycles() -> PathBuf {
+    static BIN: OnceLock<PathBuf> = OnceLock::new();
+    BIN.get_or_init(|| {
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        let status = Command::new(cargo)
+            .args(["build", "-q", "--release", "-p", "fog-system-tests"])
+            .args(["--bin", "fw-cycles"])
+            .status()
+            .expect("cargo runs");
+        assert!(status.success(), "building fw-cycles failed");
+        let target = std::env::var_os("CARGO_TARGET_DIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target"));
+        target.join("release/fw-cycles")
+    })
+    .clone()
+}
+
+pub mod cycles;

@@ -38,7 +38,7 @@ pub(super) fn table<C: TickCounter, W: core::fmt::Write>(
     let mut worst_at = 0usize;
     for k in 0..BLOCKS * BLOCK {
         let rate_dps = f32::from(source.next_counts()) * (pipeline::FULL_SCALE_DPS / 32768.0);
-        let (got, t) = time(c, || res.push(rate_dps));
+        let (got, t) = time::<super::probe::Resumable, _, _>(c, || res.push(rate_dps));
         if t > a_res.max {
             worst_at = k % BLOCK;
         }
@@ -52,7 +52,7 @@ pub(super) fn table<C: TickCounter, W: core::fmt::Write>(
                 differ += 1;
             }
         }
-        let (done, t) = time(c, || match block.push(rate_dps) {
+        let (done, t) = time::<super::probe::Resumable, _, _>(c, || match block.push(rate_dps) {
             Ok(Push::Block(b, _)) => Some(*b),
             _ => None,
         });

@@ -569,8 +569,17 @@ pub fn run_qemu_steps(
     log: &Path,
 ) -> QemuRun {
     let start = Instant::now();
-    let qmp_path = log.with_extension("qmp.sock");
+    // A Unix socket path must fit in sun_path (108 bytes): beside the log, under a deep
+    // checkout's target directory, it did not (110 bytes in a worktree). The temporary
+    // directory, with the process id and a counter for the tests running in parallel.
+    static SOCKETS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let qmp_path = std::env::temp_dir().join(format!(
+        "fog-qmp-{}-{}.sock",
+        std::process::id(),
+        SOCKETS.fetch_add(1, std::sync::atomic::Ordering::SeqCst)
+    ));
     let _ = std::fs::remove_file(&qmp_path);
+    let qmp_socket = qmp_path.clone();
     let log_file = std::fs::File::create(log).expect("log file");
     let child = Command::new(qemu)
         .args(args)
@@ -651,6 +660,7 @@ pub fn run_qemu_steps(
         }
     }
     drop(qemu_proc);
+    let _ = std::fs::remove_file(&qmp_socket);
     let resumed = writer
         .join()
         .expect("writer thread")
