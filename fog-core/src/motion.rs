@@ -376,9 +376,8 @@ pub const FAST_GATE_K: f32 = 5.0;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum LevelUpdate {
     /// One Kalman step per released window mean (still, and the next window still too):
-    /// the onset of motion never reaches the level, at the cost of a 2-window delay.
-    /// The default: it gives the lower heading error on vehicle records of both
-    /// generators' nominal families (docs/motion.md).
+    /// the onset of motion never reaches the level, at the cost of a 2-window delay. The
+    /// product's window estimator ([`crate::preset`]: the output in motion).
     #[default]
     Window,
     /// One Kalman step per sample flagged still, on `rate - m` (variance `sigma^2`), with
@@ -388,8 +387,8 @@ pub enum LevelUpdate {
     /// variance is the checkpoint's plus the random walk since). The output uses the
     /// tentative level; a fast gate ([`FAST_GATE_K`]) stops the updates of a window at its
     /// first sample beyond the gate. Adds per sample: 1 division, 8 multiply/add/subtract,
-    /// 2 compares (and a 5-float copy per window). Ties the per-sample Kalman filter on
-    /// static records (docs/motion.md); loses on the Python generator's vehicles.
+    /// 2 compares (and a 5-float copy per window). The product's per-sample estimator
+    /// ([`crate::preset`]: the output at rest).
     Sample,
 }
 

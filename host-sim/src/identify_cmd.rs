@@ -125,7 +125,7 @@ pub struct Args {
     pub stale_s: Option<f32>,
     /// `--preset motion`: shrink the model by leave-one-record-out cross-validation
     /// (host_sim::motion::Shrinkage: alpha in [0, 1] folded into the output weights). Off
-    /// by default: it costs on the simulator's vehicles (docs/motion.md).
+    /// by default: it costs in motion on families A and B (docs/unit-fit.md).
     #[arg(long)]
     pub shrink: bool,
     /// `--preset motion`: the bench trainer of the model's output weights: the paper's DRLS

@@ -128,8 +128,7 @@ pub struct TrainOptions {
     /// Time range of the model, s.
     pub time_max_s: f32,
     /// Shrink the model by leave-one-record-out cross-validation ([`Shrinkage`]). Off by
-    /// default (the firmware's preset): measured to cost on the simulator's vehicles
-    /// (docs/motion.md).
+    /// default: it costs in motion on families A and B (docs/unit-fit.md).
     pub shrink: bool,
     /// The drive the shrinkage scores the model over, detector windows
     /// ([`fog_core::motion::Transfer::add_record`]'s `lag`; 0: the whole record's shape).
