@@ -12,7 +12,7 @@ pub trait FeatureMap<const N: usize> {
         self.next(rate_dps, t_s)
     }
     /// Inputs to store for the training step of the current sample, when they differ from
-    /// what [`FeatureMap::next`] returned for its output (e.g. [`LevelBank`] with an
+    /// what [`FeatureMap::next`] returned for its output (e.g. [`MultiScaleLevels`] with an
     /// undelayed output); `None` (the default): the same.
     #[inline]
     fn train_inputs(&self) -> Option<[f32; N]> {
@@ -316,18 +316,18 @@ impl FeatureMap<3> for TimeTemp {
     }
 }
 
-/// Memories of the [`LevelBank`] levels, s, shortest first.
+/// Memories of the [`MultiScaleLevels`] levels, s, shortest first.
 pub const BANK_MEMORIES_S: [f32; 6] = [3.0, 10.0, 30.0, 100.0, 300.0, 1000.0];
 
-/// Delay of the rate entering the [`LevelBank`] levels, samples: at least the half support
+/// Delay of the rate entering the [`MultiScaleLevels`] levels, samples: at least the half support
 /// of the denoiser's level-3 approximation (db4: (8 - 1)(2^3 - 1) + 1 = 50 samples), so that
-/// no sample's noise is both in a training input and in its target (see [`LevelBank`]).
+/// no sample's noise is both in a training input and in its target (see [`MultiScaleLevels`]).
 pub const BANK_DELAY: usize = 64;
 
-/// Number of inputs of [`LevelBank`].
+/// Number of inputs of [`MultiScaleLevels`].
 pub const BANK_INPUTS: usize = BANK_MEMORIES_S.len() + 3;
 
-/// Index of `T` among the [`LevelBank`] inputs (then `temp_c`, `dtemp_c_per_s`).
+/// Index of `T` among the [`MultiScaleLevels`] inputs (then `temp_c`, `dtemp_c_per_s`).
 pub const BANK_T: usize = BANK_MEMORIES_S.len();
 
 /// A bank of causal levels of the rate at several time scales, plus the known inputs:
@@ -356,18 +356,18 @@ pub const BANK_T: usize = BANK_MEMORIES_S.len();
 /// of tens of seconds is negligible, and no advantage over the zero-latency baselines.
 /// Memory: 6 filters (5 floats each) + 64 floats + [`TimeTemp`].
 #[derive(Debug, Clone, PartialEq)]
-pub struct LevelBank {
+pub struct MultiScaleLevels {
     levels: [crate::baseline::RandomWalkKalman; BANK_MEMORIES_S.len()],
     known: TimeTemp,
     delay: [f32; BANK_DELAY],
     seen: usize,
-    /// With [`LevelBank::undelayed_output`]: levels on the current samples (for the
+    /// With [`MultiScaleLevels::undelayed_output`]: levels on the current samples (for the
     /// output) and the inputs of the delayed levels (for training).
     now: Option<[crate::baseline::RandomWalkKalman; BANK_MEMORIES_S.len()]>,
     train: [f32; BANK_INPUTS],
 }
 
-impl LevelBank {
+impl MultiScaleLevels {
     /// Features for a stream with `samples_per_s` samples per second.
     pub fn new(samples_per_s: f32) -> Self {
         let dt = if samples_per_s.is_finite() && samples_per_s > 0.0 {
@@ -410,7 +410,7 @@ impl LevelBank {
     }
 }
 
-impl FeatureMap<BANK_INPUTS> for LevelBank {
+impl FeatureMap<BANK_INPUTS> for MultiScaleLevels {
     fn next(&mut self, rate_dps: f32, t_s: f32) -> [f32; BANK_INPUTS] {
         self.next_with_temp(rate_dps, t_s, f32::NAN)
     }

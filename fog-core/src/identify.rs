@@ -291,7 +291,7 @@ pub mod presets {
     use super::IdentifyError;
     use crate::denoise::DenoiseConfig;
     use crate::features::{
-        LevelBank, LevelTrendTime, RateTime, TimeTemp, BANK_INPUTS, BANK_MEMORIES_S, BANK_T,
+        LevelTrendTime, MultiScaleLevels, RateTime, TimeTemp, BANK_INPUTS, BANK_MEMORIES_S, BANK_T,
     };
     use crate::train::{Drls, DrlsConfig, DrlsForm, DrlsMode, Trainer};
     use crate::wnn::{Activation, Group, InputScaling, ShapeError, WnnShape};
@@ -631,10 +631,10 @@ pub mod presets {
         Ok(id)
     }
 
-    /// The multi-scale identifier: inputs of [`LevelBank`] (levels at 3..1000 s and
+    /// The multi-scale identifier: inputs of [`MultiScaleLevels`] (levels at 3..1000 s and
     /// known inputs), see [`level_bank_shape`].
     pub type LevelBankNet<const B: usize, const NL: usize = L> =
-        super::Identifier<LevelBank, Drls<NL>, BANK_INPUTS, NL, B>;
+        super::Identifier<MultiScaleLevels, Drls<NL>, BANK_INPUTS, NL, B>;
 
     /// Index of the `K_1000` link of [`level_bank_shape`] (kept at the identity).
     pub const LB_LEVEL: usize = 0;
@@ -703,10 +703,10 @@ pub mod presets {
         denoise: DenoiseConfig,
         sample_period_s: f32,
         from: usize,
-    ) -> Result<super::Identifier<LevelBank, T, BANK_INPUTS, NL, B>, IdentifyError> {
+    ) -> Result<super::Identifier<MultiScaleLevels, T, BANK_INPUTS, NL, B>, IdentifyError> {
         let shape = level_bank_shape::<NL>().map_err(IdentifyError::Shape)?;
         let w0 = level_bank_identity_weights::<NL>(&scaling, from);
-        let f = LevelBank::new(1.0 / sample_period_s);
+        let f = MultiScaleLevels::new(1.0 / sample_period_s);
         super::Identifier::new(f, scaling, shape, w0, trainer, denoise, sample_period_s)
     }
 

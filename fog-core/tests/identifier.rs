@@ -158,9 +158,9 @@ mod finite {
 /// while the undelayed variant's output sees it at once and its training inputs do not.
 #[test]
 fn level_bank_delay_keeps_training_inputs_apart_from_targets() {
-    use fog_core::features::{FeatureMap, LevelBank, BANK_DELAY};
-    let mut delayed = LevelBank::new(100.0);
-    let mut fresh = LevelBank::new(100.0).undelayed_output();
+    use fog_core::features::{FeatureMap, MultiScaleLevels, BANK_DELAY};
+    let mut delayed = MultiScaleLevels::new(100.0);
+    let mut fresh = MultiScaleLevels::new(100.0).undelayed_output();
     for k in 0..1000 {
         let t = k as f32 * 0.01;
         delayed.next_with_temp(0.0, t, 25.0);

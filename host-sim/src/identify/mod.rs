@@ -29,7 +29,7 @@ use crate::denoise_cmd;
 use anyhow::{anyhow, bail, Result};
 use fog_core::baseline::RandomWalkKalman;
 use fog_core::denoise::DenoiseConfig;
-use fog_core::features::{FeatureMap, LevelBank, LevelTrendTime, RateTime, TimeTemp};
+use fog_core::features::{FeatureMap, LevelTrendTime, MultiScaleLevels, RateTime, TimeTemp};
 use fog_core::identify::{presets, Identifier};
 use fog_core::train::{
     Drls, DrlsConfig, DrlsForm, DrlsMode, Nlms, NlmsConfig, Rls, RlsConfig, Trainer,
@@ -850,9 +850,9 @@ fn with_trainer<const L: usize, const B: usize>(
         ),
         Preset::LevelBank => go!(
             |dt: f32| if o.undelayed_output {
-                LevelBank::new(1.0 / dt).undelayed_output()
+                MultiScaleLevels::new(1.0 / dt).undelayed_output()
             } else {
-                LevelBank::new(1.0 / dt)
+                MultiScaleLevels::new(1.0 / dt)
             },
             InputScaling::IDENTITY,
             |s, t, dt| presets::level_bank_with::<_, B, L>(s, t, den, dt, o.bank_from)
