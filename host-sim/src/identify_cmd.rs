@@ -320,6 +320,30 @@ fn read_vehicles(image: &Image, paths: &[PathBuf]) -> Result<Vec<NavRecord>> {
         .collect()
 }
 
+/// The `--level-update` candidates and each one's second state from the arguments; refuses
+/// flags that fit none of them, and several candidates without `--tune-on`.
+fn candidates(a: &Args, level_q_dps2_per_s: f32) -> Result<(Vec<Arrangement>, Vec<SecondState>)> {
+    let arrangements: Vec<Arrangement> = a.level_update.iter().map(|l| l.arrangement()).collect();
+    if arrangements.len() > 1 && a.tune_on.is_empty() {
+        anyhow::bail!("several --level-update values need --tune-on VEHICLE_RECORDS to pick one");
+    }
+    let banks = arrangements.iter().filter(|x| x.is_bank()).count();
+    let thermal = arrangements.len() - banks;
+    if thermal == 0 && a.thermal_prior_dph_per_c.is_some() {
+        anyhow::bail!("--thermal-prior-dph-per-c needs --level-update dual-thermal (the default)");
+    }
+    if banks == 0 && (a.bank_b_dph.is_some() || a.bank_tau_max_s.is_some()) {
+        anyhow::bail!(
+            "--bank-b-dph / --bank-tau-max-s need --level-update bank-dual or bank-guarded"
+        );
+    }
+    let seconds = arrangements
+        .iter()
+        .map(|&arr| second_state(a, arr, level_q_dps2_per_s))
+        .collect::<Result<_>>()?;
+    Ok((arrangements, seconds))
+}
+
 /// `--preset motion`: trains on the static records and writes the identifier image.
 fn run_motion(a: &Args) -> Result<()> {
     let Some(out) = &a.save_identifier else {
@@ -355,24 +379,7 @@ fn run_motion(a: &Args) -> Result<()> {
     if let Some(q) = a.level_q_dph2_per_h {
         o.config.level_q_dps2_per_s = q / (3600.0 * 3600.0 * 3600.0);
     }
-    let arrangements: Vec<Arrangement> = a.level_update.iter().map(|l| l.arrangement()).collect();
-    if arrangements.len() > 1 && a.tune_on.is_empty() {
-        anyhow::bail!("several --level-update values need --tune-on VEHICLE_RECORDS to pick one");
-    }
-    let banks = arrangements.iter().filter(|x| x.is_bank()).count();
-    let thermal = arrangements.len() - banks;
-    if thermal == 0 && a.thermal_prior_dph_per_c.is_some() {
-        anyhow::bail!("--thermal-prior-dph-per-c needs --level-update dual-thermal (the default)");
-    }
-    if banks == 0 && (a.bank_b_dph.is_some() || a.bank_tau_max_s.is_some()) {
-        anyhow::bail!(
-            "--bank-b-dph / --bank-tau-max-s need --level-update bank-dual or bank-guarded"
-        );
-    }
-    let mut seconds = Vec::with_capacity(arrangements.len());
-    for &arr in &arrangements {
-        seconds.push(second_state(a, arr, o.config.level_q_dps2_per_s)?);
-    }
+    let (arrangements, seconds) = candidates(a, o.config.level_q_dps2_per_s)?;
     o.arrangement = arrangements[0];
     o.second_state = seconds[0];
     let trained = motion::train(&train, &o)?;
