@@ -12,8 +12,11 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use super::defmt_frames::{Frames, Sink};
 
-/// Bytes of the up-channel's ring buffer.
-const BUF_SIZE: usize = 1024;
+/// Bytes of the up-channel's ring buffer. ASSUMED enough: the host (probe-rs) reads the
+/// channel while the firmware runs, and the firmware logs a few frames at start and a
+/// statistics frame per period; what does not fit is dropped (non-blocking). 256 B, not
+/// the 1 KiB of `defmt-rtt`, so that the STM32 build keeps 1 KiB of its 16-KiB RAM budget.
+const BUF_SIZE: usize = 256;
 
 /// RTT channel descriptor (layout fixed by the RTT protocol).
 #[repr(C)]

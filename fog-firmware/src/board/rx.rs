@@ -14,10 +14,11 @@
 //! the next one, an overrun that is counted like any other; QEMU's UART, which waits for the
 //! guest to read (flow control), simply waits, so the hardware-in-the-loop test loses nothing.
 //!
-//! Queue size: [`QUEUE_LEN`] - 1 = 127 entries of 2 bytes (256 B of RAM). At 115,200 baud
-//! (8N1) a byte arrives every 14,583 cycles of a 168 MHz core, so the queue covers 1.8 M
-//! cycles of main-loop stall, 19 times the block-end sample of the undivided denoise
-//! (96,884 instructions; figures: `fog-firmware/README.md`).
+//! Queue size: [`QUEUE_LEN`] - 1 = 63 entries of 2 bytes (128 B of RAM). At 115,200 baud
+//! (8N1) a byte arrives every 14,583 cycles of a 168 MHz core, so the queue covers 0.9 M
+//! cycles of main-loop stall, 148 times the worst sample's estimated 6,174 cycles (figures:
+//! `fog-firmware/README.md`); at 1,000,000 baud, 17 times. ASSUMED enough: the 16-KiB RAM
+//! budget keeps 1 KiB spare with it (128 entries did not).
 
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
@@ -26,8 +27,8 @@ use heapless::spsc::{Consumer, Producer, Queue};
 
 use crate::app::RxLoss;
 
-/// Entries of the queue (heapless 0.8 keeps one free: 127 usable).
-pub const QUEUE_LEN: usize = 128;
+/// Entries of the queue (heapless 0.8 keeps one free: 63 usable).
+pub const QUEUE_LEN: usize = 64;
 
 /// Queue entry of a byte overwritten in the receive register (overrun) before this point.
 const MARK_OVERRUN: u16 = 0x100;
