@@ -440,3 +440,52 @@ fn refuses_to_overwrite_the_input() {
         .failure();
     assert_eq!(fs::read(&input).expect("read"), before);
 }
+
+/// A `.csv.gz` record is a CSV for `replay` in both paths (the motion preset and the
+/// streaming references): the same output as the plain CSV, byte for byte. Gzip data not
+/// named `*.gz` is refused with one line, not taken for a binary capture.
+#[test]
+fn a_gzipped_csv_replays_as_the_csv() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let mut text = String::from("t_s,rate_dps\n");
+    for (k, r) in rates(3000).iter().enumerate() {
+        text.push_str(&format!("{:.2},{r:.6}\n", k as f64 * 0.01));
+    }
+    let csv = d.join("rec.csv");
+    fs::write(&csv, &text).expect("test");
+    let gz = d.join("rec.csv.gz");
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    e.write_all(text.as_bytes()).expect("test");
+    fs::write(&gz, e.finish().expect("test")).expect("test");
+    for preset in [None, Some("level-trend")] {
+        let run = |input: &Path, out: &Path| {
+            let mut c = host_sim();
+            c.arg("replay");
+            if let Some(p) = preset {
+                c.args(["--preset", p]);
+            }
+            c.arg("--input").arg(input).arg("--output").arg(out);
+            c.assert().success();
+            fs::read(out).expect("test")
+        };
+        let plain = run(&csv, &d.join("plain.csv"));
+        let zipped = run(&gz, &d.join("zipped.csv"));
+        assert!(plain.len() > 3000 * 10, "{preset:?}");
+        assert_eq!(plain, zipped, "{preset:?}");
+    }
+    let misnamed = d.join("rec.bin");
+    fs::copy(&gz, &misnamed).expect("test");
+    host_sim()
+        .args(["replay", "--input"])
+        .arg(&misnamed)
+        .arg("--output")
+        .arg(d.join("bad.csv"))
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains(
+            "gzip data: only a compressed CSV is read",
+        ));
+    assert!(!d.join("bad.csv").exists());
+}

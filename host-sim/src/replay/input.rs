@@ -47,12 +47,7 @@ pub fn read(path: &Path, opts: &Options, csv: &ReadOptions) -> Result<Input> {
                 f.read(&mut head)
                     .map_err(|e| anyhow!("{}: read failed at byte 0: {e}", path.display()))?
             };
-            let head = &head[..n];
-            !head.iter().any(|&b| b & 0x80 != 0)
-                && head
-                    .split(|&b| b == b'\n')
-                    .next()
-                    .is_some_and(|l| l.contains(&b','))
+            stream::sniff(&path.display().to_string(), &head[..n])? == InputFormat::Csv
         }
         _ => false,
     };

@@ -200,7 +200,7 @@ enum Event {
 /// Interchange CSV, row by row ([`record::Rows`]: the columns and checks of every reader).
 struct CsvSource {
     name: String,
-    rows: record::Rows<BufReader<File>>,
+    rows: record::Rows<Box<dyn std::io::Read>>,
     nominal_dt_s: f64,
     rows_read: u64,
     first_t: Option<f64>,
@@ -210,10 +210,12 @@ struct CsvSource {
 }
 
 impl CsvSource {
-    fn new(path: &Path, reader: BufReader<File>, rate_hz: f64) -> Result<Self> {
+    /// `path` opened again by the record reader (`.csv.gz` decompressed).
+    fn new(path: &Path, rate_hz: f64) -> Result<Self> {
         let name = path.display().to_string();
+        let input = record::open_maybe_gz(path)?;
         Ok(Self {
-            rows: record::Rows::new(&name, reader, &record::ReadOptions::default())?,
+            rows: record::Rows::new(&name, input, &record::ReadOptions::default())?,
             name,
             nominal_dt_s: 1.0 / rate_hz,
             rows_read: 0,
@@ -425,10 +427,17 @@ pub fn decode(input: &Path, opts: &Options) -> Result<Decoded> {
     })
 }
 
-/// Guesses the format from the first bytes (see the module docs).
-fn sniff(name: &str, head: &[u8]) -> Result<InputFormat> {
+/// Guesses the format from the first bytes (see the module docs); gzip data is a
+/// compressed CSV when the name ends in `.gz` (the record reader decompresses it).
+pub(crate) fn sniff(name: &str, head: &[u8]) -> Result<InputFormat> {
     if head.is_empty() {
         bail!("{name}: empty file");
+    }
+    if head.starts_with(&[0x1f, 0x8b]) {
+        if name.ends_with(".gz") {
+            return Ok(InputFormat::Csv);
+        }
+        bail!("{name}: gzip data: only a compressed CSV is read, named *.csv.gz");
     }
     if head.iter().any(|&b| b & 0x80 != 0) {
         return Ok(InputFormat::EcoreBin);
@@ -461,7 +470,7 @@ fn open_source(path: &Path, opts: &Options) -> Result<(Source, InputFormat, u64)
     };
     let src = match format {
         InputFormat::Csv | InputFormat::Auto => {
-            Source::Csv(Box::new(CsvSource::new(path, reader, opts.rate_hz)?))
+            Source::Csv(Box::new(CsvSource::new(path, opts.rate_hz)?))
         }
         InputFormat::EcoreBin => Source::Ecore(ByteSource {
             decoder: EcoreDecoder::new(opts.full_scale_dps)
