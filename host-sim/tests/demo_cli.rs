@@ -79,7 +79,7 @@ fn demo_writes_the_report() {
         .expect("index.html")
         .contains("tuned on validation vehicles"));
     assert_eq!(
-        s["records_trained"], 36,
+        s["record_passes_trained"], 36,
         "12 records x 3 DRLS passes (drls-checked)"
     );
     // The test set: the identifier and the five baselines over 2 vehicles (--quick).

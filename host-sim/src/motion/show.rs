@@ -50,8 +50,9 @@ pub struct ImageInfo {
     pub model_max_weight_dph: f32,
     /// The image reads the temperature (unit link or model terms).
     pub uses_temperature: bool,
-    /// Records trained on (passes included).
-    pub records_trained: u32,
+    /// Record passes trained into the image (records x DRLS passes; least squares: the
+    /// records).
+    pub record_passes_trained: u32,
 }
 
 /// Describes `image`, parsed from `bytes`.
@@ -109,7 +110,7 @@ pub fn describe(image: &Image, bytes: &[u8]) -> ImageInfo {
         model_terms: terms,
         model_max_weight_dph: m.weights.iter().fold(0.0f32, |a, w| a.max(w.abs())) * 3600.0,
         uses_temperature: uses_temperature(image),
-        records_trained: image.records_trained,
+        record_passes_trained: image.records_trained,
     }
 }
 
@@ -122,7 +123,7 @@ pub fn text(name: &str, i: &ImageInfo) -> String {
          detector: window {} s, rest after {} s of passing windows, noise range {:.3}x to {:.3}x\n\
          level: random walk {:.3} (deg/h)^2/h; safety net after {} s without rest\n\
          model: time since power-on 0..{} s; nonzero terms: {} wavelet, {} linear, {} bias; largest |weight| {:.3} deg/h; reads temperature: {}\n\
-         trained on {} records (passes included)\n",
+         trained on {} record passes (records x DRLS passes)\n",
         i.format_version,
         i.bytes,
         i.crc32,
@@ -145,6 +146,6 @@ pub fn text(name: &str, i: &ImageInfo) -> String {
         i.model_terms.2,
         i.model_max_weight_dph,
         if i.uses_temperature { "yes" } else { "no" },
-        i.records_trained,
+        i.record_passes_trained,
     )
 }

@@ -95,8 +95,9 @@ pub struct MotionSummary {
     /// The bank's longest correlation time, s (0 for the thermal prior).
     pub second_tau_s: f32,
     /// Record passes trained into the image (least squares: the records, e.g. 12; DRLS:
-    /// records x passes, e.g. 36; 0: untrained, the gated level alone).
-    pub records_trained: u32,
+    /// records x passes, e.g. 36 for 12 records and 3 passes; 0: untrained, the gated level
+    /// alone). Not the number of records: the image stores the passes.
+    pub record_passes_trained: u32,
     /// The sensor configuration used.
     pub sensor: SensorSummary,
     /// Where `t_s` came from.
@@ -487,7 +488,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         level_update: motion::LevelUpdateArg::of(image.arrangement).cli_name(),
         second_sigma_per_h: image.second_state.sigma * 3600.0,
         second_tau_s: image.second_state.tau_s,
-        records_trained: image.records_trained,
+        record_passes_trained: image.records_trained,
         sensor: sensor.into(),
         t_s_source: rec.t_s_source,
         rate_column: (rec.format == InputFormat::Csv).then(|| o.csv.rate_column.clone()),

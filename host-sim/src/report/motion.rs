@@ -198,7 +198,7 @@ fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
             s.rate_column.as_deref().unwrap_or("-"),
             s.rate_scale,
             s.identifier,
-            s.records_trained,
+            s.record_passes_trained,
             s.sensor.full_scale_dps,
             s.sensor.quantum_dps,
             s.sensor.sample_rate_hz,
