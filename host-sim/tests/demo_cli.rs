@@ -9,7 +9,12 @@ use std::process::Stdio;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-const SVGS: [&str; 3] = ["heading_error.svg", "drift.svg", "rate.svg"];
+const SVGS: [&str; 4] = [
+    "heading_error.svg",
+    "drift.svg",
+    "heading_correction.svg",
+    "rate.svg",
+];
 
 /// Runs the demo once for every test of this file; returns its folder and stdout.
 fn demo() -> &'static (PathBuf, String, String) {

@@ -181,7 +181,11 @@ fn report_has_the_heading_error_figure_and_readable_axes() {
     assert!(fs::read_to_string(rep.join("drift.svg"))
         .expect("svg")
         .contains("drift (deg/h)"));
-    assert_eq!(assert_readable_ticks(&rep), 3);
+    let corr = fs::read_to_string(rep.join("heading_correction.svg")).expect("svg");
+    assert!(
+        corr.contains("heading correction (deg)") && corr.contains("integral of the true drift")
+    );
+    assert_eq!(assert_readable_ticks(&rep), 4);
     let s = json(&rep.join("summary.json"));
     assert_eq!(s["scores"]["baselines"]["q_source"], "--baseline-q");
     assert_eq!(s["scores"]["baselines"]["q_dps2"], 1e-12);

@@ -489,3 +489,47 @@ fn a_gzipped_csv_replays_as_the_csv() {
         ));
     assert!(!d.join("bad.csv").exists());
 }
+
+/// Without truth the motion report still shows the heading: `heading_correction.svg`, the
+/// integral of the drift estimate, whose end the caption states and which equals the raw
+/// minus the compensated angle of the summary.
+#[test]
+fn the_report_shows_the_heading_without_truth() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let mut text = String::from("t_s,rate_dps\n");
+    for (k, r) in rates(6000).iter().enumerate() {
+        text.push_str(&format!("{:.2},{r:.6}\n", k as f64 * 0.01));
+    }
+    let csv = d.join("rec.csv");
+    fs::write(&csv, &text).expect("test");
+    let rep = d.join("report");
+    host_sim()
+        .args(["replay", "--input"])
+        .arg(&csv)
+        .arg("--output")
+        .arg(d.join("out.csv"))
+        .arg("--report")
+        .arg(&rep)
+        .assert()
+        .success();
+    let svg = fs::read_to_string(rep.join("heading_correction.svg")).expect("svg");
+    assert!(svg.contains("heading correction (deg)"));
+    assert!(
+        !svg.contains("integral of the true drift"),
+        "no truth in the record"
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(rep.join("summary.json")).expect("json"))
+            .expect("json");
+    let end = s["raw_angle_end_deg"].as_f64().expect("raw")
+        - s["compensated_angle_end_deg"]
+            .as_f64()
+            .expect("compensated");
+    assert!(end.abs() > 1e-3, "the record drifts: {end}");
+    let html = fs::read_to_string(rep.join("index.html")).expect("html");
+    assert!(
+        html.contains(&format!("({end:.4} deg at the end)")),
+        "caption states {end:.4}"
+    );
+}

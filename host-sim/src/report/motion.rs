@@ -4,6 +4,9 @@
 //!   and the five causal baselines, still periods shaded (the truth's `moving` when the
 //!   record has it, else the detector's calls);
 //! - `drift.svg`: the drift estimate (and the true drift), deg/h;
+//! - `heading_correction.svg`: the heading the compensation removes (the integral of the
+//!   drift estimate, and of the true drift when the record has it), deg: the heading in
+//!   sight without truth, where raw and compensated angles differ too little to see;
 //! - `rate.svg`: measured and compensated rate, deg/s;
 //! - `summary.json` ([`MotionSummary`]) and `index.html` (headline first, the score table,
 //!   the figures inlined).
@@ -63,15 +66,32 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
         MinMax::default(),
         MinMax::default(),
     );
+    // Heading the compensation removes (and the true drift's), deg: trapezoid integrals.
+    let (mut corr, mut corr_truth) = (MinMax::default(), MinMax::default());
+    let (mut angle, mut angle_truth) = (0.0f64, 0.0f64);
+    let mut prev: Option<(f64, f64, f64)> = None;
     for (k, &t) in s.t_s.iter().enumerate() {
         let d = out.drift_dps.get(k).copied().unwrap_or(0.0);
         drift.push(t, d);
         let r = f64::from(s.rate_dps[k]);
         rate.push(t, r);
         comp.push(t, r - d);
-        if let Some(tr) = s.drift_dps.as_ref().and_then(|v| v.get(k)) {
-            truth.push(t, f64::from(*tr));
+        let tr = s
+            .drift_dps
+            .as_ref()
+            .and_then(|v| v.get(k))
+            .map(|x| f64::from(*x));
+        if let Some(tr) = tr {
+            truth.push(t, tr);
         }
+        let tr = tr.unwrap_or(0.0);
+        if let Some((t0, d0, tr0)) = prev {
+            angle += 0.5 * (d0 + d) * (t - t0);
+            angle_truth += 0.5 * (tr0 + tr) * (t - t0);
+        }
+        prev = Some((t, d, tr));
+        corr.push(t, angle);
+        corr_truth.push(t, angle_truth);
     }
     let mut lines = Vec::new();
     if s.drift_dps.is_some() {
@@ -96,6 +116,35 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
         format!(
             "The drift the identifier subtracts, deg/h (bound +-{:.1} deg/h from the sensor configuration).",
             out.summary.sensor.drift_bound_dph
+        ),
+    ));
+    let mut lines = Vec::new();
+    if s.drift_dps.is_some() {
+        lines.push(Line {
+            label: "integral of the true drift",
+            colour: BLACK,
+            width: 1,
+            data: &corr_truth,
+            scale: 1.0,
+        });
+    }
+    lines.push(Line {
+        label: "heading correction (motion identifier)",
+        colour: RED_,
+        width: 2,
+        data: &corr,
+        scale: 1.0,
+    });
+    figs.push((
+        "heading_correction.svg",
+        time_plot(
+            &format!("Heading the compensation removes: {name}"),
+            "heading correction (deg)",
+            &lines,
+        )?,
+        format!(
+            "The integral of the drift estimate, deg: raw angle minus compensated angle ({:.4} deg at the end).",
+            out.summary.raw_angle_end_deg - out.summary.compensated_angle_end_deg
         ),
     ));
     figs.push((
