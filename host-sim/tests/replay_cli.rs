@@ -449,15 +449,11 @@ fn a_gzipped_csv_replays_as_the_csv() {
     use std::io::Write;
     let dir = tempfile::tempdir().expect("test");
     let d = dir.path();
-    let mut text = String::from("t_s,rate_dps\n");
-    for (k, r) in rates(3000).iter().enumerate() {
-        text.push_str(&format!("{:.2},{r:.6}\n", k as f64 * 0.01));
-    }
-    let csv = d.join("rec.csv");
-    fs::write(&csv, &text).expect("test");
+    let csv = write_csv(d, &rates(3000), false);
+    let text = fs::read(&csv).expect("test");
     let gz = d.join("rec.csv.gz");
     let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
-    e.write_all(text.as_bytes()).expect("test");
+    e.write_all(&text).expect("test");
     fs::write(&gz, e.finish().expect("test")).expect("test");
     for preset in [None, Some("level-trend")] {
         let run = |input: &Path, out: &Path| {
@@ -497,12 +493,7 @@ fn a_gzipped_csv_replays_as_the_csv() {
 fn the_report_shows_the_heading_without_truth() {
     let dir = tempfile::tempdir().expect("test");
     let d = dir.path();
-    let mut text = String::from("t_s,rate_dps\n");
-    for (k, r) in rates(6000).iter().enumerate() {
-        text.push_str(&format!("{:.2},{r:.6}\n", k as f64 * 0.01));
-    }
-    let csv = d.join("rec.csv");
-    fs::write(&csv, &text).expect("test");
+    let csv = write_csv(d, &rates(6000), false);
     let rep = d.join("report");
     host_sim()
         .args(["replay", "--input"])
