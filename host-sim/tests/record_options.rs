@@ -36,6 +36,16 @@ fn gz_record(dir: &Path, n: usize) -> PathBuf {
 
 const RAD: &str = "57.29577951308232";
 
+/// The rate options of the record: its rate in rad/s in `gz_rads`, 100 Hz, no `t_s`.
+const RATE_OPTIONS: [&str; 6] = [
+    "--rate-column",
+    "gz_rads",
+    "--rate-scale",
+    RAD,
+    "--rate-hz",
+    "100",
+];
+
 #[test]
 fn allan_and_denoise_read_a_gz_record_without_t_s_with_the_rate_options() {
     let dir = tempfile::tempdir().expect("tmp");
@@ -46,14 +56,7 @@ fn allan_and_denoise_read_a_gz_record_without_t_s_with_the_rate_options() {
         .arg(&rec)
         .arg("--json")
         .arg(&json)
-        .args([
-            "--rate-column",
-            "gz_rads",
-            "--rate-scale",
-            RAD,
-            "--rate-hz",
-            "100",
-        ])
+        .args(RATE_OPTIONS)
         .assert()
         .success();
     let v: serde_json::Value =
@@ -69,14 +72,7 @@ fn allan_and_denoise_read_a_gz_record_without_t_s_with_the_rate_options() {
         .arg(&rec)
         .arg("--output")
         .arg(&out)
-        .args([
-            "--rate-column",
-            "gz_rads",
-            "--rate-scale",
-            RAD,
-            "--rate-hz",
-            "100",
-        ])
+        .args(RATE_OPTIONS)
         .assert()
         .success();
     let text = fs::read_to_string(&out).expect("output");
