@@ -72,6 +72,30 @@ impl Expected {
             o.denoised_dps.to_bits(),
         ]
     }
+
+    /// The firmware's `records` are the host's, one per good frame: index, the four f32
+    /// fields bit for bit, and the status (the first 5 differences printed).
+    pub fn assert_records_match(&self, records: &[SampleRecord]) {
+        assert_eq!(
+            records.len(),
+            self.samples.len(),
+            "one record per good frame"
+        );
+        let mut mismatches = 0;
+        for (k, (r, (_, _, status))) in records.iter().zip(&self.samples).enumerate() {
+            let want = self.bits(k);
+            if r.index as usize != k || r.bits != want || r.status != *status {
+                mismatches += 1;
+                if mismatches <= 5 {
+                    eprintln!(
+                        "sample {k}: firmware index {} bits {:08x?} status {}; host bits {want:08x?} status {status}",
+                        r.index, r.bits, r.status
+                    );
+                }
+            }
+        }
+        assert_eq!(mismatches, 0, "per-sample records differ from the host");
+    }
 }
 
 /// [`host_reference_with`] and the default image.
