@@ -261,14 +261,23 @@ pub fn release_samples(image: &Image) -> usize {
 
 /// Trapezoid integral of `rate` over `t`, deg.
 fn angle_deg(t_s: &[f64], rate: impl Iterator<Item = f64>) -> f64 {
+    running_angle_deg(t_s, rate).last().unwrap_or(0.0)
+}
+
+/// The angle at each sample, deg: the trapezoid integral of `rate` (deg/s) over `t_s` from
+/// the first sample (0 there).
+pub(crate) fn running_angle_deg<'a>(
+    t_s: &'a [f64],
+    rate: impl Iterator<Item = f64> + 'a,
+) -> impl Iterator<Item = f64> + 'a {
     let (mut a, mut prev) = (0.0, None::<(f64, f64)>);
-    for (&t, r) in t_s.iter().zip(rate) {
+    t_s.iter().zip(rate).map(move |(&t, r)| {
         if let Some((t0, r0)) = prev {
             a += 0.5 * (r0 + r) * (t - t0);
         }
         prev = Some((t, r));
-    }
-    a
+        a
+    })
 }
 
 /// The baselines' q: `--baseline-q`, else tuned on `--validate`, else the identifier's level

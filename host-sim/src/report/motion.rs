@@ -18,7 +18,7 @@ use super::plots::{time_plot, Line, GREY, RED_};
 use super::{write_text, DPH_PER_DPS};
 use crate::nav;
 use crate::record;
-use crate::replay::motion::{MotionOutcome, MotionSummary};
+use crate::replay::motion::{running_angle_deg, MotionOutcome, MotionSummary};
 use anyhow::{Context, Result};
 use plotters::style::{RGBColor, BLACK};
 use std::fmt::Write;
@@ -66,32 +66,34 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
         MinMax::default(),
         MinMax::default(),
     );
-    // Heading the compensation removes (and the true drift's), deg: trapezoid integrals.
-    let (mut corr, mut corr_truth) = (MinMax::default(), MinMax::default());
-    let (mut angle, mut angle_truth) = (0.0f64, 0.0f64);
-    let mut prev: Option<(f64, f64, f64)> = None;
     for (k, &t) in s.t_s.iter().enumerate() {
         let d = out.drift_dps.get(k).copied().unwrap_or(0.0);
         drift.push(t, d);
         let r = f64::from(s.rate_dps[k]);
         rate.push(t, r);
         comp.push(t, r - d);
-        let tr = s
-            .drift_dps
-            .as_ref()
-            .and_then(|v| v.get(k))
-            .map(|x| f64::from(*x));
-        if let Some(tr) = tr {
-            truth.push(t, tr);
+        if let Some(tr) = s.drift_dps.as_ref().and_then(|v| v.get(k)) {
+            truth.push(t, f64::from(*tr));
         }
-        let tr = tr.unwrap_or(0.0);
-        if let Some((t0, d0, tr0)) = prev {
-            angle += 0.5 * (d0 + d) * (t - t0);
-            angle_truth += 0.5 * (tr0 + tr) * (t - t0);
+    }
+    // Heading the compensation removes (and the true drift's), deg.
+    let (mut corr, mut corr_truth) = (MinMax::default(), MinMax::default());
+    let drift_k = |k: usize| out.drift_dps.get(k).copied().unwrap_or(0.0);
+    for (&t, a) in s
+        .t_s
+        .iter()
+        .zip(running_angle_deg(&s.t_s, (0..s.t_s.len()).map(drift_k)))
+    {
+        corr.push(t, a);
+    }
+    if let Some(tr) = &s.drift_dps {
+        for (&t, a) in s
+            .t_s
+            .iter()
+            .zip(running_angle_deg(&s.t_s, tr.iter().map(|&x| f64::from(x))))
+        {
+            corr_truth.push(t, a);
         }
-        prev = Some((t, d, tr));
-        corr.push(t, angle);
-        corr_truth.push(t, angle_truth);
     }
     let mut lines = Vec::new();
     if s.drift_dps.is_some() {
