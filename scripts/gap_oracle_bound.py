@@ -607,6 +607,10 @@ def mc_check(r, folder, draws, seed):
             f"false {int((z0 > Z_THR).sum())}/{draws}")
 
 
+# Issue 26 counts a record as detectable when the oracle names it with this power or more.
+DETECTABLE_P = 0.9
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--dir", required=True)
@@ -680,16 +684,29 @@ def main():
             eff_o += po
             eff_n += len(rr)
             tot_d += dr or 0
+    eff_n_div = max(eff_n, 1)
     print(f"\noracle expected right over the effect records: {eff_o:.2f} of {eff_n} "
-          f"({100 * eff_o / eff_n:.1f} %); over all records {tot_o:.2f} of {tot_n} "
+          f"({100 * eff_o / eff_n_div:.1f} %); over all records {tot_o:.2f} of {tot_n} "
           f"({100 * tot_o / tot_n:.1f} %)" + (f"; diagnosis {tot_d} of {eff_n} effect records "
-                                               f"({100 * tot_d / eff_n:.1f} %)" if diag else ""))
+                                               f"({100 * tot_d / eff_n_div:.1f} %)" if diag else ""))
     if diag:
         weak = [r for r in recs if r["effect"] != "none" and r["p"] < 0.05 and r["name"] in diag]
         print(f"effect records the oracle detects with P < 0.05: {len(weak)}; the diagnosis named "
               f"an effect on {sum(diag[r['name']] != 'none' for r in weak)} of them (the right one on "
               f"{sum(diag[r['name']] == r['effect'] for r in weak)}): "
               + ", ".join(f"{r['name']} -> {diag[r['name']]}" for r in weak if diag[r['name']] != "none"))
+    if diag:
+        det = [r for r in recs if r["effect"] != "none" and r["p"] >= DETECTABLE_P and r["name"] in diag]
+        ok = [r for r in det if diag[r["name"]] == r["effect"]]
+        print(f"oracle-detectable effect records (oracle power >= {DETECTABLE_P:g}, from the truth "
+              f"alone): {len(det)}; the diagnosis named the right effect on {len(ok)} "
+              f"({100 * len(ok) / max(1, len(det)):.1f} %); misses: "
+              + (", ".join(f"{r['name']} -> {diag[r['name']]}" for r in det if r not in ok) or "none"))
+        nn = [r for r in recs if r["effect"] == "none" and r["name"] in diag]
+        if nn:
+            fl = [r for r in nn if diag[r["name"]] != "none"]
+            print(f"none records flagged: {len(fl)} of {len(nn)}"
+                  + (": " + ", ".join(f"{r['name']} -> {diag[r['name']]}" for r in fl) if fl else ""))
     if "sinusoid" in classes:
         rr = [r for r in recs if r["effect"] == "sinusoid"]
         print(f"sinusoid with frequency and phase unknown (periodogram maximum over n/2 bins, "

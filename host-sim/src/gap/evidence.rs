@@ -1,24 +1,11 @@
 //! Dedicated detection tests: decisions that use what the record carries, each a statistic
 //! computed the same way on the real record and on every baseline simulation (the null).
 //!
-//! - `temperature`: the drift against the recorded channel, beyond a ramp and a warm-up:
-//!   30-s means of the rate regressed on `[1, t, exp(-t/tau)]` with and without `[temp_c,
-//!   d temp_c / dt]` (rate of change from 30-s smoothed window means, central difference;
-//!   `tau` the warm-up test's), AR(1) errors (Cochrane-Orcutt); statistic `ln(SSE_without /
-//!   SSE_with)`. The null: the baseline simulations with the same channel (which does not
-//!   drive them) **and** the real record against [`SURROGATES`] phase-randomised copies of
-//!   the channel (same spectrum, cannot drive it).
-//! - `rate_ramp`: 30-s means; the OLS slope's t with an AR(1) variance, `ln(1 + t^2)`; it
-//!   also needs `|t| > 3` ([`RAMP_MIN_STAT`]).
+//! - `temperature`, `rate_ramp`, `warmup`: likelihood-ratio tests with the baseline's noise
+//!   refitted under each model ([`super::drift`]).
 //! - `sinusoid`: a periodogram test. Whole record on a zero-filled time line, 2x padded FFT;
 //!   each bin's power over the median power of its 256-bin chunk (so coloured noise does not
 //!   matter); statistic: ln of the largest ratio above 4 cycles per block.
-//! - `warmup`: a time-domain test. 10-s window means, AR(1) errors (Cochrane-Orcutt): SSE
-//!   of `c + r t` over SSE of `c + r t + A exp(-t / tau)`, tau on a 16-per-decade grid from
-//!   one window to the record length; statistic ln of the largest ratio (a ramp alone gives
-//!   nothing; a transient does). It passes only when its tau is at most a third of the
-//!   record ([`WARMUP_TAU_MAX_SHARE`]): a slower curvature is a ramp over a wander, and a
-//!   ramp record then falls to the ramp test.
 //! - `scale_factor`: 5-s means of the rate less the reference regressed on `[1, t,
 //!   reference]`: `ln(SSE without / with the reference)`, AR(1) errors (Cochrane-Orcutt)
 //!   so that a slow noise term (a Gauss-Markov wander) does not pass for a slow motion; it
@@ -30,15 +17,12 @@
 //!   ([`spikes_outcome`]): the candidate is fitted on the fit blocks only, so a few spikes
 //!   that all fall in the held-out blocks are otherwise missed.
 //!
-//! The drift tests are nested (a passed temperature test first; then warm-up or ramp,
-//! whichever is further past its threshold; the decision is in `mod.rs`). Each test gives
-//! `z = (real - mean_null) / sd_null` (sd floored at a tenth of the null mean and at
-//! [`SD_FLOOR`]); it *passes* when `z` exceeds its threshold ([`THRESHOLDS`], calibrated on
-//! the calibration records of `scripts/gap_indep_gen.py`, first seeds 1, 700001, 720001,
-//! and for the AR(1) warm-up and scale-factor tests, the dropouts test and the `|t|` floor
-//! 200001 and 300001; never on the evaluation records; see docs/gap.md). Short Gauss-Markov correlation times have
-//! no test of their own: the PSD group of the gap measure sees them, and without a user
-//! model the `markov` candidate is the baseline refitted jointly with the GM term.
+//! Each test but the drift tests gives `z = (real - mean_null) / sd_null` (sd floored at a
+//! tenth of the null mean and at [`SD_FLOOR`]); the drift tests give the normal score of
+//! their p-value. A test *passes* when `z` exceeds its threshold ([`THRESHOLDS`]).
+//! Short Gauss-Markov correlation times have no test of their own: the PSD group of the gap
+//! measure sees them, and without a user model the `markov` candidate is the baseline
+//! refitted jointly with the GM term.
 
 use super::effects::Effect;
 use super::features::{mean, median};
@@ -48,15 +32,21 @@ use serde::Serialize;
 pub const WINDOW_S: f64 = 5.0;
 
 /// z thresholds per test.
-pub const THRESHOLDS: [(Effect, f64); 7] = [
+pub const THRESHOLDS: [(Effect, f64); 9] = [
+    (Effect::Quantization, 3.0),
     (Effect::Temperature, 2.5),
     (Effect::Dropouts, 3.0),
     (Effect::Spikes, 3.0),
-    (Effect::RateRamp, 3.0),
+    (Effect::RateRamp, 2.5),
     (Effect::ScaleFactor, 3.0),
     (Effect::Sinusoid, 2.5),
-    (Effect::Warmup, 3.0),
+    (Effect::Warmup, 2.5),
+    (Effect::Markov, 2.5),
 ];
+
+/// z given to a lattice found by the quantization test (certain evidence; ranked above a
+/// test just past its threshold, below a strong one).
+pub const LATTICE_Z: f64 = 5.0;
 
 /// Absolute floor of a test's null standard deviation (ln statistics: 0.001 is a 0.1 %
 /// change of a residual sum of squares; a tenth of the null mean floors it too).
@@ -85,7 +75,7 @@ pub struct Test {
     pub null_sd: f64,
     /// Null: largest.
     pub null_max: f64,
-    /// Null values (simulations, then surrogates).
+    /// Null values (simulations).
     pub nulls: usize,
     /// `(statistic - null_mean) / null_sd`.
     pub z: f64,
@@ -233,17 +223,6 @@ pub fn solve(mut a: Vec<Vec<f64>>) -> Option<Vec<f64>> {
     Some(a.iter().map(|r| r[p]).collect())
 }
 
-/// Window length of the temperature test's regression, s (5-s means averaged by six).
-pub const TEMP_WINDOW_S: f64 = 30.0;
-
-/// Averages consecutive groups of `k` values (a group with a NaN is NaN).
-fn aggregate(x: &[f64], k: usize) -> Vec<f64> {
-    x.chunks(k)
-        .filter(|c| c.len() == k)
-        .map(|c| c.iter().sum::<f64>() / k as f64)
-        .collect()
-}
-
 /// Nested-model statistic with an AR(1) error model (Cochrane-Orcutt): the lag-1
 /// autocorrelation `rho` of the full model's OLS residuals (clamped to [0, 0.98]); every
 /// series quasi-differenced (`x[i] - rho x[i-1]`); `ln(SSE_small / SSE_full)` on the
@@ -301,136 +280,6 @@ fn resid(y: &[f64], cols: &[&[f64]]) -> Option<Vec<f64>> {
     )
 }
 
-/// Temperature statistic on [`TEMP_WINDOW_S`] means (from the 5-s means): what `[T,
-/// dT/dt]` add to `[1, t, exp(-t/tau)]` (`ar1_nested`, AR(1) errors), `tau_s` the series'
-/// own best warm-up time constant (from [`warmup_stat`]; 0 = no exponential column): the
-/// channel must explain the drift **beyond** a ramp and a warm-up transient, so a drift that
-/// is merely a transient does not pass because the channel also rises at power-on.
-pub fn temperature_stat(y_w: &[f64], temp_w: &[f64], dtemp_w: &[f64], tau_s: f64) -> f64 {
-    let k = (TEMP_WINDOW_S / WINDOW_S).round().max(1.0) as usize;
-    let (y, tw, dw) = (
-        aggregate(y_w, k),
-        aggregate(temp_w, k),
-        aggregate(dtemp_w, k),
-    );
-    let n = y.len();
-    let w = k as f64 * WINDOW_S;
-    let tc: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
-    let one = vec![1.0; n];
-    let ex: Vec<f64> = (0..n)
-        .map(|i| (-((i as f64 + 0.5) * w) / tau_s.max(1e-9)).exp())
-        .collect();
-    let tv: Vec<f64> = {
-        let v: Vec<f64> = tw.iter().copied().filter(|x| x.is_finite()).collect();
-        let m = mean(&v);
-        tw.iter().map(|x| x - m).collect()
-    };
-    if tau_s > 0.0 {
-        ar1_nested(&y, &[&one, &tc, &ex], &[&tv, &dw])
-    } else {
-        ar1_nested(&y, &[&one, &tc], &[&tv, &dw])
-    }
-}
-
-/// Window length of the warm-up test's regression, s (5-s means averaged by two): short
-/// enough that the generator's fastest warm-up (tau 60 s) spans six windows.
-pub const WARMUP_WINDOW_S: f64 = 10.0;
-
-/// A warm-up is a transient that decays within the record: the test's best time constant
-/// must be at most this share of the record. A longer one is a slow curvature of the drift
-/// that a ramp (or the random walk) explains as well; the `warmup` candidate's grid stops
-/// at the same point. The independent generator draws warm-up taus of 60-600 s in 1800 s
-/// records (at most a third).
-pub const WARMUP_TAU_MAX_SHARE: f64 = 1.0 / 3.0;
-
-/// Warm-up statistic on [`WARMUP_WINDOW_S`] means (from the 5-s means `y_w`): the largest,
-/// over tau on a 16-per-decade grid from one window to the record length, of what
-/// `exp(-t/tau)` adds to `[1, t]` (`ar1_nested`: AR(1) errors by Cochrane-Orcutt, so a
-/// drift that merely wanders, flicker or random walk, is discounted, and a line is removed
-/// in both models, so a ramp alone gives nothing); and that best tau, s. The grid runs past
-/// [`WARMUP_TAU_MAX_SHARE`] of the record so that a slow curvature (a ramp over a walk) is
-/// seen as such: its best tau lands there and the test does not pass (see [`run`]).
-pub fn warmup_stat(y_w: &[f64], _t_w: &[f64], t_total_s: f64) -> (f64, f64) {
-    let k = (WARMUP_WINDOW_S / WINDOW_S).round().max(1.0) as usize;
-    let y = aggregate(y_w, k);
-    let n = y.len();
-    if n < 8 {
-        return (0.0, 0.0);
-    }
-    let w = k as f64 * WINDOW_S;
-    let t_c: Vec<f64> = (0..n).map(|i| (i as f64 + 0.5) * w).collect();
-    let t_n: Vec<f64> = t_c.iter().map(|t| t / t_total_s.max(w)).collect();
-    let one = vec![1.0; n];
-    let mut best = (0.0, 0.0);
-    let mut tau = w;
-    while tau <= t_total_s {
-        let e: Vec<f64> = t_c.iter().map(|t| (-t / tau).exp()).collect();
-        let s = ar1_nested(&y, &[&one, &t_n], &[&e]);
-        if s.is_finite() && s > best.0 {
-            best = (s, tau);
-        }
-        tau *= 10f64.powf(1.0 / 16.0);
-    }
-    best
-}
-
-/// The warm-up test's best tau if it is a warm-up's (at most [`WARMUP_TAU_MAX_SHARE`] of
-/// the record), else 0 (no exponential column in the temperature test).
-pub fn warmup_tau(tau_s: f64, t_total_s: f64) -> f64 {
-    if tau_s > 0.0 && tau_s <= WARMUP_TAU_MAX_SHARE * t_total_s * 1.0001 {
-        tau_s
-    } else {
-        0.0
-    }
-}
-
-/// Window length of the ramp test, s: long enough that white noise averages out of the
-/// window means, short enough to leave 60 windows in 1800 s.
-pub const RAMP_WINDOW_S: f64 = 30.0;
-
-/// Ramp statistic on `RAMP_WINDOW_S` means (built from the 5-s means `y_w`): the OLS
-/// slope's t-statistic with a noise-aware variance, `|b| / se(b)`, where `se(b)` comes from
-/// the residuals' AR(1) model (lag-1 autocorrelation `rho` of the residuals, clamped to
-/// [0, 0.95], variance inflation `(1 + rho) / (1 - rho)`): a random walk's residuals are
-/// strongly autocorrelated, so its apparent trend is discounted; a ramp over white and
-/// flicker noise keeps its full t. Returned as `ln(1 + t^2)`, scale-free, compared with the
-/// simulations (the null: the same baseline, random walk included).
-pub fn ramp_stat(y_w: &[f64]) -> f64 {
-    let k = (RAMP_WINDOW_S / WINDOW_S).round().max(1.0) as usize;
-    let yw: Vec<f64> = y_w
-        .chunks(k)
-        .filter(|c| c.len() == k)
-        .map(|c| {
-            let v: Vec<f64> = c.iter().copied().filter(|x| x.is_finite()).collect();
-            if v.is_empty() {
-                f64::NAN
-            } else {
-                mean(&v)
-            }
-        })
-        .filter(|x| x.is_finite())
-        .collect();
-    let n = yw.len();
-    if n < 8 {
-        return 0.0;
-    }
-    let tm = (n as f64 - 1.0) / 2.0;
-    let ym = mean(&yw);
-    let sxx: f64 = (0..n).map(|i| (i as f64 - tm).powi(2)).sum();
-    let b = (0..n).map(|i| (i as f64 - tm) * (yw[i] - ym)).sum::<f64>() / sxx;
-    let r: Vec<f64> = (0..n).map(|i| yw[i] - ym - b * (i as f64 - tm)).collect();
-    let s2 = r.iter().map(|v| v * v).sum::<f64>() / (n as f64 - 2.0);
-    let c1 = r.windows(2).map(|w| w[0] * w[1]).sum::<f64>()
-        / r.iter().map(|v| v * v).sum::<f64>().max(1e-300);
-    let rho = c1.clamp(0.0, 0.95);
-    let se2 = s2 / sxx * (1.0 + rho) / (1.0 - rho);
-    if se2 > 0.0 {
-        (1.0 + b * b / se2).ln()
-    } else {
-        0.0
-    }
-}
-
 /// Line statistic: ln of the largest periodogram bin over its 256-bin chunk's median,
 /// above `f_min_hz`; and that bin's frequency, Hz.
 pub fn line_stat(t_s: &[f64], y: &[f64], dt_s: f64, f_min_hz: f64) -> (f64, f64) {
@@ -472,42 +321,30 @@ pub fn line_stat(t_s: &[f64], y: &[f64], dt_s: f64, f_min_hz: f64) -> (f64, f64)
 pub struct EvStats {
     /// Window means of the rate, deg/s.
     pub y_w: Vec<f64>,
-    /// Temperature statistic (when the record has `temp_c`).
-    pub temp: Option<f64>,
-    /// Warm-up statistic and its tau, s.
-    pub warm: (f64, f64),
     /// Line statistic and its frequency, Hz.
     pub line: (f64, f64),
-    /// Ramp statistic ([`ramp_stat`]).
-    pub ramp: f64,
     /// Scale-factor statistic (when the record has a reference rate).
     pub sf: Option<f64>,
 }
 
-/// Computes the statistics of one series (`temp`: the record's window temperatures and
-/// their rate of change).
+/// Computes the statistics of one series.
 pub fn stats(
     t_s: &[f64],
     y: &[f64],
     dt_s: f64,
     block_s: f64,
     t_w: &[f64],
-    temp: Option<(&[f64], &[f64])>,
     ref_w: Option<&[f64]>,
 ) -> EvStats {
     let y_w = window_means(t_s, y, WINDOW_S, t_w.len());
     let t_total = t_w.len() as f64 * WINDOW_S;
-    let warm = warmup_stat(&y_w, t_w, t_total);
     EvStats {
         sf: ref_w.map(|r| {
             let one = vec![1.0; y_w.len()];
             let t_n: Vec<f64> = t_w.iter().map(|t| t / t_total.max(WINDOW_S)).collect();
             ar1_nested(&y_w, &[&one, &t_n], &[r])
         }),
-        temp: temp.map(|(tw, dw)| temperature_stat(&y_w, tw, dw, warmup_tau(warm.1, t_total))),
-        warm,
         line: line_stat(t_s, y, dt_s, 4.0 / block_s),
-        ramp: ramp_stat(&y_w),
         y_w,
     }
 }
@@ -576,47 +413,7 @@ pub fn spikes_outcome(count: f64, null: &[f64]) -> Test {
 /// this.
 pub const SF_MIN_T: f64 = 3.0;
 
-/// The ramp test also needs `ln(1 + t^2) > ` this (`|t| > 3`).
-pub const RAMP_MIN_STAT: f64 = std::f64::consts::LN_10;
-
-/// Surrogate temperature channels in the false-alarm null.
-pub const SURROGATES: usize = 8;
-
-/// A phase-randomised copy of a window series (NaNs filled by the mean): the line through
-/// the end points is removed (no wrap-around jump), the Fourier phases are drawn uniformly
-/// (deterministic `seed`), the amplitudes kept, the line added back. Same spectrum and
-/// slowness as the channel, but it cannot drive the rate.
-pub fn phase_randomised(x: &[f64], seed: u64) -> Vec<f64> {
-    use rand::{Rng, SeedableRng};
-    use rustfft::num_complex::Complex;
-    let n = x.len();
-    if n < 4 {
-        return x.to_vec();
-    }
-    let v: Vec<f64> = x.iter().copied().filter(|x| x.is_finite()).collect();
-    let m = mean(&v);
-    let xf: Vec<f64> = x
-        .iter()
-        .map(|&x| if x.is_finite() { x } else { m })
-        .collect();
-    let (a, b) = (xf[0], xf[n - 1]);
-    let line = |i: usize| a + (b - a) * i as f64 / (n - 1) as f64;
-    let mut buf: Vec<Complex<f64>> = (0..n).map(|i| Complex::new(xf[i] - line(i), 0.0)).collect();
-    let mut planner = rustfft::FftPlanner::<f64>::new();
-    planner.plan_fft_forward(n).process(&mut buf);
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-    for k in 1..n.div_ceil(2) {
-        let ph = rng.random::<f64>() * std::f64::consts::TAU;
-        let c = Complex::from_polar(buf[k].norm(), ph);
-        buf[k] = c;
-        buf[n - k] = c.conj();
-    }
-    planner.plan_fft_inverse(n).process(&mut buf);
-    (0..n).map(|i| buf[i].re / n as f64 + line(i)).collect()
-}
-
-/// The tests: the real statistics against the simulations' (and, for temperature, against
-/// surrogate channels on the real record).
+/// The tests other than the drift tests: the real statistics against the simulations'.
 ///
 /// `missing`: the whole record's missing sample slots (steps longer than 1.5 periods) and
 /// the simulations'; `None` when the time stamps are bursty (gaps not measurable).
@@ -624,7 +421,6 @@ pub fn phase_randomised(x: &[f64], seed: u64) -> Vec<f64> {
 pub fn run(
     real: &EvStats,
     sims: &[EvStats],
-    temp_w: Option<&[f64]>,
     missing: Option<(f64, &[f64])>,
     spikes: (f64, &[f64]),
 ) -> Vec<Test> {
@@ -633,39 +429,6 @@ pub fn run(
         out.push(dropouts_outcome(m, null));
     }
     out.push(spikes_outcome(spikes.0, spikes.1));
-    if let (Some(tw), Some(r)) = (temp_w, real.temp) {
-        let mut nulls: Vec<f64> = sims.iter().filter_map(|s| s.temp).collect();
-        for k in 0..SURROGATES {
-            let sg = phase_randomised(tw, 0x7e3a_5c01 + k as u64);
-            let dsg = rate_of_change(&sg, WINDOW_S, 6);
-            let t_total = real.y_w.len() as f64 * WINDOW_S;
-            nulls.push(temperature_stat(
-                &real.y_w,
-                &sg,
-                &dsg,
-                warmup_tau(real.warm.1, t_total),
-            ));
-        }
-        out.push(outcome(
-            Effect::Temperature,
-            "5-s means regressed on [1, t, exp(-t/tau), temp_c, d temp_c/dt] (tau: the warm-up test's): ln(SSE without / with the temperature terms); null: simulations with the same channel + the real rate against 8 phase-randomised surrogate channels",
-            r,
-            &nulls,
-            String::new(),
-        ));
-    }
-    let nulls: Vec<f64> = sims.iter().map(|s| s.ramp).collect();
-    let mut ramp = outcome(
-        Effect::RateRamp,
-        "30-s means: OLS slope t-statistic with an AR(1) variance from the residuals, ln(1 + t^2); passes when z exceeds the threshold and |t| > 3",
-        real.ramp,
-        &nulls,
-        format!("|t| {:.1}", (real.ramp.exp() - 1.0).max(0.0).sqrt()),
-    );
-    // The simulations' null can be narrow (a dozen draws of a noise mix whose walk the AR(1)
-    // variance discounts strongly): the slope must also be significant on its own.
-    ramp.passed &= real.ramp > RAMP_MIN_STAT;
-    out.push(ramp);
     if let Some(r) = real.sf {
         let nulls: Vec<f64> = sims.iter().filter_map(|s| s.sf).collect();
         // F = (rows - 3)(SSE ratio - 1) of one added column is the reference coefficient's
@@ -692,26 +455,6 @@ pub fn run(
         sf.passed &= t_sf > SF_MIN_T;
         out.push(sf);
     }
-    let nulls: Vec<f64> = sims.iter().map(|s| s.warm.0).collect();
-    let t_total = real.y_w.len() as f64 * WINDOW_S;
-    let slow = warmup_tau(real.warm.1, t_total) == 0.0;
-    let mut warm = outcome(
-        Effect::Warmup,
-        "10-s means, AR(1) errors (Cochrane-Orcutt): ln(SSE[1, t] / SSE[1, t, exp(-t/tau)]), best tau from one window to the record length; passes when z exceeds the threshold and tau <= a third of the record",
-        real.warm.0,
-        &nulls,
-        format!(
-            "tau {:.0} s{}",
-            real.warm.1,
-            if slow {
-                " (> a third of the record: a slow curvature, not a warm-up)"
-            } else {
-                ""
-            }
-        ),
-    );
-    warm.passed &= !slow;
-    out.push(warm);
     let nulls: Vec<f64> = sims.iter().map(|s| s.line.0).collect();
     out.push(outcome(
         Effect::Sinusoid,

@@ -23,11 +23,13 @@
 //! gap gives by chance); otherwise `none`.
 
 pub mod bench;
+pub mod drift;
 pub mod effects;
 pub mod evidence;
 pub mod features;
 pub mod plain;
 pub mod report;
+pub mod whittle;
 
 use crate::identify::series::{Records, Series};
 use crate::record::{ReadOptions, Record};
@@ -330,6 +332,11 @@ pub struct Diagnosis {
     /// sinusoid, scale_factor); `null` otherwise (a warm-up lives in the first block, so
     /// leaving blocks out is no estimate of its uncertainty).
     pub params_sigma: Option<BTreeMap<String, f64>>,
+    /// 95 % intervals of a named drift effect's parameters (rate_ramp, temperature,
+    /// warm-up amplitude) from the whole-record likelihood fit.
+    pub params_ci95: Option<BTreeMap<String, [f64; 2]>>,
+    /// The drift tests' fits (null and each drift model).
+    pub drift: Option<drift::DriftTests>,
     /// The gap in plain units ([`plain`]).
     pub plain: plain::Plain,
     /// Null gaps: median and 95 % quantile.
@@ -615,7 +622,6 @@ pub fn diagnose(
             real.dt_s,
             layout.t_total_s / BLOCKS as f64,
             &t_w,
-            temp_w.as_deref().zip(dtemp_w.as_deref()),
             ref_w.as_deref(),
         ));
         let r = layout.ranges(&sim.t);
@@ -678,14 +684,16 @@ pub fn diagnose(
         real.dt_s,
         layout.t_total_s / BLOCKS as f64,
         &t_w,
-        temp_w.as_deref().zip(dtemp_w.as_deref()),
         ref_w.as_deref(),
     );
     let real_missing_all = effects::missing_slots(&real.t_s, &[(0, real.t_s.len())], real.dt_s);
-    let tests = evidence::run(
+    let drift_tests = drift::DriftTests::run(
+        &drift::Windows::new(&real.t_s, &real.rate_dps, real.temp_c.as_deref(), t_total),
+        o.first_seed,
+    );
+    let mut tests = evidence::run(
         &real_stats,
         &null_stats,
-        temp_w.as_deref(),
         (!time.bursty).then_some((real_missing_all, sim_missing_all.as_slice())),
         (
             effects::outliers(
@@ -697,6 +705,21 @@ pub fn diagnose(
             sim_spikes_all.as_slice(),
         ),
     );
+    if let Some(d) = &drift_tests {
+        tests.extend(d.outcomes());
+    }
+    let line_hz = tests
+        .iter()
+        .any(|t| t.effect == Effect::Sinusoid && t.passed)
+        .then_some(real_stats.line.1);
+    let markov_test = if o.effects.contains(&Effect::Markov) {
+        whittle::MarkovTest::run(&real.rate_dps, real.dt_s, o.first_seed, line_hz)
+    } else {
+        None
+    };
+    if let Some(m) = &markov_test {
+        tests.push(m.outcome());
+    }
 
     // Where (full record).
     let st_all = features::stats(
@@ -820,6 +843,47 @@ pub fn diagnose(
             }
         }
     }
+    // Quantization: values on a lattice are evidence by themselves (continuous noise never
+    // lands on one), unless the model already rounds.
+    if let Some(c) = candidates.iter().find(|c| c.effect == Effect::Quantization) {
+        let q = c
+            .params
+            .as_ref()
+            .and_then(|p| p.get("quantum_dps").copied());
+        let on = q.is_some() && base.quantum_dps == 0.0;
+        tests.push(evidence::Test {
+            effect: Effect::Quantization,
+            test: "the fit blocks' distinct values: the smallest step, and at least 95 % of the steps between sorted distinct values its multiples".into(),
+            statistic: q.unwrap_or(0.0),
+            null_mean: 0.0,
+            null_sd: 1.0,
+            null_max: f64::NAN,
+            nulls: 0,
+            z: if on { evidence::LATTICE_Z } else { 0.0 },
+            threshold: evidence::threshold(Effect::Quantization),
+            passed: on,
+            detail: match (q, c.skipped.as_ref()) {
+                (Some(q), _) if on => format!("quantum {q:.6e} deg/s"),
+                (Some(_), _) => "the model already rounds".into(),
+                (None, Some(why)) => why.clone(),
+                (None, None) => String::new(),
+            },
+        });
+    }
+    // Without a user model the baseline's own terms (white noise, bias instability, random
+    // walk) are fitted to the record: "the model lacks white noise" would only say the fit
+    // failed. They are scored but not named.
+    for c in candidates.iter_mut() {
+        if model.is_none()
+            && c.excluded.is_none()
+            && matches!(
+                c.effect,
+                Effect::WhiteNoise | Effect::BiasInstability | Effect::RateRandomWalk
+            )
+        {
+            c.excluded = Some("a term of the fitted baseline".into());
+        }
+    }
     // A candidate with a dedicated test may be named only when its test passes; a passed
     // test is its own significance (the gap rule below is for the others).
     for c in candidates.iter_mut() {
@@ -837,31 +901,18 @@ pub fn diagnose(
             .unwrap_or(f64::INFINITY)
             .total_cmp(&b.gap_after.unwrap_or(f64::INFINITY))
     };
-    // Among passed tests, the one furthest past its threshold; the drift tests are nested
-    // (temperature is tested beyond a ramp and a warm-up, and a warm-up or temperature drift
-    // also passes the ramp test), so a passed temperature test (tied to a recorded channel,
-    // with surrogate channels in its null) stands for the three. Between warm-up and ramp
-    // the one further past its threshold: a ramp over a wander can also pass the warm-up
-    // test (an exponential fits the wander, rate_ramp-202006 of the calibration set
-    // 200001: ramp z 5.5, warm-up z 3.1), and a warm-up's transient gives an apparent
-    // slope.
-    let drift_rank = |e: Effect| match e {
-        Effect::Temperature => Some(0),
-        Effect::Warmup | Effect::RateRamp => Some(1),
-        _ => None,
-    };
+    // Among passed tests, the one furthest past its threshold; of the drift tests
+    // (temperature, warm-up, ramp: nested, a warm-up or temperature drift also gives a
+    // slope) only the one whose model is most likely (drift::DriftTests::pick).
+    let drift_rank =
+        |e: Effect| matches!(e, Effect::Temperature | Effect::Warmup | Effect::RateRamp);
+    let drift_choice = drift_tests.as_ref().and_then(|d| d.pick(&tests));
     let drift_pick = tests
         .iter()
-        .filter(|t| t.passed)
-        .filter_map(|t| drift_rank(t.effect).map(|r| (r, t)))
-        .min_by(|(ra, a), (rb, b)| {
-            ra.cmp(rb)
-                .then((b.z / b.threshold).total_cmp(&(a.z / a.threshold)))
-        })
-        .map(|(_, t)| t);
+        .find(|t| t.passed && Some(t.effect) == drift_choice);
     let tested = tests
         .iter()
-        .filter(|t| t.passed && drift_rank(t.effect).is_none())
+        .filter(|t| t.passed && !drift_rank(t.effect))
         .chain(drift_pick)
         .max_by(|a, b| (a.z / a.threshold).total_cmp(&(b.z / b.threshold)))
         .and_then(|t| {
@@ -904,7 +955,7 @@ pub fn diagnose(
             "none".to_string(),
             gap_before,
             None,
-            "no candidate could be fitted".to_string(),
+            "no dedicated test passed and no candidate is left for the gap rule (the fitted baseline's own terms are not named)".to_string(),
         ),
         (Some(c), None) => {
             let after = c.gap_after.unwrap_or(gap_before);
@@ -943,6 +994,23 @@ pub fn diagnose(
         }
     };
     let best_effect = best.map(|c| c.effect);
+    // A named drift effect: its parameters from the whole-record likelihood fit, with 95 %
+    // intervals (GLS standard errors at the fitted noise).
+    let mut params = params;
+    let mut params_ci95 = None;
+    if let (Some(e), Some(d)) = (best_effect.filter(|_| effect != "none"), &drift_tests) {
+        if let Some((p, ci)) = d.params(e) {
+            params.get_or_insert_with(BTreeMap::new).extend(p);
+            params_ci95 = Some(ci);
+        }
+    }
+    if let (Some(Effect::Markov), Some(m)) =
+        (best_effect.filter(|_| effect != "none"), &markov_test)
+    {
+        let p = params.get_or_insert_with(BTreeMap::new);
+        p.insert("gm_sigma_dps".into(), m.gm_sigma_dps);
+        p.insert("gm_tau_s".into(), m.gm_tau_s);
+    }
 
     // Curves.
     let mut curves = Curves {
@@ -961,13 +1029,7 @@ pub fn diagnose(
 
     // Jackknife of the named effect's parameters over the fit blocks.
     let params_sigma = match best_effect {
-        Some(e)
-            if effect != "none"
-                && matches!(
-                    e,
-                    Effect::RateRamp | Effect::Temperature | Effect::Sinusoid | Effect::ScaleFactor
-                ) =>
-        {
+        Some(e) if effect != "none" && matches!(e, Effect::Sinusoid | Effect::ScaleFactor) => {
             let all_ranges = ctx.fit_ranges.clone();
             let mut reps: Vec<BTreeMap<String, f64>> = Vec::new();
             for k in 0..all_ranges.len() {
@@ -1016,6 +1078,8 @@ pub fn diagnose(
         best_candidate: best_effect,
         params,
         params_sigma,
+        params_ci95,
+        drift: drift_tests,
         plain: plain::build(&curves, &feature_rows_copy, &effect_name_copy),
         null_gap_median: g50,
         null_gap_95: g95,

@@ -1,0 +1,752 @@
+//! The drift effects (`rate_ramp`, `warmup`, `temperature`) fitted **together with the
+//! baseline's noise** on the whole record, and tested by likelihood ratio.
+//!
+//! # Data
+//! Means of the rate over `W`-s windows ([`WINDOW_S`]; longer for long records, so that at
+//! most [`MAX_WINDOWS`] remain), first-differenced: the unknown constant bias drops out and
+//! a rate random walk becomes stationary. Windows left empty by dropouts are filled by linear
+//! interpolation between their neighbours.
+//!
+//! # Noise
+//! White (N, deg/s/sqrt(Hz)), flicker (B, deg/s, Allan floor 0.664 B) and rate random walk
+//! (K, deg/s/sqrt(s)), as the simulator defines them. The autocovariance of the differenced
+//! window means at lag `k` is, exactly (continuous time):
+//! - white: `N^2 / W * (2, -1, 0, ...)`;
+//! - random walk: `K^2 W * (2/3, 1/6, 0, ...)`;
+//! - flicker, one-sided PSD `h / f` with `h = B^2 / pi`: `h g(k)`, where
+//!   `g(k) = 4 int_0^inf sin^4(x) cos(2 k x) / x^3 dx = 2 sum_j a_j m_j^2 ln m_j` over the
+//!   cosine expansion `sin^4(x) cos(2kx) = sum_j a_j cos(m_j x)` ([`flicker_g`]; `g(0) = 4 ln 2`,
+//!   twice the Allan variance `2 ln 2 h`).
+//!
+//! # Models and statistic
+//! Model `c`: `d = X_c beta + e`, `e ~ N(0, Sigma(N, B, K))` with `X_c` the effect's
+//! differenced window regressors (none for the null). The Gaussian likelihood is maximised
+//! over `beta` (generalised least squares), the overall noise scale (in closed form) and the
+//! three terms' shares (Nelder-Mead on two logits). Every model refits its own noise, so a
+//! drift that the null's random walk would absorb is not lost, and the record's own slow
+//! wander is in the null. The statistic is `LR_c = 2 (l_c - l_0)`.
+//!
+//! # p-values
+//! `rate_ramp` (one regressor: `t`) and `temperature` (two: `temp_c` and its rate of change)
+//! against chi-square with 1 and 2 degrees of freedom (Wilks). `warmup` (`exp(-t / tau)`,
+//! `tau` on a grid) is the largest over its grid: its p-value is the chi-square(1) tail
+//! times the grid's effective number of tests, measured by a parametric bootstrap of the
+//! fitted null ([`BOOT_DRAWS`] draws of whitened Gaussian noise, noise fixed at the null
+//! fit).
+//!
+//! # Which drift
+//! Among the drift tests that pass, the model with the largest `l_c - p_c ln(n) / 2`
+//! (Bayesian information criterion; `p_c` counts `tau` for the warm-up) is named.
+
+use super::effects::Effect;
+use super::evidence::{self, Test};
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+use serde::Serialize;
+use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
+use std::collections::BTreeMap;
+
+/// Shortest window, s (ASSUMED: the drifts tested change over minutes; 10 s keeps the warm-up
+/// grid's shortest time constant, two windows, below the 60 s a warm-up takes at least).
+pub const WINDOW_S: f64 = 10.0;
+
+/// Most windows (the likelihood's cost grows with their cube).
+pub const MAX_WINDOWS: usize = 360;
+
+/// Parametric-bootstrap draws for the warm-up grid's effective number of tests.
+pub const BOOT_DRAWS: usize = 2000;
+
+/// Warm-up time constants per decade.
+pub const WARMUP_TAUS_PER_DECADE: f64 = 8.0;
+
+/// A warm-up time constant is tested up to this share of the record (a slower curvature is
+/// a ramp over a wander).
+pub const WARMUP_TAU_MAX_SHARE: f64 = 0.5;
+
+/// `g(k)` of the flicker autocovariance (module doc), exact.
+pub fn flicker_g(k: usize) -> f64 {
+    let k = k as f64;
+    let m2l = |m: f64| {
+        let m = m.abs();
+        if m <= 0.0 {
+            0.0
+        } else {
+            m * m * m.ln()
+        }
+    };
+    let s = 0.375 * m2l(2.0 * k) - 0.25 * (m2l(2.0 * k + 2.0) + m2l(2.0 * k - 2.0))
+        + 0.0625 * (m2l(2.0 * k + 4.0) + m2l(2.0 * k - 4.0));
+    2.0 * s
+}
+
+/// Autocovariance of differenced `w_s`-s window means per unit term, lags `0..n`: white
+/// (`N^2 = 1`), flicker (`B^2 = 1`), random walk (`K^2 = 1`).
+pub fn unit_acov(n: usize, w_s: f64) -> [Vec<f64>; 3] {
+    let mut white = vec![0.0; n];
+    let mut rw = vec![0.0; n];
+    white[0] = 2.0 / w_s;
+    rw[0] = 2.0 / 3.0 * w_s;
+    if n > 1 {
+        white[1] = -1.0 / w_s;
+        rw[1] = w_s / 6.0;
+    }
+    let h = 1.0 / std::f64::consts::PI;
+    let flicker = (0..n).map(|k| h * flicker_g(k)).collect();
+    [white, flicker, rw]
+}
+
+/// Window means of a record for the drift tests.
+#[derive(Debug, Clone)]
+pub struct Windows {
+    /// Window length, s.
+    pub w_s: f64,
+    /// Window start times, s.
+    pub start_s: Vec<f64>,
+    /// Means of the rate, deg/s (empty windows interpolated).
+    pub rate: Vec<f64>,
+    /// Means of the temperature, deg C, and its rate of change, deg C/s.
+    pub temp: Option<(Vec<f64>, Vec<f64>)>,
+    /// Windows that were empty.
+    pub filled: usize,
+}
+
+fn fill(mut v: Vec<f64>) -> (Vec<f64>, usize) {
+    let n = v.len();
+    let ok: Vec<usize> = (0..n).filter(|&i| v[i].is_finite()).collect();
+    let missing = n - ok.len();
+    if ok.is_empty() {
+        return (vec![0.0; n], missing);
+    }
+    for i in 0..n {
+        if v[i].is_finite() {
+            continue;
+        }
+        let next = ok.iter().position(|&j| j > i);
+        v[i] = match next {
+            None => v[ok[ok.len() - 1]],
+            Some(0) => v[ok[0]],
+            Some(p) => {
+                let (a, b) = (ok[p - 1], ok[p]);
+                v[a] + (v[b] - v[a]) * (i - a) as f64 / (b - a) as f64
+            }
+        };
+    }
+    (v, missing)
+}
+
+impl Windows {
+    /// Window means of `rate_dps` (and `temp_c`) over a record of `t_total_s`.
+    pub fn new(t_s: &[f64], rate_dps: &[f64], temp_c: Option<&[f64]>, t_total_s: f64) -> Self {
+        let w_s = WINDOW_S.max(t_total_s / MAX_WINDOWS as f64);
+        let n_win = ((t_total_s / w_s).floor() as usize).max(1);
+        let (rate, filled) = fill(evidence::window_means(t_s, rate_dps, w_s, n_win));
+        let temp = temp_c.map(|tc| {
+            let (tw, _) = fill(evidence::window_means(t_s, tc, w_s, n_win));
+            // Rate of change over 3 windows (30 s at the shortest window).
+            let dtw = evidence::rate_of_change(&tw, w_s, 3)
+                .into_iter()
+                .map(|v| if v.is_finite() { v } else { 0.0 })
+                .collect();
+            (tw, dtw)
+        });
+        Windows {
+            w_s,
+            start_s: (0..n_win).map(|k| k as f64 * w_s).collect(),
+            rate,
+            temp,
+            filled,
+        }
+    }
+}
+
+fn diff(v: &[f64]) -> Vec<f64> {
+    v.windows(2).map(|w| w[1] - w[0]).collect()
+}
+
+/// One model's maximum-likelihood fit.
+#[derive(Debug, Clone, Serialize)]
+pub struct NoiseFit {
+    /// Log-likelihood (up to a constant shared by every model of the same data).
+    pub loglik: f64,
+    /// White noise, deg/s/sqrt(Hz).
+    pub arw_dps_per_rthz: f64,
+    /// Flicker, deg/s.
+    pub bias_instability_dps: f64,
+    /// Random walk, deg/s/sqrt(s).
+    pub rrw_dps_per_s_rthz: f64,
+    /// Regression coefficients (the model's regressors, in order).
+    pub beta: Vec<f64>,
+    /// Their standard errors (inverse Fisher information at the fit).
+    pub beta_se: Vec<f64>,
+    #[serde(skip)]
+    u: [f64; 2],
+}
+
+/// The differenced data of one record and the unit autocovariances.
+pub struct Problem {
+    d: Vec<f64>,
+    unit: [Vec<f64>; 3],
+}
+
+/// The Durbin-Levinson factorisation of a stationary covariance (autocovariance `r`,
+/// lags `0..n`): the one-step predictors of every order and their error variances, in
+/// O(n^2). Whitening with it equals the forward solve with the Cholesky factor.
+struct Durbin {
+    /// Row `t` (`t (t - 1) / 2` onwards): the order-`t` predictor `phi_{t,1..t}`.
+    phi: Vec<f64>,
+    /// Prediction error variances.
+    v: Vec<f64>,
+}
+
+impl Durbin {
+    fn new(r: &[f64]) -> Option<Self> {
+        let n = r.len();
+        let mut phi = vec![0.0; n * (n + 1) / 2];
+        let mut v = vec![0.0; n];
+        if n == 0 || r[0] <= 0.0 || !r[0].is_finite() {
+            return None;
+        }
+        v[0] = r[0];
+        let row = |t: usize| t * (t - 1) / 2;
+        for t in 1..n {
+            let (prev, cur) = (row(t - 1), row(t));
+            let acc: f64 = (1..t).map(|j| phi[prev + j - 1] * r[t - j]).sum();
+            let k = (r[t] - acc) / v[t - 1];
+            for j in 1..t {
+                phi[cur + j - 1] = phi[prev + j - 1] - k * phi[prev + t - j - 1];
+            }
+            phi[cur + t - 1] = k;
+            v[t] = v[t - 1] * (1.0 - k * k);
+            if v[t] <= 0.0 || !v[t].is_finite() {
+                return None;
+            }
+        }
+        Some(Durbin { phi, v })
+    }
+
+    /// The standardised innovations of `x` (`L^-1 x`).
+    fn whiten(&self, x: &[f64]) -> Vec<f64> {
+        let n = self.v.len();
+        (0..n)
+            .map(|t| {
+                let base = t * t.saturating_sub(1) / 2;
+                let p: f64 = (1..=t).map(|j| self.phi[base + j - 1] * x[t - j]).sum();
+                (x[t] - p) / self.v[t].sqrt()
+            })
+            .collect()
+    }
+}
+
+struct Whitened {
+    f: Durbin,
+    logdet_half: f64,
+    z: Vec<f64>,
+}
+
+impl Problem {
+    /// The differenced window means of `rate` (window length `w_s`).
+    pub fn new(rate: &[f64], w_s: f64) -> Self {
+        let d = diff(rate);
+        let unit = unit_acov(d.len(), w_s);
+        Problem { d, unit }
+    }
+
+    fn shares(u: [f64; 2]) -> [f64; 3] {
+        let e = [
+            u[0].clamp(-30.0, 30.0).exp(),
+            u[1].clamp(-30.0, 30.0).exp(),
+            1.0,
+        ];
+        let s: f64 = e.iter().sum();
+        [e[0] / s, e[1] / s, e[2] / s]
+    }
+
+    fn whiten(&self, u: [f64; 2]) -> Option<Whitened> {
+        let p = Self::shares(u);
+        let n = self.d.len();
+        let r: Vec<f64> = (0..n)
+            .map(|k| {
+                (0..3)
+                    .map(|j| p[j] * self.unit[j][k] / self.unit[j][0])
+                    .sum()
+            })
+            .collect();
+        let f = Durbin::new(&r)?;
+        let logdet_half = 0.5 * f.v.iter().map(|v| v.ln()).sum::<f64>();
+        let z = f.whiten(&self.d);
+        Some(Whitened { f, logdet_half, z })
+    }
+
+    /// Profile log-likelihood at the share logits `u` with regressors `x` (differenced).
+    fn eval(&self, u: [f64; 2], x: &[Vec<f64>]) -> Option<NoiseFit> {
+        let n = self.d.len();
+        let w = self.whiten(u)?;
+        let zx: Vec<Vec<f64>> = x.iter().map(|c| w.f.whiten(c)).collect();
+        let p = zx.len();
+        let mut beta = vec![0.0; p];
+        let mut ginv = vec![vec![0.0; p]; p];
+        if p > 0 {
+            let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+            let mut a: Vec<Vec<f64>> = (0..p)
+                .map(|i| {
+                    let mut row: Vec<f64> = (0..p).map(|j| dot(&zx[i], &zx[j])).collect();
+                    row.push(dot(&zx[i], &w.z));
+                    row
+                })
+                .collect();
+            beta = evidence::solve(a.clone())?;
+            for (k, g) in ginv.iter_mut().enumerate() {
+                for (i, r) in a.iter_mut().enumerate() {
+                    r[p] = if i == k { 1.0 } else { 0.0 };
+                }
+                *g = evidence::solve(a.clone())?;
+            }
+        }
+        let q: f64 = (0..n)
+            .map(|i| w.z[i] - (0..p).map(|c| zx[c][i] * beta[c]).sum::<f64>())
+            .map(|e| e * e)
+            .sum();
+        let s2 = q / n as f64;
+        if s2.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+        let loglik = -0.5 * (n as f64 * s2.ln() + n as f64) - w.logdet_half;
+        let sh = Self::shares(u);
+        let c: Vec<f64> = (0..3).map(|j| s2 * sh[j] / self.unit[j][0]).collect();
+        Some(NoiseFit {
+            loglik,
+            arw_dps_per_rthz: c[0].sqrt(),
+            bias_instability_dps: c[1].sqrt(),
+            rrw_dps_per_s_rthz: c[2].sqrt(),
+            beta_se: (0..p).map(|k| (s2 * ginv[k][k]).max(0.0).sqrt()).collect(),
+            beta,
+            u,
+        })
+    }
+
+    /// Maximum likelihood with regressors `x`, from the share logits `start`.
+    pub fn fit(&self, x: &[Vec<f64>], start: &[[f64; 2]]) -> Option<NoiseFit> {
+        let f = |u: [f64; 2]| self.eval(u, x).map_or(f64::INFINITY, |r| -r.loglik);
+        let best = start
+            .iter()
+            .map(|&u| (u, f(u)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))?
+            .0;
+        let u = nelder_mead(&f, best, 2.0, 200);
+        self.eval(u, x)
+    }
+
+    /// The null fit: a grid of starting shares, then Nelder-Mead.
+    pub fn fit_null(&self) -> Option<NoiseFit> {
+        let g = [-8.0, -3.0, 0.0, 3.0, 8.0];
+        let start: Vec<[f64; 2]> = g
+            .iter()
+            .flat_map(|&a| g.iter().map(move |&b| [a, b]))
+            .collect();
+        self.fit(&[], &start)
+    }
+
+    /// Whitened regressors at the null's noise, for the bootstrap.
+    fn whitened(&self, u: [f64; 2], x: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+        let w = self.whiten(u)?;
+        Some(x.iter().map(|c| w.f.whiten(c)).collect())
+    }
+}
+
+/// Nelder-Mead minimisation in two dimensions.
+fn nelder_mead(f: &dyn Fn([f64; 2]) -> f64, x0: [f64; 2], step: f64, iters: usize) -> [f64; 2] {
+    let mut s = [x0, [x0[0] + step, x0[1]], [x0[0], x0[1] + step]];
+    let mut v = [f(s[0]), f(s[1]), f(s[2])];
+    for _ in 0..iters {
+        let mut idx = [0, 1, 2];
+        idx.sort_by(|&a, &b| v[a].total_cmp(&v[b]));
+        s = [s[idx[0]], s[idx[1]], s[idx[2]]];
+        v = [v[idx[0]], v[idx[1]], v[idx[2]]];
+        if (v[2] - v[0]).abs() < 1e-7 * (1.0 + v[0].abs()) {
+            break;
+        }
+        let c = [(s[0][0] + s[1][0]) / 2.0, (s[0][1] + s[1][1]) / 2.0];
+        let at = |t: f64| [c[0] + t * (s[2][0] - c[0]), c[1] + t * (s[2][1] - c[1])];
+        let xr = at(-1.0);
+        let fr = f(xr);
+        if fr < v[0] {
+            let xe = at(-2.0);
+            let fe = f(xe);
+            if fe < fr {
+                s[2] = xe;
+                v[2] = fe;
+            } else {
+                s[2] = xr;
+                v[2] = fr;
+            }
+        } else if fr < v[1] {
+            s[2] = xr;
+            v[2] = fr;
+        } else {
+            let xc = if fr < v[2] { at(-0.5) } else { at(0.5) };
+            let fc = f(xc);
+            if fc < v[2].min(fr) {
+                s[2] = xc;
+                v[2] = fc;
+            } else {
+                for k in 1..3 {
+                    s[k] = [(s[0][0] + s[k][0]) / 2.0, (s[0][1] + s[k][1]) / 2.0];
+                    v[k] = f(s[k]);
+                }
+            }
+        }
+    }
+    let k = (0..3).min_by(|&a, &b| v[a].total_cmp(&v[b])).unwrap_or(0);
+    s[k]
+}
+
+/// Named parameters, in the simulator's units.
+pub type Params = BTreeMap<String, f64>;
+
+/// 95 % intervals of named parameters.
+pub type Intervals = BTreeMap<String, [f64; 2]>;
+
+/// One drift model's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct DriftModel {
+    /// The effect.
+    pub effect: Effect,
+    /// `2 (l_c - l_0)`.
+    pub lr: f64,
+    /// Its p-value.
+    pub p_value: f64,
+    /// Free parameters beyond the null (the warm-up's tau counted).
+    pub params: usize,
+    /// `l_c - params ln(n) / 2`.
+    pub bic_score: f64,
+    /// The fit.
+    pub fit: NoiseFit,
+    /// The warm-up's time constant, s.
+    pub tau_s: Option<f64>,
+}
+
+/// The drift tests of one record.
+#[derive(Debug, Clone, Serialize)]
+pub struct DriftTests {
+    /// Window length, s.
+    pub window_s: f64,
+    /// Differenced windows.
+    pub n: usize,
+    /// Windows filled by interpolation.
+    pub filled: usize,
+    /// The null (baseline noise only).
+    pub null: NoiseFit,
+    /// Each drift model.
+    pub models: Vec<DriftModel>,
+    /// The warm-up grid's effective number of tests (bootstrap).
+    pub warmup_effective_tests: f64,
+}
+
+fn chi2_sf(x: f64, k: f64) -> f64 {
+    ChiSquared::new(k).map_or(1.0, |c| c.sf(x.max(0.0)))
+}
+
+/// One-sided normal score of a p-value.
+pub fn z_of_p(p: f64) -> f64 {
+    let p = p.clamp(1e-300, 1.0);
+    -Normal::standard().inverse_cdf(p)
+}
+
+impl DriftTests {
+    /// Runs the three drift tests on `w` (deterministic: the bootstrap uses `seed`).
+    pub fn run(w: &Windows, seed: u64) -> Option<Self> {
+        if w.rate.len() < 12 {
+            return None;
+        }
+        let prob = Problem::new(&w.rate, w.w_s);
+        let n = prob.d.len();
+        let null = prob.fit_null()?;
+        let start = [null.u];
+        let ln_n = (n as f64).ln();
+        let mut models = Vec::new();
+        let t_total = w.start_s.len() as f64 * w.w_s;
+        let model = |effect, x: &[Vec<f64>], k: usize, p: f64, tau: Option<f64>, fit: NoiseFit| {
+            let lr = (2.0 * (fit.loglik - null.loglik)).max(0.0);
+            let _ = x;
+            DriftModel {
+                effect,
+                lr,
+                p_value: p,
+                params: k,
+                bic_score: fit.loglik - k as f64 * ln_n / 2.0,
+                fit,
+                tau_s: tau,
+            }
+        };
+        // Ramp: the differenced window means of t are W each.
+        let x_ramp = vec![vec![w.w_s; n]];
+        if let Some(f) = prob.fit(&x_ramp, &start) {
+            let lr = (2.0 * (f.loglik - null.loglik)).max(0.0);
+            models.push(model(
+                Effect::RateRamp,
+                &x_ramp,
+                1,
+                chi2_sf(lr, 1.0),
+                None,
+                f,
+            ));
+        }
+        // Temperature.
+        if let Some((tw, dtw)) = &w.temp {
+            let x = vec![diff(tw), diff(dtw)];
+            let usable = x.iter().all(|c| c.iter().any(|v| v.abs() > 0.0));
+            if usable {
+                if let Some(f) = prob.fit(&x, &start) {
+                    let lr = (2.0 * (f.loglik - null.loglik)).max(0.0);
+                    models.push(model(Effect::Temperature, &x, 2, chi2_sf(lr, 2.0), None, f));
+                }
+            }
+        }
+        // Warm-up: the grid at the null's noise, the best few refitted.
+        let tau_lo = 2.0 * w.w_s;
+        let tau_hi = WARMUP_TAU_MAX_SHARE * t_total;
+        let mut taus = Vec::new();
+        let mut tau = tau_lo;
+        while tau <= tau_hi {
+            taus.push(tau);
+            tau *= 10f64.powf(1.0 / WARMUP_TAUS_PER_DECADE);
+        }
+        let regress = |tau: f64| -> Vec<f64> {
+            let m: Vec<f64> = w
+                .start_s
+                .iter()
+                .map(|&a| tau / w.w_s * ((-a / tau).exp() - (-(a + w.w_s) / tau).exp()))
+                .collect();
+            diff(&m)
+        };
+        let xs: Vec<Vec<f64>> = taus.iter().map(|&t| regress(t)).collect();
+        let mut eff = 1.0;
+        if let Some(zx) = prob.whitened(null.u, &xs) {
+            let zn = prob
+                .whitened(null.u, std::slice::from_ref(&prob.d))?
+                .remove(0);
+            let s2 = zn.iter().map(|v| v * v).sum::<f64>() / n as f64;
+            let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+            let norms: Vec<f64> = zx.iter().map(|c| dot(c, c)).collect();
+            let score = |z: &[f64], s2: f64| -> Vec<f64> {
+                zx.iter()
+                    .zip(&norms)
+                    .map(|(c, &nn)| {
+                        if nn > 0.0 {
+                            dot(c, z).powi(2) / nn / s2
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            };
+            let real = score(&zn, s2);
+            let mut order: Vec<usize> = (0..taus.len()).collect();
+            order.sort_by(|&a, &b| real[b].total_cmp(&real[a]));
+            // Effective tests: P(max over the grid > c) / P(chi2_1 > c) at the bootstrap's
+            // 95th percentile of the maximum.
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+            let mut maxes: Vec<f64> = (0..BOOT_DRAWS)
+                .map(|_| {
+                    let z: Vec<f64> = (0..n)
+                        .map(|_| -> f64 { StandardNormal.sample(&mut rng) })
+                        .collect();
+                    score(&z, 1.0).into_iter().fold(0.0, f64::max)
+                })
+                .collect();
+            maxes.sort_by(|a, b| a.total_cmp(b));
+            let c95 = maxes[(0.95 * BOOT_DRAWS as f64) as usize];
+            eff = (0.05 / chi2_sf(c95, 1.0)).max(1.0);
+            let mut best: Option<(f64, NoiseFit)> = None;
+            for &i in order.iter().take(3) {
+                if let Some(f) = prob.fit(std::slice::from_ref(&xs[i]), &start) {
+                    if best.as_ref().is_none_or(|(_, b)| f.loglik > b.loglik) {
+                        best = Some((taus[i], f));
+                    }
+                }
+            }
+            if let Some((tau, f)) = best {
+                let lr = (2.0 * (f.loglik - null.loglik)).max(0.0);
+                let p = (eff * chi2_sf(lr, 1.0)).min(1.0);
+                models.push(model(Effect::Warmup, &[], 2, p, Some(tau), f));
+            }
+        }
+        Some(DriftTests {
+            window_s: w.w_s,
+            n,
+            filled: w.filled,
+            null,
+            models,
+            warmup_effective_tests: eff,
+        })
+    }
+
+    /// The tests as [`Test`] outcomes (`z`: the p-value's one-sided normal score).
+    pub fn outcomes(&self) -> Vec<Test> {
+        self.models
+            .iter()
+            .map(|m| {
+                let z = z_of_p(m.p_value);
+                let threshold = evidence::threshold(m.effect);
+                let (what, detail) = match m.effect {
+                    Effect::RateRamp => (
+                        "whole record, differenced window means, noise (N, B, K) refitted: likelihood ratio of a slope, chi-square(1)".to_string(),
+                        format!("slope {:.4} +- {:.4} deg/h/h (1 sigma)", m.fit.beta[0] * 3600.0 * 3600.0, m.fit.beta_se[0] * 3600.0 * 3600.0),
+                    ),
+                    Effect::Temperature => (
+                        "whole record, differenced window means, noise (N, B, K) refitted: likelihood ratio of [temp_c, d temp_c/dt], chi-square(2)".to_string(),
+                        format!(
+                            "{:.4} +- {:.4} deg/h/C, {:.4} +- {:.4} deg/h/(C/s)",
+                            m.fit.beta[0] * 3600.0,
+                            m.fit.beta_se[0] * 3600.0,
+                            m.fit.beta[1] * 3600.0,
+                            m.fit.beta_se[1] * 3600.0
+                        ),
+                    ),
+                    _ => (
+                        format!("whole record, differenced window means, noise (N, B, K) refitted: largest likelihood ratio of exp(-t/tau) over tau, chi-square(1) tail x {:.2} effective tests (parametric bootstrap)", self.warmup_effective_tests),
+                        format!("tau {:.0} s, amplitude {:.3} +- {:.3} deg/h", m.tau_s.unwrap_or(0.0), m.fit.beta[0] * 3600.0, m.fit.beta_se[0] * 3600.0),
+                    ),
+                };
+                Test {
+                    effect: m.effect,
+                    test: what,
+                    statistic: m.lr,
+                    null_mean: m.params.min(2) as f64,
+                    null_sd: (2.0 * m.params.min(2) as f64).sqrt(),
+                    null_max: f64::NAN,
+                    nulls: 0,
+                    z,
+                    threshold,
+                    passed: z > threshold,
+                    detail,
+                }
+            })
+            .collect()
+    }
+
+    /// The drift effect to name among the passed tests: the largest BIC score.
+    pub fn pick(&self, tests: &[Test]) -> Option<Effect> {
+        self.models
+            .iter()
+            .filter(|m| tests.iter().any(|t| t.effect == m.effect && t.passed))
+            .max_by(|a, b| a.bic_score.total_cmp(&b.bic_score))
+            .map(|m| m.effect)
+    }
+
+    /// The named drift effect's parameters (the simulator's units) and 95 % intervals.
+    pub fn params(&self, e: Effect) -> Option<(Params, Intervals)> {
+        let m = self.models.iter().find(|m| m.effect == e)?;
+        let mut p = BTreeMap::new();
+        let mut ci = BTreeMap::new();
+        let mut put = |k: &str, v: f64, se: f64| {
+            p.insert(k.to_string(), v);
+            ci.insert(k.to_string(), [v - 1.96 * se, v + 1.96 * se]);
+        };
+        match e {
+            Effect::RateRamp => put("rate_ramp_dps_per_s", m.fit.beta[0], m.fit.beta_se[0]),
+            Effect::Temperature => {
+                put("bias_dps_per_c", m.fit.beta[0], m.fit.beta_se[0]);
+                put("bias_dps_per_c_per_s", m.fit.beta[1], m.fit.beta_se[1]);
+            }
+            Effect::Warmup => {
+                put("warmup_dps", m.fit.beta[0], m.fit.beta_se[0]);
+                p.insert("warmup_tau_s".into(), m.tau_s.unwrap_or(0.0));
+            }
+            _ => return None,
+        }
+        Some((p, ci))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `g(k)` against numerical integration of `4 sin^4(x) cos(2kx) / x^3`.
+    #[test]
+    fn flicker_g_matches_the_integral() {
+        assert!((flicker_g(0) - 4.0 * std::f64::consts::LN_2).abs() < 1e-12);
+        for k in 0..6 {
+            let f = |x: f64| {
+                if x < 1e-9 {
+                    0.0
+                } else {
+                    4.0 * x.sin().powi(4) * (2.0 * k as f64 * x).cos() / x.powi(3)
+                }
+            };
+            // Simpson on [0, 400] with a fine step, plus the tail's average (oscillating
+            // cosine products average out; sin^4 averages 3/8 when k = 0).
+            let (a, b, m) = (0.0, 400.0, 800_000);
+            let h = (b - a) / m as f64;
+            let mut s = f(a) + f(b);
+            for i in 1..m {
+                s += f(a + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+            }
+            let mut num = s * h / 3.0;
+            if k == 0 {
+                num += 4.0 * 0.375 / (2.0 * b * b);
+            }
+            assert!(
+                (num - flicker_g(k)).abs() < 1e-4,
+                "k {k}: numeric {num}, closed form {}",
+                flicker_g(k)
+            );
+        }
+    }
+
+    /// A pure random walk plus white noise: the null fit finds K and N, and a ramp is found.
+    #[test]
+    fn fits_noise_and_finds_a_ramp() {
+        let (dt, n) = (0.1, 18_000);
+        let (nn, kk) = (0.01, 2e-4);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        let mut walk = 0.0;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        let y: Vec<f64> = (0..n)
+            .map(|_| {
+                walk += kk * dt.sqrt() * {
+                    let v: f64 = StandardNormal.sample(&mut rng);
+                    v
+                };
+                walk + nn / dt.sqrt() * {
+                    let v: f64 = StandardNormal.sample(&mut rng);
+                    v
+                }
+            })
+            .collect();
+        let w = Windows::new(&t, &y, None, n as f64 * dt);
+        let r = DriftTests::run(&w, 1).expect("fit");
+        assert!(
+            (r.null.arw_dps_per_rthz / nn - 1.0).abs() < 0.25,
+            "{:?}",
+            r.null
+        );
+        assert!(
+            (r.null.rrw_dps_per_s_rthz / kk - 1.0).abs() < 0.5,
+            "{:?}",
+            r.null
+        );
+        let ramp = r
+            .models
+            .iter()
+            .find(|m| m.effect == Effect::RateRamp)
+            .expect("ramp");
+        assert!(ramp.p_value > 0.001, "no ramp: p {}", ramp.p_value);
+        let slope = 20.0 * kk * (n as f64 * dt).sqrt() / (n as f64 * dt);
+        let y2: Vec<f64> = y.iter().zip(&t).map(|(v, t)| v + slope * t).collect();
+        let w2 = Windows::new(&t, &y2, None, n as f64 * dt);
+        let r2 = DriftTests::run(&w2, 1).expect("fit");
+        let ramp = r2
+            .models
+            .iter()
+            .find(|m| m.effect == Effect::RateRamp)
+            .expect("ramp");
+        assert!(ramp.p_value < 1e-4, "ramp p {}", ramp.p_value);
+        let (b, se) = (ramp.fit.beta[0], ramp.fit.beta_se[0]);
+        assert!(
+            (b - slope).abs() < 3.0 * se,
+            "slope {b} +- {se}, true {slope}"
+        );
+    }
+}
