@@ -624,12 +624,18 @@ def main():
     a = ap.parse_args()
     man = [json.loads(l) for l in open(os.path.join(a.dir, "manifest.jsonl")) if l.strip()]
     diag = {}
+    diag_ci = {}
+    diag_shrink = {}
     diag_s90 = {}
     if a.diag:
         for m in man:
             js = os.path.join(a.diag, m["name"] + ".json")
             if os.path.exists(js):
-                diag[m["name"]] = json.load(open(js))["effect"]
+                dj = json.load(open(js))
+                diag[m["name"]] = dj["effect"]
+                diag_ci[m["name"]] = dj.get("params_ci95") or {}
+                sh = [c.get("shrink") for c in dj.get("candidates", []) if c["effect"] == m["effect"]]
+                diag_shrink[m["name"]] = sh[0] if sh and sh[0] is not None else None
         sj = os.path.join(a.diag, "summary.json")
         if os.path.exists(sj):
             for c, v in json.load(open(sj)).get("power", {}).items():
@@ -702,6 +708,36 @@ def main():
               f"alone): {len(det)}; the diagnosis named the right effect on {len(ok)} "
               f"({100 * len(ok) / max(1, len(det)):.1f} %); misses: "
               + (", ".join(f"{r['name']} -> {diag[r['name']]}" for r in det if r not in ok) or "none"))
+        shr = sorted(diag_shrink[r["name"]] for r in det if diag_shrink.get(r["name"]) is not None)
+        if shr:
+            print(f"median held-out shrink of the true effect's candidate over the oracle-detectable "
+                  f"records: {shr[len(shr) // 2] if len(shr) % 2 else 0.5 * (shr[len(shr) // 2 - 1] + shr[len(shr) // 2]):.3f} "
+                  f"({len(shr)} records)")
+        # 95 % intervals of the named effect's parameters against the generator's truth.
+        truth_key = {"rate_ramp_dps_per_s": ("ramp_deg_h_per_h", 3600.0 * 3600.0),
+                     "bias_dps_per_c": ("bias_deg_h_per_c", 3600.0),
+                     "bias_dps_per_c_per_s": ("bias_deg_h_per_c_per_s", 3600.0),
+                     "warmup_dps": ("warmup_deg_h", 3600.0)}
+        man_by = {m["name"]: m for m in man}
+        cov, tot, miss_cov = 0, 0, []
+        for r in ok:
+            ci = diag_ci.get(r["name"], {})
+            if not ci:
+                continue
+            inside = True
+            for k, (lo, hi) in ci.items():
+                if k not in truth_key:
+                    continue
+                tk, sc = truth_key[k]
+                tv = man_by[r["name"]]["params"].get(tk)
+                if tv is not None and not (lo * sc <= tv <= hi * sc):
+                    inside = False
+            tot += 1
+            cov += inside
+            if not inside:
+                miss_cov.append(r["name"])
+        print(f"rightly named detectable records with 95 % intervals: {tot}; every true parameter "
+              f"inside on {cov}" + (f" (outside: {', '.join(miss_cov)})" if miss_cov else ""))
         nn = [r for r in recs if r["effect"] == "none" and r["name"] in diag]
         if nn:
             fl = [r for r in nn if diag[r["name"]] != "none"]

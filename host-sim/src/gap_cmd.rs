@@ -39,6 +39,10 @@ pub struct Args {
     /// Skip the identification-task comparison.
     #[arg(long)]
     pub no_task: bool,
+    /// Rounds: after each named effect, add it to the model (or take it out of the record)
+    /// and diagnose again, until `none` or this many rounds (`rounds` in the JSON).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=12))]
+    pub rounds: u32,
 }
 
 /// Runs `gap`.
@@ -79,17 +83,41 @@ pub fn run(a: &Args) -> Result<()> {
         o.effects = Effect::parse_list(e)?;
         o.explicit = true;
     }
-    let d = gap::diagnose(&rec, time, model.as_ref(), &o)?;
-    let text = serde_json::to_string_pretty(&d).context("JSON encoding")?;
+    let (d, rounds) = gap::rounds::run(&rec, time, model.as_ref(), &o, a.rounds as usize)?;
+    let mut value = serde_json::to_value(&d).context("JSON encoding")?;
+    if let Some(obj) = value.as_object_mut() {
+        obj.insert(
+            "rounds".into(),
+            serde_json::to_value(&rounds).context("JSON encoding")?,
+        );
+    }
+    let text = serde_json::to_string_pretty(&value).context("JSON encoding")?;
     crate::record::write_atomic(&a.json, |w| {
         use std::io::Write;
         w.write_all(text.as_bytes())
             .with_context(|| format!("{}: write failed", a.json.display()))
     })?;
-    eprintln!(
-        "{}: effect {} (held-out gap {:.3} -> {:.3}, shrink {:.3}); {}",
-        rec.name, d.effect, d.gap_before, d.gap_after, d.shrink, d.decision
-    );
+    for r in &rounds {
+        eprintln!(
+            "{}: {}effect {} (held-out gap {:.3} -> {:.3}, shrink {:.3}); {}{}",
+            rec.name,
+            if a.rounds > 1 {
+                format!("round {}: ", r.round)
+            } else {
+                String::new()
+            },
+            r.effect,
+            r.gap_before,
+            r.gap_after,
+            r.shrink,
+            r.decision,
+            if r.applied.is_empty() {
+                String::new()
+            } else {
+                format!("; next round: {}", r.applied)
+            }
+        );
+    }
     if let Some(dir) = &a.report {
         let page = gap::report::write(dir, &d)?;
         println!("{}", page.display());

@@ -207,7 +207,7 @@ impl Durbin {
             return None;
         }
         v[0] = r[0];
-        let row = |t: usize| t * (t - 1) / 2;
+        let row = |t: usize| t * t.saturating_sub(1) / 2;
         for t in 1..n {
             let (prev, cur) = (row(t - 1), row(t));
             let acc: f64 = (1..t).map(|j| phi[prev + j - 1] * r[t - j]).sum();

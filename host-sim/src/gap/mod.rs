@@ -29,6 +29,7 @@ pub mod evidence;
 pub mod features;
 pub mod plain;
 pub mod report;
+pub mod rounds;
 pub mod whittle;
 
 use crate::identify::series::{Records, Series};
@@ -687,8 +688,22 @@ pub fn diagnose(
         ref_w.as_deref(),
     );
     let real_missing_all = effects::missing_slots(&real.t_s, &[(0, real.t_s.len())], real.dt_s);
+    // The drift tests look for drift beyond the model's own ramp and warm-up.
+    let (ramp, (warm, warm_tau)) = (
+        base.model.noise.rate_ramp_dps_per_s,
+        (
+            base.model.bias.warmup_dps,
+            base.model.bias.warmup_tau_s.max(1e-9),
+        ),
+    );
+    let beyond: Vec<f64> = real
+        .t_s
+        .iter()
+        .zip(&real.rate_dps)
+        .map(|(&t, &v)| v - ramp * t - warm * (-t / warm_tau).exp())
+        .collect();
     let drift_tests = drift::DriftTests::run(
-        &drift::Windows::new(&real.t_s, &real.rate_dps, real.temp_c.as_deref(), t_total),
+        &drift::Windows::new(&real.t_s, &beyond, real.temp_c.as_deref(), t_total),
         o.first_seed,
     );
     let mut tests = evidence::run(

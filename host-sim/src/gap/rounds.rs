@@ -1,0 +1,253 @@
+//! `gap --rounds N`: the named effect is added to the model (or taken out of the record)
+//! and the record diagnosed again, until `none` or `N` rounds.
+//!
+//! How a named effect enters the next round:
+//! - `rate_ramp` and `warmup` go into the model (which the drift tests subtract before
+//!   testing again; a second warm-up is subtracted from the record);
+//! - the other deterministic effects are subtracted from the record's rate with their fitted
+//!   parameters: `temperature` (coefficients times `temp_c - reference` and times its rate of change,
+//!   from 10-s windows as the drift test reads it), `sinusoid`, `scale_factor` (times the
+//!   reference rate);
+//! - `spikes`: samples beyond 6 robust sigma of the 5-point running median are replaced by
+//!   that median;
+//! - stochastic effects go into the model, which from then on is the user model of the next
+//!   round (the first round's fitted baseline when there was none): `quantization`
+//!   (rounding), `markov` (a Gauss-Markov term), `white_noise`, `bias_instability`,
+//!   `rate_random_walk` (added in quadrature);
+//! - `dropouts` cannot be undone: it leaves the vocabulary.
+//!
+//! A record changed under a model that rounds is rounded again to the model's quantum.
+
+use super::effects::Effect;
+use super::{diagnose, Diagnosis, Options, Rec, TimeInfo};
+use crate::sim::{Model, QuantMode};
+use anyhow::Result;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// One round's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct Round {
+    /// 1-based.
+    pub round: usize,
+    /// Named effect (`none` ends the rounds).
+    pub effect: String,
+    /// Its parameters.
+    pub params: Option<BTreeMap<String, f64>>,
+    /// 95 % intervals where known (drift effects).
+    pub params_ci95: Option<BTreeMap<String, [f64; 2]>>,
+    /// Jackknife standard uncertainty where known (sinusoid, scale factor).
+    pub params_sigma: Option<BTreeMap<String, f64>>,
+    /// Held-out gap before and after, and the shrink.
+    pub gap_before: f64,
+    /// Held-out gap with the effect.
+    pub gap_after: f64,
+    /// `1 - gap_after / gap_before`.
+    pub shrink: f64,
+    /// Why.
+    pub decision: String,
+    /// How the effect enters the next round.
+    pub applied: String,
+}
+
+fn p(params: &Option<BTreeMap<String, f64>>, k: &str) -> f64 {
+    params
+        .as_ref()
+        .and_then(|m| m.get(k).copied())
+        .unwrap_or(0.0)
+}
+
+/// Applies a named effect: the record for the next round, the model (if it changed) and
+/// what was done, in words.
+fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Model>, String) {
+    let mut r = rec.clone();
+    let mut m = model.clone();
+    let pr = &d.params;
+    let sub = |r: &mut Rec, f: &dyn Fn(usize) -> f64| {
+        for i in 0..r.rate_dps.len() {
+            r.rate_dps[i] -= f(i);
+        }
+    };
+    let what = match e {
+        Effect::RateRamp => {
+            m.noise.rate_ramp_dps_per_s += p(pr, "rate_ramp_dps_per_s");
+            format!(
+                "model's rate ramp {:.4} deg/h/h",
+                m.noise.rate_ramp_dps_per_s * 3600.0 * 3600.0
+            )
+        }
+        Effect::Warmup if m.bias.warmup_dps == 0.0 => {
+            m.bias.warmup_dps = p(pr, "warmup_dps");
+            m.bias.warmup_tau_s = p(pr, "warmup_tau_s").max(1e-6);
+            format!(
+                "model's warm-up {:.3} deg/h, tau {:.0} s",
+                m.bias.warmup_dps * 3600.0,
+                m.bias.warmup_tau_s
+            )
+        }
+        Effect::Warmup => {
+            let (a, tau) = (p(pr, "warmup_dps"), p(pr, "warmup_tau_s").max(1e-9));
+            let t = rec.t_s.clone();
+            sub(&mut r, &|i| a * (-t[i] / tau).exp());
+            format!("subtracted {:.3} deg/h exp(-t / {tau:.0} s)", a * 3600.0)
+        }
+        Effect::Temperature => match &rec.temp_c {
+            Some(tc) => {
+                let t_total = rec.t_s.last().copied().unwrap_or(0.0) + rec.dt_s;
+                let w = super::drift::Windows::new(&rec.t_s, &rec.rate_dps, Some(tc), t_total);
+                let (k1, k2) = (p(pr, "bias_dps_per_c"), p(pr, "bias_dps_per_c_per_s"));
+                let t_ref = pr
+                    .as_ref()
+                    .and_then(|m| m.get("reference_c").copied())
+                    .unwrap_or_else(|| super::features::mean(tc));
+                let dtw = w.temp.map(|(_, d)| d).unwrap_or_default();
+                let (t, tc) = (rec.t_s.clone(), tc.clone());
+                sub(&mut r, &|i| {
+                    let k = ((t[i] / w.w_s) as usize).min(dtw.len().saturating_sub(1));
+                    k1 * (tc[i] - t_ref) + k2 * dtw.get(k).copied().unwrap_or(0.0)
+                });
+                format!(
+                    "subtracted {:.4} deg/h/C (temp_c - {t_ref:.2} C) and {:.3} deg/h/(C/s) d temp_c/dt",
+                    k1 * 3600.0,
+                    k2 * 3600.0
+                )
+            }
+            None => "nothing (no temp_c)".into(),
+        },
+        Effect::Sinusoid => {
+            let (a, f, ph) = (
+                p(pr, "sine_amplitude_dps"),
+                p(pr, "sine_freq_hz"),
+                p(pr, "sine_phase_deg").to_radians(),
+            );
+            let t = rec.t_s.clone();
+            sub(&mut r, &|i| {
+                a * (std::f64::consts::TAU * f * t[i] + ph).sin()
+            });
+            format!("subtracted {:.4} deg/h at {f:.4} Hz", a * 3600.0)
+        }
+        Effect::ScaleFactor => match &rec.ref_dps {
+            Some(rf) => {
+                let k = 1e-6 * p(pr, "scale_factor_error_ppm");
+                let rf = rf.clone();
+                sub(&mut r, &|i| k * rf[i]);
+                format!("subtracted {:.0} ppm of the reference rate", k * 1e6)
+            }
+            None => "nothing (no reference rate)".into(),
+        },
+        Effect::Spikes => {
+            let y = rec.rate_dps.clone();
+            let n = y.len();
+            let res: Vec<f64> = (2..n.saturating_sub(2))
+                .map(|k| {
+                    let mut w = [y[k - 2], y[k - 1], y[k], y[k + 1], y[k + 2]];
+                    w.sort_by(f64::total_cmp);
+                    y[k] - w[2]
+                })
+                .collect();
+            let s = super::features::robust_sigma(&res);
+            let mut count = 0;
+            for (j, e) in res.iter().enumerate() {
+                if e.abs() > 6.0 * s {
+                    r.rate_dps[j + 2] = y[j + 2] - e;
+                    count += 1;
+                }
+            }
+            format!("replaced {count} samples beyond 6 robust sigma by the running median")
+        }
+        Effect::Quantization => {
+            m.quantization.quantum_dps = p(pr, "quantum_dps");
+            m.quantization.mode = QuantMode::Round;
+            format!("model rounds to {:.6e} deg/s", m.quantization.quantum_dps)
+        }
+        Effect::Markov => {
+            m.noise.gm_sigma_dps = p(pr, "gm_sigma_dps");
+            m.noise.gm_tau_s = p(pr, "gm_tau_s").max(1e-6);
+            format!(
+                "model has a Gauss-Markov term {:.4} deg/h, T {:.3} s",
+                m.noise.gm_sigma_dps * 3600.0,
+                m.noise.gm_tau_s
+            )
+        }
+        Effect::WhiteNoise => {
+            let a = p(pr, "added_arw_dps_per_rthz");
+            m.noise.arw_dps_per_rthz = m.noise.arw_dps_per_rthz.hypot(a);
+            "model's white noise raised".into()
+        }
+        Effect::BiasInstability => {
+            let a = p(pr, "added_bias_instability_dps");
+            m.noise.bias_instability_dps = m.noise.bias_instability_dps.hypot(a);
+            "model's bias instability raised".into()
+        }
+        Effect::RateRandomWalk => {
+            let a = p(pr, "added_rrw_dps_per_s_rthz");
+            m.noise.rrw_dps_per_s_rthz = m.noise.rrw_dps_per_s_rthz.hypot(a);
+            "model's rate random walk raised".into()
+        }
+        Effect::Dropouts => "left out of the vocabulary (cannot be undone)".into(),
+    };
+    // A record changed under a model that rounds is rounded again to its quantum (the
+    // subtraction took its values off the lattice the model reproduces).
+    let q = m.quantization.quantum_dps;
+    if r.rate_dps != rec.rate_dps && m.quantization.mode == QuantMode::Round && q > 0.0 {
+        for v in r.rate_dps.iter_mut() {
+            *v = (*v / q).round() * q;
+        }
+    }
+    let changed = m != *model;
+    (r, changed.then_some(m), what)
+}
+
+/// Up to `n` rounds of the diagnosis; the first round's [`Diagnosis`] and every round.
+pub fn run(
+    rec: &Rec,
+    time: TimeInfo,
+    model: Option<&Model>,
+    o: &Options,
+    n: usize,
+) -> Result<(Diagnosis, Vec<Round>)> {
+    let mut rec = rec.clone();
+    let mut model: Option<Model> = model.cloned();
+    let mut o = o.clone();
+    let mut first = None;
+    let mut rounds = Vec::new();
+    for k in 1..=n.max(1) {
+        let d = diagnose(&rec, time.clone(), model.as_ref(), &o)?;
+        let named = Effect::parse_list(&d.effect)
+            .ok()
+            .and_then(|v| v.first().copied());
+        let mut round = Round {
+            round: k,
+            effect: d.effect.clone(),
+            params: d.params.clone(),
+            params_ci95: d.params_ci95.clone(),
+            params_sigma: d.params_sigma.clone(),
+            gap_before: d.gap_before,
+            gap_after: d.gap_after,
+            shrink: d.shrink,
+            decision: d.decision.clone(),
+            applied: String::new(),
+        };
+        if let Some(e) = named.filter(|_| k < n) {
+            let base = model.clone().unwrap_or_else(|| d.baseline.clone());
+            let (r2, m2, what) = apply(e, &d, &rec, &base);
+            rec = r2;
+            if let Some(m2) = m2 {
+                model = Some(m2);
+            }
+            if e == Effect::Dropouts {
+                o.effects.retain(|x| *x != Effect::Dropouts);
+            }
+            round.applied = what;
+        }
+        rounds.push(round);
+        if first.is_none() {
+            first = Some(d);
+        }
+        if named.is_none() {
+            break;
+        }
+    }
+    let first = first.ok_or_else(|| anyhow::anyhow!("no round ran"))?;
+    Ok((first, rounds))
+}
