@@ -57,6 +57,21 @@ fn ci_bench_names_withheld_effects() {
 
 /// `host-sim gap --real p --json dir/o.json`, which must fail with one line on stderr and
 /// write no JSON; returns that line.
+/// Runs `host-sim gap ARGS --real REAL --json JSON`, which must succeed, and parses the JSON.
+fn gap_json(real: &std::path::Path, json: &std::path::Path, args: &[&str]) -> serde_json::Value {
+    Command::cargo_bin("host-sim")
+        .expect("binary")
+        .arg("gap")
+        .args(args)
+        .arg("--real")
+        .arg(real)
+        .arg("--json")
+        .arg(json)
+        .assert()
+        .success();
+    serde_json::from_str(&std::fs::read_to_string(json).expect("json")).expect("parse")
+}
+
 fn gap_refused(p: &std::path::Path, dir: &std::path::Path) -> String {
     let json = dir.join("o.json");
     let out = Command::cargo_bin("host-sim")
@@ -195,25 +210,11 @@ fn rounds_name_two_effects_in_turn() {
         }),
         "t_s,rate_dps",
     );
-    let json = dir.path().join("rounds.json");
-    Command::cargo_bin("host-sim")
-        .expect("binary")
-        .args([
-            "gap",
-            "--seeds",
-            "6",
-            "--no-task",
-            "--rounds",
-            "3",
-            "--real",
-        ])
-        .arg(&p)
-        .arg("--json")
-        .arg(&json)
-        .assert()
-        .success();
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).expect("json")).expect("parse");
+    let v = gap_json(
+        &p,
+        &dir.path().join("rounds.json"),
+        &["--seeds", "6", "--no-task", "--rounds", "3"],
+    );
     let rounds = v["rounds"].as_array().expect("rounds");
     let named: Vec<&str> = rounds.iter().filter_map(|r| r["effect"].as_str()).collect();
     let mut two = named[..2.min(named.len())].to_vec();
@@ -245,11 +246,10 @@ fn real_mpu6050_runs() {
         return;
     }
     let dir = tempfile::tempdir().expect("tempdir");
-    let json = dir.path().join("mpu.json");
-    Command::cargo_bin("host-sim")
-        .expect("binary")
-        .args([
-            "gap",
+    let v = gap_json(
+        &p,
+        &dir.path().join("mpu.json"),
+        &[
             "--seeds",
             "4",
             "--no-task",
@@ -257,15 +257,8 @@ fn real_mpu6050_runs() {
             "gz_dps",
             "--effects",
             "white_noise,bias_instability,temperature,warmup,rate_ramp",
-            "--real",
-        ])
-        .arg(&p)
-        .arg("--json")
-        .arg(&json)
-        .assert()
-        .success();
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).expect("json")).expect("parse");
+        ],
+    );
     assert!(v["gap_before"].as_f64().is_some_and(f64::is_finite));
     assert_eq!(v["time"]["bursty"], true);
 }
@@ -328,6 +321,45 @@ fn passed(d: &host_sim::gap::drift::DriftTests) -> Vec<host_sim::gap::effects::E
         .filter(|t| t.passed)
         .map(|t| t.effect)
         .collect()
+}
+
+/// White noise and a random walk: the drift tests' null fit finds N and K, no ramp; with a
+/// ramp of 20 times the walk's own change per record, the ramp is found and its slope lies
+/// within 3 standard errors.
+#[test]
+fn drift_null_fits_the_noise_and_finds_a_ramp() {
+    use host_sim::gap::effects::Effect;
+    let (nn, kk) = (0.01, 2e-4);
+    let (t, y) = white_and_walk(5, nn, kk);
+    let r = drift_run(&t, &y, None);
+    assert!(
+        (r.null.arw_dps_per_rthz / nn - 1.0).abs() < 0.25,
+        "{:?}",
+        r.null
+    );
+    assert!(
+        (r.null.rrw_dps_per_s_rthz / kk - 1.0).abs() < 0.5,
+        "{:?}",
+        r.null
+    );
+    let ramp_of = |d: &host_sim::gap::drift::DriftTests| {
+        d.models
+            .iter()
+            .find(|m| m.effect == Effect::RateRamp)
+            .cloned()
+            .expect("ramp")
+    };
+    let ramp = ramp_of(&r);
+    assert!(ramp.p_value > 0.001, "no ramp: p {}", ramp.p_value);
+    let slope = 20.0 * kk * 1800f64.sqrt() / 1800.0;
+    let y2: Vec<f64> = y.iter().zip(&t).map(|(v, t)| v + slope * t).collect();
+    let ramp = ramp_of(&drift_run(&t, &y2, None));
+    assert!(ramp.p_value < 1e-4, "ramp p {}", ramp.p_value);
+    let (b, se) = (ramp.fit.beta[0], ramp.fit.beta_se[0]);
+    assert!(
+        (b - slope).abs() < 3.0 * se,
+        "slope {b} +- {se}, true {slope}"
+    );
 }
 
 /// The drift likelihood tests (issue 26): a ramp, a warm-up and a drift that follows the

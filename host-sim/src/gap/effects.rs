@@ -378,14 +378,10 @@ pub fn spike_stats(y: &[f64], ranges: &[(usize, usize)]) -> (f64, Vec<f64>) {
 /// them are about 4 standard deviations: Gaussian noise gives ~10 such residuals in
 /// 180 000 samples; beyond 10 robust sigma, none.
 pub fn outliers(y: &[f64], ranges: &[(usize, usize)], k: f64) -> (f64, Vec<f64>) {
-    let mut e = Vec::new();
-    for &(lo, hi) in ranges {
-        for k in lo + 2..hi.saturating_sub(2) {
-            let mut w = [y[k - 2], y[k - 1], y[k], y[k + 1], y[k + 2]];
-            w.sort_by(f64::total_cmp);
-            e.push(y[k] - w[2]);
-        }
-    }
+    let e: Vec<f64> = ranges
+        .iter()
+        .flat_map(|&(lo, hi)| running_median_residuals(&y[lo..hi]))
+        .collect();
     let s = robust_sigma(&e);
     let big: Vec<f64> = e
         .iter()
@@ -393,6 +389,18 @@ pub fn outliers(y: &[f64], ranges: &[(usize, usize)], k: f64) -> (f64, Vec<f64>)
         .map(|x| x.abs())
         .collect();
     (big.len() as f64, big)
+}
+
+/// Residuals from a 5-point running median: `y[k] - median(y[k-2..=k+2])` for `k` in
+/// `2..len - 2`.
+pub fn running_median_residuals(y: &[f64]) -> Vec<f64> {
+    y.windows(5)
+        .map(|w| {
+            let mut s = [w[0], w[1], w[2], w[3], w[4]];
+            s.sort_by(f64::total_cmp);
+            w[2] - s[2]
+        })
+        .collect()
 }
 
 /// Missing slots in ranges (steps longer than 1.5 periods).

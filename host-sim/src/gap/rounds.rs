@@ -63,11 +63,13 @@ fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Mod
     let mut r = rec.clone();
     let mut m = model.clone();
     let pr = &d.params;
+    // `r` is a copy: the signals read `rec`'s columns directly.
     let sub = |r: &mut Rec, f: &dyn Fn(usize) -> f64| {
-        for i in 0..r.rate_dps.len() {
-            r.rate_dps[i] -= f(i);
+        for (i, v) in r.rate_dps.iter_mut().enumerate() {
+            *v -= f(i);
         }
     };
+    let t = &rec.t_s;
     let what = match e {
         Effect::RateRamp => {
             m.noise.rate_ramp_dps_per_s += p(pr, "rate_ramp_dps_per_s");
@@ -87,7 +89,6 @@ fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Mod
         }
         Effect::Warmup => {
             let (a, tau) = (p(pr, "warmup_dps"), p(pr, "warmup_tau_s").max(1e-9));
-            let t = rec.t_s.clone();
             sub(&mut r, &|i| a * (-t[i] / tau).exp());
             format!("subtracted {:.3} deg/h exp(-t / {tau:.0} s)", a * 3600.0)
         }
@@ -101,7 +102,6 @@ fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Mod
                     .and_then(|m| m.get("reference_c").copied())
                     .unwrap_or_else(|| super::features::mean(tc));
                 let dtw = w.temp.map(|(_, d)| d).unwrap_or_default();
-                let (t, tc) = (rec.t_s.clone(), tc.clone());
                 sub(&mut r, &|i| {
                     let k = ((t[i] / w.w_s) as usize).min(dtw.len().saturating_sub(1));
                     k1 * (tc[i] - t_ref) + k2 * dtw.get(k).copied().unwrap_or(0.0)
@@ -120,7 +120,6 @@ fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Mod
                 p(pr, "sine_freq_hz"),
                 p(pr, "sine_phase_deg").to_radians(),
             );
-            let t = rec.t_s.clone();
             sub(&mut r, &|i| {
                 a * (std::f64::consts::TAU * f * t[i] + ph).sin()
             });
@@ -129,27 +128,18 @@ fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Mod
         Effect::ScaleFactor => match &rec.ref_dps {
             Some(rf) => {
                 let k = 1e-6 * p(pr, "scale_factor_error_ppm");
-                let rf = rf.clone();
                 sub(&mut r, &|i| k * rf[i]);
                 format!("subtracted {:.0} ppm of the reference rate", k * 1e6)
             }
             None => "nothing (no reference rate)".into(),
         },
         Effect::Spikes => {
-            let y = rec.rate_dps.clone();
-            let n = y.len();
-            let res: Vec<f64> = (2..n.saturating_sub(2))
-                .map(|k| {
-                    let mut w = [y[k - 2], y[k - 1], y[k], y[k + 1], y[k + 2]];
-                    w.sort_by(f64::total_cmp);
-                    y[k] - w[2]
-                })
-                .collect();
+            let res = super::effects::running_median_residuals(&rec.rate_dps);
             let s = super::features::robust_sigma(&res);
             let mut count = 0;
             for (j, e) in res.iter().enumerate() {
                 if e.abs() > 6.0 * s {
-                    r.rate_dps[j + 2] = y[j + 2] - e;
+                    r.rate_dps[j + 2] -= e;
                     count += 1;
                 }
             }
