@@ -316,7 +316,7 @@ fn read_vehicles(image: &Image, paths: &[PathBuf]) -> Result<Vec<NavRecord>> {
     CsvFiles::from_args(paths, &ReadOptions::default())?
         .0
         .iter()
-        .map(|p| Ok(crate::replay::motion::read_truth_csv(image, p)?.1))
+        .map(|p| Ok(crate::replay::motion::read_truth_csv(image, p)?.truth))
         .collect()
 }
 

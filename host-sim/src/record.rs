@@ -127,6 +127,23 @@ impl Columns {
     }
 }
 
+/// Which columns a record has beside the rate (optional ones only when asked for).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Present {
+    /// `t_s` (else `row index / rate_hz`).
+    pub t_s: bool,
+    /// `temp_c`.
+    pub temp_c: bool,
+    /// `drift_dps`.
+    pub drift_dps: bool,
+    /// The reference rate (`true_rate_dps` or `--reference-column`).
+    pub true_rate_dps: bool,
+    /// `moving`.
+    pub moving: bool,
+    /// The external still flag.
+    pub still: bool,
+}
+
 /// One data row, parsed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Row {
@@ -217,6 +234,19 @@ impl<R: std::io::Read> Rows<R> {
     /// The fields of the row [`Rows::next_row`] returned last, as in the file.
     pub fn fields(&self) -> &csv::StringRecord {
         &self.rec
+    }
+
+    /// Which columns the record has.
+    pub fn columns(&self) -> Present {
+        let c = &self.cols;
+        Present {
+            t_s: c.t_s.is_some(),
+            temp_c: c.temp_c.is_some(),
+            drift_dps: c.drift_dps.is_some(),
+            true_rate_dps: c.true_rate_dps.is_some(),
+            moving: c.moving.is_some(),
+            still: c.still.is_some(),
+        }
     }
 
     /// Bytes read so far.

@@ -157,6 +157,7 @@ fn run_motion(args: &Args, sensor: Option<fog_core::still::SensorConfig>) -> Res
         },
         baseline_q: args.baseline_q.map(|q| (q, "--baseline-q".to_string())),
         validate: args.validate.clone(),
+        figures: args.report.is_some(),
     };
     let out = motion::replay(&args.input, &args.output, &o)?;
     motion::print_summary(&out.summary)?;

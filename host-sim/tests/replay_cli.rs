@@ -524,3 +524,44 @@ fn the_report_shows_the_heading_without_truth() {
         "caption states {end:.4}"
     );
 }
+
+/// The motion replay streams: it takes the rate from the first 2^16 samples (the
+/// look-ahead) and checks the whole record's mean step at the end. A record whose stamps
+/// slow down after the look-ahead (100 Hz, then one sample a second: 13.7 Hz over the whole
+/// record) is refused, naming both rates, and no output is left.
+#[test]
+fn a_rate_that_changes_after_the_look_ahead_is_refused_at_the_end() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let n = 70_000usize;
+    let x = rates(n);
+    let mut text = String::from("t_s,rate_dps\n");
+    for (k, r) in x.iter().enumerate() {
+        let t = if k < 1 << 16 {
+            k as f64 * 0.01
+        } else {
+            655.36 + (k - (1 << 16)) as f64
+        };
+        text += &format!("{t},{r}\n");
+    }
+    let input = dir.path().join("slowing.csv");
+    fs::write(&input, text).expect("write");
+    let out = dir.path().join("out.csv");
+    host_sim()
+        .args(["replay", "--input"])
+        .arg(&input)
+        .arg("--output")
+        .arg(&out)
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("over the whole record"))
+        .stderr(predicates::str::contains(
+            "the first 65536 samples gave 100 Hz",
+        ));
+    assert!(!out.exists(), "no output after the refusal");
+    let left: Vec<_> = fs::read_dir(dir.path())
+        .expect("dir")
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "temporary files left: {left:?}");
+}

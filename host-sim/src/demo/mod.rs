@@ -300,6 +300,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
             ),
         )),
         validate: Vec::new(),
+        figures: true,
     };
     let mut out = replay(&vehicle, &dir.join("replay.csv"), &o)?;
     crate::replay::motion::print_summary(&out.summary)?;

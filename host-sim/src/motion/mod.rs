@@ -691,20 +691,31 @@ pub fn run(estimator: &mut PresetEstimator, s: &Series) -> Vec<MotionOutput> {
                 .and_then(|t| t.get(k).copied())
                 .unwrap_or(f32::NAN);
             let ext = s.still.as_ref().and_then(|v| v.get(k).copied().flatten());
-            // Rows are validated finite by the reader: a refusal cannot happen; if it did,
-            // the row keeps the previous drift (reported as such by the caller's counts).
-            estimator
-                .push(s.rate_dps[k], temp, ext)
-                .unwrap_or(MotionOutput {
-                    drift_dps: 0.0,
-                    compensated_dps: s.rate_dps[k],
-                    still: false,
-                    level_dps: 0.0,
-                    model_dps: 0.0,
-                    verified: false,
-                })
+            push_row(estimator, s.rate_dps[k], temp, ext)
         })
         .collect()
+}
+
+/// One row through `estimator`: `temp_c` NaN for none, `external_still` the row's flag.
+/// Rows are validated finite by the reader, so a refusal cannot happen; if it did, the row
+/// gets no drift, the rate uncompensated, not still and not verified (counted as such by
+/// the caller).
+pub fn push_row(
+    estimator: &mut PresetEstimator,
+    rate_dps: f32,
+    temp_c: f32,
+    external_still: Option<bool>,
+) -> MotionOutput {
+    estimator
+        .push(rate_dps, temp_c, external_still)
+        .unwrap_or(MotionOutput {
+            drift_dps: 0.0,
+            compensated_dps: rate_dps,
+            still: false,
+            level_dps: 0.0,
+            model_dps: 0.0,
+            verified: false,
+        })
 }
 
 /// Header of `replay --identifier` output: the replay columns (`denoised_dps` empty: the

@@ -58,8 +58,7 @@ pub fn mean_heading_rms(image: &Image, val: &[NavRecord]) -> Result<f64> {
     let mut sum = 0.0;
     for v in val {
         let (drift, _) = run_image(image, v)?;
-        let mut replayed = nav::Precomputed::new("motion identifier", &drift);
-        sum += nav::run(v, &mut replayed, &[]).scores.heading_rms_deg;
+        sum += nav::score_drift(v, &drift).heading_rms_deg;
     }
     Ok(sum / val.len() as f64)
 }

@@ -2,7 +2,7 @@
 //! `replay` and `identify` (stderr, JSON, report).
 
 use super::{
-    run, AlignmentBias, DetectorAcc, DetectorScores, DriftEstimator, GatedKalman, NavRecord,
+    AlignmentBias, DetectorAcc, DetectorScores, DriftEstimator, GatedKalman, HeadingAcc, NavRecord,
     NavScores, NoCompensation, SelfCalConfig, SelfCalKalman, ThermalKalman, ThermalKalmanConfig,
 };
 use serde::Serialize;
@@ -50,43 +50,13 @@ impl<E: DriftEstimator> DriftEstimator for Released<E> {
     }
 }
 
-fn released<'a, E: DriftEstimator + 'a>(inner: E, delay: usize) -> Box<dyn DriftEstimator + 'a> {
+fn released<E: DriftEstimator + 'static>(inner: E, delay: usize) -> Box<dyn DriftEstimator> {
     Box::new(Released {
         inner,
         delay,
         buf: std::collections::VecDeque::with_capacity(delay + 1),
         est: 0.0,
     })
-}
-
-/// Drift estimates computed beforehand (an identifier already run over the record),
-/// replayed as a [`DriftEstimator`] (one per push, in order; 0 past the end).
-pub struct Precomputed<'a> {
-    name: &'a str,
-    drift_dps: &'a [f64],
-    k: usize,
-}
-
-impl<'a> Precomputed<'a> {
-    /// Replays `drift_dps` (deg/s, one per sample) under `name`.
-    pub fn new(name: &'a str, drift_dps: &'a [f64]) -> Self {
-        Self {
-            name,
-            drift_dps,
-            k: 0,
-        }
-    }
-}
-
-impl DriftEstimator for Precomputed<'_> {
-    fn name(&self) -> String {
-        self.name.into()
-    }
-    fn push(&mut self, _: f64, _: f64, _: Option<f64>, _: bool) -> f64 {
-        let d = self.drift_dps.get(self.k).copied().unwrap_or(0.0);
-        self.k += 1;
-        d
-    }
 }
 
 /// Name of the no-compensation row.
@@ -130,14 +100,127 @@ pub struct Compared {
     pub heading_deg: Vec<Vec<f64>>,
 }
 
+/// Rows of the table: the identifier and five baselines.
+pub const ROWS: usize = 6;
+
+/// One sample with its truth, as [`Comparer::push`] takes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthSample {
+    /// Seconds since power-on.
+    pub t_s: f64,
+    /// Measured rate, deg/s.
+    pub rate_dps: f64,
+    /// Sensor temperature, deg C.
+    pub temp_c: Option<f64>,
+    /// True platform + Earth rate, deg/s.
+    pub true_rate_dps: f64,
+    /// True drift, deg/s.
+    pub drift_dps: f64,
+    /// Ground truth: the platform moves.
+    pub moving: bool,
+}
+
+/// [`compare`] sample by sample, in constant memory: the identifier's drift and still flag
+/// and the record's truth in, each row's heading error out.
+pub struct Comparer {
+    labels: [String; ROWS],
+    baselines: [Box<dyn DriftEstimator>; ROWS - 1],
+    heading: [HeadingAcc; ROWS],
+    detector: DetectorAcc,
+    moving_known: bool,
+    cfg: BaselineConfig,
+}
+
+impl Comparer {
+    /// The identifier `name` beside the five baselines of [`compare`]; `moving_known`: the
+    /// record has a `moving` column.
+    pub fn new(name: &str, moving_known: bool, cfg: BaselineConfig) -> Self {
+        let thermal = ThermalKalmanConfig {
+            q_dps2: cfg.q_dps2,
+            r_dps2: cfg.r_dps2,
+            ..ThermalKalmanConfig::default()
+        };
+        Self {
+            labels: [
+                name.to_string(),
+                NO_COMPENSATION.into(),
+                "alignment bias (initial still mean, held)".into(),
+                "gated random-walk Kalman (ZARU)".into(),
+                "gated Kalman + temperature regression".into(),
+                SELFCAL_LABEL.into(),
+            ],
+            baselines: [
+                Box::new(NoCompensation),
+                released(AlignmentBias::default(), cfg.release_samples),
+                released(
+                    GatedKalman::new(cfg.q_dps2, cfg.r_dps2),
+                    cfg.release_samples,
+                ),
+                released(ThermalKalman::new(thermal), cfg.release_samples),
+                Box::new(SelfCalKalman::new(SelfCalConfig::with_q(cfg.q_dps2))),
+            ],
+            heading: Default::default(),
+            detector: DetectorAcc::default(),
+            moving_known,
+            cfg,
+        }
+    }
+
+    /// Row labels, in the table's order.
+    pub fn labels(&self) -> &[String; ROWS] {
+        &self.labels
+    }
+
+    /// One sample: the identifier's drift estimate (deg/s) and still flag for it; returns
+    /// each row's heading error at it, deg.
+    pub fn push(&mut self, s: &TruthSample, drift_dps: f64, still: bool) -> [f64; ROWS] {
+        let mut out = [0.0; ROWS];
+        for (k, acc) in self.heading.iter_mut().enumerate() {
+            let d = match k.checked_sub(1).and_then(|b| self.baselines.get_mut(b)) {
+                Some(e) => e.push(s.t_s, s.rate_dps, s.temp_c, still),
+                None => drift_dps,
+            };
+            out[k] = acc.push(
+                s.t_s,
+                s.rate_dps - d,
+                s.true_rate_dps,
+                d,
+                s.drift_dps,
+                s.moving,
+            );
+        }
+        self.detector.push(s.moving, still);
+        out
+    }
+
+    /// The table.
+    pub fn finish(self) -> Comparison {
+        Comparison {
+            rows: self
+                .labels
+                .into_iter()
+                .zip(&self.heading)
+                .map(|(name, h)| Row {
+                    name,
+                    scores: h.scores(),
+                })
+                .collect(),
+            detector: self.detector.scores(),
+            moving_known: self.moving_known,
+            baselines: self.cfg,
+        }
+    }
+}
+
 /// Scores the identifier (`name`, its drift per sample `drift_dps`) and the five causal
-/// baselines on `rec`: the first four with the still flags `still` (the identifier's),
-/// released `cfg.release_samples` late; the last, [`SelfCalKalman`], with its own detector
-/// calibrated on the record's first [`super::selfcal::ALIGN_S`] s (ASSUMED still: a
-/// vehicle's alignment) and its own release. Its `q` is the other gated filters' `cfg.q_dps2`
-/// (one q for every baseline, so the row differs from the gated Kalman's by the detector
-/// alone; a q tuned for it with its own detector: [`super::tune_selfcal_q`]).
-/// `moving_known`: the record has a `moving` column.
+/// baselines on `rec` ([`Comparer`]): the first four with the still flags `still` (the
+/// identifier's; samples beyond them count as moving), released `cfg.release_samples`
+/// late; the last, [`SelfCalKalman`], with its own detector calibrated on the record's
+/// first [`super::selfcal::ALIGN_S`] s (ASSUMED still: a vehicle's alignment) and its own
+/// release. Its `q` is the other gated filters' `cfg.q_dps2` (one q for every baseline, so
+/// the row differs from the gated Kalman's by the detector alone; a q tuned for it with its
+/// own detector: [`super::tune_selfcal_q`]). `moving_known`: the record has a `moving`
+/// column.
 pub fn compare(
     rec: &NavRecord,
     name: &str,
@@ -146,51 +229,25 @@ pub fn compare(
     moving_known: bool,
     cfg: BaselineConfig,
 ) -> Compared {
-    let thermal = ThermalKalmanConfig {
-        q_dps2: cfg.q_dps2,
-        r_dps2: cfg.r_dps2,
-        ..ThermalKalmanConfig::default()
-    };
-    let mut ests: Vec<Box<dyn DriftEstimator + '_>> = vec![
-        Box::new(Precomputed::new(name, drift_dps)),
-        Box::new(NoCompensation),
-        released(AlignmentBias::default(), cfg.release_samples),
-        released(
-            GatedKalman::new(cfg.q_dps2, cfg.r_dps2),
-            cfg.release_samples,
-        ),
-        released(ThermalKalman::new(thermal), cfg.release_samples),
-        Box::new(SelfCalKalman::new(SelfCalConfig::with_q(cfg.q_dps2))),
-    ];
-    let labels = [
-        name.to_string(),
-        NO_COMPENSATION.into(),
-        "alignment bias (initial still mean, held)".into(),
-        "gated random-walk Kalman (ZARU)".into(),
-        "gated Kalman + temperature regression".into(),
-        SELFCAL_LABEL.into(),
-    ];
-    let mut rows = Vec::new();
-    let mut heading_deg = Vec::new();
-    for (e, label) in ests.iter_mut().zip(labels) {
-        let r = run(rec, e.as_mut(), still);
-        rows.push(Row {
-            name: label,
-            scores: r.scores,
-        });
-        heading_deg.push(r.heading_deg);
-    }
-    let mut det = DetectorAcc::default();
-    for (k, &m) in rec.moving.iter().enumerate() {
-        det.push(m, still.get(k).copied().unwrap_or(false));
+    let mut c = Comparer::new(name, moving_known, cfg);
+    let mut heading_deg: Vec<Vec<f64>> = (0..ROWS).map(|_| Vec::with_capacity(rec.len())).collect();
+    for k in 0..rec.len() {
+        let s = TruthSample {
+            t_s: rec.t_s[k],
+            rate_dps: rec.rate_dps[k],
+            temp_c: rec.temp_c.as_ref().and_then(|t| t.get(k).copied()),
+            true_rate_dps: rec.true_rate_dps[k],
+            drift_dps: rec.drift_dps[k],
+            moving: rec.moving[k],
+        };
+        let d = drift_dps.get(k).copied().unwrap_or(0.0);
+        let h = c.push(&s, d, still.get(k).copied().unwrap_or(false));
+        for (v, x) in heading_deg.iter_mut().zip(h) {
+            v.push(x);
+        }
     }
     Compared {
-        table: Comparison {
-            rows,
-            detector: det.scores(),
-            moving_known,
-            baselines: cfg,
-        },
+        table: c.finish(),
         heading_deg,
     }
 }

@@ -28,8 +28,8 @@ pub use baselines::{
     ThermalKalman, ThermalKalmanConfig,
 };
 pub use compare::{
-    compare, table, BaselineConfig, Compared, Comparison, Precomputed, Row, NO_COMPENSATION,
-    SELFCAL_LABEL,
+    compare, table, BaselineConfig, Compared, Comparer, Comparison, Row, TruthSample,
+    NO_COMPENSATION, ROWS, SELFCAL_LABEL,
 };
 pub use record::NavRecord;
 pub use score::{DetectorAcc, DetectorScores, HeadingAcc, NavScores, DPH_PER_DPS};
@@ -75,6 +75,24 @@ pub fn run(rec: &NavRecord, est: &mut dyn DriftEstimator, still: &[bool]) -> Run
         heading_deg,
         drift_est_dps,
     }
+}
+
+/// The scores on `rec` of a drift estimate computed beforehand (`drift_dps`, deg/s, one per
+/// sample; 0 beyond it).
+pub fn score_drift(rec: &NavRecord, drift_dps: &[f64]) -> NavScores {
+    let mut acc = HeadingAcc::new();
+    for k in 0..rec.len() {
+        let d = drift_dps.get(k).copied().unwrap_or(0.0);
+        acc.push(
+            rec.t_s[k],
+            rec.rate_dps[k] - d,
+            rec.true_rate_dps[k],
+            d,
+            rec.drift_dps[k],
+            rec.moving[k],
+        );
+    }
+    acc.scores()
 }
 
 #[cfg(test)]

@@ -1,111 +1,262 @@
-//! The record the motion replay reads: an interchange CSV (any rate column, scaled; `t_s`
-//! optional), or a binary / ASCII capture decoded whole, with the truth columns when the
-//! record carries them.
+//! The record the motion replay reads, sample by sample in bounded memory: an interchange
+//! CSV ([`record::Rows`]: any rate column, scaled; `t_s` optional; the truth and the
+//! external still flag when the file has them) or a binary / ASCII capture
+//! ([`stream::Capture`]).
+//!
+//! The sample rate must be known before the estimator starts (the built-in sensor is picked
+//! by it and the image's rate is checked against it), so the first [`LOOKAHEAD`] samples
+//! are read ahead and the rate taken from their mean step; on a record no longer than that
+//! it is the whole record's. At the end the whole record's mean step is known
+//! ([`Input::sample_period_s`]) and the caller checks it again.
 
-use super::stream::{self, Decoded, InputFormat, Options};
-use crate::identify::series::Series;
-use crate::nav::NavRecord;
-use crate::record::{ReadOptions, Record};
+use super::stream::{self, Capture, CaptureEvent, InputFormat, Options};
+use crate::record::{self, ReadOptions};
 use crate::report::BytesSummary;
 use anyhow::{anyhow, bail, Result};
+use std::collections::VecDeque;
 use std::path::Path;
 
-/// A record read for the motion replay.
-#[derive(Debug, Clone)]
+/// Samples read ahead for the rate: 2^16 (11 min at 100 Hz, 65 s at 1 kHz; about 5 MB).
+pub const LOOKAHEAD: usize = 1 << 16;
+
+/// One sample of a record, as in the file (rate times the scale).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Seconds since the start.
+    pub t_s: f64,
+    /// Rate, deg/s.
+    pub rate_dps: f64,
+    /// `temp_c`, deg C.
+    pub temp_c: Option<f64>,
+    /// `drift_dps` (true drift), deg/s.
+    pub drift_dps: Option<f64>,
+    /// The reference (true) rate, deg/s.
+    pub true_rate_dps: Option<f64>,
+    /// `moving` (ground truth).
+    pub moving: Option<bool>,
+    /// The external still flag (`None`: no column or an empty cell).
+    pub still: Option<bool>,
+}
+
+/// Which optional columns the record has (every sample has them or none does).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Columns {
+    /// `temp_c`.
+    pub temp_c: bool,
+    /// `drift_dps`.
+    pub drift_dps: bool,
+    /// Both `true_rate_dps` and `drift_dps`: the record can be scored.
+    pub truth: bool,
+    /// `moving` (else every sample counts as still when scored).
+    pub moving: bool,
+}
+
+enum Source {
+    Csv(Box<record::Rows<Box<dyn std::io::Read>>>),
+    Capture(Box<Capture>),
+}
+
+/// A record opened for the motion replay.
 pub struct Input {
-    /// What the estimator runs on.
-    pub record: Series,
-    /// The truth, when the record has both `true_rate_dps` and `drift_dps` (`moving`
-    /// optional: without it every sample counts as still).
-    pub truth: Option<NavRecord>,
-    /// The truth has a `moving` column (else every sample counts as still).
-    pub has_moving: bool,
+    name: String,
+    source: Source,
+    ahead: VecDeque<Sample>,
+    ended: bool,
     /// Format read.
     pub format: InputFormat,
-    /// Where `t_s` came from.
+    /// Optional columns present.
+    pub columns: Columns,
+    /// Where `t_s` comes from.
     pub t_s_source: &'static str,
     /// `t_s` is `row index / rate_hz` (no time stamps in the input): the rate is the
     /// caller's, not the record's.
     pub t_s_from_rate: bool,
-    /// Byte counts of a capture.
-    pub bytes: Option<BytesSummary>,
-    /// DSP-3000 fault lines (no sample, no output row).
-    pub fault_lines: u64,
+    fault_lines: u64,
+    read: u64,
+    first_t: Option<f64>,
+    last_t: Option<f64>,
 }
 
-/// Reads `path`: CSV (see [`read_csv`], with `csv`'s rate column, scale and still column)
-/// or a capture decoded with `opts`.
-pub fn read(path: &Path, opts: &Options, csv: &ReadOptions) -> Result<Input> {
-    let is_csv = match opts.format {
-        InputFormat::Csv => true,
-        InputFormat::Auto => {
-            let mut head = vec![0u8; 8192];
-            let n = {
-                use std::io::Read;
-                let mut f = std::fs::File::open(path)
-                    .map_err(|e| anyhow!("{}: cannot open: {e}", path.display()))?;
-                f.read(&mut head)
-                    .map_err(|e| anyhow!("{}: read failed at byte 0: {e}", path.display()))?
-            };
-            stream::sniff(&path.display().to_string(), &head[..n])? == InputFormat::Csv
-        }
-        _ => false,
-    };
-    if is_csv {
-        return read_csv(
-            path,
-            &ReadOptions {
+impl Input {
+    /// Opens `path`: CSV (with `csv`'s rate column, scale, still column and, without a
+    /// `t_s` column, `opts.rate_hz`) or a capture decoded with `opts`.
+    pub fn open(path: &Path, opts: &Options, csv: &ReadOptions) -> Result<Self> {
+        let is_csv = match opts.format {
+            InputFormat::Csv => true,
+            InputFormat::Auto => {
+                let mut head = vec![0u8; 8192];
+                let n = {
+                    use std::io::Read;
+                    let mut f = std::fs::File::open(path)
+                        .map_err(|e| anyhow!("{}: cannot open: {e}", path.display()))?;
+                    f.read(&mut head)
+                        .map_err(|e| anyhow!("{}: read failed at byte 0: {e}", path.display()))?
+                };
+                stream::sniff(&path.display().to_string(), &head[..n])? == InputFormat::Csv
+            }
+            _ => false,
+        };
+        if is_csv {
+            let o = ReadOptions {
                 rate_hz: Some(opts.rate_hz),
                 ..csv.clone()
-            },
-        );
+            };
+            let rows = record::Rows::new(
+                &path.display().to_string(),
+                record::open_maybe_gz(path)?,
+                &o,
+            )?;
+            let c = rows.columns();
+            return Ok(Self::new(
+                path,
+                Source::Csv(Box::new(rows)),
+                InputFormat::Csv,
+                Columns {
+                    temp_c: c.temp_c,
+                    drift_dps: c.drift_dps,
+                    truth: c.true_rate_dps && c.drift_dps,
+                    moving: c.moving,
+                },
+                !c.t_s,
+            ));
+        }
+        if csv.still_column.is_some() {
+            bail!("--still-column needs CSV input");
+        }
+        let cap = Capture::open(path, opts)?;
+        let format = cap.format();
+        Ok(Self::new(
+            path,
+            Source::Capture(Box::new(cap)),
+            format,
+            Columns::default(),
+            true,
+        ))
     }
-    if csv.still_column.is_some() {
-        bail!("--still-column needs CSV input");
-    }
-    let Decoded {
-        format,
-        t_s,
-        rate_dps,
-        fault_lines,
-        bytes,
-    } = stream::decode(path, opts)?;
-    if rate_dps.is_empty() {
-        bail!("{}: no sample decoded", path.display());
-    }
-    Ok(Input {
-        record: Series {
-            name: path.display().to_string(),
-            t_s,
-            rate_dps,
-            ..Series::default()
-        },
-        truth: None,
-        has_moving: false,
-        format,
-        t_s_source: "index / rate_hz (no time stamps in the capture)",
-        t_s_from_rate: true,
-        bytes,
-        fault_lines,
-    })
-}
 
-/// Reads an interchange CSV with [`Record::read`] (`opts.rate_hz` gives `t_s` when the file
-/// has no `t_s` column); the truth when the record has `true_rate_dps` and `drift_dps`.
-pub fn read_csv(path: &Path, opts: &ReadOptions) -> Result<Input> {
-    let r = Record::read(path, opts)?;
-    Ok(Input {
-        record: (&r).into(),
-        truth: NavRecord::try_from(&r).ok(),
-        has_moving: r.moving.is_some(),
-        format: InputFormat::Csv,
-        t_s_source: if r.t_s_from_rate {
-            "row index / rate_hz (the CSV has no t_s column)"
-        } else {
-            "the CSV's t_s column"
-        },
-        t_s_from_rate: r.t_s_from_rate,
-        bytes: None,
-        fault_lines: 0,
-    })
+    fn new(
+        path: &Path,
+        source: Source,
+        format: InputFormat,
+        columns: Columns,
+        from_rate: bool,
+    ) -> Self {
+        let csv = format == InputFormat::Csv;
+        Self {
+            name: path.display().to_string(),
+            source,
+            ahead: VecDeque::new(),
+            ended: false,
+            format,
+            columns,
+            t_s_source: match (csv, from_rate) {
+                (true, true) => "row index / rate_hz (the CSV has no t_s column)",
+                (true, false) => "the CSV's t_s column",
+                _ => "index / rate_hz (no time stamps in the capture)",
+            },
+            t_s_from_rate: from_rate,
+            fault_lines: 0,
+            read: 0,
+            first_t: None,
+            last_t: None,
+        }
+    }
+
+    /// Reads the next sample from the file (skipping fault lines, counted).
+    fn read_one(&mut self) -> Result<Option<Sample>> {
+        if self.ended {
+            return Ok(None);
+        }
+        let s = loop {
+            let next = match &mut self.source {
+                Source::Csv(rows) => rows.next_row()?.map(|r| Sample {
+                    t_s: r.t_s,
+                    rate_dps: r.rate_dps,
+                    temp_c: r.temp_c,
+                    drift_dps: r.drift_dps,
+                    true_rate_dps: r.true_rate_dps,
+                    moving: r.moving,
+                    still: r.still.flatten(),
+                }),
+                Source::Capture(c) => match c.next_event()? {
+                    None => None,
+                    Some(CaptureEvent::Fault) => {
+                        self.fault_lines += 1;
+                        continue;
+                    }
+                    Some(CaptureEvent::Sample { t_s, rate_dps }) => Some(Sample {
+                        t_s,
+                        rate_dps: f64::from(rate_dps),
+                        temp_c: None,
+                        drift_dps: None,
+                        true_rate_dps: None,
+                        moving: None,
+                        still: None,
+                    }),
+                },
+            };
+            break next;
+        };
+        match s {
+            Some(s) => {
+                self.read += 1;
+                self.first_t.get_or_insert(s.t_s);
+                self.last_t = Some(s.t_s);
+            }
+            None => self.ended = true,
+        }
+        Ok(s)
+    }
+
+    /// Reads up to [`LOOKAHEAD`] samples ahead and returns their mean step, s (the whole
+    /// record's when it is no longer). Refuses a record without a sample.
+    pub fn lookahead_period_s(&mut self) -> Result<f64> {
+        while self.ahead.len() < LOOKAHEAD {
+            match self.read_one()? {
+                Some(s) => self.ahead.push_back(s),
+                None => break,
+            }
+        }
+        if self.ahead.is_empty() {
+            bail!(
+                "{}: {}",
+                self.name,
+                match self.format {
+                    InputFormat::Csv => "no data rows after the header",
+                    _ => "no sample decoded",
+                }
+            );
+        }
+        Ok(self.sample_period_s())
+    }
+
+    /// The next sample; `None` at the end.
+    pub fn next_sample(&mut self) -> Result<Option<Sample>> {
+        match self.ahead.pop_front() {
+            Some(s) => Ok(Some(s)),
+            None => self.read_one(),
+        }
+    }
+
+    /// Mean step of the samples read so far, `(t_last - t_first) / (n - 1)` (1 s below two
+    /// samples): after the end, the whole record's ([`record::mean_step_s`]).
+    pub fn sample_period_s(&self) -> f64 {
+        match (self.first_t, self.last_t) {
+            (Some(a), Some(b)) if self.read > 1 && b > a => (b - a) / (self.read - 1) as f64,
+            _ => 1.0,
+        }
+    }
+
+    /// DSP-3000 fault lines so far (no sample, no output row).
+    pub fn fault_lines(&self) -> u64 {
+        self.fault_lines
+    }
+
+    /// Byte counts of a capture (complete after the end).
+    pub fn bytes(&self) -> Option<BytesSummary> {
+        match &self.source {
+            Source::Capture(c) => c.bytes(),
+            Source::Csv(_) => None,
+        }
+    }
 }

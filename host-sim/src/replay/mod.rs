@@ -3,9 +3,10 @@
 //! - [`motion`]: the default, the motion-safe estimator (an identifier image or the
 //!   built-in untrained one) with the navigator's scores when the record has truth;
 //! - [`stream`]: the level-trend and paper presets, streamed, with the paper's report;
-//! - [`input`]: the record the motion pipeline reads (CSV with any rate column, or a
-//!   decoded capture).
+//! - [`input`]: the record the motion pipeline reads, sample by sample (CSV with any rate
+//!   column, or a decoded capture); [`tally`]: the summary's counts on line.
 
 pub mod input;
 pub mod motion;
 pub mod stream;
+pub mod tally;

@@ -14,11 +14,13 @@
 
 use super::input::{self, Input};
 use super::stream::{self, InputFormat};
-use crate::identify::series::{CsvFiles, Records};
+use super::tally::Tally;
+use crate::identify::series::{CsvFiles, Records, Series};
 use crate::motion::{self, OUTPUT_HEADER};
-use crate::nav::{self, BaselineConfig, Compared, NavRecord};
+use crate::nav::{self, BaselineConfig, Comparer, NavRecord, TruthSample};
 use crate::record;
 use crate::record::{ReadOptions, Record};
+use crate::report::motion::MotionFigures;
 use crate::report::BytesSummary;
 use anyhow::{anyhow, bail, Result};
 use fog_core::image::Image;
@@ -46,6 +48,8 @@ pub struct MotionOptions {
     pub baseline_q: Option<(f64, String)>,
     /// `--validate`: records with truth on which the q is tuned ([`nav::tune_gated_q`]).
     pub validate: Vec<PathBuf>,
+    /// Keep what the report's figures need ([`MotionFigures`]: bounded decimations).
+    pub figures: bool,
 }
 
 /// The sensor configuration as JSON.
@@ -111,7 +115,8 @@ pub struct MotionSummary {
     /// Samples at or beyond the sensor's full scale (possibly saturated input).
     pub at_full_scale: usize,
     /// The record's white noise over the image's, from the median |first difference|
-    /// ([`noise_ratio`]; `None`: not measurable, e.g. a coarse quantum).
+    /// ([`super::tally::DiffMedian::noise_ratio`]; `None`: not measurable, e.g. a coarse
+    /// quantum).
     pub noise_x_image: Option<f64>,
     /// The image reads the temperature ([`uses_temperature`]) but the record has no
     /// `temp_c`: its temperature terms ran at the model's reference (off).
@@ -218,18 +223,13 @@ impl TestSet {
     }
 }
 
-/// A replay's summary and per-sample data (for the report).
+/// A replay's summary and, when asked for ([`MotionOptions::figures`]), its figures'
+/// decimated data (for the report).
 pub struct MotionOutcome {
     /// Summary.
     pub summary: MotionSummary,
-    /// The record read.
-    pub input: Input,
-    /// Drift estimate per sample, deg/s.
-    pub drift_dps: Vec<f64>,
-    /// Still flag per sample.
-    pub still: Vec<bool>,
-    /// Scores and heading errors (records with truth).
-    pub compared: Option<Compared>,
+    /// The report's figures.
+    pub figures: Option<MotionFigures>,
 }
 
 /// The built-in identifier for `sensor`: an untrained model (the gated level alone).
@@ -257,27 +257,6 @@ pub fn release_samples(image: &Image) -> usize {
     (c.still.window_s * c.sensor.sample_rate_hz)
         .round()
         .max(0.0) as usize
-}
-
-/// Trapezoid integral of `rate` over `t`, deg.
-fn angle_deg(t_s: &[f64], rate: impl Iterator<Item = f64>) -> f64 {
-    running_angle_deg(t_s, rate).last().unwrap_or(0.0)
-}
-
-/// The angle at each sample, deg: the trapezoid integral of `rate` (deg/s) over `t_s` from
-/// the first sample (0 there).
-pub(crate) fn running_angle_deg<'a>(
-    t_s: &'a [f64],
-    rate: impl Iterator<Item = f64> + 'a,
-) -> impl Iterator<Item = f64> + 'a {
-    let (mut a, mut prev) = (0.0, None::<(f64, f64)>);
-    t_s.iter().zip(rate).map(move |(&t, r)| {
-        if let Some((t0, r0)) = prev {
-            a += 0.5 * (r0 + r) * (t - t0);
-        }
-        prev = Some((t, r));
-        a
-    })
 }
 
 /// The baselines' q: `--baseline-q`, else tuned on `--validate`, else the identifier's level
@@ -330,26 +309,6 @@ fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
 /// 10; a family spreads 0.5x to 3x, vibration at stops adds up to about 3x more).
 pub const NOISE_WARN: f64 = 10.0;
 
-/// The record's one-sample white noise over the image's: the median |first difference|
-/// (robust to the few large steps of a turn's onset) over `0.6745 sqrt(2)`, against the
-/// sensor's noise plus quantization. `None` when the median is 0 (a coarse quantum or a
-/// stuck output: not measurable this way) or the record is too short.
-pub fn noise_ratio(rate_dps: &[f32], sensor: &SensorConfig) -> Option<f64> {
-    if rate_dps.len() < 16 {
-        return None;
-    }
-    let mut d: Vec<f64> = rate_dps
-        .windows(2)
-        .map(|w| (f64::from(w[1]) - f64::from(w[0])).abs())
-        .filter(|d| d.is_finite())
-        .collect();
-    let mid = d.len() / 2;
-    let (_, m, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
-    let sigma = *m / (0.674_49 * std::f64::consts::SQRT_2);
-    let image = f64::from(sensor.sample_var_dps2()).sqrt();
-    (sigma > 0.0 && image > 0.0).then(|| sigma / image)
-}
-
 /// Whether `image` reads the temperature: the unit's own temperature link
 /// ([`Arrangement::DualThermal`]) or a model term on the temperature or its rate (inputs 1
 /// and 2) with a nonzero weight.
@@ -369,33 +328,72 @@ pub fn uses_temperature(image: &Image) -> bool {
             })
 }
 
-/// Replays `input` into `output` (atomically; nothing written on any error).
+/// The image `o` names (checked against `--sensor`), with its name for messages.
+fn file_image(o: &MotionOptions) -> Result<Option<(Image, String)>> {
+    let Some(p) = &o.identifier else {
+        return Ok(None);
+    };
+    let im = motion::read_image(p)?;
+    // The file fixes what the stream is (rate, full scale, quantum); the image's noise and
+    // drift bound were learned from the calibration runs.
+    let differs = |s: SensorConfig| {
+        let i = im.config.sensor;
+        (s.sample_rate_hz, s.full_scale_dps, s.quantum_dps)
+            != (i.sample_rate_hz, i.full_scale_dps, i.quantum_dps)
+    };
+    if o.sensor.is_some_and(differs) {
+        bail!(
+            "{}: its sensor (rate, full scale, quantum) differs from --sensor; leave --sensor out",
+            p.display()
+        );
+    }
+    Ok(Some((im, p.display().to_string())))
+}
+
+/// The image to run: `file` or the built-in one for `--sensor` or for the record's rate
+/// `hz`; checked against `hz`.
+fn image_for(
+    file: Option<(Image, String)>,
+    o: &MotionOptions,
+    input: &Path,
+    hz: f32,
+) -> Result<(Image, String)> {
+    let (image, identifier) = match file {
+        Some(f) => f,
+        None => {
+            let (sensor, how) = match o.sensor {
+                Some(s) => (s, "--sensor"),
+                None => (sensor_for_rate(hz), "picked by the record's rate"),
+            };
+            (
+                builtin_image(sensor)?,
+                format!(
+                    "built-in: untrained model (gated random-walk level with the stillness detector), sensor {} Hz / {} deg/s ({how})",
+                    sensor.sample_rate_hz, sensor.full_scale_dps
+                ),
+            )
+        }
+    };
+    image.check_rate(hz).map_err(|e| {
+        anyhow!(
+            "{}: {e} ({}; give --sensor or an identifier for this rate)",
+            identifier,
+            input.display()
+        )
+    })?;
+    Ok((image, identifier))
+}
+
+/// Replays `input` into `output` (atomically; nothing written on any error), streaming:
+/// memory stays bounded whatever the record's length (the rate's look-ahead
+/// [`input::LOOKAHEAD`], the report's decimations; module docs).
 pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOutcome> {
     let mut inputs = vec![input];
     if let Some(id) = &o.identifier {
         inputs.push(id);
     }
     record::refuse_overwrite_all(&inputs, &[output])?;
-    let file_image = match &o.identifier {
-        Some(p) => {
-            let im = motion::read_image(p)?;
-            // The file fixes what the stream is (rate, full scale, quantum); the image's
-            // noise and drift bound were learned from the calibration runs.
-            let differs = |s: SensorConfig| {
-                let i = im.config.sensor;
-                (s.sample_rate_hz, s.full_scale_dps, s.quantum_dps)
-                    != (i.sample_rate_hz, i.full_scale_dps, i.quantum_dps)
-            };
-            if o.sensor.is_some_and(differs) {
-                bail!(
-                    "{}: its sensor (rate, full scale, quantum) differs from --sensor; leave --sensor out",
-                    p.display()
-                );
-            }
-            Some((im, p.display().to_string()))
-        }
-        None => None,
-    };
+    let file_image = file_image(o)?;
     let decode_sensor = file_image
         .as_ref()
         .map(|f| f.0.config.sensor)
@@ -412,7 +410,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
     if sopts.full_scale_dps == 0.0 {
         sopts.full_scale_dps = decode_sensor.full_scale_dps;
     }
-    let rec = input::read(input, &sopts, &o.csv)?;
+    let mut rec = Input::open(input, &sopts, &o.csv)?;
     // A CSV without time stamps has no rate of its own: it must be stated (an identifier's
     // rate would pass the rate check below by construction, whatever the record's is).
     if rec.format == InputFormat::Csv
@@ -427,44 +425,40 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
             if o.identifier.is_some() { "the identifier" } else { "the default sensor" }
         );
     }
-    let s = &rec.record;
-    let hz = (1.0 / s.sample_period_s()) as f32;
-    let (image, identifier) = match file_image {
-        Some(f) => f,
-        None => {
-            let (sensor, how) = match o.sensor {
-                Some(s) => (s, "--sensor"),
-                None => (sensor_for_rate(hz), "picked by the record's rate"),
-            };
-            (
-                builtin_image(sensor)?,
-                format!(
-                    "built-in: untrained model (gated random-walk level with the stillness detector), sensor {} Hz / {} deg/s ({how})",
-                    sensor.sample_rate_hz, sensor.full_scale_dps
-                ),
-            )
-        }
-    };
+    let hz_ahead = (1.0 / rec.lookahead_period_s()?) as f32;
+    let (image, identifier) = image_for(file_image, o, input, hz_ahead)?;
     let sensor = image.config.sensor;
-    image.check_rate(hz).map_err(|e| {
-        anyhow!(
-            "{}: {e} ({}; give --sensor or an identifier for this rate)",
-            identifier,
-            input.display()
-        )
-    })?;
     let mut est = image
         .estimator()
         .map_err(|e| anyhow!("{identifier}: {e}"))?;
-    let out = motion::run(&mut est, &rec.record);
+    est.restart();
+    let cols = rec.columns;
+    let mut cmp = if cols.truth {
+        Some(Comparer::new(
+            "motion identifier",
+            cols.moving,
+            baseline_config(o, &image)?,
+        ))
+    } else {
+        None
+    };
+    let mut figs = o.figures.then(|| {
+        let rows = cmp.as_ref().map_or(&[][..], |c| &c.labels()[..]);
+        MotionFigures::new(rows, cols.moving)
+    });
+    let mut tally = Tally::new(sensor.full_scale_dps);
     record::write_atomic(output, |w| {
         writeln!(w, "{OUTPUT_HEADER}")?;
-        for (k, m) in out.iter().enumerate() {
+        while let Some(x) = rec.next_sample()? {
+            let rate = x.rate_dps as f32;
+            let temp = x.temp_c.map_or(f32::NAN, |t| t as f32);
+            let m = motion::push_row(&mut est, rate, temp, x.still);
             writeln!(
                 w,
-                "{k},{},{},,{},{},{},{},{},{}",
-                s.t_s[k],
-                s.rate_dps[k],
+                "{},{},{},,{},{},{},{},{},{}",
+                tally.rows,
+                x.t_s,
+                rate,
                 m.drift_dps,
                 m.compensated_dps,
                 u8::from(m.still),
@@ -472,23 +466,36 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
                 m.model_dps,
                 u8::from(m.verified)
             )?;
+            tally.push(x.t_s, rate, &m);
+            let drift = f64::from(m.drift_dps);
+            let heading = cmp.as_mut().map(|c| {
+                let truth = TruthSample {
+                    t_s: x.t_s,
+                    rate_dps: x.rate_dps,
+                    temp_c: x.temp_c,
+                    true_rate_dps: x.true_rate_dps.unwrap_or(f64::NAN),
+                    drift_dps: x.drift_dps.unwrap_or(f64::NAN),
+                    moving: x.moving.unwrap_or(false),
+                };
+                c.push(&truth, drift, m.still)
+            });
+            if let Some(f) = figs.as_mut() {
+                let h = heading.as_ref().map_or(&[][..], |h| &h[..]);
+                f.push(x.t_s, x.rate_dps, drift, m.still, x.drift_dps, x.moving, h);
+            }
         }
-        Ok(())
+        // The whole record's rate (the estimator started on the look-ahead's).
+        let hz = (1.0 / rec.sample_period_s()) as f32;
+        image.check_rate(hz).map_err(|e| {
+            anyhow!(
+                "{}: over the whole record: {e} (the first {} samples gave {hz_ahead} Hz)",
+                input.display(),
+                input::LOOKAHEAD
+            )
+        })
     })?;
-    let drift_dps: Vec<f64> = out.iter().map(|m| f64::from(m.drift_dps)).collect();
-    let still: Vec<bool> = out.iter().map(|m| m.still).collect();
-    let fs = sensor.full_scale_dps;
-    let compared = match &rec.truth {
-        Some(t) => Some(nav::compare(
-            t,
-            "motion identifier",
-            &drift_dps,
-            &still,
-            rec.has_moving,
-            baseline_config(o, &image)?,
-        )),
-        None => None,
-    };
+    let hz = (1.0 / rec.sample_period_s()) as f32;
+    let scores = cmp.map(Comparer::finish);
     let summary = MotionSummary {
         input: input.display().to_string(),
         format: rec.format.name(),
@@ -502,35 +509,29 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         t_s_source: rec.t_s_source,
         rate_column: (rec.format == InputFormat::Csv).then(|| o.csv.rate_column.clone()),
         rate_scale: o.csv.rate_scale,
-        rows: out.len(),
-        at_full_scale: s.rate_dps.iter().filter(|r| r.abs() >= fs).count(),
-        temperature_missing: s.temp_c.is_none() && uses_temperature(&image),
-        noise_x_image: noise_ratio(&s.rate_dps, &sensor),
-        max_abs_rate_dps: s.rate_dps.iter().fold(0.0f32, |a, r| a.max(r.abs())),
-        still_rows: still.iter().filter(|&&b| b).count(),
-        unverified_rows: out.iter().filter(|m| !m.verified).count(),
+        rows: tally.rows,
+        at_full_scale: tally.at_full_scale,
+        temperature_missing: !cols.temp_c && uses_temperature(&image),
+        noise_x_image: tally.noise.noise_ratio(&sensor),
+        max_abs_rate_dps: tally.max_abs_rate_dps,
+        still_rows: tally.still_rows,
+        unverified_rows: tally.unverified_rows,
         noise_learned_deg_rth: (f64::from(est.rest().noise_var_dps2()) / f64::from(hz)).sqrt()
             * 60.0,
         noise_image_deg_rth: f64::from(sensor.noise_density_dps_rthz) * 60.0,
         level_updates: est.stats().level_updates,
-        max_abs_drift_dph: drift_dps.iter().fold(0.0f64, |a, d| a.max(d.abs())) * 3600.0,
-        raw_angle_end_deg: angle_deg(&s.t_s, s.rate_dps.iter().map(|&r| f64::from(r))),
-        compensated_angle_end_deg: angle_deg(
-            &s.t_s,
-            out.iter().map(|m| f64::from(m.compensated_dps)),
-        ),
-        fault_lines: rec.fault_lines,
-        bytes: rec.bytes.clone(),
-        scores: compared.as_ref().map(|c| c.table.clone()),
+        max_abs_drift_dph: tally.max_abs_drift_dps * 3600.0,
+        raw_angle_end_deg: tally.raw.deg(),
+        compensated_angle_end_deg: tally.compensated.deg(),
+        fault_lines: rec.fault_lines(),
+        bytes: rec.bytes(),
+        scores,
         test_set: None,
         level_tuning: None,
     };
     Ok(MotionOutcome {
         summary,
-        input: rec,
-        drift_dps,
-        still,
-        compared,
+        figures: figs,
     })
 }
 
@@ -631,28 +632,43 @@ pub struct ValidationScores {
     pub mean_heading_rms_deg: Vec<(String, f64)>,
 }
 
-/// The CSV record `p` at `image`'s sample rate, with its truth taken out; refused, naming
-/// the file, without truth (`true_rate_dps` and `drift_dps`) or at another rate.
-pub fn read_truth_csv(image: &Image, p: &Path) -> Result<(Input, NavRecord)> {
+/// A record with truth read whole (validation records: `identify --validate`).
+pub struct TruthRecord {
+    /// What the estimator runs on.
+    pub series: Series,
+    /// The truth.
+    pub truth: NavRecord,
+    /// The record has a `moving` column.
+    pub moving_known: bool,
+}
+
+/// The CSV record `p` at `image`'s sample rate, with its truth; refused, naming the file,
+/// without truth (`true_rate_dps` and `drift_dps`) or at another rate.
+pub fn read_truth_csv(image: &Image, p: &Path) -> Result<TruthRecord> {
     let rate_hz = f64::from(image.config.sensor.sample_rate_hz);
-    let mut r = input::read_csv(
+    let r = Record::read(
         p,
         &ReadOptions {
             rate_hz: Some(rate_hz),
             ..ReadOptions::default()
         },
     )?;
-    let Some(truth) = r.truth.take() else {
+    if r.true_rate_dps.is_none() || r.drift_dps.is_none() {
         bail!(
             "{}: no truth (`true_rate_dps` and `drift_dps`): cannot score",
             p.display()
         );
-    };
-    let hz = (1.0 / r.record.sample_period_s()) as f32;
+    }
+    let truth = NavRecord::try_from(&r)?;
+    let hz = (1.0 / r.sample_period_s()) as f32;
     image
         .check_rate(hz)
         .map_err(|e| anyhow!("{}: {e}", p.display()))?;
-    Ok((r, truth))
+    Ok(TruthRecord {
+        series: (&r).into(),
+        truth,
+        moving_known: r.moving.is_some(),
+    })
 }
 
 /// Runs `image` over each record with truth in `paths` (files or folders) and scores it
@@ -666,9 +682,7 @@ pub fn score_records(
     let files = CsvFiles::from_args(paths, &ReadOptions::default())?;
     let mut recs = Vec::new();
     for p in &files.0 {
-        let (r, truth) = read_truth_csv(image, p)?;
-        let moving = r.has_moving;
-        recs.push((p.display().to_string(), r, truth, moving));
+        recs.push((p.display().to_string(), read_truth_csv(image, p)?));
     }
     let r_dps2 = f64::from(image.config.sensor.sample_var_dps2());
     let cfg = match baseline_q {
@@ -679,7 +693,7 @@ pub fn score_records(
             release_samples: release_samples(image),
         },
         None => {
-            let truths: Vec<NavRecord> = recs.iter().map(|r| r.2.clone()).collect();
+            let truths: Vec<NavRecord> = recs.iter().map(|r| r.1.truth.clone()).collect();
             let t = nav::tune_gated_q(&truths, r_dps2, &nav::log_grid(1e-18, 1e-8, 2))
                 .ok_or_else(|| anyhow!("--validate: no record"))?;
             BaselineConfig {
@@ -694,12 +708,19 @@ pub fn score_records(
         }
     };
     let mut out = Vec::new();
-    for (name, r, t, moving) in &recs {
+    for (name, r) in &recs {
         let mut est = image.estimator().map_err(|e| anyhow!("{name}: {e}"))?;
-        let o = motion::run(&mut est, &r.record);
+        let o = motion::run(&mut est, &r.series);
         let drift: Vec<f64> = o.iter().map(|m| f64::from(m.drift_dps)).collect();
         let still: Vec<bool> = o.iter().map(|m| m.still).collect();
-        let c = nav::compare(t, "motion identifier", &drift, &still, *moving, cfg.clone());
+        let c = nav::compare(
+            &r.truth,
+            "motion identifier",
+            &drift,
+            &still,
+            r.moving_known,
+            cfg.clone(),
+        );
         out.push(RecordScores {
             record: name.clone(),
             scores: c.table,

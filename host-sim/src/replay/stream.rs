@@ -377,54 +377,76 @@ impl Source {
     }
 }
 
-/// A binary or ASCII capture decoded whole (for the motion preset, which reads the record
-/// before running it): one entry per delivered sample, fault lines excluded.
-#[derive(Debug, Clone)]
-pub struct Decoded {
-    /// The format read (never `Auto`).
-    pub format: InputFormat,
-    /// `index / rate_hz`, s (the index counts fault lines: they hold a slot).
-    pub t_s: Vec<f64>,
-    /// Rate, deg/s.
-    pub rate_dps: Vec<f32>,
-    /// DSP-3000 fault lines (no sample).
-    pub fault_lines: u64,
-    /// Byte counts (None for CSV).
-    pub bytes: Option<BytesSummary>,
+/// One event of a capture read by [`Capture`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CaptureEvent {
+    /// A delivered sample: `t_s = index / rate_hz` (the index counts fault lines: they hold
+    /// a slot), rate in deg/s.
+    Sample {
+        /// Seconds.
+        t_s: f64,
+        /// deg/s.
+        rate_dps: f32,
+    },
+    /// A DSP-3000 fault line: a slot without a sample.
+    Fault,
 }
 
-/// Decodes `input` (E-Core frames with `opts.full_scale_dps`, or DSP-3000 lines) into
-/// memory. CSV input is refused here: it has its own reader with the truth columns
-/// ([`super::input`]).
-pub fn decode(input: &Path, opts: &Options) -> Result<Decoded> {
-    let (mut src, format, _) = open_source(input, opts)?;
-    if matches!(src, Source::Csv(_)) {
-        bail!("{}: a CSV record, not a capture", input.display());
+/// A binary or ASCII capture (E-Core frames or DSP-3000 lines) read sample by sample in
+/// constant memory. CSV input is refused here: it has its own reader with the truth columns
+/// ([`record::Rows`]).
+pub struct Capture {
+    src: Source,
+    format: InputFormat,
+    rate_hz: f64,
+    index: u64,
+}
+
+impl Capture {
+    /// Opens `input` (format from `opts.format` or sniffed; E-Core full scale and the rate
+    /// that gives `t_s` from `opts`).
+    pub fn open(input: &Path, opts: &Options) -> Result<Self> {
+        let (src, format, _) = open_source(input, opts)?;
+        if matches!(src, Source::Csv(_)) {
+            bail!("{}: a CSV record, not a capture", input.display());
+        }
+        Ok(Self {
+            src,
+            format,
+            rate_hz: opts.rate_hz,
+            index: 0,
+        })
     }
-    let (mut t_s, mut rate_dps, mut faults, mut index) = (Vec::new(), Vec::new(), 0u64, 0u64);
-    while let Some(ev) = src.next()? {
-        let k = index;
-        index += 1;
-        match ev {
-            Event::Fault => faults += 1,
-            Event::Sample { rate_dps: r, .. } => {
-                t_s.push(k as f64 / opts.rate_hz);
-                rate_dps.push(r);
-            }
+
+    /// The format read (never `Auto` or `Csv`).
+    pub fn format(&self) -> InputFormat {
+        self.format
+    }
+
+    /// The next event; `None` at the end of the file.
+    pub fn next_event(&mut self) -> Result<Option<CaptureEvent>> {
+        let Some(ev) = self.src.next()? else {
+            return Ok(None);
+        };
+        let k = self.index;
+        self.index += 1;
+        Ok(Some(match ev {
+            Event::Fault => CaptureEvent::Fault,
+            Event::Sample { rate_dps, .. } => CaptureEvent::Sample {
+                t_s: k as f64 / self.rate_hz,
+                rate_dps,
+            },
+        }))
+    }
+
+    /// Byte and frame counts so far (complete at the end of the file).
+    pub fn bytes(&self) -> Option<BytesSummary> {
+        match &self.src {
+            Source::Ecore(s) => Some(s.summary()),
+            Source::Dsp(s) => Some(s.summary()),
+            Source::Csv(_) => None,
         }
     }
-    let bytes = match &src {
-        Source::Ecore(s) => Some(s.summary()),
-        Source::Dsp(s) => Some(s.summary()),
-        Source::Csv(_) => None,
-    };
-    Ok(Decoded {
-        format,
-        t_s,
-        rate_dps,
-        fault_lines: faults,
-        bytes,
-    })
 }
 
 /// Guesses the format from the first bytes (see the module docs); gzip data is a

@@ -3,7 +3,7 @@
 //! Axis ticks are written with as many decimals as the tick spacing needs (at most 6
 //! significant after the point), so a tick reads `0.25`, `-1.5` or `120`, never
 //! `6.939e-18`: a value within a millionth of a tick step of 0 is written `0`. Time is in
-//! s for records up to 20 min, in min beyond.
+//! s for records up to 20 min, in min beyond ([`time_axis`], every time plot of a report).
 
 use super::decimate::MinMax;
 use anyhow::{anyhow, Result};
@@ -13,10 +13,21 @@ use plotters::prelude::*;
 pub struct HeadingSeries<'a> {
     /// Legend label, e.g. `gated Kalman (q 1e-10)`.
     pub label: &'a str,
-    /// Sample times, s.
-    pub t_s: &'a [f64],
-    /// Heading error at each time, deg.
-    pub heading_deg: &'a [f64],
+    /// Heading error over time (s), deg, decimated.
+    pub heading_deg: &'a MinMax,
+}
+
+/// Longest record whose time axis is in seconds, s; beyond, minutes.
+pub const SECONDS_AXIS_MAX_S: f64 = 1200.0;
+
+/// Time axis of a record ending at `t_end_s`: the factor from seconds and the unit's name
+/// (s up to [`SECONDS_AXIS_MAX_S`], min beyond).
+pub fn time_axis(t_end_s: f64) -> (f64, &'static str) {
+    if t_end_s > SECONDS_AXIS_MAX_S {
+        (1.0 / 60.0, "min")
+    } else {
+        (1.0, "s")
+    }
 }
 
 const COLOURS: [RGBColor; 6] = [
@@ -54,24 +65,85 @@ pub fn tick_label(v: f64, step: f64) -> String {
     }
 }
 
-/// Still spans `(start s, end s)` from per-sample times and still flags.
-pub fn still_spans(t_s: &[f64], still: &[bool]) -> Vec<(f64, f64)> {
-    let mut spans = Vec::new();
-    let mut start = None;
-    for (i, (&t, &s)) in t_s.iter().zip(still).enumerate() {
-        match (s, start) {
-            (true, None) => start = Some(t),
+/// The y range `lo..hi` raised so that a legend of `entries` lines in an upper corner sits
+/// above every curve: the data keep the lower part of the plot. ASSUMED: about 20 px per
+/// legend line (plotters' default font) in the about 375-px plot area of a 480-px figure.
+pub(super) fn with_legend_room(lo: f64, hi: f64, entries: usize) -> (f64, f64) {
+    let frac = ((entries as f64 * 20.0 + 16.0) / 375.0).min(0.6);
+    (lo, lo + (hi - lo) / (1.0 - frac))
+}
+
+/// Still spans `(start s, end s)` from a stream of times and still flags, in bounded memory:
+/// a span runs from its first still sample to its last; when there would be more than
+/// `capacity` spans, neighbours are joined in pairs (the gap between them shaded too), so a
+/// detector that flickers on a long record still draws at most `capacity` rectangles.
+#[derive(Debug, Clone)]
+pub struct Spans {
+    capacity: usize,
+    spans: Vec<(f64, f64)>,
+    open: Option<f64>,
+    last_t: f64,
+}
+
+/// Default number of spans kept: [`super::decimate::DEFAULT_BUCKETS`].
+impl Default for Spans {
+    fn default() -> Self {
+        Self::new(super::decimate::DEFAULT_BUCKETS)
+    }
+}
+
+impl Spans {
+    /// At most `capacity` (at least 2) spans.
+    pub fn new(capacity: usize) -> Self {
+        Self {
+            capacity: capacity.max(2),
+            spans: Vec::new(),
+            open: None,
+            last_t: f64::NAN,
+        }
+    }
+
+    /// One sample at `t_s`, still or not.
+    pub fn push(&mut self, t_s: f64, still: bool) {
+        match (still, self.open) {
+            (true, None) => self.open = Some(t_s),
             (false, Some(t0)) => {
-                spans.push((t0, t_s[i.saturating_sub(1)].max(t0)));
-                start = None;
+                self.close((t0, self.last_t.max(t0)));
+                self.open = None;
             }
             _ => {}
         }
+        self.last_t = t_s;
     }
-    if let (Some(t0), Some(&t1)) = (start, t_s.last()) {
-        spans.push((t0, t1));
+
+    fn close(&mut self, span: (f64, f64)) {
+        if self.spans.len() == self.capacity {
+            self.spans = self
+                .spans
+                .chunks(2)
+                .map(|c| (c[0].0, c[c.len() - 1].1))
+                .collect();
+        }
+        self.spans.push(span);
     }
-    spans
+
+    /// The spans so far, the open one closed at the last sample.
+    pub fn spans(&self) -> Vec<(f64, f64)> {
+        let mut out = self.spans.clone();
+        if let Some(t0) = self.open {
+            out.push((t0, self.last_t.max(t0)));
+        }
+        out
+    }
+}
+
+/// Still spans of whole per-sample times and flags ([`Spans`]).
+pub fn still_spans(t_s: &[f64], still: &[bool]) -> Vec<(f64, f64)> {
+    let mut s = Spans::new(usize::MAX);
+    for (&t, &f) in t_s.iter().zip(still) {
+        s.push(t, f);
+    }
+    s.spans()
 }
 
 /// SVG of the heading error (deg) of each series over time, `still_spans_s` shaded
@@ -94,23 +166,17 @@ pub fn heading_error_svg_labelled(
     let err = |e: String| anyhow!("SVG plot `{title}`: {e}");
     let t_end = series
         .iter()
-        .filter_map(|s| s.t_s.last())
-        .fold(0.0f64, |a, &b| a.max(b));
-    let (t_scale, t_unit) = if t_end > 1200.0 {
-        (1.0 / 60.0, "min")
-    } else {
-        (1.0, "s")
-    };
+        .filter_map(|s| s.heading_deg.points().last().map(|p| p.0))
+        .fold(0.0f64, f64::max);
+    let (t_scale, t_unit) = time_axis(t_end);
     let pts: Vec<Vec<(f64, f64)>> = series
         .iter()
         .map(|s| {
-            let mut mm = MinMax::new(super::decimate::DEFAULT_BUCKETS);
-            for (&t, &h) in s.t_s.iter().zip(s.heading_deg) {
-                if h.is_finite() {
-                    mm.push(t * t_scale, h);
-                }
-            }
-            mm.points()
+            s.heading_deg
+                .points()
+                .into_iter()
+                .map(|(t, h)| (t * t_scale, h))
+                .collect()
         })
         .collect();
     let all = || pts.iter().flatten();
@@ -129,6 +195,7 @@ pub fn heading_error_svg_labelled(
     } else {
         (-1.0, 1.0)
     };
+    let (y_lo, y_hi) = with_legend_room(y_lo, y_hi, series.len() + 1);
     let (x_step, y_step) = ((t_hi - t_lo) / 10.0, (y_hi - y_lo) / 10.0);
     let mut out = String::new();
     {
@@ -203,19 +270,43 @@ mod tests {
     }
 
     #[test]
+    fn spans_stay_bounded_and_cover_every_still_sample() {
+        let mut sp = Spans::new(8);
+        let flags: Vec<bool> = (0..1000).map(|i| i % 7 < 3).collect();
+        for (i, &f) in flags.iter().enumerate() {
+            sp.push(i as f64, f);
+        }
+        let spans = sp.spans();
+        assert!(spans.len() <= 9, "{}", spans.len());
+        assert!(spans.windows(2).all(|w| w[0].1 < w[1].0), "{spans:?}");
+        for (i, &f) in flags.iter().enumerate() {
+            let t = i as f64;
+            if f {
+                assert!(spans.iter().any(|&(a, b)| a <= t && t <= b), "{t}");
+            }
+        }
+    }
+
+    #[test]
     fn svg_has_readable_axes_legend_and_shading() {
         let t: Vec<f64> = (0..3000).map(|i| i as f64).collect(); // 50 min -> minutes
         let a: Vec<f64> = t.iter().map(|x| 1e-3 * x).collect();
         let b: Vec<f64> = t.iter().map(|x| -2e-4 * x + 1e-17).collect();
+        let decimated = |v: &[f64]| {
+            let mut m = MinMax::default();
+            for (&t, &h) in t.iter().zip(v) {
+                m.push(t, h);
+            }
+            m
+        };
+        let (a, b) = (decimated(&a), decimated(&b));
         let series = [
             HeadingSeries {
                 label: "none",
-                t_s: &t,
                 heading_deg: &a,
             },
             HeadingSeries {
                 label: "gated Kalman",
-                t_s: &t,
                 heading_deg: &b,
             },
         ];

@@ -27,7 +27,8 @@ pub mod motion;
 mod plots;
 
 pub use heading::{
-    heading_error_svg, heading_error_svg_labelled, still_spans, tick_label, HeadingSeries,
+    heading_error_svg, heading_error_svg_labelled, still_spans, tick_label, time_axis,
+    HeadingSeries, Spans,
 };
 
 use crate::allan::{self, edf, Taus};

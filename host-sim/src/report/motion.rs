@@ -12,13 +12,13 @@
 //!   the figures inlined).
 
 use super::decimate::MinMax;
-use super::heading::{heading_error_svg_labelled, still_spans, HeadingSeries};
+use super::heading::{heading_error_svg_labelled, HeadingSeries, Spans};
 use super::html::{esc, inline_svg};
 use super::plots::{time_plot, Line, GREY, RED_};
 use super::{write_text, DPH_PER_DPS};
 use crate::nav;
 use crate::record;
-use crate::replay::motion::{running_angle_deg, MotionOutcome, MotionSummary};
+use crate::replay::motion::{MotionOutcome, MotionSummary};
 use anyhow::{Context, Result};
 use plotters::style::{RGBColor, BLACK};
 use std::fmt::Write;
@@ -26,82 +26,143 @@ use std::path::{Path, PathBuf};
 
 const BLUE_: RGBColor = RGBColor(31, 119, 180);
 
+/// Trapezoid integral of a stream of `(t_s, rate_dps)`, deg.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Angle {
+    deg: f64,
+    prev: Option<(f64, f64)>,
+}
+
+impl Angle {
+    /// Adds one sample; returns the angle at it (0 at the first sample), deg.
+    pub fn push(&mut self, t_s: f64, rate_dps: f64) -> f64 {
+        if let Some((t0, r0)) = self.prev {
+            self.deg += 0.5 * (r0 + rate_dps) * (t_s - t0);
+        }
+        self.prev = Some((t_s, rate_dps));
+        self.deg
+    }
+
+    /// The angle at the last sample, deg.
+    pub fn deg(&self) -> f64 {
+        self.deg
+    }
+}
+
+/// What the report's figures keep while a record streams through the motion replay:
+/// min/max decimations ([`MinMax`]) and still spans ([`Spans`]), bounded whatever the
+/// record's length.
+#[derive(Debug, Clone, Default)]
+pub struct MotionFigures {
+    /// Heading error per scored row (no compensation left out), deg: label and series.
+    heading: Vec<(String, MinMax)>,
+    /// Still spans: the truth's `!moving` when known, else the detector's calls.
+    spans: Spans,
+    spans_from_truth: bool,
+    drift: MinMax,
+    truth: MinMax,
+    rate: MinMax,
+    comp: MinMax,
+    corr: MinMax,
+    corr_truth: MinMax,
+    corr_angle: Angle,
+    corr_truth_angle: Angle,
+}
+
+impl MotionFigures {
+    /// Empty figures; `scored_rows`: the score table's row labels (none without truth),
+    /// `moving_known`: the record has a `moving` column.
+    pub fn new(scored_rows: &[String], moving_known: bool) -> Self {
+        Self {
+            heading: scored_rows
+                .iter()
+                .map(|l| (l.clone(), MinMax::default()))
+                .collect(),
+            spans_from_truth: moving_known,
+            ..Self::default()
+        }
+    }
+
+    /// One sample: time, measured rate, the identifier's drift estimate (deg/s) and still
+    /// call, the true drift and `moving` when known, each scored row's heading error (deg,
+    /// in the labels' order; empty without truth).
+    #[allow(clippy::too_many_arguments)]
+    pub fn push(
+        &mut self,
+        t_s: f64,
+        rate_dps: f64,
+        drift_dps: f64,
+        still: bool,
+        true_drift_dps: Option<f64>,
+        moving: Option<bool>,
+        heading_deg: &[f64],
+    ) {
+        for ((_, m), &h) in self.heading.iter_mut().zip(heading_deg) {
+            m.push(t_s, h);
+        }
+        let shaded = match (self.spans_from_truth, moving) {
+            (true, Some(m)) => !m,
+            _ => still,
+        };
+        self.spans.push(t_s, shaded);
+        self.drift.push(t_s, drift_dps);
+        self.rate.push(t_s, rate_dps);
+        self.comp.push(t_s, rate_dps - drift_dps);
+        self.corr.push(t_s, self.corr_angle.push(t_s, drift_dps));
+        if let Some(d) = true_drift_dps {
+            self.truth.push(t_s, d);
+            self.corr_truth
+                .push(t_s, self.corr_truth_angle.push(t_s, d));
+        }
+    }
+}
+
 /// The figures: `(file name, SVG, caption)`.
-pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)>> {
-    let s = &out.input.record;
-    let name = &out.summary.input;
+pub fn figures(
+    f: &MotionFigures,
+    summary: &MotionSummary,
+) -> Result<Vec<(&'static str, String, String)>> {
+    let name = &summary.input;
     let mut figs = Vec::new();
-    if let (Some(c), Some(t)) = (&out.compared, &out.input.truth) {
-        let series: Vec<HeadingSeries<'_>> = c
-            .table
-            .rows
+    if summary.scores.is_some() {
+        let series: Vec<HeadingSeries<'_>> = f
+            .heading
             .iter()
-            .zip(&c.heading_deg)
             // No compensation is in the table; drawn, its error (degrees) would flatten
             // the others (tenths of a degree) to the axis.
-            .filter(|(r, _)| r.name != nav::NO_COMPENSATION)
-            .map(|(r, h)| HeadingSeries {
-                label: &r.name,
-                t_s: &t.t_s,
+            .filter(|(label, _)| label != nav::NO_COMPENSATION)
+            .map(|(label, h)| HeadingSeries {
+                label,
                 heading_deg: h,
             })
             .collect();
-        let (spans, label) = if c.table.moving_known {
-            (still_spans(&t.t_s, &t.still_truth()), "still (truth)")
+        let label = if f.spans_from_truth {
+            "still (truth)"
         } else {
-            (still_spans(&t.t_s, &out.still), "still (detector)")
+            "still (detector)"
         };
         figs.push((
             "heading_error.svg",
-            heading_error_svg_labelled(&format!("Heading error: {name}"), &series, &spans, label)?,
+            heading_error_svg_labelled(
+                &format!("Heading error: {name}"),
+                &series,
+                &f.spans.spans(),
+                label,
+            )?,
             "Heading error = integral of (compensated - true rate), deg, for the identifier \
              and the causal baselines (same still flags; no compensation is in the table \
              only); shaded: still periods."
                 .to_string(),
         ));
     }
-    let (mut drift, mut truth, mut rate, mut comp) = (
-        MinMax::default(),
-        MinMax::default(),
-        MinMax::default(),
-        MinMax::default(),
-    );
-    for (k, &t) in s.t_s.iter().enumerate() {
-        let d = out.drift_dps.get(k).copied().unwrap_or(0.0);
-        drift.push(t, d);
-        let r = f64::from(s.rate_dps[k]);
-        rate.push(t, r);
-        comp.push(t, r - d);
-        if let Some(tr) = s.drift_dps.as_ref().and_then(|v| v.get(k)) {
-            truth.push(t, f64::from(*tr));
-        }
-    }
-    // Heading the compensation removes (and the true drift's), deg.
-    let (mut corr, mut corr_truth) = (MinMax::default(), MinMax::default());
-    let drift_k = |k: usize| out.drift_dps.get(k).copied().unwrap_or(0.0);
-    for (&t, a) in s
-        .t_s
-        .iter()
-        .zip(running_angle_deg(&s.t_s, (0..s.t_s.len()).map(drift_k)))
-    {
-        corr.push(t, a);
-    }
-    if let Some(tr) = &s.drift_dps {
-        for (&t, a) in s
-            .t_s
-            .iter()
-            .zip(running_angle_deg(&s.t_s, tr.iter().map(|&x| f64::from(x))))
-        {
-            corr_truth.push(t, a);
-        }
-    }
+    let has_truth = !f.truth.is_empty();
     let mut lines = Vec::new();
-    if s.drift_dps.is_some() {
+    if has_truth {
         lines.push(Line {
             label: "true drift",
             colour: BLACK,
             width: 1,
-            data: &truth,
+            data: &f.truth,
             scale: DPH_PER_DPS,
         });
     }
@@ -109,7 +170,7 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
         label: "drift estimate (motion identifier)",
         colour: RED_,
         width: 2,
-        data: &drift,
+        data: &f.drift,
         scale: DPH_PER_DPS,
     });
     figs.push((
@@ -117,16 +178,16 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
         time_plot(&format!("Drift estimate: {name}"), "drift (deg/h)", &lines)?,
         format!(
             "The drift the identifier subtracts, deg/h (bound +-{:.1} deg/h from the sensor configuration).",
-            out.summary.sensor.drift_bound_dph
+            summary.sensor.drift_bound_dph
         ),
     ));
     let mut lines = Vec::new();
-    if s.drift_dps.is_some() {
+    if has_truth {
         lines.push(Line {
             label: "integral of the true drift",
             colour: BLACK,
             width: 1,
-            data: &corr_truth,
+            data: &f.corr_truth,
             scale: 1.0,
         });
     }
@@ -134,7 +195,7 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
         label: "heading correction (motion identifier)",
         colour: RED_,
         width: 2,
-        data: &corr,
+        data: &f.corr,
         scale: 1.0,
     });
     figs.push((
@@ -146,7 +207,7 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
         )?,
         format!(
             "The integral of the drift estimate, deg: raw angle minus compensated angle ({:.4} deg at the end).",
-            out.summary.raw_angle_end_deg - out.summary.compensated_angle_end_deg
+            summary.raw_angle_end_deg - summary.compensated_angle_end_deg
         ),
     ));
     figs.push((
@@ -159,14 +220,14 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
                     label: "measured",
                     colour: GREY,
                     width: 1,
-                    data: &rate,
+                    data: &f.rate,
                     scale: 1.0,
                 },
                 Line {
                     label: "compensated",
                     colour: BLUE_,
                     width: 1,
-                    data: &comp,
+                    data: &f.comp,
                     scale: 1.0,
                 },
             ],
@@ -177,11 +238,15 @@ pub fn figures(out: &MotionOutcome) -> Result<Vec<(&'static str, String, String)
 }
 
 /// Writes the report into `dir` (created if missing); returns the path of `index.html`.
+/// Refused when the replay kept no figures ([`MotionOutcome::figures`]).
 pub fn write(dir: &Path, out: &MotionOutcome) -> Result<PathBuf> {
+    let Some(f) = &out.figures else {
+        anyhow::bail!("the replay kept no figures (MotionOptions::figures): no report");
+    };
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: cannot create the report folder", dir.display()))?;
     let input = Path::new(&out.summary.input);
-    let figs = figures(out)?;
+    let figs = figures(f, &out.summary)?;
     for (f, svg, _) in &figs {
         let p = dir.join(f);
         record::refuse_overwrite(input, &p)?;
@@ -196,6 +261,54 @@ pub fn write(dir: &Path, out: &MotionOutcome) -> Result<PathBuf> {
     Ok(index)
 }
 
+/// The score table as HTML: the headline, one row per estimator (numbers right-aligned, the
+/// best heading RMS in bold), then the detector's rates and the baselines' setup as
+/// paragraphs (they wrap with the page instead of widening it).
+fn score_table_html(c: &nav::Comparison) -> Result<String> {
+    let mut o = String::new();
+    let text = nav::table(c);
+    let mut lines = text.lines();
+    if let Some(head) = lines.next() {
+        writeln!(o, "<p><strong>{}</strong></p>", esc(head))?;
+    }
+    writeln!(
+        o,
+        "<h2>Scores against the truth</h2>\n<table class=\"scores\">\n<tr><th>estimator</th>\
+         <th>heading RMS (deg)</th><th>heading at the end (deg)</th><th>e_truth (deg/h)</th>\
+         <th>e still (deg/h)</th><th>e moving (deg/h)</th></tr>"
+    )?;
+    let best = c
+        .rows
+        .iter()
+        .map(|r| r.scores.heading_rms_deg)
+        .fold(f64::INFINITY, f64::min);
+    let cell = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.3}"));
+    for r in &c.rows {
+        let s = &r.scores;
+        let rms = format!("{:.4}", s.heading_rms_deg);
+        writeln!(
+            o,
+            "<tr><td>{}</td><td>{}</td><td>{:.4}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            esc(&r.name),
+            if s.heading_rms_deg == best {
+                format!("<b>{rms}</b>")
+            } else {
+                rms
+            },
+            s.heading_final_deg,
+            cell(s.e_truth_dph),
+            cell(s.e_truth_still_dph),
+            cell(s.e_truth_moving_dph)
+        )?;
+    }
+    writeln!(o, "</table>")?;
+    // The table's text lines are already above; the detector and baselines lines follow it.
+    for line in lines.filter(|l| l.starts_with("detector:") || l.starts_with("baselines:")) {
+        writeln!(o, "<p>{}</p>", esc(line))?;
+    }
+    Ok(o)
+}
+
 fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
     let mut o = String::new();
     let title = format!("fog motion replay: {}", s.input);
@@ -203,21 +316,15 @@ fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
         o,
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{t}</title>\n\
          <style>body{{font-family:sans-serif;max-width:960px;margin:1em auto;padding:0 1em;color:#222}}\
-         pre{{background:#f7f7f7;padding:0.5em;overflow-x:auto}}figure{{margin:1em 0}}\
+         pre{{background:#f7f7f7;padding:0.5em;overflow-x:auto;white-space:pre-wrap}}\
+         table.scores{{border-collapse:collapse;width:100%;font-size:90%}}\
+         table.scores td,table.scores th{{border-bottom:1px solid #ddd;padding:2px 6px}}\
+         table.scores td:not(:first-child){{text-align:right;font-variant-numeric:tabular-nums}}figure{{margin:1em 0}}\
          figcaption{{font-size:90%;color:#444}}svg{{max-width:100%;height:auto}}</style>\n</head>\n<body>\n<h1>{t}</h1>",
         t = esc(&title)
     )?;
     if let Some(c) = &s.scores {
-        let text = nav::table(c);
-        let mut lines = text.lines();
-        if let Some(head) = lines.next() {
-            writeln!(o, "<p><strong>{}</strong></p>", esc(head))?;
-        }
-        writeln!(
-            o,
-            "<h2>Scores against the truth</h2>\n<pre>{}</pre>",
-            esc(&lines.collect::<Vec<_>>().join("\n"))
-        )?;
+        o.push_str(&score_table_html(c)?);
     } else {
         writeln!(
             o,

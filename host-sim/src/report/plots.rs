@@ -23,13 +23,18 @@ pub(super) struct Line<'a> {
 
 pub(super) fn time_plot(title: &str, y_desc: &str, lines: &[Line<'_>]) -> Result<String> {
     let err = |e: String| anyhow!("SVG plot `{title}`: {e}");
+    let t_end = lines
+        .iter()
+        .filter_map(|l| l.data.points().last().map(|p| p.0))
+        .fold(0.0f64, f64::max);
+    let (t_scale, t_unit) = super::heading::time_axis(t_end);
     let pts: Vec<Vec<(f64, f64)>> = lines
         .iter()
         .map(|l| {
             l.data
                 .points()
                 .into_iter()
-                .map(|(t, v)| (t, v * l.scale))
+                .map(|(t, v)| (t * t_scale, v * l.scale))
                 .collect()
         })
         .collect();
@@ -56,6 +61,7 @@ pub(super) fn time_plot(title: &str, y_desc: &str, lines: &[Line<'_>]) -> Result
     } else {
         (-1.0, 1.0)
     };
+    let (y_lo, y_hi) = super::heading::with_legend_room(y_lo, y_hi, lines.len());
     // Tick labels with the decimals the spacing needs (plotters draws about 10 per axis).
     let (x_step, y_step) = ((t_hi - t_lo) / 10.0, (y_hi - y_lo) / 10.0);
     let mut out = String::new();
@@ -71,7 +77,7 @@ pub(super) fn time_plot(title: &str, y_desc: &str, lines: &[Line<'_>]) -> Result
             .map_err(|e| err(e.to_string()))?;
         chart
             .configure_mesh()
-            .x_desc("t (s)")
+            .x_desc(format!("time since power-on ({t_unit})"))
             .y_desc(y_desc)
             .x_label_formatter(&|v| super::tick_label(*v, x_step))
             .y_label_formatter(&|v| super::tick_label(*v, y_step))
