@@ -4,7 +4,7 @@
 
 use super::features::robust_sigma;
 use super::Rec;
-use crate::sim::{flicker_adev, gm_avar, Model, QuantMode, Simulator};
+use crate::sim::{flicker_adev, gm_avar, Faults, Model, Noise, QuantMode, Simulator};
 use anyhow::{bail, Result};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -519,72 +519,14 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             p.insert("added_rrw_dps_per_s_rthz".into(), c.sqrt());
             p.insert("fit_chi2".into(), chi2);
         }
-        Effect::Markov
-            if ctx.joint_markov.as_ref().is_some_and(|m| {
-                m.noise.gm_sigma_dps > 0.0
-                    && m.noise.gm_tau_s < t_rec / super::features::BLOCKS as f64
-            }) =>
-        {
-            // Fitted baseline and a short correlation time: the N, B, K baseline absorbed
-            // part of the bump, so the candidate is the baseline refitted jointly with it.
-            if let Some(m) = &ctx.joint_markov {
-                n.arw_dps_per_rthz = m.noise.arw_dps_per_rthz;
-                n.bias_instability_dps = m.noise.bias_instability_dps;
-                n.rrw_dps_per_s_rthz = m.noise.rrw_dps_per_s_rthz;
-                n.gm_sigma_dps = m.noise.gm_sigma_dps;
-                n.gm_tau_s = m.noise.gm_tau_s;
-                p.insert("gm_sigma_dps".into(), m.noise.gm_sigma_dps);
-                p.insert("gm_tau_s".into(), m.noise.gm_tau_s);
-                p.insert("refit_arw_dps_per_rthz".into(), m.noise.arw_dps_per_rthz);
-                p.insert(
-                    "refit_bias_instability_dps".into(),
-                    m.noise.bias_instability_dps,
-                );
-                p.insert(
-                    "refit_rrw_dps_per_s_rthz".into(),
-                    m.noise.rrw_dps_per_s_rthz,
-                );
-            }
-        }
-        Effect::Markov => {
-            let (chi2, c, tc) = markov_grid(ctx, dt, t_rec);
-            let w = ctx.drift_window_s;
-            let (_, chi2_rrw, npts) =
-                drift_fit(ctx, dt, &|tau| tau / 3.0, &|l| rrw_variogram(l, w));
-            if n.gm_sigma_dps > 0.0 {
-                // The model has its own Gauss-Markov term: this one replaces it when larger.
-                n.gm_sigma_dps = n.gm_sigma_dps.max(c.sqrt());
-            } else {
-                n.gm_sigma_dps = c.sqrt();
-            }
-            n.gm_tau_s = tc;
-            p.insert("gm_sigma_dps".into(), c.sqrt());
-            p.insert("gm_tau_s".into(), tc);
-            p.insert("fit_chi2".into(), chi2);
-            p.insert("rrw_fit_chi2".into(), chi2_rrw);
-            // Nested limit: T >> record is a random walk (sigma^2 -> inf, 2 sigma^2 / T = K^2).
-            // The extra parameter must buy a BIC's worth of fit (ln of the points).
-            let penalty = (npts.max(2) as f64).ln();
-            if tc >= t_rec {
-                excluded = Some(format!(
-                    "correlation time {tc:.0} s >= the record ({t_rec:.0} s): within the record a Gauss-Markov term is a rate random walk (nested limit); see rate_random_walk"
-                ));
-            } else if chi2_rrw - chi2 <= penalty {
-                excluded = Some(format!(
-                    "fit-block chi2 {chi2:.1} vs rate_random_walk's {chi2_rrw:.1}: the correlation time does not buy more than the BIC penalty ln({npts}) = {penalty:.1}; indistinguishable from rate_random_walk here"
-                ));
-            }
-        }
+        Effect::Markov => match short_joint_markov(ctx, t_rec) {
+            Some(m) => set_joint_markov(n, m, &mut p),
+            None => excluded = add_markov_grid(ctx, dt, t_rec, n, &mut p),
+        },
         Effect::RateRamp => {
-            // One common offset: offsets per block would absorb a ramp between blocks.
-            let beta = lstsq(idx.len(), 2, &mut |k, r| {
-                r[0] = 1.0;
-                r[1] = real.t_s[idx[k]];
-                y[k]
-            })
-            .unwrap_or_else(|| vec![0.0, 0.0]);
-            n.rate_ramp_dps_per_s += beta[1];
-            p.insert("rate_ramp_dps_per_s".into(), beta[1]);
+            let ramp = ramp_dps_per_s(real, &idx, &y);
+            n.rate_ramp_dps_per_s += ramp;
+            p.insert("rate_ramp_dps_per_s".into(), ramp);
         }
         Effect::Warmup => {
             let (amplitude_dps, tau_s) = warmup(real, &idx, &y);
@@ -593,16 +535,7 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             p.insert("warmup_tau_s".into(), tau_s);
         }
         Effect::Temperature => match temperature_link(ctx, &idx, &y) {
-            Ok((beta, tref)) => {
-                spec.temp_dps_per_c += beta[1];
-                spec.temp_ref_c = tref;
-                p.insert("bias_dps_per_c".into(), beta[1]);
-                p.insert("reference_c".into(), tref);
-                if let Some(b2) = beta.get(2) {
-                    spec.temp_rate_dps_per_c_per_s += b2;
-                    p.insert("bias_dps_per_c_per_s".into(), *b2);
-                }
-            }
+            Ok((beta, tref)) => add_temperature(&mut spec, &beta, tref, &mut p),
             Err(why) => return Ok(Fitted::NotApplicable(why)),
         },
         Effect::Sinusoid => {
@@ -612,19 +545,7 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             p.insert("sine_freq_hz".into(), f);
             p.insert("sine_phase_deg".into(), ph.to_degrees());
         }
-        Effect::Spikes => {
-            let nfit = idx.len().max(1) as f64;
-            let extra = (ctx.spikes.0 - ctx.spikes.1).max(0.0) / nfit;
-            let f = &mut spec.model.faults;
-            f.spike_probability = (f.spike_probability + extra).min(0.5);
-            f.spike_amplitude_dps = if ctx.spike_size_dps > 0.0 {
-                ctx.spike_size_dps
-            } else {
-                f.spike_amplitude_dps
-            };
-            p.insert("spike_probability".into(), extra);
-            p.insert("spike_amplitude_dps".into(), ctx.spike_size_dps);
-        }
+        Effect::Spikes => add_spikes(&mut spec.model.faults, ctx, idx.len(), &mut p),
         Effect::Dropouts => {
             if ctx.bursty {
                 return Ok(Fitted::NotApplicable(
@@ -646,6 +567,116 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
         },
     }
     Ok(Fitted::Spec(Box::new(spec), p, excluded))
+}
+
+/// Parameters of a fitted effect, unit in the key.
+type Params = BTreeMap<String, f64>;
+
+/// The baseline refitted jointly with a Gauss-Markov term, when there is one (a fitted
+/// baseline) and its correlation time is shorter than a block: the N, B, K baseline then
+/// absorbed part of the bump.
+fn short_joint_markov<'a>(ctx: &'a FitCtx, t_rec_s: f64) -> Option<&'a Model> {
+    ctx.joint_markov.as_ref().filter(|m| {
+        m.noise.gm_sigma_dps > 0.0 && m.noise.gm_tau_s < t_rec_s / super::features::BLOCKS as f64
+    })
+}
+
+/// The `markov` candidate as the baseline refitted jointly with its Gauss-Markov term
+/// (`joint`): its noise terms replace the baseline's in `n`.
+fn set_joint_markov(n: &mut Noise, joint: &Model, p: &mut Params) {
+    let m = &joint.noise;
+    n.arw_dps_per_rthz = m.arw_dps_per_rthz;
+    n.bias_instability_dps = m.bias_instability_dps;
+    n.rrw_dps_per_s_rthz = m.rrw_dps_per_s_rthz;
+    n.gm_sigma_dps = m.gm_sigma_dps;
+    n.gm_tau_s = m.gm_tau_s;
+    p.insert("gm_sigma_dps".into(), m.gm_sigma_dps);
+    p.insert("gm_tau_s".into(), m.gm_tau_s);
+    p.insert("refit_arw_dps_per_rthz".into(), m.arw_dps_per_rthz);
+    p.insert("refit_bias_instability_dps".into(), m.bias_instability_dps);
+    p.insert("refit_rrw_dps_per_s_rthz".into(), m.rrw_dps_per_s_rthz);
+}
+
+/// The `markov` candidate as the Gauss-Markov term of [`markov_grid`] added to `n`
+/// (sample period `dt_s`, record length `t_rec_s`); returns why it may not be named: its
+/// correlation time reaches the record, or its fit does not beat rate_random_walk's by the
+/// BIC penalty.
+fn add_markov_grid(
+    ctx: &FitCtx,
+    dt_s: f64,
+    t_rec_s: f64,
+    n: &mut Noise,
+    p: &mut Params,
+) -> Option<String> {
+    let (chi2, c, tc) = markov_grid(ctx, dt_s, t_rec_s);
+    let w = ctx.drift_window_s;
+    let (_, chi2_rrw, npts) = drift_fit(ctx, dt_s, &|tau| tau / 3.0, &|l| rrw_variogram(l, w));
+    if n.gm_sigma_dps > 0.0 {
+        // The model has its own Gauss-Markov term: this one replaces it when larger.
+        n.gm_sigma_dps = n.gm_sigma_dps.max(c.sqrt());
+    } else {
+        n.gm_sigma_dps = c.sqrt();
+    }
+    n.gm_tau_s = tc;
+    p.insert("gm_sigma_dps".into(), c.sqrt());
+    p.insert("gm_tau_s".into(), tc);
+    p.insert("fit_chi2".into(), chi2);
+    p.insert("rrw_fit_chi2".into(), chi2_rrw);
+    // Nested limit: T >> record is a random walk (sigma^2 -> inf, 2 sigma^2 / T = K^2).
+    // The extra parameter must buy a BIC's worth of fit (ln of the points).
+    let penalty = (npts.max(2) as f64).ln();
+    if tc >= t_rec_s {
+        Some(format!(
+            "correlation time {tc:.0} s >= the record ({t_rec_s:.0} s): within the record a Gauss-Markov term is a rate random walk (nested limit); see rate_random_walk"
+        ))
+    } else if chi2_rrw - chi2 <= penalty {
+        Some(format!(
+            "fit-block chi2 {chi2:.1} vs rate_random_walk's {chi2_rrw:.1}: the correlation time does not buy more than the BIC penalty ln({npts}) = {penalty:.1}; indistinguishable from rate_random_walk here"
+        ))
+    } else {
+        None
+    }
+}
+
+/// The rate ramp on the fit samples `idx` (rates `y`), deg/s per s: least squares with one
+/// common offset (offsets per block would absorb a ramp between blocks); 0 when singular.
+fn ramp_dps_per_s(real: &Rec, idx: &[usize], y: &[f64]) -> f64 {
+    let beta = lstsq(idx.len(), 2, &mut |k, r| {
+        r[0] = 1.0;
+        r[1] = real.t_s[idx[k]];
+        y[k]
+    })
+    .unwrap_or_else(|| vec![0.0, 0.0]);
+    beta[1]
+}
+
+/// The `temperature` candidate: the link of [`temperature_link`] (`beta`, reference
+/// `tref_c`) added to `spec`.
+fn add_temperature(spec: &mut Spec, beta: &[f64], tref_c: f64, p: &mut Params) {
+    spec.temp_dps_per_c += beta[1];
+    spec.temp_ref_c = tref_c;
+    p.insert("bias_dps_per_c".into(), beta[1]);
+    p.insert("reference_c".into(), tref_c);
+    if let Some(b2) = beta.get(2) {
+        spec.temp_rate_dps_per_c_per_s += b2;
+        p.insert("bias_dps_per_c_per_s".into(), *b2);
+    }
+}
+
+/// The `spikes` candidate: the fit blocks' spikes beyond the baseline simulations' (per fit
+/// sample, `n_fit` samples) added to the spike probability (at most 0.5), at the real
+/// spikes' median size when there are any.
+fn add_spikes(f: &mut Faults, ctx: &FitCtx, n_fit: usize, p: &mut Params) {
+    let nfit = n_fit.max(1) as f64;
+    let extra = (ctx.spikes.0 - ctx.spikes.1).max(0.0) / nfit;
+    f.spike_probability = (f.spike_probability + extra).min(0.5);
+    f.spike_amplitude_dps = if ctx.spike_size_dps > 0.0 {
+        ctx.spike_size_dps
+    } else {
+        f.spike_amplitude_dps
+    };
+    p.insert("spike_probability".into(), extra);
+    p.insert("spike_amplitude_dps".into(), ctx.spike_size_dps);
 }
 
 /// The Gauss-Markov term that fits the fit blocks' AVAR and their long-lag drift variogram

@@ -328,10 +328,9 @@ pub struct Diagnosis {
     /// Fitted parameters of the named effect.
     pub params: Option<BTreeMap<String, f64>>,
     /// Their standard uncertainty (jackknife over the three fit blocks: the fit repeated
-    /// with each fit block left out, `sqrt(2/3 sum (p_i - mean)^2)`); only for the fits made
-    /// directly on the record's samples over the whole record (rate_ramp, temperature,
-    /// sinusoid, scale_factor); `null` otherwise (a warm-up lives in the first block, so
-    /// leaving blocks out is no estimate of its uncertainty).
+    /// with each fit block left out, `sqrt(2/3 sum (p_i - mean)^2)`); only for a named
+    /// sinusoid or scale_factor; `null` otherwise (a named drift effect carries
+    /// `params_ci95` instead).
     pub params_sigma: Option<BTreeMap<String, f64>>,
     /// 95 % intervals of a named drift effect's parameters (rate_ramp, temperature,
     /// warm-up amplitude) from the whole-record likelihood fit.
@@ -504,14 +503,88 @@ pub fn fit_baseline_terms(
     Ok(m)
 }
 
-/// Runs the diagnosis of `real` against `model` (or a baseline fitted to it).
-pub fn diagnose(
-    real: &Rec,
-    time: TimeInfo,
-    model: Option<&Model>,
-    o: &Options,
-) -> Result<Diagnosis> {
-    let layout = Layout::new(&real.t_s, real.dt_s).with_context(|| real.name.clone())?;
+/// The split in time blocks: which blocks fit, which are held out, and the fit blocks'
+/// sample ranges in the real record.
+struct Split {
+    /// Fit blocks (the even ones).
+    fit: Vec<bool>,
+    /// Held-out blocks (the odd ones).
+    score: Vec<bool>,
+    /// Every block (the full-record features).
+    all: Vec<bool>,
+    /// Sample ranges of the fit blocks in the real record.
+    fit_ranges: Vec<(usize, usize)>,
+}
+
+impl Split {
+    fn new(layout: &Layout, t_s: &[f64]) -> Self {
+        let fit: Vec<bool> = (0..BLOCKS).map(|b| b % 2 == 0).collect();
+        let fit_ranges = layout
+            .ranges(t_s)
+            .iter()
+            .enumerate()
+            .filter(|(b, _)| fit[*b])
+            .map(|(_, r)| *r)
+            .collect();
+        Self {
+            fit,
+            score: (0..BLOCKS).map(|b| b % 2 == 1).collect(),
+            all: vec![true; BLOCKS],
+            fit_ranges,
+        }
+    }
+}
+
+/// The dedicated tests' windows ([`evidence::WINDOW_S`] long) on the record's own time grid.
+struct TestWindows {
+    /// Record length: the last time stamp plus one period, s.
+    t_total_s: f64,
+    /// Window centres, s.
+    t_w_s: Vec<f64>,
+    /// Window means of the reference rate, deg/s.
+    ref_w_dps: Option<Vec<f64>>,
+    /// Rate of change of the temperature's window means, deg C/s.
+    dtemp_w_c_per_s: Option<Vec<f64>>,
+}
+
+impl TestWindows {
+    fn new(real: &Rec) -> Self {
+        let w_s = evidence::WINDOW_S;
+        let t_total_s = real.t_s.last().copied().unwrap_or(0.0) + real.dt_s;
+        let n_win = ((t_total_s / w_s).floor() as usize).max(1);
+        let temp_w_c = real
+            .temp_c
+            .as_ref()
+            .map(|tc| evidence::window_means(&real.t_s, tc, w_s, n_win));
+        Self {
+            t_total_s,
+            t_w_s: (0..n_win).map(|k| (k as f64 + 0.5) * w_s).collect(),
+            ref_w_dps: real
+                .ref_dps
+                .as_ref()
+                .map(|r| evidence::window_means(&real.t_s, r, w_s, n_win)),
+            dtemp_w_c_per_s: temp_w_c
+                .as_ref()
+                .map(|tw| evidence::rate_of_change(tw, w_s, 6)),
+        }
+    }
+
+    /// The temperature's rate of change at each time of `t_s` (its window's; 0 where not
+    /// finite), deg C/s; `None` without a temperature.
+    fn dtemp_c_per_s(&self, t_s: &[f64]) -> Option<Vec<f64>> {
+        let n_win = self.t_w_s.len();
+        self.dtemp_w_c_per_s.as_ref().map(|dw| {
+            t_s.iter()
+                .map(|&t| dw[((t / evidence::WINDOW_S) as usize).min(n_win - 1)])
+                .map(|v| if v.is_finite() { v } else { 0.0 })
+                .collect()
+        })
+    }
+}
+
+/// Refuses what the diagnosis cannot run: fewer than 4 simulations, or a candidate named by
+/// the user whose column the record lacks.
+fn check_options(real: &Rec, o: &Options) -> Result<()> {
     if o.seeds < 4 {
         bail!(
             "--seeds {}: at least 4 simulations are needed for a spread",
@@ -530,186 +603,259 @@ pub fn diagnose(
             real.name
         );
     }
-    let sel_fit: Vec<bool> = (0..BLOCKS).map(|b| b % 2 == 0).collect();
-    let sel_score: Vec<bool> = (0..BLOCKS).map(|b| b % 2 == 1).collect();
-    let sel_all = vec![true; BLOCKS];
-    let real_ranges = layout.ranges(&real.t_s);
-    let fit_ranges: Vec<(usize, usize)> = real_ranges
-        .iter()
-        .enumerate()
-        .filter(|(b, _)| sel_fit[*b])
-        .map(|(_, r)| *r)
-        .collect();
-    // Without a model the baseline is fitted to the rate less the reference rate (if any).
-    let less_ref = |r: &Rec| -> Rec {
-        let mut c = r.clone();
-        if let Some(rf) = &r.ref_dps {
-            for (v, x) in c.rate_dps.iter_mut().zip(rf) {
-                *v -= x;
-            }
-        }
-        c
-    };
-    let fitted_on = less_ref(real);
-    let (base_model, source) = match model {
-        Some(m) => (m.clone(), "user model (--sim)".to_string()),
-        None => (
-            fit_baseline(&fitted_on, &layout, &fit_ranges)?,
-            "fitted to the fit blocks: ARW, bias instability, rate random walk".to_string(),
-        ),
-    };
-    let mut base = Spec::from_model(&base_model, real.ref_dps.is_some());
-    // Temperature windows (and their rate of change) on the record's own time grid.
-    let w_s = evidence::WINDOW_S;
-    let t_total = real.t_s.last().copied().unwrap_or(0.0) + real.dt_s;
-    let n_win = ((t_total / w_s).floor() as usize).max(1);
-    let t_w: Vec<f64> = (0..n_win).map(|k| (k as f64 + 0.5) * w_s).collect();
-    let temp_w = real
-        .temp_c
-        .as_ref()
-        .map(|tc| evidence::window_means(&real.t_s, tc, w_s, n_win));
-    let ref_w = real
-        .ref_dps
-        .as_ref()
-        .map(|r| evidence::window_means(&real.t_s, r, w_s, n_win));
-    let dtemp_w = temp_w
-        .as_ref()
-        .map(|tw| evidence::rate_of_change(tw, w_s, 6));
-    if let Some(dw) = &dtemp_w {
-        base.dtemp_c_per_s = std::sync::Arc::new(
-            real.t_s
-                .iter()
-                .map(|&t| dw[((t / w_s) as usize).min(n_win - 1)])
-                .map(|v| if v.is_finite() { v } else { 0.0 })
-                .collect(),
-        );
-    }
-    let base = base;
-    let g_base = 1.0 + 1e-6 * base.sf_ppm;
-    let raw = real;
-    let mut resid = real.clone();
-    if let Some(r) = &real.ref_dps {
-        for (v, r) in resid.rate_dps.iter_mut().zip(r) {
-            *v -= g_base * r;
-        }
-    }
-    let real = &resid;
-    let real_sim = effects::Sim {
-        t: real.t_s.clone(),
-        raw: raw.rate_dps.clone(),
-        res: real.rate_dps.clone(),
-    };
-    let defs_score = layout.defs(&sel_score);
-    let defs_all = layout.defs(&sel_all);
-    let mut fft = Fft::default();
-    let real_out = analyse(&layout, &real_sim, &sel_score, Some(&sel_all), &mut fft);
-    let seeds: Vec<u64> = (0..o.seeds as u64).map(|i| o.first_seed + i).collect();
+    Ok(())
+}
 
-    // Baseline simulations.
-    let mut base_outs = Vec::new();
-    let mut sim_avars = Vec::new();
-    let mut sim_drifts = Vec::new();
-    let mut sim_spikes = Vec::new();
-    let mut sim_missing = Vec::new();
-    let mut sim_missing_all = Vec::new();
-    let mut sim_spikes_all = Vec::new();
-    let mut task_sims = Vec::new();
-    let mut null_stats: Vec<evidence::EvStats> = Vec::new();
-    for (i, &s) in seeds.iter().enumerate() {
-        let sim = base.simulate(real, s, g_base)?;
-        null_stats.push(evidence::stats(
+/// The record less `gain` times its reference rate (a copy of it without one).
+fn less_reference(r: &Rec, gain: f64) -> Rec {
+    let mut c = r.clone();
+    if let Some(rf) = &r.ref_dps {
+        for (v, x) in c.rate_dps.iter_mut().zip(rf) {
+            *v -= gain * x;
+        }
+    }
+    c
+}
+
+/// What the whole diagnosis shares: the split, the baseline, the record less the baseline's
+/// view of its reference rate, the seeds.
+struct Setup {
+    /// Blocks and feature grid of the record.
+    layout: Layout,
+    /// Fit and held-out blocks.
+    split: Split,
+    /// The dedicated tests' windows.
+    win: TestWindows,
+    /// The baseline was fitted to the record (no user model).
+    fitted_baseline: bool,
+    /// Baseline model.
+    base_model: Model,
+    /// Where it comes from.
+    source: String,
+    /// The record less its reference rate: what a fitted baseline is fitted to.
+    fitted_on: Rec,
+    /// Baseline spec.
+    base: Spec,
+    /// The baseline's gain on the reference rate: 1 + its scale-factor error.
+    g_base: f64,
+    /// The record less `g_base` times its reference rate: what is compared.
+    resid: Rec,
+    /// Simulation seeds.
+    seeds: Vec<u64>,
+    /// Features of the held-out blocks.
+    defs_score: Vec<Def>,
+    /// Features of the full record.
+    defs_all: Vec<Def>,
+}
+
+impl Setup {
+    fn new(real: &Rec, model: Option<&Model>, o: &Options) -> Result<Self> {
+        let layout = Layout::new(&real.t_s, real.dt_s).with_context(|| real.name.clone())?;
+        check_options(real, o)?;
+        let split = Split::new(&layout, &real.t_s);
+        // Without a model the baseline is fitted to the rate less the reference rate (if any).
+        let fitted_on = less_reference(real, 1.0);
+        let (base_model, source) = match model {
+            Some(m) => (m.clone(), "user model (--sim)".to_string()),
+            None => (
+                fit_baseline(&fitted_on, &layout, &split.fit_ranges)?,
+                "fitted to the fit blocks: ARW, bias instability, rate random walk".to_string(),
+            ),
+        };
+        let mut base = Spec::from_model(&base_model, real.ref_dps.is_some());
+        let win = TestWindows::new(real);
+        if let Some(d) = win.dtemp_c_per_s(&real.t_s) {
+            base.dtemp_c_per_s = std::sync::Arc::new(d);
+        }
+        let g_base = 1.0 + 1e-6 * base.sf_ppm;
+        let defs_score = layout.defs(&split.score);
+        let defs_all = layout.defs(&split.all);
+        Ok(Self {
+            layout,
+            split,
+            win,
+            fitted_baseline: model.is_none(),
+            base_model,
+            source,
+            fitted_on,
+            base,
+            g_base,
+            resid: less_reference(real, g_base),
+            seeds: (0..o.seeds as u64).map(|i| o.first_seed + i).collect(),
+            defs_score,
+            defs_all,
+        })
+    }
+
+    /// Length of one block, s.
+    fn block_s(&self) -> f64 {
+        self.layout.t_total_s / BLOCKS as f64
+    }
+}
+
+/// The baseline simulations: their features and curves, and what the fits and the dedicated
+/// tests need of each.
+#[derive(Default)]
+struct BaseSims {
+    /// Features and curves.
+    outs: Vec<SimOut>,
+    /// Pooled AVAR on the fit blocks: ((deg/s)^2, differences).
+    avars: Vec<Vec<(f64, usize)>>,
+    /// Drift variogram of the fit blocks, (deg/s)^2.
+    drifts: Vec<Vec<f64>>,
+    /// Spike count on the fit blocks.
+    spikes: Vec<f64>,
+    /// Outlier count on the whole record (beyond [`evidence::SPIKE_TEST_SIGMAS`]).
+    spikes_all: Vec<f64>,
+    /// Missing sample slots on the fit blocks.
+    missing: Vec<f64>,
+    /// Missing sample slots on the whole record.
+    missing_all: Vec<f64>,
+    /// The dedicated tests' statistics.
+    ev_stats: Vec<evidence::EvStats>,
+    /// The first two simulations (t_s, rate deg/s) for the identification task.
+    task: Vec<(Vec<f64>, Vec<f64>)>,
+}
+
+/// Simulates the baseline once per seed (`task`: keep the first two for the task).
+fn simulate_baseline(s: &Setup, task: bool, fft: &mut Fft) -> Result<BaseSims> {
+    let real = &s.resid;
+    let mut b = BaseSims::default();
+    for (i, &seed) in s.seeds.iter().enumerate() {
+        let sim = s.base.simulate(real, seed, s.g_base)?;
+        b.ev_stats.push(evidence::stats(
             &sim.t,
             &sim.res,
             real.dt_s,
-            layout.t_total_s / BLOCKS as f64,
-            &t_w,
-            ref_w.as_deref(),
+            s.block_s(),
+            &s.win.t_w_s,
+            s.win.ref_w_dps.as_deref(),
         ));
-        let r = layout.ranges(&sim.t);
+        let r = s.layout.ranges(&sim.t);
         let fr: Vec<(usize, usize)> = r.iter().step_by(2).copied().collect();
-        sim_avars.push(features::pooled_avar(&sim.res, &fr, real.dt_s, &layout.ms));
-        sim_drifts.push(layout.drift_variogram(&sim.t, &sim.res, &sel_fit));
-        sim_spikes.push(effects::spike_stats(&sim.res, &fr).0);
-        sim_spikes_all.push(
+        b.avars.push(features::pooled_avar(
+            &sim.res,
+            &fr,
+            real.dt_s,
+            &s.layout.ms,
+        ));
+        b.drifts
+            .push(s.layout.drift_variogram(&sim.t, &sim.res, &s.split.fit));
+        b.spikes.push(effects::spike_stats(&sim.res, &fr).0);
+        b.spikes_all.push(
             effects::outliers(&sim.res, &[(0, sim.res.len())], evidence::SPIKE_TEST_SIGMAS).0,
         );
-        sim_missing.push(effects::missing_slots(&sim.t, &fr, real.dt_s));
-        sim_missing_all.push(effects::missing_slots(
+        b.missing
+            .push(effects::missing_slots(&sim.t, &fr, real.dt_s));
+        b.missing_all.push(effects::missing_slots(
             &sim.t,
             &[(0, sim.t.len())],
             real.dt_s,
         ));
-        base_outs.push(analyse(&layout, &sim, &sel_score, Some(&sel_all), &mut fft));
-        if o.task && i < 2 {
-            task_sims.push((sim.t, sim.raw));
+        b.outs.push(analyse(
+            &s.layout,
+            &sim,
+            &s.split.score,
+            Some(&s.split.all),
+            fft,
+        ));
+        if task && i < 2 {
+            b.task.push((sim.t, sim.raw));
         }
     }
-    let score_sims: Vec<Vec<f64>> = base_outs.iter().map(|s| s.score.clone()).collect();
-    let nulls = null_gaps(&defs_score, &score_sims);
-    let ng = null_group_gaps(&defs_score, &score_sims);
-    let null_groups: BTreeMap<String, Vec<f64>> = features::GROUPS
+    Ok(b)
+}
+
+/// A group's name in the JSON.
+fn group_name(g: Group) -> String {
+    format!("{g:?}").to_lowercase()
+}
+
+/// The held-out gap of the baseline and its null distribution.
+struct Gaps {
+    /// Held-out gap of the real record.
+    before: f64,
+    /// Null gaps: median.
+    g50: f64,
+    /// Null gaps: 95 % quantile.
+    g95: f64,
+    /// Held-out gap per group, real record.
+    groups_before: BTreeMap<String, f64>,
+    /// Null gaps per group (one per simulation).
+    null_groups: BTreeMap<String, Vec<f64>>,
+}
+
+/// The real record's held-out gap against the baseline simulations, and theirs against
+/// each other (leave one out).
+fn held_out_gaps(defs: &[Def], real_score: &[f64], outs: &[SimOut]) -> Gaps {
+    let score_sims: Vec<Vec<f64>> = outs.iter().map(|s| s.score.clone()).collect();
+    let nulls = null_gaps(defs, &score_sims);
+    let ng = null_group_gaps(defs, &score_sims);
+    let null_groups = features::GROUPS
         .iter()
         .enumerate()
-        .map(|(k, g)| {
-            (
-                format!("{g:?}").to_lowercase(),
-                ng.iter().map(|v| v[k].1).collect(),
-            )
-        })
+        .map(|(k, &g)| (group_name(g), ng.iter().map(|v| v[k].1).collect()))
         .collect();
-    let real_groups: BTreeMap<String, f64> = features::group_gaps(
-        &defs_score,
-        &features::zscores(
-            &real_out.score,
-            &features::stats(
-                &defs_score,
-                &base_outs.iter().map(|s| &s.score).collect::<Vec<_>>(),
-            ),
-        ),
-    )
-    .into_iter()
-    .map(|(g, v)| (format!("{g:?}").to_lowercase(), v))
-    .collect();
-    let g50 = features::median(&nulls);
-    let g95 = features::quantile(&nulls, 0.95);
-    let st_score = features::stats(
-        &defs_score,
-        &base_outs.iter().map(|s| &s.score).collect::<Vec<_>>(),
-    );
-    let gap_before = features::gap(&defs_score, &features::zscores(&real_out.score, &st_score));
+    let st = features::stats(defs, &outs.iter().map(|s| &s.score).collect::<Vec<_>>());
+    let z = features::zscores(real_score, &st);
+    Gaps {
+        before: features::gap(defs, &z),
+        g50: features::median(&nulls),
+        g95: features::quantile(&nulls, 0.95),
+        groups_before: features::group_gaps(defs, &z)
+            .into_iter()
+            .map(|(g, v)| (group_name(g), v))
+            .collect(),
+        null_groups,
+    }
+}
 
-    // Dedicated tests.
+/// The dedicated detection tests: their outcomes and the fits behind the drift and markov
+/// tests.
+struct Tests {
+    /// Every outcome.
+    all: Vec<evidence::Test>,
+    /// The drift tests' fits.
+    drift: Option<drift::DriftTests>,
+    /// The markov (Whittle) test's fit.
+    markov: Option<whittle::MarkovTest>,
+}
+
+/// The rate less the model's own ramp and warm-up, deg/s: the drift tests look for drift
+/// beyond them.
+fn rate_beyond_model_drift_dps(real: &Rec, base: &Spec) -> Vec<f64> {
+    let ramp = base.model.noise.rate_ramp_dps_per_s;
+    let warm = base.model.bias.warmup_dps;
+    let warm_tau = base.model.bias.warmup_tau_s.max(1e-9);
+    real.t_s
+        .iter()
+        .zip(&real.rate_dps)
+        .map(|(&t, &v)| v - ramp * t - warm * (-t / warm_tau).exp())
+        .collect()
+}
+
+/// Runs the dedicated tests on the compared record against the baseline simulations
+/// (`bursty`: the time stamps are, so missing samples are not tested).
+fn dedicated_tests(s: &Setup, sims: &BaseSims, bursty: bool, o: &Options) -> Tests {
+    let real = &s.resid;
     let real_stats = evidence::stats(
         &real.t_s,
         &real.rate_dps,
         real.dt_s,
-        layout.t_total_s / BLOCKS as f64,
-        &t_w,
-        ref_w.as_deref(),
+        s.block_s(),
+        &s.win.t_w_s,
+        s.win.ref_w_dps.as_deref(),
     );
     let real_missing_all = effects::missing_slots(&real.t_s, &[(0, real.t_s.len())], real.dt_s);
-    // The drift tests look for drift beyond the model's own ramp and warm-up.
-    let (ramp, (warm, warm_tau)) = (
-        base.model.noise.rate_ramp_dps_per_s,
-        (
-            base.model.bias.warmup_dps,
-            base.model.bias.warmup_tau_s.max(1e-9),
-        ),
-    );
-    let beyond: Vec<f64> = real
-        .t_s
-        .iter()
-        .zip(&real.rate_dps)
-        .map(|(&t, &v)| v - ramp * t - warm * (-t / warm_tau).exp())
-        .collect();
+    let beyond = rate_beyond_model_drift_dps(real, &s.base);
     let drift_tests = drift::DriftTests::run(
-        &drift::Windows::new(&real.t_s, &beyond, real.temp_c.as_deref(), t_total),
+        &drift::Windows::new(&real.t_s, &beyond, real.temp_c.as_deref(), s.win.t_total_s),
         o.first_seed,
     );
     let mut tests = evidence::run(
         &real_stats,
-        &null_stats,
-        (!time.bursty).then_some((real_missing_all, sim_missing_all.as_slice())),
+        &sims.ev_stats,
+        (!bursty).then_some((real_missing_all, sims.missing_all.as_slice())),
         (
             effects::outliers(
                 &real.rate_dps,
@@ -717,7 +863,7 @@ pub fn diagnose(
                 evidence::SPIKE_TEST_SIGMAS,
             )
             .0,
-            sim_spikes_all.as_slice(),
+            sims.spikes_all.as_slice(),
         ),
     );
     if let Some(d) = &drift_tests {
@@ -730,7 +876,7 @@ pub fn diagnose(
     // Only against a fitted baseline: a user model's flicker is the simulator's bank of
     // Gauss-Markov terms, whose ripple a Whittle Gauss-Markov term fits (the own benchmark's
     // bias-instability records were named markov); with a model the gap rule decides.
-    let markov_test = if o.effects.contains(&Effect::Markov) && model.is_none() {
+    let markov_test = if o.effects.contains(&Effect::Markov) && s.fitted_baseline {
         whittle::MarkovTest::run(&real.rate_dps, real.dt_s, o.first_seed, line_hz)
     } else {
         None
@@ -738,19 +884,23 @@ pub fn diagnose(
     if let Some(m) = &markov_test {
         tests.push(m.outcome());
     }
+    Tests {
+        all: tests,
+        drift: drift_tests,
+        markov: markov_test,
+    }
+}
 
-    // Where (full record).
-    let st_all = features::stats(
-        &defs_all,
-        &base_outs.iter().map(|s| &s.all).collect::<Vec<_>>(),
-    );
-    let z_all = features::zscores(&real_out.all, &st_all);
-    let where_ = where_of(&defs_all, &z_all);
-    let feature_rows: Vec<FeatureRow> = defs_all
+/// Where the gap lies on the full record, and each full-record feature against the baseline
+/// simulations.
+fn full_record(defs: &[Def], real_all: &[f64], outs: &[SimOut]) -> (Where, Vec<FeatureRow>) {
+    let st = features::stats(defs, &outs.iter().map(|s| &s.all).collect::<Vec<_>>());
+    let z = features::zscores(real_all, &st);
+    let rows = defs
         .iter()
-        .zip(&real_out.all)
-        .zip(&st_all)
-        .zip(&z_all)
+        .zip(real_all)
+        .zip(&st)
+        .zip(&z)
         .map(|(((d, &r), &(m, s)), &z)| FeatureRow {
             feature: d.label.clone(),
             real: r,
@@ -759,35 +909,43 @@ pub fn diagnose(
             z,
         })
         .collect();
+    (where_of(defs, &z), rows)
+}
 
-    // Fit context.
-    let (spike_n, spike_sizes) = effects::spike_stats(&real.rate_dps, &fit_ranges);
-    let sim_avar: Vec<f64> = (0..layout.ms.len())
-        .map(|j| features::median(&sim_avars.iter().map(|a| a[j].0).collect::<Vec<_>>()))
+/// Seed-to-seed standard deviation of `ln v` over the positive finite values of `v`.
+fn ln_sd(v: &[f64]) -> f64 {
+    let l: Vec<f64> = v
+        .iter()
+        .filter(|x| x.is_finite() && **x > 0.0)
+        .map(|x| x.ln())
         .collect();
-    let ln_sd = |v: &[f64]| -> f64 {
-        let l: Vec<f64> = v
-            .iter()
-            .filter(|x| x.is_finite() && **x > 0.0)
-            .map(|x| x.ln())
-            .collect();
-        let m = features::mean(&l);
-        (l.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (l.len().max(2) - 1) as f64).sqrt()
-    };
-    let avar_ln_sd: Vec<f64> = (0..layout.ms.len())
-        .map(|j| ln_sd(&sim_avars.iter().map(|a| a[j].0).collect::<Vec<_>>()))
-        .collect();
-    let drift_bins = features::drift_pairs(&sel_fit);
-    let block_s = layout.t_total_s / BLOCKS as f64;
-    let col = |v: &[Vec<f64>], k: usize| v.iter().map(|a| a[k]).collect::<Vec<_>>();
-    let mut ctx = FitCtx {
-        avar_ln_sd,
-        real_drift: layout.drift_variogram(&real.t_s, &real.rate_dps, &sel_fit),
+    let m = features::mean(&l);
+    (l.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (l.len().max(2) - 1) as f64).sqrt()
+}
+
+/// Column `k` of per-simulation rows.
+fn column(rows: &[Vec<f64>], k: usize) -> Vec<f64> {
+    rows.iter().map(|a| a[k]).collect()
+}
+
+/// The candidates' fit context: the fit blocks of the compared record (`raw`: the record as
+/// read) against the baseline simulations.
+fn fit_ctx<'a>(s: &'a Setup, raw: &'a Rec, sims: &BaseSims, bursty: bool) -> FitCtx<'a> {
+    let real = &s.resid;
+    let layout = &s.layout;
+    let fit_ranges = &s.split.fit_ranges;
+    let (spike_n, spike_sizes) = effects::spike_stats(&real.rate_dps, fit_ranges);
+    let avar_col = |j: usize| -> Vec<f64> { sims.avars.iter().map(|a| a[j].0).collect() };
+    let drift_bins = features::drift_pairs(&s.split.fit);
+    let block_s = s.block_s();
+    FitCtx {
+        avar_ln_sd: (0..layout.ms.len()).map(|j| ln_sd(&avar_col(j))).collect(),
+        real_drift: layout.drift_variogram(&real.t_s, &real.rate_dps, &s.split.fit),
         sim_drift: (0..drift_bins.len())
-            .map(|k| features::median(&col(&sim_drifts, k)))
+            .map(|k| features::median(&column(&sims.drifts, k)))
             .collect(),
         drift_ln_sd: (0..drift_bins.len())
-            .map(|k| ln_sd(&col(&sim_drifts, k)))
+            .map(|k| ln_sd(&column(&sims.drifts, k)))
             .collect(),
         drift_lags_s: drift_bins
             .iter()
@@ -796,34 +954,49 @@ pub fn diagnose(
         drift_window_s: block_s / features::DRIFT_WINDOWS as f64,
         real,
         raw: &raw.rate_dps,
-        base: &base,
+        base: &s.base,
         fit_ranges: fit_ranges.clone(),
         ms: layout.ms.clone(),
-        real_avar: features::pooled_avar(&real.rate_dps, &fit_ranges, real.dt_s, &layout.ms),
-        sim_avar,
-        spikes: (spike_n, features::median(&sim_spikes)),
+        real_avar: features::pooled_avar(&real.rate_dps, fit_ranges, real.dt_s, &layout.ms),
+        sim_avar: (0..layout.ms.len())
+            .map(|j| features::median(&avar_col(j)))
+            .collect(),
+        spikes: (spike_n, features::median(&sims.spikes)),
         spike_size_dps: if spike_sizes.is_empty() {
             0.0
         } else {
             features::median(&spike_sizes)
         },
         missing: (
-            effects::missing_slots(&real.t_s, &fit_ranges, real.dt_s),
-            features::median(&sim_missing),
+            effects::missing_slots(&real.t_s, fit_ranges, real.dt_s),
+            features::median(&sims.missing),
         ),
-        bursty: time.bursty,
-        joint_markov: if model.is_none() {
-            fit_baseline_terms(&fitted_on, &layout, &fit_ranges, true).ok()
+        bursty,
+        joint_markov: if s.fitted_baseline {
+            fit_baseline_terms(&s.fitted_on, layout, fit_ranges, true).ok()
         } else {
             None
         },
-    };
+    }
+}
 
-    // Candidates.
+/// Median curves of one candidate's simulations: ADEV (deg/s) and PSD ((deg/s)^2/Hz).
+type CurvePair = (Vec<f64>, Vec<f64>);
+
+/// Fits every candidate of `effects` and scores it: its held-out gap with the effect added,
+/// and the median curves of its simulations.
+fn score_candidates(
+    s: &Setup,
+    ctx: &FitCtx,
+    effects: &[Effect],
+    real_score: &[f64],
+    gap_before: f64,
+    fft: &mut Fft,
+) -> Result<(Vec<Candidate>, BTreeMap<Effect, CurvePair>)> {
     let mut candidates = Vec::new();
-    let mut curves_by: BTreeMap<Effect, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
-    for &e in &o.effects {
-        match effects::fit(e, &ctx)? {
+    let mut curves_by = BTreeMap::new();
+    for &e in effects {
+        match effects::fit(e, ctx)? {
             Fitted::NotApplicable(why) => candidates.push(Candidate {
                 effect: e,
                 params: None,
@@ -834,15 +1007,15 @@ pub fn diagnose(
             }),
             Fitted::Spec(spec, params, excluded) => {
                 let mut outs = Vec::new();
-                for &s in &seeds {
-                    let sim = spec.simulate(real, s, g_base)?;
-                    outs.push(analyse(&layout, &sim, &sel_score, None, &mut fft));
+                for &seed in &s.seeds {
+                    let sim = spec.simulate(&s.resid, seed, s.g_base)?;
+                    outs.push(analyse(&s.layout, &sim, &s.split.score, None, fft));
                 }
                 let st = features::stats(
-                    &defs_score,
+                    &s.defs_score,
                     &outs.iter().map(|s| &s.score).collect::<Vec<_>>(),
                 );
-                let after = features::gap(&defs_score, &features::zscores(&real_out.score, &st));
+                let after = features::gap(&s.defs_score, &features::zscores(real_score, &st));
                 curves_by.insert(
                     e,
                     (
@@ -861,39 +1034,47 @@ pub fn diagnose(
             }
         }
     }
-    // Quantization: values on a lattice are evidence by themselves (continuous noise never
-    // lands on one), unless the model already rounds.
-    if let Some(c) = candidates.iter().find(|c| c.effect == Effect::Quantization) {
-        let q = c
-            .params
-            .as_ref()
-            .and_then(|p| p.get("quantum_dps").copied());
-        let on = q.is_some() && base.quantum_dps == 0.0;
-        tests.push(evidence::Test {
-            effect: Effect::Quantization,
-            test: "the fit blocks' distinct values: the smallest step, and at least 95 % of the steps between sorted distinct values its multiples".into(),
-            statistic: q.unwrap_or(0.0),
-            null_mean: 0.0,
-            null_sd: 1.0,
-            null_max: f64::NAN,
-            nulls: 0,
-            z: if on { evidence::LATTICE_Z } else { 0.0 },
-            threshold: evidence::threshold(Effect::Quantization),
-            passed: on,
-            detail: match (q, c.skipped.as_ref()) {
-                (Some(q), _) if on => format!("quantum {q:.6e} deg/s"),
-                (Some(_), _) => "the model already rounds".into(),
-                (None, Some(why)) => why.clone(),
-                (None, None) => String::new(),
-            },
-        });
-    }
-    // Without a user model the baseline's own terms (white noise, bias instability, random
-    // walk) are fitted to the record: "the model lacks white noise" would only say the fit
-    // failed. They are scored but not named.
+    Ok((candidates, curves_by))
+}
+
+/// The quantization test (when quantization is a candidate): values on a lattice are
+/// evidence by themselves (continuous noise never lands on one), unless the model already
+/// rounds.
+fn quantization_test(candidates: &[Candidate], base: &Spec) -> Option<evidence::Test> {
+    let c = candidates
+        .iter()
+        .find(|c| c.effect == Effect::Quantization)?;
+    let q = c
+        .params
+        .as_ref()
+        .and_then(|p| p.get("quantum_dps").copied());
+    let on = q.is_some() && base.quantum_dps == 0.0;
+    Some(evidence::Test {
+        effect: Effect::Quantization,
+        test: "the fit blocks' distinct values: the smallest step, and at least 95 % of the steps between sorted distinct values its multiples".into(),
+        statistic: q.unwrap_or(0.0),
+        null_mean: 0.0,
+        null_sd: 1.0,
+        null_max: f64::NAN,
+        nulls: 0,
+        z: if on { evidence::LATTICE_Z } else { 0.0 },
+        threshold: evidence::threshold(Effect::Quantization),
+        passed: on,
+        detail: match (q, c.skipped.as_ref()) {
+            (Some(q), _) if on => format!("quantum {q:.6e} deg/s"),
+            (Some(_), _) => "the model already rounds".into(),
+            (None, Some(why)) => why.clone(),
+            (None, None) => String::new(),
+        },
+    })
+}
+
+/// Against a fitted baseline, its own terms (white noise, bias instability, random walk)
+/// are fitted to the record: "the model lacks white noise" would only say the fit failed.
+/// They are scored but not named.
+fn exclude_baseline_terms(candidates: &mut [Candidate]) {
     for c in candidates.iter_mut() {
-        if model.is_none()
-            && c.excluded.is_none()
+        if c.excluded.is_none()
             && matches!(
                 c.effect,
                 Effect::WhiteNoise | Effect::BiasInstability | Effect::RateRandomWalk
@@ -902,8 +1083,11 @@ pub fn diagnose(
             c.excluded = Some("a term of the fitted baseline".into());
         }
     }
-    // A candidate with a dedicated test may be named only when its test passes; a passed
-    // test is its own significance (the gap rule below is for the others).
+}
+
+/// A candidate with a dedicated test may be named only when its test passes; a passed test
+/// is its own significance (the gap rule is for the others).
+fn exclude_failed_tests(candidates: &mut [Candidate], tests: &[evidence::Test]) {
     for c in candidates.iter_mut() {
         if let Some(t) = tests.iter().find(|t| t.effect == c.effect) {
             if !t.passed && c.excluded.is_none() && c.gap_after.is_some() {
@@ -914,21 +1098,37 @@ pub fn diagnose(
             }
         }
     }
+}
+
+/// The candidate chosen: by a passed dedicated test, or else by the gap rule.
+struct Choice<'c> {
+    /// The chosen candidate (named only if the decision finds it significant).
+    best: Option<&'c Candidate>,
+    /// It was chosen by its passed dedicated test (not overridden by the gap rule).
+    tested: bool,
+}
+
+/// Chooses the candidate. Among passed tests, the one furthest past its threshold; of the
+/// drift tests (temperature, warm-up, ramp: nested, a warm-up or temperature drift also
+/// gives a slope) only the one whose model is most likely ([`drift::DriftTests::pick`]).
+/// The gap rule's candidate (lowest held-out gap, not excluded) overrides it when the gap
+/// exceeds [`OVERRIDE_RATIO`] times `g95` and its shrink beats the tested one's by 0.5
+/// (never a passed temperature test with [`OVERRIDE_SPARES_TEMPERATURE`]).
+fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice<'c> {
     let by_gap = |a: &&Candidate, b: &&Candidate| {
         a.gap_after
             .unwrap_or(f64::INFINITY)
             .total_cmp(&b.gap_after.unwrap_or(f64::INFINITY))
     };
-    // Among passed tests, the one furthest past its threshold; of the drift tests
-    // (temperature, warm-up, ramp: nested, a warm-up or temperature drift also gives a
-    // slope) only the one whose model is most likely (drift::DriftTests::pick).
     let drift_rank =
         |e: Effect| matches!(e, Effect::Temperature | Effect::Warmup | Effect::RateRamp);
-    let drift_choice = drift_tests.as_ref().and_then(|d| d.pick(&tests));
+    let drift_choice = tests.drift.as_ref().and_then(|d| d.pick(&tests.all));
     let drift_pick = tests
+        .all
         .iter()
         .find(|t| t.passed && Some(t.effect) == drift_choice);
     let tested = tests
+        .all
         .iter()
         .filter(|t| t.passed && !drift_rank(t.effect))
         .chain(drift_pick)
@@ -944,171 +1144,271 @@ pub fn diagnose(
         .min_by(by_gap);
     let overridden = match (tested, by_gap_rule) {
         (Some(t), Some(g)) => {
-            gap_before > OVERRIDE_RATIO * g95
+            gaps.before > OVERRIDE_RATIO * gaps.g95
                 && g.shrink.unwrap_or(0.0) > t.shrink.unwrap_or(0.0) + 0.5
                 && !(OVERRIDE_SPARES_TEMPERATURE && t.effect == Effect::Temperature)
         }
         _ => false,
     };
     let tested = if overridden { None } else { tested };
-    let best = tested.or(by_gap_rule);
-    let (effect, gap_after, params, decision) = match (best, tested) {
-        (Some(c), Some(_)) => {
-            let after = c.gap_after.unwrap_or(gap_before);
-            let t = tests.iter().find(|t| t.effect == c.effect);
-            (
-                c.effect.name().to_string(),
-                after,
-                c.params.clone(),
-                format!(
-                    "{}: its dedicated test passed (z {:.1} > {:.1}{}); held-out gap {gap_before:.3} -> {after:.3}",
-                    c.effect.name(),
-                    t.map_or(0.0, |t| t.z),
-                    t.map_or(0.0, |t| t.threshold),
-                    t.map_or(String::new(), |t| if t.detail.is_empty() { String::new() } else { format!(", {}", t.detail) }),
-                ),
-            )
-        }
-        (None, _) => (
-            "none".to_string(),
-            gap_before,
-            None,
-            "no dedicated test passed and no candidate is left for the gap rule (the fitted baseline's own terms are not named)".to_string(),
+    Choice {
+        best: tested.or(by_gap_rule),
+        tested: tested.is_some(),
+    }
+}
+
+/// The answer: the named effect (or `none`), its held-out gap and parameters, and why.
+struct Named {
+    /// The named effect or `none`.
+    effect: String,
+    /// Held-out gap with it (= the baseline's for `none`).
+    gap_after: f64,
+    /// Its fitted parameters.
+    params: Option<BTreeMap<String, f64>>,
+    /// Why.
+    decision: String,
+}
+
+/// The answer for the chosen candidate.
+fn decide(choice: &Choice, tests: &[evidence::Test], gaps: &Gaps) -> Named {
+    match choice.best {
+        Some(c) if choice.tested => tested_decision(c, tests, gaps.before),
+        Some(c) => gap_rule_decision(c, gaps),
+        None => Named {
+            effect: "none".to_string(),
+            gap_after: gaps.before,
+            params: None,
+            decision: "no dedicated test passed and no candidate is left for the gap rule (the fitted baseline's own terms are not named)".to_string(),
+        },
+    }
+}
+
+/// A candidate whose dedicated test passed is named.
+fn tested_decision(c: &Candidate, tests: &[evidence::Test], gap_before: f64) -> Named {
+    let after = c.gap_after.unwrap_or(gap_before);
+    let t = tests.iter().find(|t| t.effect == c.effect);
+    Named {
+        effect: c.effect.name().to_string(),
+        gap_after: after,
+        params: c.params.clone(),
+        decision: format!(
+            "{}: its dedicated test passed (z {:.1} > {:.1}{}); held-out gap {gap_before:.3} -> {after:.3}",
+            c.effect.name(),
+            t.map_or(0.0, |t| t.z),
+            t.map_or(0.0, |t| t.threshold),
+            t.map_or(String::new(), |t| if t.detail.is_empty() { String::new() } else { format!(", {}", t.detail) }),
         ),
-        (Some(c), None) => {
-            let after = c.gap_after.unwrap_or(gap_before);
-            if gap_before <= NONE_MARGIN * g95 {
-                (
-                    "none".into(),
-                    gap_before,
-                    None,
-                    format!("gap_before {gap_before:.3} <= {NONE_MARGIN} x null_gap_95 {g95:.3}: the record is within the simulations' seed-to-seed spread"),
-                )
-            } else if gap_before - after <= g95 - g50 {
-                (
-                    "none".into(),
-                    gap_before,
-                    None,
-                    format!(
-                        "best candidate {} lowers the gap by {:.3} <= null_gap_95 - null_gap_median = {:.3}: not significant",
-                        c.effect.name(),
-                        gap_before - after,
-                        g95 - g50
-                    ),
-                )
-            } else {
-                (
-                    c.effect.name().to_string(),
-                    after,
-                    c.params.clone(),
-                    format!(
-                        "{} lowers the held-out gap from {gap_before:.3} to {after:.3} (by {:.3} > {:.3} = null_gap_95 - null_gap_median)",
-                        c.effect.name(),
-                        gap_before - after,
-                        g95 - g50
-                    ),
-                )
-            }
-        }
+    }
+}
+
+/// The gap rule: the candidate is named when the baseline's gap exceeds [`NONE_MARGIN`]
+/// times `g95` and the candidate lowers it by more than `g95 - g50`.
+fn gap_rule_decision(c: &Candidate, gaps: &Gaps) -> Named {
+    let (gap_before, g50, g95) = (gaps.before, gaps.g50, gaps.g95);
+    let after = c.gap_after.unwrap_or(gap_before);
+    let none = |decision: String| Named {
+        effect: "none".into(),
+        gap_after: gap_before,
+        params: None,
+        decision,
     };
-    let best_effect = best.map(|c| c.effect);
-    // A named drift effect: its parameters from the whole-record likelihood fit, with 95 %
-    // intervals (GLS standard errors at the fitted noise).
-    let mut params = params;
+    if gap_before <= NONE_MARGIN * g95 {
+        none(format!("gap_before {gap_before:.3} <= {NONE_MARGIN} x null_gap_95 {g95:.3}: the record is within the simulations' seed-to-seed spread"))
+    } else if gap_before - after <= g95 - g50 {
+        none(format!(
+            "best candidate {} lowers the gap by {:.3} <= null_gap_95 - null_gap_median = {:.3}: not significant",
+            c.effect.name(),
+            gap_before - after,
+            g95 - g50
+        ))
+    } else {
+        Named {
+            effect: c.effect.name().to_string(),
+            gap_after: after,
+            params: c.params.clone(),
+            decision: format!(
+                "{} lowers the held-out gap from {gap_before:.3} to {after:.3} (by {:.3} > {:.3} = null_gap_95 - null_gap_median)",
+                c.effect.name(),
+                gap_before - after,
+                g95 - g50
+            ),
+        }
+    }
+}
+
+/// A named drift effect's parameters from the drift tests' whole-record likelihood fit, and
+/// their 95 % intervals (GLS standard errors at the fitted noise), returned; a named markov
+/// effect's from the markov test's Whittle fit. Added to `params`.
+fn add_test_params(
+    params: &mut Option<BTreeMap<String, f64>>,
+    named: Option<Effect>,
+    tests: &Tests,
+) -> Option<BTreeMap<String, [f64; 2]>> {
     let mut params_ci95 = None;
-    if let (Some(e), Some(d)) = (best_effect.filter(|_| effect != "none"), &drift_tests) {
+    if let (Some(e), Some(d)) = (named, &tests.drift) {
         if let Some((p, ci)) = d.params(e) {
             params.get_or_insert_with(BTreeMap::new).extend(p);
             params_ci95 = Some(ci);
         }
     }
-    if let (Some(Effect::Markov), Some(m)) =
-        (best_effect.filter(|_| effect != "none"), &markov_test)
-    {
+    if let (Some(Effect::Markov), Some(m)) = (named, &tests.markov) {
         let p = params.get_or_insert_with(BTreeMap::new);
         p.insert("gm_sigma_dps".into(), m.gm_sigma_dps);
         p.insert("gm_tau_s".into(), m.gm_tau_s);
     }
+    params_ci95
+}
 
-    // Curves.
+/// The report's curves: the real record's, the baseline simulations' median and (`after`)
+/// the best candidate's.
+fn report_curves(
+    layout: &Layout,
+    dt_s: f64,
+    real_out: &SimOut,
+    base_outs: &[SimOut],
+    after: Option<&CurvePair>,
+) -> Curves {
     let mut curves = Curves {
-        tau_s: layout.ms.iter().map(|&m| m as f64 * real.dt_s).collect(),
+        tau_s: layout.ms.iter().map(|&m| m as f64 * dt_s).collect(),
         adev_real: real_out.adev.clone(),
-        adev_base: median_curve(&base_outs, |o| &o.adev),
+        adev_base: median_curve(base_outs, |o| &o.adev),
         freq_hz: (0..=layout.nseg / 2).map(|k| layout.freq_hz(k)).collect(),
         psd_real: real_out.psd.clone(),
-        psd_base: median_curve(&base_outs, |o| &o.psd),
+        psd_base: median_curve(base_outs, |o| &o.psd),
         ..Default::default()
     };
-    if let Some((a, p)) = best_effect.and_then(|e| curves_by.get(&e)) {
+    if let Some((a, p)) = after {
         curves.adev_after = a.clone();
         curves.psd_after = p.clone();
     }
+    curves
+}
 
-    // Jackknife of the named effect's parameters over the fit blocks.
-    let params_sigma = match best_effect {
-        Some(e) if effect != "none" && matches!(e, Effect::Sinusoid | Effect::ScaleFactor) => {
-            let all_ranges = ctx.fit_ranges.clone();
-            let mut reps: Vec<BTreeMap<String, f64>> = Vec::new();
-            for k in 0..all_ranges.len() {
-                ctx.fit_ranges = all_ranges
-                    .iter()
-                    .enumerate()
-                    .filter(|(j, _)| *j != k)
-                    .map(|(_, r)| *r)
-                    .collect();
-                if let Ok(Fitted::Spec(_, p, _)) = effects::fit(e, &ctx) {
-                    reps.push(p);
-                }
-            }
-            ctx.fit_ranges = all_ranges;
-            let k = reps.len() as f64;
-            params.as_ref().map(|p| {
-                p.keys()
-                    .filter_map(|key| {
-                        let v: Vec<f64> = reps.iter().filter_map(|r| r.get(key).copied()).collect();
-                        (v.len() >= 2).then(|| {
-                            let m = features::mean(&v);
-                            let ss: f64 = v.iter().map(|x| (x - m).powi(2)).sum();
-                            (key.clone(), ((k - 1.0) / k * ss).sqrt())
-                        })
-                    })
-                    .collect()
+/// Standard uncertainty of the keys of `params` fitted as `e`: jackknife over the fit
+/// blocks (the fit repeated with each fit block left out, `sqrt((k-1)/k sum (p_i -
+/// mean)^2)` over the `k` refits; keys with fewer than 2 refits left out). `ctx` is
+/// restored.
+fn jackknife_sigma(
+    e: Effect,
+    ctx: &mut FitCtx,
+    params: Option<&BTreeMap<String, f64>>,
+) -> Option<BTreeMap<String, f64>> {
+    let all_ranges = ctx.fit_ranges.clone();
+    let mut reps: Vec<BTreeMap<String, f64>> = Vec::new();
+    for k in 0..all_ranges.len() {
+        ctx.fit_ranges = all_ranges
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != k)
+            .map(|(_, r)| *r)
+            .collect();
+        if let Ok(Fitted::Spec(_, p, _)) = effects::fit(e, ctx) {
+            reps.push(p);
+        }
+    }
+    ctx.fit_ranges = all_ranges;
+    let k = reps.len() as f64;
+    params.map(|p| {
+        p.keys()
+            .filter_map(|key| {
+                let v: Vec<f64> = reps.iter().filter_map(|r| r.get(key).copied()).collect();
+                (v.len() >= 2).then(|| {
+                    let m = features::mean(&v);
+                    let ss: f64 = v.iter().map(|x| (x - m).powi(2)).sum();
+                    (key.clone(), ((k - 1.0) / k * ss).sqrt())
+                })
             })
+            .collect()
+    })
+}
+
+/// Runs the diagnosis of `real` against `model` (or a baseline fitted to it).
+pub fn diagnose(
+    real: &Rec,
+    time: TimeInfo,
+    model: Option<&Model>,
+    o: &Options,
+) -> Result<Diagnosis> {
+    let s = Setup::new(real, model, o)?;
+    let mut fft = Fft::default();
+    let real_sim = effects::Sim {
+        t: s.resid.t_s.clone(),
+        raw: real.rate_dps.clone(),
+        res: s.resid.rate_dps.clone(),
+    };
+    let real_out = analyse(
+        &s.layout,
+        &real_sim,
+        &s.split.score,
+        Some(&s.split.all),
+        &mut fft,
+    );
+    let sims = simulate_baseline(&s, o.task, &mut fft)?;
+    let gaps = held_out_gaps(&s.defs_score, &real_out.score, &sims.outs);
+    let mut tests = dedicated_tests(&s, &sims, time.bursty, o);
+    let (where_, feature_rows) = full_record(&s.defs_all, &real_out.all, &sims.outs);
+    let mut ctx = fit_ctx(&s, real, &sims, time.bursty);
+    let (mut candidates, curves_by) =
+        score_candidates(&s, &ctx, &o.effects, &real_out.score, gaps.before, &mut fft)?;
+    tests.all.extend(quantization_test(&candidates, &s.base));
+    if s.fitted_baseline {
+        exclude_baseline_terms(&mut candidates);
+    }
+    exclude_failed_tests(&mut candidates, &tests.all);
+    let choice = choose(&candidates, &tests, &gaps);
+    let Named {
+        effect,
+        gap_after,
+        mut params,
+        decision,
+    } = decide(&choice, &tests.all, &gaps);
+    let best_effect = choice.best.map(|c| c.effect);
+    let named = best_effect.filter(|_| effect != "none");
+    let params_ci95 = add_test_params(&mut params, named, &tests);
+    let curves = report_curves(
+        &s.layout,
+        s.resid.dt_s,
+        &real_out,
+        &sims.outs,
+        best_effect.and_then(|e| curves_by.get(&e)),
+    );
+    // The jackknife is for the sinusoid and the scale factor; a named drift effect carries
+    // 95 % intervals instead.
+    let params_sigma = match named {
+        Some(e @ (Effect::Sinusoid | Effect::ScaleFactor)) => {
+            jackknife_sigma(e, &mut ctx, params.as_ref())
         }
         _ => None,
     };
-    let feature_rows_copy: Vec<FeatureRow> = feature_rows.clone();
-    let effect_name_copy = effect.clone();
     let task = if o.task {
-        Some(run_task(raw, &task_sims)?)
+        Some(run_task(real, &sims.task)?)
     } else {
         None
     };
     Ok(Diagnosis {
-        record: raw.name.clone(),
-        samples: real.t_s.len(),
+        record: real.name.clone(),
+        samples: s.resid.t_s.len(),
         time,
+        plain: plain::build(&curves, &feature_rows, &effect),
         effect,
-        gap_before,
+        gap_before: gaps.before,
         gap_after,
-        shrink: 1.0 - gap_after / gap_before,
+        shrink: 1.0 - gap_after / gaps.before,
         best_candidate: best_effect,
         params,
         params_sigma,
         params_ci95,
-        drift: drift_tests,
-        plain: plain::build(&curves, &feature_rows_copy, &effect_name_copy),
-        null_gap_median: g50,
-        null_gap_95: g95,
+        drift: tests.drift,
+        null_gap_median: gaps.g50,
+        null_gap_95: gaps.g95,
         decision,
-        group_gap_before: real_groups,
-        null_group_gaps: null_groups,
+        group_gap_before: gaps.groups_before,
+        null_group_gaps: gaps.null_groups,
         where_,
         candidates,
-        tests,
-        baseline: base_model,
-        baseline_source: source,
+        tests: tests.all,
+        baseline: s.base_model,
+        baseline_source: s.source,
         task,
         features: feature_rows,
         definitions: DEFINITIONS,
@@ -1149,7 +1449,7 @@ fn where_of(defs: &[Def], z: &[f64]) -> Where {
             .collect(),
         group_gap: features::group_gaps(defs, z)
             .into_iter()
-            .map(|(g, v)| (format!("{g:?}").to_lowercase(), v))
+            .map(|(g, v)| (group_name(g), v))
             .collect(),
     }
 }
