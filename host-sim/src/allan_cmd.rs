@@ -222,11 +222,45 @@ pub fn run(args: &Args) -> Result<()> {
             round9(p.tau_s)
         )?;
     }
-    for t in fit.terms.iter().filter(|t| t.active) {
+    for t in &fit.terms {
+        if t.active {
+            let pm = |v: Option<f64>| v.map_or(String::new(), |v| format!(" +- {v:.2e}"));
+            writeln!(
+                err,
+                "  {:>8} = {:.4e}{} {} ({:.4e}{} {}): {}",
+                t.symbol,
+                t.value,
+                pm(t.sigma),
+                t.unit,
+                t.value_alt,
+                pm(t.sigma_alt),
+                t.unit_alt,
+                t.selection
+            )?;
+        } else {
+            writeln!(err, "  {:>8}   not in the model: {}", t.symbol, t.selection)?;
+        }
+    }
+    writeln!(
+        err,
+        "  fit: reduced chi-square {:.2} over {} points; model uncertainty {:.1} % of AVAR per point beside the statistical one ({})",
+        fit.chi2_reduced,
+        fit.n_points,
+        100.0 * fit.model_rel,
+        if fit.model_rel > 0.0 {
+            "the IEEE 952 terms do not describe the curve within its statistics"
+        } else {
+            "the terms fit the points within their statistics"
+        }
+    )?;
+    for m in &fit.not_followed {
         writeln!(
             err,
-            "  {:>8} = {:.4e} {} ({:.4e} {})",
-            t.symbol, t.value, t.unit, t.value_alt, t.unit_alt
+            "  not followed at tau {} s: measured {:.4} deg/h, fitted {:.4} deg/h ({:+.1} sigma): the IEEE 952 terms cannot describe the curve there",
+            round9(m.tau_s),
+            m.adev_dps * 3600.0,
+            m.fit_adev_dps * 3600.0,
+            m.z
         )?;
     }
     if let Some(t) = fit.gm_tau_s {

@@ -54,6 +54,9 @@ enum Cmd {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Err(e) = host_sim::record::remove_temp_files_on_interrupt() {
+        eprintln!("warning: {e:#}");
+    }
     let result = match &cli.cmd {
         Cmd::Denoise(a) => denoise_cmd::run(a),
         Cmd::Simulate(a) => simulate_cmd::run(a),

@@ -540,8 +540,46 @@ pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
     false
 }
 
+/// The temporary files [`write_atomic`] is writing now: what the interrupt handler
+/// ([`remove_temp_files_on_interrupt`]) removes.
+static LIVE_TEMP_FILES: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn live_temp_files() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    LIVE_TEMP_FILES
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Installs the handler of Ctrl-C, SIGTERM and SIGHUP (the `ctrlc` crate): it removes every
+/// temporary file [`write_atomic`] is writing, says so on stderr and exits with status 130.
+/// A rename into place holds the same lock, so an output is either complete or absent.
+pub fn remove_temp_files_on_interrupt() -> Result<()> {
+    ctrlc::set_handler(|| {
+        let live = live_temp_files();
+        for p in live.iter() {
+            let _ = std::fs::remove_file(p);
+        }
+        eprintln!(
+            "interrupted: {} temporary output file(s) removed; no partial output left",
+            live.len()
+        );
+        std::process::exit(130);
+    })
+    .context("cannot install the Ctrl-C / SIGTERM handler")
+}
+
+/// Unregisters a temporary file from [`LIVE_TEMP_FILES`] when dropped.
+struct LiveTemp(PathBuf);
+
+impl Drop for LiveTemp {
+    fn drop(&mut self) {
+        live_temp_files().retain(|p| p != &self.0);
+    }
+}
+
 /// Writes a file atomically: into a temporary file beside `path`, renamed over `path` only
-/// when `fill` succeeds. On error nothing is left behind.
+/// when `fill` succeeds. On error nothing is left behind, nor on Ctrl-C or SIGTERM once
+/// [`remove_temp_files_on_interrupt`] is installed (as `host-sim` does).
 pub fn write_atomic(
     path: &Path,
     fill: impl FnOnce(&mut BufWriter<&mut File>) -> Result<()>,
@@ -561,6 +599,8 @@ pub fn write_atomic(
                 dir.display()
             )
         })?;
+    live_temp_files().push(tmp.path().to_path_buf());
+    let _live = LiveTemp(tmp.path().to_path_buf());
     // tempfile creates the file 0600; output is an ordinary file (0644, less the umask
     // that `File::create` would apply: we cannot read the umask portably, 0644 is the usual
     // result of 0666 & !022).
@@ -576,9 +616,11 @@ pub fn write_atomic(
         w.flush()
             .with_context(|| format!("{}: write failed", path.display()))?;
     }
+    let live = live_temp_files();
     tmp.persist(path).map_err(|e| {
         anyhow::anyhow!("{}: cannot rename into place: {}", path.display(), e.error)
     })?;
+    drop(live);
     Ok(())
 }
 

@@ -284,3 +284,55 @@ fn failing_runs_write_nothing() {
     assert!(!json.exists());
     assert_no_tmp(d.path());
 }
+
+/// SIGTERM and SIGINT (Ctrl-C) in the middle of a long `simulate`: the temporary file is
+/// removed, no output appears, and the exit status is 130.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_command_leaves_no_temporary_file() {
+    use std::time::{Duration, Instant};
+    for signal in ["-TERM", "-INT"] {
+        let d = tempfile::tempdir().expect("tmp");
+        let out = d.path().join("long.csv");
+        let bin = assert_cmd::cargo::cargo_bin("host-sim");
+        let mut child = std::process::Command::new(bin)
+            .args(["simulate", "--preset", "ecore2000", "--seed", "1"])
+            .args(["--duration-s", "2e5", "--output"])
+            .arg(&out)
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("spawn");
+        // Wait until the temporary file exists and grows.
+        let start = Instant::now();
+        let tmp_size = || {
+            fs::read_dir(d.path())
+                .expect("list")
+                .flatten()
+                .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+                .filter_map(|e| e.metadata().ok())
+                .map(|m| m.len())
+                .next()
+        };
+        while tmp_size().is_none_or(|n| n < 100_000) {
+            assert!(
+                start.elapsed() < Duration::from_secs(60),
+                "no temporary file appeared"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let status = std::process::Command::new("kill")
+            .arg(signal)
+            .arg(child.id().to_string())
+            .status()
+            .expect("kill");
+        assert!(status.success());
+        let code = child.wait().expect("wait").code();
+        let mut err = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().expect("stderr"), &mut err)
+            .expect("stderr");
+        assert_eq!(code, Some(130), "{signal}: exit status; stderr: {err}");
+        assert!(err.contains("interrupted"), "{signal}: {err}");
+        assert!(!out.exists(), "{signal}: no output");
+        assert_no_tmp(d.path());
+    }
+}

@@ -13,7 +13,10 @@
 //! - Unknowns: the coefficients `c = (Q^2, N^2, B^2, K^2, R^2[, sigma^2])`, linear in AVAR,
 //!   constrained `c >= 0`.
 //! - Weights: the variance of an AVAR estimate with `edf` degrees of freedom is
-//!   `2 AVAR^2 / edf`, so each point is weighted by `edf / (2 model^2)`; `model` starts as
+//!   `2 AVAR^2 / edf`; the model's own relative accuracy `rel` is added, so each point is
+//!   weighted by `1 / (model^2 (2 / edf + rel^2))`. `rel` is 0 when all terms together fit
+//!   the points within their statistics, else the value that brings the reduced chi-square
+//!   to 1 ([`Fit::model_rel`]: how far the vocabulary is from the curve). `model` starts as
 //!   the measured AVAR and is replaced by the fitted curve for 5 iterations (iteratively
 //!   reweighted least squares, which avoids the downward bias of weighting by the data).
 //! - NNLS: exact, by enumeration of the 2^5 - 1 (or 2^6 - 1) supports: the least-squares
@@ -47,6 +50,16 @@ pub const SELECT_BIC_FACTOR: f64 = 2.0;
 /// ... and if it makes at least this share of the fitted AVAR at some fitted tau (a term
 /// that never matters to a fifth of the curve is not a property the data show).
 pub const SELECT_MIN_SHARE: f64 = 0.2;
+
+/// Range of the term model's own relative accuracy on AVAR ([`Fit::model_rel`]), added in
+/// quadrature to each point's statistical one. A real sensor's curve is not an exact sum of
+/// the IEEE 952 power laws (filters, aliasing, sample-and-hold near tau0); without it, the
+/// short-tau points (hundreds of thousands of degrees of freedom) outweigh the rest and a
+/// mismatch there drags the fit below the long-tau points (the ADIS16405: reduced
+/// chi-square 57,895 with it 0).
+pub const MODEL_REL_MIN: f64 = 1e-4;
+/// Upper end of that range: 100 %.
+pub const MODEL_REL_MAX: f64 = 1.0;
 
 /// A term of the noise model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -153,6 +166,30 @@ pub struct Fit {
     pub chi2_reduced: f64,
     /// Points fitted.
     pub n_points: usize,
+    /// The model's own relative accuracy on AVAR added to each point's (0: the terms fit
+    /// the points within their statistics).
+    pub model_rel: f64,
+    /// Points the fitted curve does not follow (beyond [`NOT_FOLLOWED_Z`] of their
+    /// statistical and model uncertainty): there the IEEE 952 terms cannot describe the
+    /// data.
+    pub not_followed: Vec<Miss>,
+}
+
+/// Points further than this many standard uncertainties (statistical and
+/// [`Fit::model_rel`], on log ADEV) from the fitted curve are reported as not followed.
+pub const NOT_FOLLOWED_Z: f64 = 3.0;
+
+/// A point the fit does not follow.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Miss {
+    /// Tau, s.
+    pub tau_s: f64,
+    /// Measured ADEV, deg/s.
+    pub adev_dps: f64,
+    /// Fitted ADEV, deg/s.
+    pub fit_adev_dps: f64,
+    /// `ln(fit / measured)` in standard uncertainties.
+    pub z: f64,
 }
 
 impl Fit {
@@ -202,8 +239,20 @@ struct Solution {
     active: usize,
 }
 
-/// Fits the points (their `edf` must be set).
+/// Fits the points (their `edf` must be set), the model's own accuracy fitted
+/// ([`Fit::model_rel`]): `host-sim allan` and the replay report.
 pub fn fit(points: &[AdevPoint], markov: bool) -> Result<Fit> {
+    fit_with(points, markov, true)
+}
+
+/// Fits the points under their statistics alone (`model_rel` 0): the gap diagnosis's
+/// baseline, which compares the record with simulations of the fitted model and measures
+/// the misfit itself (its decision thresholds were calibrated on this fit).
+pub fn fit_statistical(points: &[AdevPoint], markov: bool) -> Result<Fit> {
+    fit_with(points, markov, false)
+}
+
+fn fit_with(points: &[AdevPoint], markov: bool, fit_model_rel: bool) -> Result<Fit> {
     let n = points.len();
     if n < 3 {
         bail!("the fit needs at least 3 Allan points, got {n}");
@@ -234,14 +283,22 @@ pub fn fit(points: &[AdevPoint], markov: bool) -> Result<Fit> {
             .collect()
     };
     // IRLS on the allowed terms: (solution, T, final weights).
-    let irls = |allowed: u32| -> Result<(Solution, f64, Vec<f64>)> {
+    let irls = |allowed: u32, rel: f64| -> Result<(Solution, f64, Vec<f64>)> {
         let mut model: Vec<f64> = avar.iter().map(|&v| v.max(floor)).collect();
         let mut best: Option<(Solution, f64, Vec<f64>)> = None;
         for _ in 0..5 {
             let w: Vec<f64> = points
                 .iter()
                 .zip(&model)
-                .map(|(p, &m)| p.edf / (2.0 * m * m))
+                .map(|(p, &m)| {
+                    // rel 0: the statistical weight in its own form (bit for bit the
+                    // gap baseline's calibration).
+                    if rel == 0.0 {
+                        p.edf / (2.0 * m * m)
+                    } else {
+                        1.0 / (m * m * (2.0 / p.edf + rel * rel))
+                    }
+                })
                 .collect();
             best = None;
             for &t in &grid {
@@ -273,11 +330,34 @@ pub fn fit(points: &[AdevPoint], markov: bool) -> Result<Fit> {
     // support with the lowest IC wins; a winning term that never reaches SELECT_MIN_SHARE
     // of the fitted AVAR is removed and the selection repeated.
     let all: u32 = (1 << kinds.len()) - 1;
+    // The model's own relative accuracy: 0 when every term together fits the points within
+    // their statistics (reduced chi-square <= 1), else the value that brings the reduced
+    // chi-square to 1 (bisection on a log scale, 1e-4 .. 1).
+    let chi2_red_at = |rel: f64| -> Result<f64> {
+        let (full, _, _) = irls(all, rel)?;
+        Ok(full.cost / n.saturating_sub(full.active).max(1) as f64)
+    };
+    let model_rel = if !fit_model_rel || chi2_red_at(0.0)? <= 1.0 {
+        0.0
+    } else if chi2_red_at(MODEL_REL_MAX)? > 1.0 {
+        MODEL_REL_MAX
+    } else {
+        let (mut lo, mut hi) = (MODEL_REL_MIN.ln(), MODEL_REL_MAX.ln());
+        for _ in 0..40 {
+            let mid = 0.5 * (lo + hi);
+            if chi2_red_at(mid.exp())? > 1.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        hi.exp()
+    };
     let mut allowed = all;
     let mut reasons: Vec<Option<String>> = vec![None; kinds.len()];
     let penalty = SELECT_BIC_FACTOR * (n as f64).ln();
     let (s, t) = loop {
-        let (full, t, w) = irls(allowed)?;
+        let (full, t, w) = irls(allowed, model_rel)?;
         let chi2_red = if n > full.active {
             (full.cost / (n - full.active) as f64).max(1.0)
         } else {
@@ -300,7 +380,7 @@ pub fn fit(points: &[AdevPoint], markov: bool) -> Result<Fit> {
         let Some(&(best_sup, best_ic)) = sols.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
             break (full, t);
         };
-        let (sel, _, _) = irls(best_sup)?;
+        let (sel, _, _) = irls(best_sup, model_rel)?;
         let total: Vec<f64> = (0..n)
             .map(|i| {
                 (0..kinds.len())
@@ -392,12 +472,30 @@ pub fn fit(points: &[AdevPoint], markov: bool) -> Result<Fit> {
             }
         })
         .collect();
-    Ok(Fit {
+    let mut fit = Fit {
         terms,
         gm_tau_s: gm_active.then_some(t),
         chi2_reduced,
         n_points: n,
-    })
+        model_rel,
+        not_followed: Vec::new(),
+    };
+    fit.not_followed = points
+        .iter()
+        .filter_map(|p| {
+            let model = fit.avar(p.tau_s).sqrt();
+            // ADEV's relative sigma is half the AVAR's.
+            let rel = 0.5 * (2.0 / p.edf + model_rel * model_rel).sqrt();
+            let z = (model / p.adev_dps).ln() / rel;
+            (z.abs() > NOT_FOLLOWED_Z && z.is_finite()).then_some(Miss {
+                tau_s: p.tau_s,
+                adev_dps: p.adev_dps,
+                fit_adev_dps: model,
+                z,
+            })
+        })
+        .collect();
+    Ok(fit)
 }
 
 /// Exact NNLS by enumerating supports (see the module docs).

@@ -481,9 +481,11 @@ pub fn fit_baseline_terms(
         }
     };
     set_edf(&mut pts, None);
-    let mut f = fit::fit(&pts, false).with_context(|| format!("{}: baseline fit", real.name))?;
+    let mut f = fit::fit_statistical(&pts, false)
+        .with_context(|| format!("{}: baseline fit", real.name))?;
     set_edf(&mut pts, Some(&f));
-    f = fit::fit(&pts, markov).with_context(|| format!("{}: baseline fit", real.name))?;
+    f = fit::fit_statistical(&pts, markov)
+        .with_context(|| format!("{}: baseline fit", real.name))?;
     let get = |k| f.get(k).map_or(0.0, |t| t.value);
     let mut m = Model {
         sample_rate_hz: Some(1.0 / real.dt_s),
