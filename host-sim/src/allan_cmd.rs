@@ -250,7 +250,7 @@ pub fn run(args: &Args) -> Result<()> {
         if fit.model_rel > 0.0 {
             "the IEEE 952 terms do not describe the curve within its statistics"
         } else {
-            "the terms fit the points within their statistics"
+            "all the terms together fit the points within their statistics"
         }
     )?;
     for m in &fit.not_followed {

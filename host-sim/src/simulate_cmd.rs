@@ -49,9 +49,15 @@ pub struct Args {
     /// and warm-up coefficients are the model's times `(1 + spread N(0,1))`.
     #[arg(long)]
     pub unit_seed: Option<u64>,
-    /// Relative 1-sigma per-unit spread (overrides `[family] unit_spread`), e.g. 0.2.
+    /// Relative 1-sigma per-unit spread (overrides `[family] unit_spread`), e.g. 0.2. It
+    /// spreads the unit's coefficients, not the record's start temperature: that is
+    /// `--initial-c-range` (else the model's `initial_c` for every record).
     #[arg(long)]
     pub unit_spread: Option<f64>,
+    /// Start temperature of each record (power-on), deg C, drawn uniformly in `LO,HI` from
+    /// the record seed (overrides `[family] initial_c_range`), e.g. `10,35`.
+    #[arg(long, value_delimiter = ',', value_name = "LO,HI")]
+    pub initial_c_range: Option<Vec<f64>>,
 }
 
 /// Built-in models.
@@ -59,6 +65,9 @@ pub struct Args {
 pub enum Preset {
     /// KVH E-Core 2000 class (`host-sim/presets/ecore2000.toml`).
     Ecore2000,
+    /// KVH DSP-1750-like axis, 1 kHz, the sensor `--sensor kvh1750` names
+    /// (`host-sim/presets/kvh1750.toml`).
+    Kvh1750,
 }
 
 /// Output formats.
@@ -107,12 +116,14 @@ pub fn run(args: &Args) -> Result<()> {
     let mut model = match (&args.model, args.preset) {
         (Some(p), _) => Model::load(p)?,
         (None, Some(Preset::Ecore2000)) => sim::preset("ecore2000")?,
+        (None, Some(Preset::Kvh1750)) => sim::preset("kvh1750")?,
         (None, None) => bail!("give --model FILE or --preset NAME"),
     };
-    let source = args.model.as_ref().map_or_else(
-        || "preset ecore2000".to_string(),
-        |p| p.display().to_string(),
-    );
+    let source = match (&args.model, args.preset) {
+        (Some(p), _) => p.display().to_string(),
+        (None, Some(Preset::Kvh1750)) => "preset kvh1750".to_string(),
+        (None, _) => "preset ecore2000".to_string(),
+    };
     let rate_hz = match (args.rate_hz, model.sample_rate_hz) {
         (Some(r), _) | (None, Some(r)) => r,
         (None, None) => bail!("{source}: no sample_rate_hz; give --rate-hz"),
@@ -134,6 +145,20 @@ pub fn run(args: &Args) -> Result<()> {
             bail!("--unit-spread {s}: must be finite and >= 0");
         }
         model.family.unit_spread = s;
+    }
+    if let Some(r) = &args.initial_c_range {
+        let [lo, hi] = r[..] else {
+            bail!("--initial-c-range: give two temperatures LO,HI (deg C), e.g. 10,35");
+        };
+        model.family.initial_c_range = Some([lo, hi]);
+        if let Err((key, why)) = model.family.check() {
+            bail!("--initial-c-range {lo},{hi}: {key} {why}");
+        }
+    } else if model.family.unit_spread > 0.0 && model.family.initial_c_range.is_none() {
+        eprintln!(
+            "{source}: note: every record starts at {} deg C (the model's initial_c); --initial-c-range LO,HI draws it per record",
+            model.temperature.initial_c
+        );
     }
     let moving_column = !model.motion.is_static();
     let mut simulator = Simulator::new(&model, args.seed, rate_hz).context(source.clone())?;

@@ -288,3 +288,88 @@ fn a_record_beyond_the_free_space_is_refused_with_its_size() {
     assert!(!out.exists());
     assert_no_tmp(dir.path());
 }
+
+/// `--preset kvh1750` is the sensor `--sensor kvh1750` names: 1 kHz, floating-point output,
+/// white noise 0.012 deg/sqrt(h) (one-sample sigma 0.0002 sqrt(1000) deg/s, within 5 % on
+/// 20,000 samples).
+#[test]
+fn the_kvh1750_preset_is_the_kvh_sensor() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = dir.path().join("kvh.csv");
+    simulate(
+        &["--preset", "kvh1750", "--duration-s", "20", "--seed", "4"],
+        &out,
+    )
+    .success()
+    .stderr(predicates::str::contains(
+        "preset kvh1750: 20000 samples at 1000 Hz",
+    ));
+    let text = fs::read_to_string(&out).expect("csv");
+    let rates: Vec<f64> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).expect("rate").parse().expect("number"))
+        .collect();
+    assert_eq!(rates.len(), 20_000);
+    // First differences: 2 sigma^2 of the white noise (the drift's steps are far smaller).
+    let var = rates.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>()
+        / (2.0 * (rates.len() - 1) as f64);
+    let want = 0.0002 * 1000f64.sqrt();
+    assert!(
+        (var.sqrt() / want - 1.0).abs() < 0.05,
+        "{} vs {want}",
+        var.sqrt()
+    );
+}
+
+/// `--unit-spread` spreads the unit's coefficients and says that the start temperature is
+/// the model's; `--initial-c-range` draws it per record (seed), within the range.
+#[test]
+fn the_start_temperature_spreads_with_initial_c_range() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let start_c = |seed: &str, extra: &[&str]| {
+        let out = dir.path().join(format!("s{seed}.csv"));
+        let mut args = vec!["--preset", "ecore2000", "--duration-s", "1", "--seed", seed];
+        args.extend_from_slice(extra);
+        let a = simulate(&args, &out).success();
+        let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+        let text = fs::read_to_string(&out).expect("csv");
+        let t: f64 = text
+            .lines()
+            .nth(1)
+            .and_then(|l| l.split(',').nth(2))
+            .expect("temp_c")
+            .parse()
+            .expect("number");
+        (t, err)
+    };
+    let spread = ["--unit-seed", "3", "--unit-spread", "0.2"];
+    let (t, err) = start_c("1", &spread);
+    assert_eq!(t, 25.0);
+    assert!(err.contains("every record starts at 25 deg C"), "{err}");
+    let mut seen = Vec::new();
+    for seed in ["1", "2", "3"] {
+        let mut args = spread.to_vec();
+        args.extend(["--initial-c-range", "10,35"]);
+        let (t, err) = start_c(seed, &args);
+        assert!((10.0..=35.0).contains(&t), "{t}");
+        assert!(!err.contains("every record starts"), "{err}");
+        seen.push(t);
+    }
+    assert!(seen[0] != seen[1] && seen[1] != seen[2], "{seen:?}");
+    simulate(
+        &[
+            "--preset",
+            "ecore2000",
+            "--duration-s",
+            "1",
+            "--seed",
+            "1",
+            "--initial-c-range",
+            "35,10",
+        ],
+        &dir.path().join("bad.csv"),
+    )
+    .failure()
+    .stderr(predicates::str::contains("needs finite lo <= hi"));
+}

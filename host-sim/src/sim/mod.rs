@@ -46,13 +46,17 @@ use rand_pcg::Pcg64Mcg;
 /// The built-in E-Core 2000 model (see the file for which values are assumed).
 pub const PRESET_ECORE2000: &str = include_str!("../../presets/ecore2000.toml");
 
+/// The built-in KVH DSP-1750-like preset (`host-sim/presets/kvh1750.toml`).
+pub const PRESET_KVH1750: &str = include_str!("../../presets/kvh1750.toml");
+
 /// Names of the built-in presets.
-pub const PRESETS: &[&str] = &["ecore2000"];
+pub const PRESETS: &[&str] = &["ecore2000", "kvh1750"];
 
 /// The model of a built-in preset.
 pub fn preset(name: &str) -> Result<Model> {
     match name {
         "ecore2000" => Model::from_toml_str(PRESET_ECORE2000, "preset ecore2000"),
+        "kvh1750" => Model::from_toml_str(PRESET_KVH1750, "preset kvh1750"),
         _ => bail!("unknown preset `{name}` (known: {})", PRESETS.join(", ")),
     }
 }
