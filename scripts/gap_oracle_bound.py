@@ -717,7 +717,8 @@ def main():
         truth_key = {"rate_ramp_dps_per_s": ("ramp_deg_h_per_h", 3600.0 * 3600.0),
                      "bias_dps_per_c": ("bias_deg_h_per_c", 3600.0),
                      "bias_dps_per_c_per_s": ("bias_deg_h_per_c_per_s", 3600.0),
-                     "warmup_dps": ("warmup_deg_h", 3600.0)}
+                     "warmup_dps": ("warmup_deg_h", 3600.0),
+                     "warmup_tau_s": ("warmup_tau_s", 1.0)}
         man_by = {m["name"]: m for m in man}
         cov, tot, miss_cov = 0, 0, []
         for r in ok:
