@@ -253,160 +253,369 @@ pub fn fit_statistical(points: &[AdevPoint], markov: bool) -> Result<Fit> {
 }
 
 fn fit_with(points: &[AdevPoint], markov: bool, fit_model_rel: bool) -> Result<Fit> {
-    let n = points.len();
-    if n < 3 {
-        bail!("the fit needs at least 3 Allan points, got {n}");
-    }
-    let tau: Vec<f64> = points.iter().map(|p| p.tau_s).collect();
-    let avar: Vec<f64> = points.iter().map(|p| p.adev_dps * p.adev_dps).collect();
-    if avar.iter().all(|&v| v == 0.0) {
-        bail!("the Allan deviation is 0 at every tau (constant rate?): nothing to fit");
-    }
-    let mut kinds: Vec<Kind> = BASE.to_vec();
-    if markov {
-        kinds.push(Kind::GaussMarkov);
-    }
-    let grid: Vec<f64> = if markov {
-        let (lo, hi) = (tau[0].log10(), tau[n - 1].log10());
-        let k = ((hi - lo) * 8.0).ceil().max(1.0) as usize;
-        (0..=k)
-            .map(|j| 10f64.powf(lo + (hi - lo) * j as f64 / k as f64))
-            .collect()
+    let problem = Problem::new(points, markov)?;
+    let model_rel = if fit_model_rel {
+        problem.fitted_model_rel()?
     } else {
-        vec![1.0]
+        0.0
     };
-    let floor = avar.iter().cloned().fold(0.0, f64::max) * 1e-30;
-    let cols_at = |t: f64| -> Vec<Vec<f64>> {
-        kinds
+    let (s, t, reasons) = problem.select_terms(model_rel)?;
+    let n = points.len();
+    let gm_active = markov && s.coef.last().is_some_and(|&c| c > 0.0);
+    let params = s.active + usize::from(gm_active);
+    let chi2_reduced = if n > params {
+        s.cost / (n - params) as f64
+    } else {
+        f64::NAN
+    };
+    let inflate = if chi2_reduced.is_finite() {
+        chi2_reduced.max(1.0).sqrt()
+    } else {
+        1.0
+    };
+    let terms = problem
+        .kinds
+        .iter()
+        .zip(s.coef.iter().zip(&s.sigma))
+        .zip(reasons)
+        .map(|((&kind, (&c, &sc)), reason)| term(kind, c, sc, inflate, reason))
+        .collect();
+    let mut fit = Fit {
+        terms,
+        gm_tau_s: gm_active.then_some(t),
+        chi2_reduced,
+        n_points: n,
+        model_rel,
+        not_followed: Vec::new(),
+    };
+    fit.not_followed = not_followed(&fit, points);
+    Ok(fit)
+}
+
+/// The reported term `kind` from its fitted coefficient `c` (in its unit squared), the
+/// coefficient's standard uncertainty `sc` before inflation, the factor `inflate` on that
+/// uncertainty (`sqrt(max(1, chi2_reduced))`) and its selection reason (`None`: the term
+/// took no part in a selection round).
+fn term(kind: Kind, c: f64, sc: Option<f64>, inflate: f64, reason: Option<String>) -> Term {
+    let (symbol, unit, unit_alt, factor) = kind.units();
+    let sc = sc.map(|v| v * inflate);
+    let value = c.sqrt();
+    let sigma = sc.map(|v| if c > 0.0 { v / (2.0 * value) } else { v.sqrt() });
+    Term {
+        term: kind,
+        symbol,
+        coefficient: c,
+        coefficient_sigma: sc,
+        value,
+        sigma,
+        unit,
+        value_alt: value * factor,
+        sigma_alt: sigma.map(|v| v * factor),
+        unit_alt,
+        active: c > 0.0,
+        selection: if c > 0.0 {
+            reason.unwrap_or_else(|| "kept (the only active term)".into())
+        } else {
+            reason.unwrap_or_else(|| "at the bound 0 in the NNLS fit".into())
+        },
+    }
+}
+
+/// The points `fit` does not follow: `ln(fitted / measured ADEV)` beyond
+/// [`NOT_FOLLOWED_Z`] standard uncertainties (statistical and [`Fit::model_rel`]).
+fn not_followed(fit: &Fit, points: &[AdevPoint]) -> Vec<Miss> {
+    points
+        .iter()
+        .filter_map(|p| {
+            let model = fit.avar(p.tau_s).sqrt();
+            // ADEV's relative sigma is half the AVAR's.
+            let rel = 0.5 * (2.0 / p.edf + fit.model_rel * fit.model_rel).sqrt();
+            let z = (model / p.adev_dps).ln() / rel;
+            (z.abs() > NOT_FOLLOWED_Z && z.is_finite()).then_some(Miss {
+                tau_s: p.tau_s,
+                adev_dps: p.adev_dps,
+                fit_adev_dps: model,
+                z,
+            })
+        })
+        .collect()
+}
+
+/// Gauss-Markov correlation times tried, s: from `first_tau_s` to `last_tau_s` evenly
+/// spaced in log, steps of at most 1/8 decade (at least 2 points).
+fn gm_grid_s(first_tau_s: f64, last_tau_s: f64) -> Vec<f64> {
+    let (lo, hi) = (first_tau_s.log10(), last_tau_s.log10());
+    let k = ((hi - lo) * 8.0).ceil().max(1.0) as usize;
+    (0..=k)
+        .map(|j| 10f64.powf(lo + (hi - lo) * j as f64 / k as f64))
+        .collect()
+}
+
+/// What every fit of one Allan curve shares: the points, their AVAR, the terms and the
+/// Gauss-Markov correlation times tried. Terms are addressed by their column `j` in
+/// `kinds`, sets of terms (supports) by bit masks of those columns.
+struct Problem<'a> {
+    points: &'a [AdevPoint],
+    /// Tau of each point, s.
+    tau_s: Vec<f64>,
+    /// Measured AVAR of each point, (deg/s)^2.
+    avar: Vec<f64>,
+    /// The terms fitted, in column order.
+    kinds: Vec<Kind>,
+    /// Gauss-Markov correlation times tried, s (`[1.0]`, unused, without that term).
+    gm_grid_s: Vec<f64>,
+    /// Lower bound of a model AVAR used as a weight or a share's denominator, (deg/s)^2:
+    /// 1e-30 of the largest measured AVAR.
+    floor: f64,
+}
+
+/// An IRLS fit on a set of allowed terms.
+struct Reweighted {
+    /// The NNLS solution of the last iteration.
+    solution: Solution,
+    /// Its Gauss-Markov correlation time, s (1 without that term).
+    gm_t_s: f64,
+    /// The weights it was solved with, 1 / (deg/s)^4.
+    weights: Vec<f64>,
+}
+
+/// The figures of one round of the term selection.
+struct Round {
+    /// Reduced chi-square of the fit on every allowed term, at least 1.
+    chi2_red: f64,
+    /// Each allowed support's NNLS fit: (terms active in it, information criterion).
+    ics: Vec<(u32, f64)>,
+    /// Terms of the fit with the lowest information criterion.
+    best_support: u32,
+    /// That information criterion.
+    best_ic: f64,
+}
+
+impl<'a> Problem<'a> {
+    /// The problem of `points` (their `edf` set), with the Gauss-Markov term when
+    /// `markov`; refuses fewer than 3 points and a curve that is 0 at every tau.
+    fn new(points: &'a [AdevPoint], markov: bool) -> Result<Self> {
+        let n = points.len();
+        if n < 3 {
+            bail!("the fit needs at least 3 Allan points, got {n}");
+        }
+        let tau_s: Vec<f64> = points.iter().map(|p| p.tau_s).collect();
+        let avar: Vec<f64> = points.iter().map(|p| p.adev_dps * p.adev_dps).collect();
+        if avar.iter().all(|&v| v == 0.0) {
+            bail!("the Allan deviation is 0 at every tau (constant rate?): nothing to fit");
+        }
+        let mut kinds: Vec<Kind> = BASE.to_vec();
+        if markov {
+            kinds.push(Kind::GaussMarkov);
+        }
+        let gm_grid_s = if markov {
+            gm_grid_s(tau_s[0], tau_s[n - 1])
+        } else {
+            vec![1.0]
+        };
+        let floor = avar.iter().cloned().fold(0.0, f64::max) * 1e-30;
+        Ok(Self {
+            points,
+            tau_s,
+            avar,
+            kinds,
+            gm_grid_s,
+            floor,
+        })
+    }
+
+    /// Every term's bit.
+    fn all_terms(&self) -> u32 {
+        (1 << self.kinds.len()) - 1
+    }
+
+    /// The design: each term's AVAR per unit coefficient at every tau, for the
+    /// Gauss-Markov correlation time `gm_t_s`.
+    fn columns(&self, gm_t_s: f64) -> Vec<Vec<f64>> {
+        self.kinds
             .iter()
-            .map(|k| tau.iter().map(|&x| k.basis(x, t)).collect())
+            .map(|k| self.tau_s.iter().map(|&x| k.basis(x, gm_t_s)).collect())
             .collect()
-    };
-    // IRLS on the allowed terms: (solution, T, final weights).
-    let irls = |allowed: u32, rel: f64| -> Result<(Solution, f64, Vec<f64>)> {
-        let mut model: Vec<f64> = avar.iter().map(|&v| v.max(floor)).collect();
-        let mut best: Option<(Solution, f64, Vec<f64>)> = None;
+    }
+
+    /// Each point's weight for the model AVAR `model` and the model accuracy `rel`:
+    /// `1 / (model^2 (2 / edf + rel^2))`.
+    fn weights(&self, model: &[f64], rel: f64) -> Vec<f64> {
+        self.points
+            .iter()
+            .zip(model)
+            .map(|(p, &m)| {
+                // rel 0: the statistical weight in its own form (bit for bit the gap
+                // baseline's calibration).
+                if rel == 0.0 {
+                    p.edf / (2.0 * m * m)
+                } else {
+                    1.0 / (m * m * (2.0 / p.edf + rel * rel))
+                }
+            })
+            .collect()
+    }
+
+    /// Fitted AVAR at every tau of the coefficients `coef` and the Gauss-Markov
+    /// correlation time `gm_t_s`, at least the floor.
+    fn model_avar(&self, coef: &[f64], gm_t_s: f64) -> Vec<f64> {
+        self.tau_s
+            .iter()
+            .map(|&x| {
+                self.kinds
+                    .iter()
+                    .zip(coef)
+                    .map(|(k, c)| c * k.basis(x, gm_t_s))
+                    .sum::<f64>()
+                    .max(self.floor)
+            })
+            .collect()
+    }
+
+    /// IRLS on the `allowed` terms at model accuracy `rel`: 5 iterations, the first
+    /// weighted by the measured AVAR, the next by the previous fit; each picks the
+    /// Gauss-Markov correlation time of the grid with the lowest cost.
+    fn irls(&self, allowed: u32, rel: f64) -> Result<Reweighted> {
+        let mut model: Vec<f64> = self.avar.iter().map(|&v| v.max(self.floor)).collect();
+        let mut best: Option<Reweighted> = None;
         for _ in 0..5 {
-            let w: Vec<f64> = points
-                .iter()
-                .zip(&model)
-                .map(|(p, &m)| {
-                    // rel 0: the statistical weight in its own form (bit for bit the
-                    // gap baseline's calibration).
-                    if rel == 0.0 {
-                        p.edf / (2.0 * m * m)
-                    } else {
-                        1.0 / (m * m * (2.0 / p.edf + rel * rel))
-                    }
-                })
-                .collect();
+            let w = self.weights(&model, rel);
             best = None;
-            for &t in &grid {
-                if let Some(s) = nnls(&cols_at(t), &avar, &w, allowed) {
-                    if best.as_ref().is_none_or(|(b, _, _)| s.cost < b.cost) {
-                        best = Some((s, t, w.clone()));
+            for &t in &self.gm_grid_s {
+                if let Some(s) = nnls(&self.columns(t), &self.avar, &w, allowed) {
+                    if best.as_ref().is_none_or(|b| s.cost < b.solution.cost) {
+                        best = Some(Reweighted {
+                            solution: s,
+                            gm_t_s: t,
+                            weights: w.clone(),
+                        });
                     }
                 }
             }
-            let Some((s, t, _)) = &best else {
+            let Some(b) = &best else {
                 bail!("the least-squares fit failed (no positive solution)");
             };
-            model = tau
-                .iter()
-                .map(|&x| {
-                    kinds
-                        .iter()
-                        .zip(&s.coef)
-                        .map(|(k, c)| c * k.basis(x, *t))
-                        .sum::<f64>()
-                        .max(floor)
-                })
-                .collect();
+            model = self.model_avar(&b.solution.coef, b.gm_t_s);
         }
         best.ok_or_else(|| anyhow::anyhow!("the least-squares fit failed"))
-    };
-    // Term selection by an information criterion over every support, on the full fit's
-    // weights: IC(S) = cost(S) / max(1, chi2_red) + SELECT_BIC_FACTOR ln(points) |S|; the
-    // support with the lowest IC wins; a winning term that never reaches SELECT_MIN_SHARE
-    // of the fitted AVAR is removed and the selection repeated.
-    let all: u32 = (1 << kinds.len()) - 1;
-    // The model's own relative accuracy: 0 when every term together fits the points within
-    // their statistics (reduced chi-square <= 1), else the value that brings the reduced
-    // chi-square to 1 (bisection on a log scale, 1e-4 .. 1).
-    let chi2_red_at = |rel: f64| -> Result<f64> {
-        let (full, _, _) = irls(all, rel)?;
-        Ok(full.cost / n.saturating_sub(full.active).max(1) as f64)
-    };
-    let model_rel = if !fit_model_rel || chi2_red_at(0.0)? <= 1.0 {
-        0.0
-    } else if chi2_red_at(MODEL_REL_MAX)? > 1.0 {
-        MODEL_REL_MAX
-    } else {
+    }
+
+    /// Reduced chi-square of the fit on every term at model accuracy `rel`.
+    fn chi2_reduced_at(&self, rel: f64) -> Result<f64> {
+        let full = self.irls(self.all_terms(), rel)?.solution;
+        Ok(full.cost / self.points.len().saturating_sub(full.active).max(1) as f64)
+    }
+
+    /// The model's own relative accuracy on AVAR ([`Fit::model_rel`]): 0 when every term
+    /// together fits the points within their statistics (reduced chi-square <= 1), else
+    /// the value that brings the reduced chi-square to 1 (bisection on a log scale,
+    /// [`MODEL_REL_MIN`] .. [`MODEL_REL_MAX`], 40 steps; [`MODEL_REL_MAX`] when the
+    /// reduced chi-square is still above 1 there).
+    fn fitted_model_rel(&self) -> Result<f64> {
+        if self.chi2_reduced_at(0.0)? <= 1.0 {
+            return Ok(0.0);
+        }
+        if self.chi2_reduced_at(MODEL_REL_MAX)? > 1.0 {
+            return Ok(MODEL_REL_MAX);
+        }
         let (mut lo, mut hi) = (MODEL_REL_MIN.ln(), MODEL_REL_MAX.ln());
         for _ in 0..40 {
             let mid = 0.5 * (lo + hi);
-            if chi2_red_at(mid.exp())? > 1.0 {
+            if self.chi2_reduced_at(mid.exp())? > 1.0 {
                 lo = mid;
             } else {
                 hi = mid;
             }
         }
-        hi.exp()
-    };
-    let mut allowed = all;
-    let mut reasons: Vec<Option<String>> = vec![None; kinds.len()];
-    let penalty = SELECT_BIC_FACTOR * (n as f64).ln();
-    let (s, t) = loop {
-        let (full, t, w) = irls(allowed, model_rel)?;
-        let chi2_red = if n > full.active {
-            (full.cost / (n - full.active) as f64).max(1.0)
+        Ok(hi.exp())
+    }
+
+    /// Term selection by an information criterion over every support, on the full fit's
+    /// weights: `IC(S) = cost(S) / max(1, chi2_red) + SELECT_BIC_FACTOR ln(points) |S|`;
+    /// the support with the lowest IC wins; a winning term that never reaches
+    /// [`SELECT_MIN_SHARE`] of the fitted AVAR is removed and the selection repeated.
+    /// Returns the selected fit, its Gauss-Markov correlation time (s) and each term's
+    /// selection reason (`None` for a term never judged).
+    fn select_terms(&self, model_rel: f64) -> Result<(Solution, f64, Vec<Option<String>>)> {
+        let mut allowed = self.all_terms();
+        let mut reasons: Vec<Option<String>> = vec![None; self.kinds.len()];
+        loop {
+            let full = self.irls(allowed, model_rel)?;
+            let t = full.gm_t_s;
+            let cols = self.columns(t);
+            let Some(round) = self.selection_round(&full, &cols, allowed) else {
+                return Ok((full.solution, t, reasons));
+            };
+            let sel = self.irls(round.best_support, model_rel)?.solution;
+            match self.judge_terms(&round, &sel, &cols, allowed, &mut reasons) {
+                Some(j) => allowed = round.best_support & !(1 << j),
+                None => return Ok((sel, t, reasons)),
+            }
+        }
+    }
+
+    /// The information criterion of the NNLS fit on every support within `allowed`, with
+    /// the weights of `full` (the IRLS fit on all of them) and the design `cols` at its
+    /// Gauss-Markov correlation time; `None` when no support has a positive solution.
+    fn selection_round(&self, full: &Reweighted, cols: &[Vec<f64>], allowed: u32) -> Option<Round> {
+        let n = self.points.len();
+        let active = full.solution.active;
+        let chi2_red = if n > active {
+            (full.solution.cost / (n - active) as f64).max(1.0)
         } else {
             1.0
         };
-        let cols = cols_at(t);
+        let penalty = SELECT_BIC_FACTOR * (n as f64).ln();
         let ic = |x: &Solution| x.cost / chi2_red + penalty * x.active as f64;
-        let mut sols: Vec<(u32, f64)> = Vec::new();
-        for mask in 1..=all {
+        let mut ics: Vec<(u32, f64)> = Vec::new();
+        for mask in 1..=self.all_terms() {
             if mask & !allowed != 0 {
                 continue;
             }
-            if let Some(x) = nnls(&cols, &avar, &w, mask) {
-                let sup = (0..kinds.len())
+            if let Some(x) = nnls(cols, &self.avar, &full.weights, mask) {
+                let sup = (0..self.kinds.len())
                     .filter(|&j| x.coef[j] > 0.0)
                     .fold(0u32, |m, j| m | (1 << j));
-                sols.push((sup, ic(&x)));
+                ics.push((sup, ic(&x)));
             }
         }
-        let Some(&(best_sup, best_ic)) = sols.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
-            break (full, t);
-        };
-        let (sel, _, _) = irls(best_sup, model_rel)?;
+        let &(best_support, best_ic) = ics.iter().min_by(|a, b| a.1.total_cmp(&b.1))?;
+        Some(Round {
+            chi2_red,
+            ics,
+            best_support,
+            best_ic,
+        })
+    }
+
+    /// Writes the selection reason of every `allowed` term for `round`, whose winning
+    /// support refitted is `sel` (design `cols`); returns the last term of that support
+    /// that never reaches [`SELECT_MIN_SHARE`] of the fitted AVAR, if any.
+    fn judge_terms(
+        &self,
+        round: &Round,
+        sel: &Solution,
+        cols: &[Vec<f64>],
+        allowed: u32,
+        reasons: &mut [Option<String>],
+    ) -> Option<usize> {
+        let n = self.points.len();
+        let (chi2_red, best_ic) = (round.chi2_red, round.best_ic);
         let total: Vec<f64> = (0..n)
             .map(|i| {
-                (0..kinds.len())
+                (0..self.kinds.len())
                     .map(|j| sel.coef[j] * cols[j][i])
                     .sum::<f64>()
             })
             .collect();
         let mut weak = None;
-        for j in 0..kinds.len() {
+        for j in 0..self.kinds.len() {
             if allowed & (1 << j) == 0 {
                 continue;
             }
-            let with_j = sols
-                .iter()
-                .filter(|(m, _)| m & (1 << j) != 0)
-                .map(|x| x.1)
-                .fold(f64::INFINITY, f64::min);
-            let without_j = sols
-                .iter()
-                .filter(|(m, _)| m & (1 << j) == 0)
-                .map(|x| x.1)
-                .fold(f64::INFINITY, f64::min);
-            if best_sup & (1 << j) != 0 {
-                let (share, at) = (0..n)
-                    .map(|i| (sel.coef[j] * cols[j][i] / total[i].max(floor), tau[i]))
-                    .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
+            if round.best_support & (1 << j) != 0 {
+                let without_j = lowest_ic(&round.ics, |m| m & (1 << j) == 0);
+                let (share, at) = self.largest_share(sel.coef[j], &cols[j], &total);
                 let why = format!(
                     "IC without it higher by {:.1} (IC = chi2 / max(1, chi2_red = {chi2_red:.2}) + {SELECT_BIC_FACTOR} ln({n}) per term); largest share of the fitted AVAR {:.0} % at tau {at:.4} s (minimum {:.0} %)",
                     without_j - best_ic,
@@ -420,82 +629,33 @@ fn fit_with(points: &[AdevPoint], markov: bool, fit_model_rel: bool) -> Result<F
                     reasons[j] = Some(format!("kept: {why}"));
                 }
             } else {
+                let with_j = lowest_ic(&round.ics, |m| m & (1 << j) != 0);
                 reasons[j] = Some(format!(
                     "not supported by the data: the lowest IC with it is higher by {:.1} (IC = chi2 / max(1, chi2_red = {chi2_red:.2}) + {SELECT_BIC_FACTOR} ln({n}) per term)",
                     with_j - best_ic
                 ));
             }
         }
-        match weak {
-            Some(j) => allowed = best_sup & !(1 << j),
-            None => break (sel, t),
-        }
-    };
-    let gm_active = markov && s.coef.last().is_some_and(|&c| c > 0.0);
-    let params = s.active + usize::from(gm_active);
-    let chi2_reduced = if n > params {
-        s.cost / (n - params) as f64
-    } else {
-        f64::NAN
-    };
-    let inflate = if chi2_reduced.is_finite() {
-        chi2_reduced.max(1.0).sqrt()
-    } else {
-        1.0
-    };
-    let terms = kinds
-        .iter()
-        .zip(s.coef.iter().zip(&s.sigma))
-        .zip(reasons)
-        .map(|((&kind, (&c, &sc)), reason)| {
-            let (symbol, unit, unit_alt, factor) = kind.units();
-            let sc = sc.map(|v| v * inflate);
-            let value = c.sqrt();
-            let sigma = sc.map(|v| if c > 0.0 { v / (2.0 * value) } else { v.sqrt() });
-            Term {
-                term: kind,
-                symbol,
-                coefficient: c,
-                coefficient_sigma: sc,
-                value,
-                sigma,
-                unit,
-                value_alt: value * factor,
-                sigma_alt: sigma.map(|v| v * factor),
-                unit_alt,
-                active: c > 0.0,
-                selection: if c > 0.0 {
-                    reason.unwrap_or_else(|| "kept (the only active term)".into())
-                } else {
-                    reason.unwrap_or_else(|| "at the bound 0 in the NNLS fit".into())
-                },
-            }
-        })
-        .collect();
-    let mut fit = Fit {
-        terms,
-        gm_tau_s: gm_active.then_some(t),
-        chi2_reduced,
-        n_points: n,
-        model_rel,
-        not_followed: Vec::new(),
-    };
-    fit.not_followed = points
-        .iter()
-        .filter_map(|p| {
-            let model = fit.avar(p.tau_s).sqrt();
-            // ADEV's relative sigma is half the AVAR's.
-            let rel = 0.5 * (2.0 / p.edf + model_rel * model_rel).sqrt();
-            let z = (model / p.adev_dps).ln() / rel;
-            (z.abs() > NOT_FOLLOWED_Z && z.is_finite()).then_some(Miss {
-                tau_s: p.tau_s,
-                adev_dps: p.adev_dps,
-                fit_adev_dps: model,
-                z,
-            })
-        })
-        .collect();
-    Ok(fit)
+        weak
+    }
+
+    /// A term's largest share of the fitted AVAR `total` over the taus, and the tau (s)
+    /// where it is reached (the first such; `(0, 0)` when the share is never positive),
+    /// for its coefficient `coef` and design column `col`.
+    fn largest_share(&self, coef: f64, col: &[f64], total: &[f64]) -> (f64, f64) {
+        (0..self.points.len())
+            .map(|i| (coef * col[i] / total[i].max(self.floor), self.tau_s[i]))
+            .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a })
+    }
+}
+
+/// The lowest information criterion among the fits whose active terms satisfy `keep`
+/// (infinity when none does).
+fn lowest_ic(ics: &[(u32, f64)], keep: impl Fn(u32) -> bool) -> f64 {
+    ics.iter()
+        .filter(|(m, _)| keep(*m))
+        .map(|x| x.1)
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Exact NNLS by enumerating supports (see the module docs).

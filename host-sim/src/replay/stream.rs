@@ -49,7 +49,9 @@
 //! ```
 
 use crate::record;
-use crate::report::{self, BytesSummary, Collector, CsvSummary, Summary, Tail, TruthAcc};
+use crate::report::{
+    self, BytesSummary, Collector, CsvSummary, Summary, Tail, TruthAcc, TruthSummary,
+};
 use anyhow::{anyhow, bail, Context, Result};
 use fog_core::baseline::RandomWalkKalman;
 use fog_core::frame::{Decoder, Dsp3000Decoder, Dsp3000Line, EcoreDecoder};
@@ -590,43 +592,24 @@ pub fn replay(
         bail!("--rate-hz {}: must be finite and > 0", opts.rate_hz);
     }
     let dt = sample_period_s(opts.rate_hz);
-    let mut pipe = Pipeline::new(opts.preset, dt)
+    let pipe = Pipeline::new(opts.preset, dt)
         .map_err(|e| anyhow!("identifier ({}): {e}", opts.preset.name()))?;
     let (mut src, format, len) = open_source(input, opts)?;
-    let bar = if std::io::stderr().is_terminal() {
-        let b = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
-        if let Ok(style) = ProgressStyle::with_template("{bar:40} {percent:>3}% {eta} left") {
-            b.set_style(style);
-        }
-        b
-    } else {
-        ProgressBar::hidden()
-    };
-    let mut collector = opts.collect.then(Collector::default);
-    let mut pending: Vec<Row> = Vec::with_capacity(BLOCK);
-    let mut ma = MovingAverage::new((MOVING_AVERAGE_S * opts.rate_hz).round() as usize);
-    let mut kf = RandomWalkKalman::new(1e-6, 1.0);
-    let mut truth_acc = TruthAcc::default();
-    let mut index = 0u64;
-    let (mut identified, mut rejected, mut faults, mut blocks, mut written) = (0u64, 0, 0, 0, 0);
-    let (mut t_first, mut t_last) = (None, None);
-    let (mut train_sq, mut train_n) = (0.0f64, 0u64);
-    let mut non_finite = 0u64;
-    let mut truth_seen = false;
+    let bar = progress_bar(len);
+    let mut run = Run::new(pipe, opts);
     let out = output.display().to_string();
     record::write_atomic(output, |w| {
-        let io = |e: std::io::Error| anyhow!("{out}: write failed: {e}");
-        writeln!(w, "{OUTPUT_HEADER}").map_err(io)?;
+        writeln!(w, "{OUTPUT_HEADER}").map_err(write_failed(&out))?;
         while let Some(ev) = src.next()? {
-            let k = index;
-            index += 1;
+            let k = run.counts.samples_read;
+            run.counts.samples_read += 1;
             if k.is_multiple_of(4096) {
                 bar.set_position(src.position());
             }
             let injected = truth.as_mut().map(|f| f());
             let (t_opt, rate_dps, csv_truth) = match ev {
                 Event::Fault => {
-                    faults += 1;
+                    run.counts.fault_lines += 1;
                     continue;
                 }
                 Event::Sample {
@@ -636,71 +619,11 @@ pub fn replay(
                 } => (t_s, rate_dps, truth),
             };
             let t_s = t_opt.unwrap_or(k as f64 / opts.rate_hz);
-            t_first.get_or_insert(t_s);
-            t_last = Some(t_s);
-            let Ok(est) = pipe.push(rate_dps) else {
-                rejected += 1;
-                continue;
-            };
-            identified += 1;
-            if !est.drift_dps.is_finite() {
-                non_finite += 1;
-            }
-            if est.train_error_dps.is_finite() {
-                train_sq += f64::from(est.train_error_dps).powi(2);
-                train_n += 1;
-            }
-            pending.push(Row {
-                index: k,
-                t_s,
-                rate_dps,
-                drift_dps: est.drift_dps,
-                compensated_dps: est.compensated_dps,
-            });
-            let ma_dps = ma.push(rate_dps);
-            let kf_dps = f64::from(kf.push(rate_dps));
-            let truth_dps = injected.or(csv_truth);
-            if let Some(tr) = truth_dps {
-                truth_seen = true;
-                truth_acc.add(tr, [f64::from(est.drift_dps), ma_dps, kf_dps]);
-            }
-            if let Some(c) = collector.as_mut() {
-                c.measured.push(t_s, f64::from(rate_dps));
-                c.drift.push(t_s, f64::from(est.drift_dps));
-                c.push_allan(rate_dps);
-                if let Some(tr) = truth_dps {
-                    let dph = report::DPH_PER_DPS;
-                    c.truth.push(t_s, tr);
-                    c.err_identifier
-                        .push(t_s, (f64::from(est.drift_dps) - tr) * dph);
-                    c.err_moving_average.push(t_s, (ma_dps - tr) * dph);
-                    c.err_kalman.push(t_s, (kf_dps - tr) * dph);
-                }
-            }
-            if est.block_done {
-                blocks += 1;
-                let block = pipe.last_denoised_block();
-                if pending.len() != BLOCK {
-                    bail!(
-                        "{name}: internal error: block completed with {} rows pending",
-                        pending.len()
-                    );
-                }
-                for (r, &d) in pending.iter().zip(block.iter()) {
-                    write_row(w, r, Some(d)).map_err(io)?;
-                    if let Some(c) = collector.as_mut() {
-                        c.denoised.push(r.t_s, f64::from(d));
-                    }
-                }
-                written += pending.len() as u64;
-                pending.clear();
+            if run.sample(k, t_s, rate_dps, injected.or(csv_truth)) {
+                run.write_block(w, &name, &out)?;
             }
         }
-        for r in &pending {
-            write_row(w, r, None).map_err(io)?;
-        }
-        written += pending.len() as u64;
-        Ok(())
+        run.write_partial_block(w, &out)
     })?;
     bar.finish_and_clear();
     let (bytes, csv) = match &src {
@@ -708,6 +631,7 @@ pub fn replay(
         Source::Ecore(s) => (Some(s.summary()), None),
         Source::Dsp(s) => (Some(s.summary()), None),
     };
+    let n = &run.counts;
     let summary = Summary {
         input: name,
         format: format.name(),
@@ -722,31 +646,212 @@ pub fn replay(
             "index / rate_hz (no time stamps in the capture)"
         },
         full_scale_dps: (format == InputFormat::EcoreBin).then_some(opts.full_scale_dps),
-        samples_read: index,
-        samples_identified: identified,
-        samples_rejected: rejected,
-        fault_lines: faults,
-        drift_non_finite: non_finite,
-        blocks,
-        rows_written: written,
-        rows_without_denoised: pending.len() as u64,
-        t_first_s: t_first,
-        t_last_s: t_last,
-        rms_train_error_dps: (train_n > 0).then(|| (train_sq / train_n as f64).sqrt()),
+        samples_read: n.samples_read,
+        samples_identified: n.samples_identified,
+        samples_rejected: n.samples_rejected,
+        fault_lines: n.fault_lines,
+        drift_non_finite: n.drift_non_finite,
+        blocks: n.blocks,
+        rows_written: n.rows_written,
+        rows_without_denoised: run.pending.len() as u64,
+        t_first_s: n.t_first_s,
+        t_last_s: n.t_last_s,
+        rms_train_error_dps: (n.train_n > 0).then(|| (n.train_sq / n.train_n as f64).sqrt()),
         bytes,
         csv,
-        truth: if truth_seen {
-            truth_acc.summary(if truth.is_some() {
-                truth_source
-            } else {
-                "the CSV's drift_dps column"
-            })
+        truth: run.truth_summary(if truth.is_some() {
+            truth_source
         } else {
-            None
-        },
+            "the CSV's drift_dps column"
+        }),
         allan: None,
     };
-    Ok(Outcome { summary, collector })
+    Ok(Outcome {
+        summary,
+        collector: run.collector,
+    })
+}
+
+/// A progress bar over `len` input bytes on stderr when that is a terminal; hidden
+/// otherwise.
+fn progress_bar(len: u64) -> ProgressBar {
+    if std::io::stderr().is_terminal() {
+        let b = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+        if let Ok(style) = ProgressStyle::with_template("{bar:40} {percent:>3}% {eta} left") {
+            b.set_style(style);
+        }
+        b
+    } else {
+        ProgressBar::hidden()
+    }
+}
+
+/// The error of a failed write to the output named `out`.
+fn write_failed(out: &str) -> impl Fn(std::io::Error) -> anyhow::Error + '_ {
+    move |e| anyhow!("{out}: write failed: {e}")
+}
+
+/// The counts of a replay.
+#[derive(Default)]
+struct Counts {
+    /// Samples read, fault lines included (the next sample's index).
+    samples_read: u64,
+    samples_identified: u64,
+    /// Samples the identifier refused.
+    samples_rejected: u64,
+    fault_lines: u64,
+    /// Identified drift values that are not finite.
+    drift_non_finite: u64,
+    /// Denoising blocks completed.
+    blocks: u64,
+    rows_written: u64,
+    /// `t_s` of the first sample (fault lines excluded), s.
+    t_first_s: Option<f64>,
+    /// `t_s` of the last sample (fault lines excluded), s.
+    t_last_s: Option<f64>,
+    /// Sum of the squared finite training errors, (deg/s)^2.
+    train_sq: f64,
+    /// Their number.
+    train_n: u64,
+}
+
+/// A replay's running state: the identifier, the baselines, the rows waiting for their
+/// block's denoised values, the report's data and the counts.
+struct Run {
+    pipe: Pipeline,
+    /// Rows of the current block, waiting for its denoised values.
+    pending: Vec<Row>,
+    /// The causal moving-average baseline ([`MOVING_AVERAGE_S`]).
+    ma: MovingAverage,
+    /// The random-walk Kalman baseline.
+    kf: RandomWalkKalman,
+    /// The three estimates against the true drift.
+    truth_acc: TruthAcc,
+    /// Whether an identified sample had a true drift.
+    truth_seen: bool,
+    /// The report's data (with [`Options::collect`]).
+    collector: Option<Collector>,
+    counts: Counts,
+}
+
+impl Run {
+    /// Nothing read yet; identifier `pipe`, baselines for `opts.rate_hz`.
+    fn new(pipe: Pipeline, opts: &Options) -> Self {
+        Self {
+            pipe,
+            pending: Vec::with_capacity(BLOCK),
+            ma: MovingAverage::new((MOVING_AVERAGE_S * opts.rate_hz).round() as usize),
+            kf: RandomWalkKalman::new(1e-6, 1.0),
+            truth_acc: TruthAcc::default(),
+            truth_seen: false,
+            collector: opts.collect.then(Collector::default),
+            counts: Counts::default(),
+        }
+    }
+
+    /// Sample `index` at `t_s` (s), rate `rate_dps` (deg/s), true drift `truth_dps`
+    /// (deg/s) when known: identified (or counted as refused), its row queued, the
+    /// baselines, the truth comparison and the report fed. Returns whether it completed
+    /// a denoising block.
+    fn sample(&mut self, index: u64, t_s: f64, rate_dps: f32, truth_dps: Option<f64>) -> bool {
+        let n = &mut self.counts;
+        n.t_first_s.get_or_insert(t_s);
+        n.t_last_s = Some(t_s);
+        let Ok(est) = self.pipe.push(rate_dps) else {
+            n.samples_rejected += 1;
+            return false;
+        };
+        n.samples_identified += 1;
+        if !est.drift_dps.is_finite() {
+            n.drift_non_finite += 1;
+        }
+        if est.train_error_dps.is_finite() {
+            n.train_sq += f64::from(est.train_error_dps).powi(2);
+            n.train_n += 1;
+        }
+        self.pending.push(Row {
+            index,
+            t_s,
+            rate_dps,
+            drift_dps: est.drift_dps,
+            compensated_dps: est.compensated_dps,
+        });
+        let ma_dps = self.ma.push(rate_dps);
+        let kf_dps = f64::from(self.kf.push(rate_dps));
+        let estimates_dps = [f64::from(est.drift_dps), ma_dps, kf_dps];
+        if let Some(tr) = truth_dps {
+            self.truth_seen = true;
+            self.truth_acc.add(tr, estimates_dps);
+        }
+        if let Some(c) = self.collector.as_mut() {
+            collect_sample(c, t_s, rate_dps, estimates_dps, truth_dps);
+        }
+        est.block_done
+    }
+
+    /// Writes the rows of the block that just completed with its denoised values (input
+    /// `name` and output `out` for the errors).
+    fn write_block(&mut self, w: &mut impl Write, name: &str, out: &str) -> Result<()> {
+        self.counts.blocks += 1;
+        let block = self.pipe.last_denoised_block();
+        if self.pending.len() != BLOCK {
+            bail!(
+                "{name}: internal error: block completed with {} rows pending",
+                self.pending.len()
+            );
+        }
+        for (r, &d) in self.pending.iter().zip(block.iter()) {
+            write_row(w, r, Some(d)).map_err(write_failed(out))?;
+            if let Some(c) = self.collector.as_mut() {
+                c.denoised.push(r.t_s, f64::from(d));
+            }
+        }
+        self.counts.rows_written += self.pending.len() as u64;
+        self.pending.clear();
+        Ok(())
+    }
+
+    /// Writes the rows of the final partial block, without denoised values (they stay
+    /// pending: the summary counts them).
+    fn write_partial_block(&mut self, w: &mut impl Write, out: &str) -> Result<()> {
+        for r in &self.pending {
+            write_row(w, r, None).map_err(write_failed(out))?;
+        }
+        self.counts.rows_written += self.pending.len() as u64;
+        Ok(())
+    }
+
+    /// The comparison with the true drift taken from `source`, when a sample had one.
+    fn truth_summary(&self, source: &str) -> Option<TruthSummary> {
+        if self.truth_seen {
+            self.truth_acc.summary(source)
+        } else {
+            None
+        }
+    }
+}
+
+/// Feeds the report's series with one identified sample at `t_s` (s): rate `rate_dps`,
+/// the identifier's, the moving average's and the Kalman filter's drift `estimates_dps`
+/// (deg/s), and their errors (deg/h) against the true drift `truth_dps` when known.
+fn collect_sample(
+    c: &mut Collector,
+    t_s: f64,
+    rate_dps: f32,
+    estimates_dps: [f64; 3],
+    truth_dps: Option<f64>,
+) {
+    let [identifier_dps, ma_dps, kf_dps] = estimates_dps;
+    c.measured.push(t_s, f64::from(rate_dps));
+    c.drift.push(t_s, identifier_dps);
+    c.push_allan(rate_dps);
+    if let Some(tr) = truth_dps {
+        let dph = report::DPH_PER_DPS;
+        c.truth.push(t_s, tr);
+        c.err_identifier.push(t_s, (identifier_dps - tr) * dph);
+        c.err_moving_average.push(t_s, (ma_dps - tr) * dph);
+        c.err_kalman.push(t_s, (kf_dps - tr) * dph);
+    }
 }
 
 /// Prints the summary of a replay on stderr.
