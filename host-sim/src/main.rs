@@ -54,8 +54,13 @@ enum Cmd {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    if let Err(e) = host_sim::record::remove_temp_files_on_interrupt() {
-        eprintln!("warning: {e:#}");
+    // Ctrl-C, SIGTERM and SIGHUP (the `ctrlc` crate): no temporary output file survives.
+    if let Err(e) = ctrlc::set_handler(|| {
+        let n = host_sim::record::remove_live_temp_files();
+        eprintln!("interrupted: {n} temporary output file(s) removed; no partial output left");
+        std::process::exit(130);
+    }) {
+        eprintln!("warning: cannot install the Ctrl-C / SIGTERM handler: {e}");
     }
     let result = match &cli.cmd {
         Cmd::Denoise(a) => denoise_cmd::run(a),

@@ -541,7 +541,7 @@ pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
 }
 
 /// The temporary files [`write_atomic`] is writing now: what the interrupt handler
-/// ([`remove_temp_files_on_interrupt`]) removes.
+/// ([`remove_live_temp_files`]) removes.
 static LIVE_TEMP_FILES: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
 
 fn live_temp_files() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
@@ -550,22 +550,15 @@ fn live_temp_files() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
         .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
-/// Installs the handler of Ctrl-C, SIGTERM and SIGHUP (the `ctrlc` crate): it removes every
-/// temporary file [`write_atomic`] is writing, says so on stderr and exits with status 130.
-/// A rename into place holds the same lock, so an output is either complete or absent.
-pub fn remove_temp_files_on_interrupt() -> Result<()> {
-    ctrlc::set_handler(|| {
-        let live = live_temp_files();
-        for p in live.iter() {
-            let _ = std::fs::remove_file(p);
-        }
-        eprintln!(
-            "interrupted: {} temporary output file(s) removed; no partial output left",
-            live.len()
-        );
-        std::process::exit(130);
-    })
-    .context("cannot install the Ctrl-C / SIGTERM handler")
+/// Removes every temporary file [`write_atomic`] is writing now and returns how many: what
+/// `host-sim`'s Ctrl-C / SIGTERM / SIGHUP handler calls before it exits. The lock it takes
+/// is held by a rename into place too, so an output is either complete or absent.
+pub fn remove_live_temp_files() -> usize {
+    let live = live_temp_files();
+    for p in live.iter() {
+        let _ = std::fs::remove_file(p);
+    }
+    live.len()
 }
 
 /// Unregisters a temporary file from [`LIVE_TEMP_FILES`] when dropped.
@@ -578,8 +571,8 @@ impl Drop for LiveTemp {
 }
 
 /// Writes a file atomically: into a temporary file beside `path`, renamed over `path` only
-/// when `fill` succeeds. On error nothing is left behind, nor on Ctrl-C or SIGTERM once
-/// [`remove_temp_files_on_interrupt`] is installed (as `host-sim` does).
+/// when `fill` succeeds. On error nothing is left behind, nor on Ctrl-C or SIGTERM once a
+/// handler calls [`remove_live_temp_files`] (as `host-sim`'s does).
 pub fn write_atomic(
     path: &Path,
     fill: impl FnOnce(&mut BufWriter<&mut File>) -> Result<()>,

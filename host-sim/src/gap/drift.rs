@@ -424,7 +424,7 @@ pub struct DriftModel {
     pub fit: NoiseFit,
     /// The warm-up's time constant, s.
     pub tau_s: Option<f64>,
-    /// The warm-up's 95 % profile-likelihood intervals ([`warmup_profile`]): amplitude
+    /// The warm-up's 95 % profile-likelihood intervals (`warmup_profile`): amplitude
     /// (deg/s) and time constant (s).
     pub warmup_ci95: Option<WarmupIntervals>,
 }

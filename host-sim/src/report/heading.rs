@@ -21,7 +21,7 @@ pub struct HeadingSeries<'a> {
 pub const SECONDS_AXIS_MAX_S: f64 = 1200.0;
 
 /// Time axis of a record ending at `t_end_s`: the factor from seconds and the unit's name
-/// (s up to [`SECONDS_AXIS_MAX_S`], min beyond).
+/// (s up to `SECONDS_AXIS_MAX_S`, 20 min, min beyond).
 pub fn time_axis(t_end_s: f64) -> (f64, &'static str) {
     if t_end_s > SECONDS_AXIS_MAX_S {
         (1.0 / 60.0, "min")
