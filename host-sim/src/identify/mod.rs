@@ -372,7 +372,6 @@ fn training_scaling<F: FeatureMap<N>, const N: usize>(
 
 /// Runs one configuration. `make_features(dt)` builds the feature map for a record of
 /// sample period `dt`; `make_id(scaling, dt)` the identifier.
-#[allow(clippy::too_many_lines)]
 fn run_generic<F, T, const N: usize, const L: usize, const B: usize>(
     opts: &Options,
     train: &dyn Records,
@@ -395,182 +394,21 @@ where
         default_scaling
     };
     let first_dt = train.get(0)?.sample_period_s() as f32;
-    let mut id = make_id(scaling, first_dt).map_err(|e| anyhow!("{e}"))?;
-    let mut busy_s = 0.0f64;
-    let mut pushed = 0u64;
-
-    // Training, with the baselines tuned on the first records.
-    let mut ma_sq = [0.0f64; MA_WINDOWS_S.len()];
-    let mut train_samples = 0u64;
-    let (mut goal_at, mut goal_abs_at) = (None, None);
-    let (mut blk_e2, mut blk_d2, mut blk_n) = (0.0f64, 0.0f64, 0usize);
-    for i in 0..train.len() {
-        let s = train.get(i)?;
-        let dt = s.sample_period_s() as f32;
-        id.restart(make_features(dt), dt)
-            .map_err(|e| anyhow!("{}: {e}", s.name))?;
-        power_on(&mut id, dt);
-        let t0 = Instant::now();
-        let mut train_err = Vec::with_capacity(s.rate_dps.len());
-        for (k, &x) in s.rate_dps.iter().enumerate() {
-            let e = id
-                .push_with_temp(x, temp_at(&s, k))
-                .map_err(|e| anyhow!("{}: {e}", s.name))?;
-            train_err.push(e.train_error_dps);
-        }
-        busy_s += t0.elapsed().as_secs_f64();
-        pushed += s.rate_dps.len() as u64;
-        // Convergence: RMS of the a-priori training error per block of B training steps
-        // (the error at sample k is for target d(k - B)).
-        let d = denoised(&s, B, opts.levels)?;
-        for (k, e) in train_err.iter().enumerate() {
-            if !e.is_finite() || k < B {
-                continue;
-            }
-            blk_e2 += f64::from(*e).powi(2);
-            blk_d2 += f64::from(d[k - B]).powi(2);
-            blk_n += 1;
-            if blk_n == B {
-                let rms_e = (blk_e2 / B as f64).sqrt();
-                let rms_d = (blk_d2 / B as f64).sqrt();
-                let at = train_samples + k as u64 + 1;
-                if goal_at.is_none() && rms_e <= 0.001 * rms_d {
-                    goal_at = Some(at);
-                }
-                if goal_abs_at.is_none() && rms_e <= 0.001 {
-                    goal_abs_at = Some(at);
-                }
-                (blk_e2, blk_d2, blk_n) = (0.0, 0.0, 0);
-            }
-        }
-        if i < TUNE_RECORDS {
-            let reference: Vec<f64> = match &s.drift_dps {
-                Some(t) => t.iter().map(|&v| f64::from(v)).collect(),
-                None => d.iter().map(|&v| f64::from(v)).collect(),
-            };
-            for (wi, w_s) in MA_WINDOWS_S.iter().enumerate() {
-                let mut ma = MovingAverage::new((w_s / f64::from(dt)).round() as usize);
-                for (k, &x) in s.rate_dps.iter().enumerate() {
-                    let y = ma.push(f64::from(x));
-                    if k >= 2 * B {
-                        ma_sq[wi] += (y - reference[k]).powi(2);
-                    }
-                }
-            }
-        }
-        train_samples += s.rate_dps.len() as u64;
-    }
-    let argmin = |v: &[f64]| {
-        v.iter()
-            .enumerate()
-            .min_by(|a, b| a.1.total_cmp(b.1))
-            .map_or(0, |(i, _)| i)
+    let mut run = OnLineRun {
+        id: make_id(scaling, first_dt).map_err(|e| anyhow!("{e}"))?,
+        make_features,
+        power_on,
+        busy_s: 0.0,
+        pushed: 0,
     };
-    let best_ma_s = MA_WINDOWS_S[argmin(&ma_sq)];
+    let training = run.train(train, opts.levels)?;
+    let best_ma_s = MA_WINDOWS_S[index_of_least(&training.ma_sq)];
     let best_q = tune_kalman(train, B, opts.levels)?;
     let temp = TempBaselines::new(train, validate, B, opts.levels)?;
-
-    // Validation.
-    let mut acc_id = ErrorAcc::default();
-    let mut acc_ma10 = ErrorAcc::default();
-    let mut acc_ma_best = ErrorAcc::default();
-    let mut acc_kf = ErrorAcc::default();
-    let mut acc_lag = ErrorAcc::default();
-    let mut acc_temp = vec![ErrorAcc::default(); temp.as_ref().map_or(0, |t| t.regs.len())];
-    let mut diverged_at = None;
-    let mut scored = 0u64;
-    let mut val_index = 0u64;
-    for i in 0..validate.len() {
-        let s = validate.get(i)?;
-        let dt = s.sample_period_s() as f32;
-        id.restart(make_features(dt), dt)
-            .map_err(|e| anyhow!("{}: {e}", s.name))?;
-        power_on(&mut id, dt);
-        let d = denoised(&s, B, opts.levels)?;
-        let temp_ys = temp.as_ref().map(|t| t.track(&s)).transpose()?;
-        let mut ma10 = MovingAverage::new((10.0 / f64::from(dt)).round() as usize);
-        let mut ma_best = MovingAverage::new((best_ma_s / f64::from(dt)).round() as usize);
-        let mut kf = RandomWalkKalman::new(best_q as f32, 1.0);
-        let mut lag = MovingAverage::new(B);
-        let t0 = Instant::now();
-        let mut ys = Vec::with_capacity(s.rate_dps.len());
-        for (k, &x) in s.rate_dps.iter().enumerate() {
-            ys.push(
-                id.push_with_temp(x, temp_at(&s, k))
-                    .map_err(|e| anyhow!("{}: {e}", s.name))?
-                    .drift_dps,
-            );
-        }
-        busy_s += t0.elapsed().as_secs_f64();
-        pushed += s.rate_dps.len() as u64;
-        for (k, &x) in s.rate_dps.iter().enumerate() {
-            let xf = f64::from(x);
-            let (y10, yb, yk) = (ma10.push(xf), ma_best.push(xf), f64::from(kf.push(x)));
-            // The target d(k - B) becomes known at sample k (block-aligned: at the end of its
-            // block; averaging over the last B of them is the same as their block mean then).
-            let ylag = if k >= B {
-                lag.push(f64::from(d[k - B]))
-            } else {
-                f64::NAN
-            };
-            if k < 2 * B {
-                continue;
-            }
-            let dk = f64::from(d[k]);
-            let truth = s.drift_dps.as_ref().map(|t| f64::from(t[k]));
-            let y = f64::from(ys[k]);
-            if !y.is_finite() && diverged_at.is_none() {
-                diverged_at = Some(val_index + k as u64);
-            }
-            acc_id.add(y, dk, truth);
-            acc_ma10.add(y10, dk, truth);
-            acc_ma_best.add(yb, dk, truth);
-            acc_kf.add(yk, dk, truth);
-            acc_lag.add(ylag, dk, truth);
-            if let Some(tys) = &temp_ys {
-                for (acc, y) in acc_temp.iter_mut().zip(tys) {
-                    acc.add(y[k], dk, truth);
-                }
-            }
-            scored += 1;
-        }
-        val_index += s.rate_dps.len() as u64;
-    }
-    let fig = acc_id.figures();
-    let mut baselines = vec![
-        Baseline {
-            name: "moving_average_10s",
-            parameter: 10.0,
-            figures: acc_ma10.figures(),
-        },
-        Baseline {
-            name: "moving_average_best_window_s",
-            parameter: best_ma_s,
-            figures: acc_ma_best.figures(),
-        },
-        Baseline {
-            name: "kalman_random_walk_q_over_r",
-            parameter: best_q,
-            figures: acc_kf.figures(),
-        },
-        Baseline {
-            name: "moving_average_of_target_lagged_one_block",
-            parameter: B as f64,
-            figures: acc_lag.figures(),
-        },
-    ];
-    let (mut decomposition, mut regressions) = (None, Vec::new());
-    if let Some(t) = temp {
-        for ((reg, q), acc) in t.regs.iter().zip(&t.q).zip(&acc_temp) {
-            baselines.push(Baseline {
-                name: reg.0,
-                parameter: *q,
-                figures: acc.figures(),
-            });
-        }
-        regressions = t.regs.into_iter().map(|r| r.1).collect();
-        decomposition = t.decomposition;
-    }
+    let mut scores = Scores::new(best_ma_s, best_q, temp.as_ref().map_or(0, |t| t.regs.len()));
+    run.validate(validate, opts.levels, temp.as_ref(), &mut scores)?;
+    let fig = scores.id.figures();
+    let (baselines, decomposition, regressions) = scores.baselines(B, temp);
     Ok(Report {
         config: opts.clone(),
         e_rel: fig.e_rel,
@@ -580,20 +418,344 @@ where
         rms_err_truth_dph: fig.rms_err_truth_dph,
         identifier: fig,
         baselines,
-        samples_per_s: pushed as f64 / busy_s.max(1e-9),
-        samples_to_goal: goal_at,
-        samples_to_goal_abs: goal_abs_at,
+        samples_per_s: run.pushed as f64 / run.busy_s.max(1e-9),
+        samples_to_goal: training.convergence.goal_at,
+        samples_to_goal_abs: training.convergence.goal_abs_at,
         goal: 0.001,
         train_records: train.len(),
-        train_samples,
+        train_samples: training.samples,
         validate_records: validate.len(),
-        scored_samples: scored,
-        diverged_at_sample: diverged_at,
-        final_weights: id.weights().to_vec(),
+        scored_samples: scores.scored,
+        diverged_at_sample: scores.diverged_at,
+        final_weights: run.id.weights().to_vec(),
         drift_decomposition: decomposition,
         temperature_regressions: regressions,
         definitions: DEFINITIONS,
     })
+}
+
+/// Index of the least value (the first of equal ones; 0 when `v` is empty).
+fn index_of_least(v: &[f64]) -> usize {
+    v.iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(i, _)| i)
+}
+
+/// The identifier under test, run on line over records, and the time it took.
+struct OnLineRun<'a, F, T, const N: usize, const L: usize, const B: usize> {
+    /// The identifier; its weights and trainer state carry from record to record.
+    id: Identifier<F, T, N, L, B>,
+    /// The feature map for a record of sample period `dt`, s.
+    make_features: &'a dyn Fn(f32) -> F,
+    /// What the preset does to the identifier at a power-on (sample period `dt`, s).
+    power_on: &'a dyn Fn(&mut Identifier<F, T, N, L, B>, f32),
+    /// Wall time spent pushing samples through the identifier, s.
+    busy_s: f64,
+    /// Samples pushed through the identifier.
+    pushed: u64,
+}
+
+/// What training leaves for the report and the baselines.
+struct Training {
+    /// Training samples.
+    samples: u64,
+    /// When the training error reached the goals.
+    convergence: Convergence,
+    /// Squared error, (deg/s)^2, of each moving average of [`MA_WINDOWS_S`], summed over the
+    /// first [`TUNE_RECORDS`] training records from sample `2B` of each.
+    ma_sq: [f64; MA_WINDOWS_S.len()],
+}
+
+impl<F, T, const N: usize, const L: usize, const B: usize> OnLineRun<'_, F, T, N, L, B>
+where
+    F: FeatureMap<N>,
+    T: Trainer<L>,
+{
+    /// Restarts the identifier for record `s`, as at a power-on.
+    fn restart(&mut self, s: &Series) -> Result<()> {
+        let dt = s.sample_period_s() as f32;
+        self.id
+            .restart((self.make_features)(dt), dt)
+            .map_err(|e| anyhow!("{}: {e}", s.name))?;
+        (self.power_on)(&mut self.id, dt);
+        Ok(())
+    }
+
+    /// Pushes every sample of `s` through the identifier (timed); returns `pick` of each
+    /// sample's estimate.
+    fn push_record(
+        &mut self,
+        s: &Series,
+        pick: impl Fn(&fog_core::identify::Estimate) -> f32,
+    ) -> Result<Vec<f32>> {
+        let t0 = Instant::now();
+        let mut out = Vec::with_capacity(s.rate_dps.len());
+        for (k, &x) in s.rate_dps.iter().enumerate() {
+            let e = self
+                .id
+                .push_with_temp(x, temp_at(s, k))
+                .map_err(|e| anyhow!("{}: {e}", s.name))?;
+            out.push(pick(&e));
+        }
+        self.busy_s += t0.elapsed().as_secs_f64();
+        self.pushed += s.rate_dps.len() as u64;
+        Ok(out)
+    }
+
+    /// Trains on the records in order, restarted at each record start (targets denoised
+    /// `levels` deep), measuring convergence and the moving-average baselines on the way.
+    fn train(&mut self, train: &dyn Records, levels: u32) -> Result<Training> {
+        let mut training = Training {
+            samples: 0,
+            convergence: Convergence::default(),
+            ma_sq: [0.0; MA_WINDOWS_S.len()],
+        };
+        for i in 0..train.len() {
+            let s = train.get(i)?;
+            self.restart(&s)?;
+            let train_err = self.push_record(&s, |e| e.train_error_dps)?;
+            let d = denoised(&s, B, levels)?;
+            training
+                .convergence
+                .add_record(&train_err, &d, B, training.samples);
+            if i < TUNE_RECORDS {
+                add_moving_average_sq_errors(&mut training.ma_sq, &s, &d, B);
+            }
+            training.samples += s.rate_dps.len() as u64;
+        }
+        Ok(training)
+    }
+
+    /// Runs on over the validation records, still on line, restarted at each record start
+    /// (targets denoised `levels` deep), scoring the identifier and the baselines into
+    /// `scores`.
+    fn validate(
+        &mut self,
+        validate: &dyn Records,
+        levels: u32,
+        temp: Option<&TempBaselines>,
+        scores: &mut Scores,
+    ) -> Result<()> {
+        let mut first_sample = 0u64;
+        for i in 0..validate.len() {
+            let s = validate.get(i)?;
+            self.restart(&s)?;
+            let d = denoised(&s, B, levels)?;
+            let temp_ys = temp.map(|t| t.track(&s)).transpose()?;
+            let ys = self.push_record(&s, |e| e.drift_dps)?;
+            scores.add_record(&s, &d, &ys, temp_ys.as_deref(), B, first_sample);
+            first_sample += s.rate_dps.len() as u64;
+        }
+        Ok(())
+    }
+}
+
+/// Convergence: RMS of the a-priori training error per block of `B` training steps (the
+/// error at sample `k` is for target `d(k - B)`), blocks running on across records.
+#[derive(Default)]
+struct Convergence {
+    /// Sum of squared errors of the block so far, deg^2/s^2.
+    e2: f64,
+    /// Sum of squared targets of the block so far, deg^2/s^2.
+    d2: f64,
+    /// Errors in the block so far.
+    n: usize,
+    /// Training samples until the block RMS error fell to 0.001 times the block RMS target.
+    goal_at: Option<u64>,
+    /// Training samples until the block RMS error fell to 0.001 deg/s.
+    goal_abs_at: Option<u64>,
+}
+
+impl Convergence {
+    /// Adds one record's training errors `train_err` (deg/s) against its denoised targets
+    /// `d` (deg/s); `samples_before` training samples preceded the record.
+    fn add_record(&mut self, train_err: &[f32], d: &[f32], block: usize, samples_before: u64) {
+        for (k, e) in train_err.iter().enumerate() {
+            if !e.is_finite() || k < block {
+                continue;
+            }
+            self.e2 += f64::from(*e).powi(2);
+            self.d2 += f64::from(d[k - block]).powi(2);
+            self.n += 1;
+            if self.n == block {
+                let rms_e = (self.e2 / block as f64).sqrt();
+                let rms_d = (self.d2 / block as f64).sqrt();
+                let at = samples_before + k as u64 + 1;
+                if self.goal_at.is_none() && rms_e <= 0.001 * rms_d {
+                    self.goal_at = Some(at);
+                }
+                if self.goal_abs_at.is_none() && rms_e <= 0.001 {
+                    self.goal_abs_at = Some(at);
+                }
+                (self.e2, self.d2, self.n) = (0.0, 0.0, 0);
+            }
+        }
+    }
+}
+
+/// Adds to `ma_sq[i]` the squared error, deg^2/s^2, of a moving average of the raw rate over
+/// `MA_WINDOWS_S[i]` seconds on record `s`, from sample `2 * block` on, against the truth
+/// (or, without one, the denoised record `d`).
+fn add_moving_average_sq_errors(
+    ma_sq: &mut [f64; MA_WINDOWS_S.len()],
+    s: &Series,
+    d: &[f32],
+    block: usize,
+) {
+    let dt = s.sample_period_s() as f32;
+    let reference: Vec<f64> = match &s.drift_dps {
+        Some(t) => t.iter().map(|&v| f64::from(v)).collect(),
+        None => d.iter().map(|&v| f64::from(v)).collect(),
+    };
+    for (wi, w_s) in MA_WINDOWS_S.iter().enumerate() {
+        let mut ma = MovingAverage::new((w_s / f64::from(dt)).round() as usize);
+        for (k, &x) in s.rate_dps.iter().enumerate() {
+            let y = ma.push(f64::from(x));
+            if k >= 2 * block {
+                ma_sq[wi] += (y - reference[k]).powi(2);
+            }
+        }
+    }
+}
+
+/// Errors of the identifier and of every causal baseline on the validation samples.
+struct Scores {
+    /// Window of the best moving average on the training records, s.
+    best_ma_s: f64,
+    /// q/r of the best random-walk Kalman filter on the training records.
+    best_q: f64,
+    /// The identifier.
+    id: ErrorAcc,
+    /// Moving average of the raw rate over 10 s.
+    ma10: ErrorAcc,
+    /// Moving average of the raw rate over `best_ma_s`.
+    ma_best: ErrorAcc,
+    /// Random-walk Kalman filter with q/r `best_q`.
+    kf: ErrorAcc,
+    /// Moving average of the target over one block, one block late.
+    lag: ErrorAcc,
+    /// One per temperature-aware baseline ([`TempBaselines::regs`]).
+    temp: Vec<ErrorAcc>,
+    /// Validation sample at which the identifier's output was first not finite, if ever.
+    diverged_at: Option<u64>,
+    /// Samples scored.
+    scored: u64,
+}
+
+impl Scores {
+    fn new(best_ma_s: f64, best_q: f64, temp_baselines: usize) -> Self {
+        Self {
+            best_ma_s,
+            best_q,
+            id: ErrorAcc::default(),
+            ma10: ErrorAcc::default(),
+            ma_best: ErrorAcc::default(),
+            kf: ErrorAcc::default(),
+            lag: ErrorAcc::default(),
+            temp: vec![ErrorAcc::default(); temp_baselines],
+            diverged_at: None,
+            scored: 0,
+        }
+    }
+
+    /// Scores record `s` from sample `2 * block` on: the identifier's outputs `ys`, the
+    /// baselines run here and the temperature-aware ones' `temp_ys`, all deg/s, against the
+    /// denoised record `d`; `first_sample` is the record's first validation sample.
+    fn add_record(
+        &mut self,
+        s: &Series,
+        d: &[f32],
+        ys: &[f32],
+        temp_ys: Option<&[Vec<f64>]>,
+        block: usize,
+        first_sample: u64,
+    ) {
+        let dt = s.sample_period_s() as f32;
+        let mut ma10 = MovingAverage::new((10.0 / f64::from(dt)).round() as usize);
+        let mut ma_best = MovingAverage::new((self.best_ma_s / f64::from(dt)).round() as usize);
+        let mut kf = RandomWalkKalman::new(self.best_q as f32, 1.0);
+        let mut lag = MovingAverage::new(block);
+        for (k, &x) in s.rate_dps.iter().enumerate() {
+            let xf = f64::from(x);
+            let (y10, yb, yk) = (ma10.push(xf), ma_best.push(xf), f64::from(kf.push(x)));
+            // The target d(k - B) becomes known at sample k (block-aligned: at the end of its
+            // block; averaging over the last B of them is the same as their block mean then).
+            let ylag = if k >= block {
+                lag.push(f64::from(d[k - block]))
+            } else {
+                f64::NAN
+            };
+            if k < 2 * block {
+                continue;
+            }
+            let dk = f64::from(d[k]);
+            let truth = s.drift_dps.as_ref().map(|t| f64::from(t[k]));
+            let y = f64::from(ys[k]);
+            if !y.is_finite() && self.diverged_at.is_none() {
+                self.diverged_at = Some(first_sample + k as u64);
+            }
+            self.id.add(y, dk, truth);
+            self.ma10.add(y10, dk, truth);
+            self.ma_best.add(yb, dk, truth);
+            self.kf.add(yk, dk, truth);
+            self.lag.add(ylag, dk, truth);
+            if let Some(tys) = temp_ys {
+                for (acc, y) in self.temp.iter_mut().zip(tys) {
+                    acc.add(y[k], dk, truth);
+                }
+            }
+            self.scored += 1;
+        }
+    }
+
+    /// The baselines' rows (those of `temp` last), the drift decomposition and the
+    /// temperature regressions; `block` is the lagged baseline's window, samples.
+    fn baselines(
+        &self,
+        block: usize,
+        temp: Option<TempBaselines>,
+    ) -> (
+        Vec<Baseline>,
+        Option<thermal::DriftDecomposition>,
+        Vec<thermal::RateRegression>,
+    ) {
+        let mut baselines = vec![
+            Baseline {
+                name: "moving_average_10s",
+                parameter: 10.0,
+                figures: self.ma10.figures(),
+            },
+            Baseline {
+                name: "moving_average_best_window_s",
+                parameter: self.best_ma_s,
+                figures: self.ma_best.figures(),
+            },
+            Baseline {
+                name: "kalman_random_walk_q_over_r",
+                parameter: self.best_q,
+                figures: self.kf.figures(),
+            },
+            Baseline {
+                name: "moving_average_of_target_lagged_one_block",
+                parameter: block as f64,
+                figures: self.lag.figures(),
+            },
+        ];
+        let (mut decomposition, mut regressions) = (None, Vec::new());
+        if let Some(t) = temp {
+            for ((reg, q), acc) in t.regs.iter().zip(&t.q).zip(&self.temp) {
+                baselines.push(Baseline {
+                    name: reg.0,
+                    parameter: *q,
+                    figures: acc.figures(),
+                });
+            }
+            regressions = t.regs.into_iter().map(|r| r.1).collect();
+            decomposition = t.decomposition;
+        }
+        (baselines, decomposition, regressions)
+    }
 }
 
 /// The temperature-aware baselines and the drift decomposition (records with `temp_c`).

@@ -280,6 +280,14 @@ enum Rule {
     Range(f64, f64),
 }
 
+/// One single-value rule: (section, key, value, rule).
+type Check = (&'static str, &'static str, f64, Rule);
+
+/// Why a negative noise density is refused.
+const DENSITY: &str = "a noise density must be >= 0";
+/// Why a negative size is refused.
+const SIZE: &str = "must be >= 0";
+
 impl Model {
     /// Reads and validates a model file.
     pub fn load(path: &Path) -> Result<Self> {
@@ -333,16 +341,27 @@ impl Model {
         Ok(model)
     }
 
-    /// Every single-value rule: (section, key, value, rule).
-    fn checks(&self) -> Vec<(&'static str, &'static str, f64, Rule)> {
+    /// Every single-value rule, section by section in the order of [`KEYS`]: (section,
+    /// key, value, rule).
+    fn checks(&self) -> Vec<Check> {
+        [
+            self.top_level_checks(),
+            self.quantization_checks(),
+            self.noise_checks(),
+            self.bias_checks(),
+            self.temperature_checks(),
+            self.scale_factor_checks(),
+            self.motion_checks(),
+            self.vehicle_checks(),
+            self.timing_checks(),
+            self.faults_checks(),
+        ]
+        .concat()
+    }
+
+    /// The top-level keys' rules.
+    fn top_level_checks(&self) -> Vec<Check> {
         use Rule::*;
-        const DENSITY: &str = "a noise density must be >= 0";
-        const SIZE: &str = "must be >= 0";
-        let n = &self.noise;
-        let b = &self.bias;
-        let t = &self.temperature;
-        let m = &self.motion;
-        let v = &m.vehicle;
         vec![
             (
                 "",
@@ -356,12 +375,25 @@ impl Model {
                 self.full_scale_dps.unwrap_or(1.0),
                 Positive,
             ),
-            (
-                "quantization",
-                "quantum_dps",
-                self.quantization.quantum_dps,
-                NonNegative(SIZE),
-            ),
+        ]
+    }
+
+    /// `[quantization]`'s rules.
+    fn quantization_checks(&self) -> Vec<Check> {
+        use Rule::*;
+        vec![(
+            "quantization",
+            "quantum_dps",
+            self.quantization.quantum_dps,
+            NonNegative(SIZE),
+        )]
+    }
+
+    /// `[noise]`'s rules.
+    fn noise_checks(&self) -> Vec<Check> {
+        use Rule::*;
+        let n = &self.noise;
+        vec![
             (
                 "noise",
                 "arw_dps_per_rthz",
@@ -403,6 +435,14 @@ impl Model {
             ),
             ("noise", "sine_freq_hz", n.sine_freq_hz, NonNegative(SIZE)),
             ("noise", "sine_phase_deg", n.sine_phase_deg, Finite),
+        ]
+    }
+
+    /// `[bias]`'s rules.
+    fn bias_checks(&self) -> Vec<Check> {
+        use Rule::*;
+        let b = &self.bias;
+        vec![
             ("bias", "turn_on_dps", b.turn_on_dps, Finite),
             (
                 "bias",
@@ -412,6 +452,14 @@ impl Model {
             ),
             ("bias", "warmup_dps", b.warmup_dps, Finite),
             ("bias", "warmup_tau_s", b.warmup_tau_s, Positive),
+        ]
+    }
+
+    /// `[temperature]`'s rules.
+    fn temperature_checks(&self) -> Vec<Check> {
+        use Rule::*;
+        let t = &self.temperature;
+        vec![
             ("temperature", "initial_c", t.initial_c, Range(-273.15, 1e3)),
             ("temperature", "ramp_c_per_s", t.ramp_c_per_s, Finite),
             (
@@ -436,6 +484,13 @@ impl Model {
                 t.shupe_dps_per_c_per_s,
                 Finite,
             ),
+        ]
+    }
+
+    /// `[scale_factor]`'s rules.
+    fn scale_factor_checks(&self) -> Vec<Check> {
+        use Rule::*;
+        vec![
             (
                 "scale_factor",
                 "error_ppm",
@@ -448,6 +503,14 @@ impl Model {
                 self.scale_factor.quadratic_ppm_per_dps,
                 Finite,
             ),
+        ]
+    }
+
+    /// `[motion]`'s rules (its vehicle: [`Self::vehicle_checks`]).
+    fn motion_checks(&self) -> Vec<Check> {
+        use Rule::*;
+        let m = &self.motion;
+        vec![
             ("motion", "rate_dps", m.rate_dps, Finite),
             (
                 "motion",
@@ -457,6 +520,14 @@ impl Model {
             ),
             ("motion", "sine_freq_hz", m.sine_freq_hz, NonNegative(SIZE)),
             ("motion", "latitude_deg", m.latitude_deg, Range(-90.0, 90.0)),
+        ]
+    }
+
+    /// `[motion.vehicle]`'s rules.
+    fn vehicle_checks(&self) -> Vec<Check> {
+        use Rule::*;
+        let v = &self.motion.vehicle;
+        vec![
             ("motion.vehicle", "align_s", v.align_s, NonNegative(SIZE)),
             ("motion.vehicle", "stop_min_s", v.stop_min_s, Positive),
             ("motion.vehicle", "stop_max_s", v.stop_max_s, Positive),
@@ -512,6 +583,13 @@ impl Model {
                 v.turn_angle_max_deg,
                 Positive,
             ),
+        ]
+    }
+
+    /// `[timing]`'s rules.
+    fn timing_checks(&self) -> Vec<Check> {
+        use Rule::*;
+        vec![
             (
                 "timing",
                 "rate_error_ppm",
@@ -524,6 +602,13 @@ impl Model {
                 self.timing.jitter_rms_s,
                 NonNegative(SIZE),
             ),
+        ]
+    }
+
+    /// `[faults]`'s rules.
+    fn faults_checks(&self) -> Vec<Check> {
+        use Rule::*;
+        vec![
             (
                 "faults",
                 "drop_probability",
