@@ -128,7 +128,7 @@ impl Columns {
 }
 
 /// Which columns a record has beside the rate (optional ones only when asked for).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Present {
     /// `t_s` (else `row index / rate_hz`).
     pub t_s: bool,
@@ -142,6 +142,13 @@ pub struct Present {
     pub moving: bool,
     /// The external still flag.
     pub still: bool,
+}
+
+impl Present {
+    /// Both `true_rate_dps` (or the reference) and `drift_dps`: the record can be scored.
+    pub fn truth(&self) -> bool {
+        self.true_rate_dps && self.drift_dps
+    }
 }
 
 /// One data row, parsed.

@@ -10,9 +10,9 @@
 //! ([`Input::sample_period_s`]) and the caller checks it again.
 
 use super::stream::{self, Capture, CaptureEvent, InputFormat, Options};
-use crate::record::{self, ReadOptions};
+use crate::record::{self, Present, ReadOptions};
 use crate::report::BytesSummary;
-use anyhow::{anyhow, bail, Result};
+use anyhow::{bail, Result};
 use std::collections::VecDeque;
 use std::path::Path;
 
@@ -38,19 +38,6 @@ pub struct Sample {
     pub still: Option<bool>,
 }
 
-/// Which optional columns the record has (every sample has them or none does).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct Columns {
-    /// `temp_c`.
-    pub temp_c: bool,
-    /// `drift_dps`.
-    pub drift_dps: bool,
-    /// Both `true_rate_dps` and `drift_dps`: the record can be scored.
-    pub truth: bool,
-    /// `moving` (else every sample counts as still when scored).
-    pub moving: bool,
-}
-
 enum Source {
     Csv(Box<record::Rows<Box<dyn std::io::Read>>>),
     Capture(Box<Capture>),
@@ -64,8 +51,8 @@ pub struct Input {
     ended: bool,
     /// Format read.
     pub format: InputFormat,
-    /// Optional columns present.
-    pub columns: Columns,
+    /// Columns present (none for a capture).
+    pub columns: Present,
     /// Where `t_s` comes from.
     pub t_s_source: &'static str,
     /// `t_s` is `row index / rate_hz` (no time stamps in the input): the rate is the
@@ -81,21 +68,7 @@ impl Input {
     /// Opens `path`: CSV (with `csv`'s rate column, scale, still column and, without a
     /// `t_s` column, `opts.rate_hz`) or a capture decoded with `opts`.
     pub fn open(path: &Path, opts: &Options, csv: &ReadOptions) -> Result<Self> {
-        let is_csv = match opts.format {
-            InputFormat::Csv => true,
-            InputFormat::Auto => {
-                let mut head = vec![0u8; 8192];
-                let n = {
-                    use std::io::Read;
-                    let mut f = std::fs::File::open(path)
-                        .map_err(|e| anyhow!("{}: cannot open: {e}", path.display()))?;
-                    f.read(&mut head)
-                        .map_err(|e| anyhow!("{}: read failed at byte 0: {e}", path.display()))?
-                };
-                stream::sniff(&path.display().to_string(), &head[..n])? == InputFormat::Csv
-            }
-            _ => false,
-        };
+        let is_csv = stream::detect_format(path, opts.format)? == InputFormat::Csv;
         if is_csv {
             let o = ReadOptions {
                 rate_hz: Some(opts.rate_hz),
@@ -106,18 +79,12 @@ impl Input {
                 record::open_maybe_gz(path)?,
                 &o,
             )?;
-            let c = rows.columns();
+            let columns = rows.columns();
             return Ok(Self::new(
                 path,
                 Source::Csv(Box::new(rows)),
                 InputFormat::Csv,
-                Columns {
-                    temp_c: c.temp_c,
-                    drift_dps: c.drift_dps,
-                    truth: c.true_rate_dps && c.drift_dps,
-                    moving: c.moving,
-                },
-                !c.t_s,
+                columns,
             ));
         }
         if csv.still_column.is_some() {
@@ -129,19 +96,12 @@ impl Input {
             path,
             Source::Capture(Box::new(cap)),
             format,
-            Columns::default(),
-            true,
+            Present::default(),
         ))
     }
 
-    fn new(
-        path: &Path,
-        source: Source,
-        format: InputFormat,
-        columns: Columns,
-        from_rate: bool,
-    ) -> Self {
-        let csv = format == InputFormat::Csv;
+    fn new(path: &Path, source: Source, format: InputFormat, columns: Present) -> Self {
+        let (csv, from_rate) = (format == InputFormat::Csv, !columns.t_s);
         Self {
             name: path.display().to_string(),
             source,

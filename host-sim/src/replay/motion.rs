@@ -433,7 +433,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         .map_err(|e| anyhow!("{identifier}: {e}"))?;
     est.restart();
     let cols = rec.columns;
-    let mut cmp = if cols.truth {
+    let mut cmp = if cols.truth() {
         Some(Comparer::new(
             "motion identifier",
             cols.moving,
@@ -481,7 +481,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
             });
             if let Some(f) = figs.as_mut() {
                 let h = heading.as_ref().map_or(&[][..], |h| &h[..]);
-                f.push(x.t_s, x.rate_dps, drift, m.still, x.drift_dps, x.moving, h);
+                f.push(&x, drift, m.still, h);
             }
         }
         // The whole record's rate (the estimator started on the look-ahead's).

@@ -478,20 +478,26 @@ pub(crate) fn sniff(name: &str, head: &[u8]) -> Result<InputFormat> {
     )
 }
 
+/// `format`, or for `Auto` the format [`sniff`] tells from the first 8 KiB of `path`.
+pub(crate) fn detect_format(path: &Path, format: InputFormat) -> Result<InputFormat> {
+    if format != InputFormat::Auto {
+        return Ok(format);
+    }
+    let name = path.display().to_string();
+    let file = File::open(path).with_context(|| format!("{name}: cannot open"))?;
+    let mut reader = BufReader::with_capacity(8192, file);
+    let head = reader
+        .fill_buf()
+        .with_context(|| format!("{name}: read failed at byte 0"))?;
+    sniff(&name, head)
+}
+
 fn open_source(path: &Path, opts: &Options) -> Result<(Source, InputFormat, u64)> {
     let name = path.display().to_string();
     let file = File::open(path).with_context(|| format!("{name}: cannot open"))?;
     let len = file.metadata().map(|m| m.len()).unwrap_or(0);
-    let mut reader = BufReader::with_capacity(1 << 16, file);
-    let format = match opts.format {
-        InputFormat::Auto => {
-            let head = reader
-                .fill_buf()
-                .with_context(|| format!("{name}: read failed at byte 0"))?;
-            sniff(&name, &head[..head.len().min(8192)])?
-        }
-        f => f,
-    };
+    let reader = BufReader::with_capacity(1 << 16, file);
+    let format = detect_format(path, opts.format)?;
     let src = match format {
         InputFormat::Csv | InputFormat::Auto => {
             Source::Csv(Box::new(CsvSource::new(path, opts.rate_hz)?))

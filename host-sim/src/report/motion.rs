@@ -18,6 +18,7 @@ use super::plots::{time_plot, Line, GREY, RED_};
 use super::{write_text, DPH_PER_DPS};
 use crate::nav;
 use crate::record;
+use crate::replay::input::Sample;
 use crate::replay::motion::{MotionOutcome, MotionSummary};
 use anyhow::{Context, Result};
 use plotters::style::{RGBColor, BLACK};
@@ -83,33 +84,24 @@ impl MotionFigures {
         }
     }
 
-    /// One sample: time, measured rate, the identifier's drift estimate (deg/s) and still
-    /// call, the true drift and `moving` when known, each scored row's heading error (deg,
-    /// in the labels' order; empty without truth).
-    #[allow(clippy::too_many_arguments)]
-    pub fn push(
-        &mut self,
-        t_s: f64,
-        rate_dps: f64,
-        drift_dps: f64,
-        still: bool,
-        true_drift_dps: Option<f64>,
-        moving: Option<bool>,
-        heading_deg: &[f64],
-    ) {
+    /// One sample of the record, the identifier's drift estimate (deg/s) and still call for
+    /// it, and each scored row's heading error (deg, in the labels' order; empty without
+    /// truth).
+    pub fn push(&mut self, x: &Sample, drift_dps: f64, still: bool, heading_deg: &[f64]) {
+        let t_s = x.t_s;
         for ((_, m), &h) in self.heading.iter_mut().zip(heading_deg) {
             m.push(t_s, h);
         }
-        let shaded = match (self.spans_from_truth, moving) {
+        let shaded = match (self.spans_from_truth, x.moving) {
             (true, Some(m)) => !m,
             _ => still,
         };
         self.spans.push(t_s, shaded);
         self.drift.push(t_s, drift_dps);
-        self.rate.push(t_s, rate_dps);
-        self.comp.push(t_s, rate_dps - drift_dps);
+        self.rate.push(t_s, x.rate_dps);
+        self.comp.push(t_s, x.rate_dps - drift_dps);
         self.corr.push(t_s, self.corr_angle.push(t_s, drift_dps));
-        if let Some(d) = true_drift_dps {
+        if let Some(d) = x.drift_dps {
             self.truth.push(t_s, d);
             self.corr_truth
                 .push(t_s, self.corr_truth_angle.push(t_s, d));
