@@ -11,6 +11,7 @@
 //! - [`still`]: sensor configuration and the causal stillness detector;
 //! - [`bank`]: the level as the sensor's Allan noise model (random walk + flicker bank);
 //! - [`motion`]: the motion-safe identifier (learn at rest, compensate in motion);
+//! - [`rest_q`]: the unit's own level wander at rest, chosen on line;
 //! - [`image`]: the trained identifier as a versioned, checksummed binary image;
 //! - [`baseline`]: causal estimators to compare with;
 //! - [`frame`], [`driver`]: gyro serial frames and the serial reader;
@@ -32,6 +33,7 @@ pub mod image;
 pub mod motion;
 pub mod motion_fit;
 pub mod preset;
+pub mod rest_q;
 pub mod still;
 pub mod temp_sensor;
 #[cfg(test)]

@@ -100,7 +100,8 @@ pub struct MotionConfig {
     /// The stillness detector.
     pub still: StillConfig,
     /// Random-walk density of the level, deg^2/s^2 per s (>= 0): how fast the residual
-    /// drift may wander. Its variance grows by `q * window` every window, still or not.
+    /// drift may wander. Its variance grows by `q * window` every window, still or not,
+    /// and by the square of the model term's change at each window start.
     pub level_q_dps2_per_s: f32,
     /// The safety net's time, s (> 0): after this long without a still sample the output
     /// holds the drift last verified at rest ([`MotionOutput::verified`]).
@@ -321,6 +322,9 @@ pub struct MotionEstimator {
     // Per-sample mode: random-walk variance per sample, the level at the start of the
     // current and of the previous window, and the samples since the previous one.
     sample_q: f32,
+    // Per-sample mode: the random-walk variance per sample at a still sample (the unit's
+    // wander at rest, [`crate::rest_q`]); `sample_q` unless set.
+    rest_q: f32,
     sample_r: f32,
     // Checkpoints: [level, level_var, coef, cov(level, coef), coef_var].
     checkpoint_now: [f32; 5],
@@ -412,6 +416,7 @@ impl MotionEstimator {
             model_prev: 0.0,
             update: LevelUpdate::default(),
             sample_q: cfg.level_q_dps2_per_s / cfg.sensor.sample_rate_hz,
+            rest_q: cfg.level_q_dps2_per_s / cfg.sensor.sample_rate_hz,
             sample_r: cfg.sensor.sample_var_dps2() * cfg.still.noise_scale,
             checkpoint_now: [0.0; 5],
             checkpoint_prev: [0.0; 5],
@@ -474,6 +479,7 @@ impl MotionEstimator {
         self.u_now = 0.0;
         self.u_prev = 0.0;
         self.sample_r = self.still.noise_var_dps2();
+        self.rest_q = self.sample_q;
         self.stats = MotionStats::default();
     }
 
@@ -647,6 +653,14 @@ impl MotionEstimator {
             if !self.model_now.is_finite() {
                 self.model_now = 0.0;
             }
+            // The model term's change is uncertain by its size (ASSUMED): the level may
+            // have to take it back (a unit whose drift does not follow the family's
+            // model), so its variance grows by the change squared. At power-on the
+            // temperature-rate input settles within seconds and moves `m` by tens of
+            // deg/h; without this the level unlearns that step at the rate of a level
+            // seconds old.
+            let dm = self.model_now - self.model_prev;
+            self.level_var += dm * dm;
         }
         let second = self.second_coef() * self.coef;
         let reference = self
@@ -765,10 +779,11 @@ impl MotionEstimator {
     fn sample_step(&mut self, rate_dps: f32, still: bool, gate: bool) -> bool {
         self.since_prev = self.since_prev.saturating_add(1);
         self.since_now = self.since_now.saturating_add(1);
-        self.level_var += self.sample_q;
         if !still || self.halted {
+            self.level_var += self.sample_q;
             return false;
         }
+        self.level_var += self.rest_q;
         // Observation rate - m = level + h c: H = [1, h], h = the window's T - T0 (0: off).
         let h = self.second_coef();
         let innovation = rate_dps - self.model_now - self.level - self.coef * h;
@@ -841,6 +856,30 @@ impl MotionEstimator {
     /// The last [`MotionEstimator::push`] ended a detector window.
     pub fn window_ended(&self) -> bool {
         self.last_window.is_some()
+    }
+
+    /// The per-sample level's random-walk density at still samples, deg^2/s^3
+    /// ([`LevelUpdate::Sample`]; [`crate::rest_q`]): `q` finite and >= 0, else the
+    /// configuration's [`MotionConfig::level_q_dps2_per_s`]. Moving samples and rolled-back
+    /// windows keep the configuration's. [`MotionEstimator::restart`] sets it back to that.
+    pub fn set_rest_q(&mut self, q_dps2_per_s: f32) {
+        let q = if q_dps2_per_s.is_finite() && q_dps2_per_s >= 0.0 {
+            q_dps2_per_s
+        } else {
+            self.cfg.level_q_dps2_per_s
+        };
+        self.rest_q = q / self.cfg.sensor.sample_rate_hz;
+    }
+
+    /// [`MotionEstimator::released_window`] less the second state's term at that window
+    /// (`c (T - T0)`, exact 0 without it): what the level alone observed, deg/s, and the
+    /// window mean's variance, (deg/s)^2.
+    pub fn released_level_obs(&self) -> Option<(f32, f32)> {
+        let h = match self.second {
+            Second::Thermal { .. } => self.u_prev,
+            Second::Off => 0.0,
+        };
+        self.released_window().map(|(z, r)| (z - h * self.coef, r))
     }
 
     /// The window mean the last [`MotionEstimator::push`] released (still, and the window
