@@ -219,7 +219,7 @@ impl FeatureMap<3> for LevelTrendTime {
 
 /// Bins of the temperature used by [`TimeTemp`] for its rate estimate: 2 x 30 one-second
 /// bins.
-const TEMP_RATE_BINS: usize = 60;
+pub(crate) const TEMP_RATE_BINS: usize = 60;
 
 /// Inputs `[t_s, temp_c, dtemp_c_per_s]`: time since switch-on, the measured temperature,
 /// and its rate of change, all from known inputs (none from the gyro rate): the inputs of a

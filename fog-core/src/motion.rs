@@ -36,7 +36,7 @@
 //! Kalman step (`Window`) or a 5-float checkpoint copy (`Sample`).
 
 use crate::denoise::{denoise_in_place, DenoiseConfig};
-use crate::features::{FeatureMap, TimeTemp};
+use crate::features::{FeatureMap, TimeTemp, TEMP_RATE_BINS};
 use crate::still::{SensorConfig, StillConfig, Stillness};
 use crate::train::{Drls, DrlsConfig, DrlsForm, DrlsMode, Trainer};
 use crate::wnn::{dot, Activation, Group, InputScaling, ShapeError, WnnShape};
@@ -653,14 +653,19 @@ impl MotionEstimator {
             if !self.model_now.is_finite() {
                 self.model_now = 0.0;
             }
-            // The model term's change is uncertain by its size (ASSUMED): the level may
-            // have to take it back (a unit whose drift does not follow the family's
-            // model), so its variance grows by the change squared. At power-on the
-            // temperature-rate input settles within seconds and moves `m` by tens of
-            // deg/h; without this the level unlearns that step at the rate of a level
-            // seconds old.
-            let dm = self.model_now - self.model_prev;
-            self.level_var += dm * dm;
+            // While the temperature-rate input settles (its first TEMP_RATE_BINS seconds),
+            // the model term can step by tens of deg/h from one window to the next; the
+            // level, seconds old, would unlearn such a step slowly. So in that time its
+            // variance grows by the step squared (ASSUMED: the step is uncertain by its
+            // size), never beyond the power-on prior (the bound squared): a temperature
+            // glitch then costs what power-on costs, and later not at all. A rollback
+            // restores its checkpoint's variance.
+            let settling = (k as f32) < TEMP_RATE_BINS as f32 * self.cfg.sensor.sample_rate_hz;
+            if settling {
+                let dm = self.model_now - self.model_prev;
+                let b = self.cfg.sensor.drift_bound_dps;
+                self.level_var = (self.level_var + dm * dm).min(b * b).max(self.level_var);
+            }
         }
         let second = self.second_coef() * self.coef;
         let reference = self
@@ -783,17 +788,21 @@ impl MotionEstimator {
             self.level_var += self.sample_q;
             return false;
         }
-        self.level_var += self.rest_q;
+        // At a still sample the unit's own wander (rest q); a sample the gate stops is
+        // moving: the configuration's.
+        let level_var = self.level_var + self.rest_q;
         // Observation rate - m = level + h c: H = [1, h], h = the window's T - T0 (0: off).
         let h = self.second_coef();
         let innovation = rate_dps - self.model_now - self.level - self.coef * h;
-        let ph0 = self.level_var + self.coef_cov * h;
+        let ph0 = level_var + self.coef_cov * h;
         let ph1 = self.coef_cov + self.coef_var * h;
         let s = ph0 + ph1 * h + self.sample_r;
         if gate && innovation * innovation > FAST_GATE_K * FAST_GATE_K * s {
+            self.level_var += self.sample_q;
             self.halted = true;
             return false;
         }
+        self.level_var = level_var;
         let k0 = ph0 / s;
         let k1 = ph1 / s;
         let level = self.level + k0 * innovation;

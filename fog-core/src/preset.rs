@@ -565,6 +565,39 @@ mod tests {
         assert!(ratio < 0.5, "{ratio}");
     }
 
+    /// A temperature glitch (one 1000-deg-C reading, as a sensor read before its first
+    /// conversion) moves the model term by hundreds of deg/h for a window; after the
+    /// temperature-rate input has settled it must not loosen the mean test, so a turn of
+    /// 0.02 deg/s right after it is not learned as drift (measured: 0.61 deg/h off at most;
+    /// 33 deg/h, the bound, when every window's step loosened it).
+    #[test]
+    fn a_temperature_glitch_does_not_let_a_turn_in() {
+        let mut model = MotionModel::standard(1800.0).expect("test");
+        // 10 deg/h per 10 deg C on the temperature link.
+        model.weights[crate::motion::MOTION_L - 2] = 10.0 / 3600.0;
+        let mut dual = PresetEstimator::new(
+            model,
+            MotionConfig::for_sensor(S),
+            Arrangement::DualThermal,
+            TH,
+        )
+        .expect("test");
+        let mut z = Noise(13);
+        let sigma = S.sample_var_dps2().sqrt();
+        let (glitch, turn) = (12_000usize, 12_200usize);
+        let mut worst = 0.0f32;
+        for k in 0..24_000usize {
+            let temp = if k == glitch { 1000.0 } else { 25.0 };
+            let moving = (turn..turn + 6_000).contains(&k);
+            let x = 3.0 / 3600.0 + if moving { 0.02 } else { 0.0 } + sigma * z.normal12();
+            let o = dual.push(x, temp, None).expect("test");
+            if moving {
+                worst = worst.max((o.drift_dps - 3.0 / 3600.0).abs());
+            }
+        }
+        assert!(worst < 5.0 / 3600.0, "{} deg/h", worst * 3600.0);
+    }
+
     #[test]
     fn dual_with_an_external_flag_is_the_per_sample_estimator() {
         // A trusted flag: the output is the per-sample estimator's at every flagged sample,

@@ -6,25 +6,27 @@
 //! level through a drive, `identify --tune-on`) is not the one that follows the drift best at
 //! rest. [`RestQ`] runs [`REST_Q_GRID`] scalar random-walk Kalman filters side by side on
 //! the released window means (still, confirmed by the next window: no rolled-back sample
-//! reaches them), one per density of the grid `4^i (deg/h)^2/h`, `i = 0..8` (1 to 65,536),
+//! reaches them), one per density of the grid `4^i (deg/h)^2/h`, `i = 0..7` (1 to 16,384),
 //! and scores each by its prequential squared error: the squared difference between a
 //! window mean and the filter's prediction of it before it saw it. The density with the
 //! least score is the unit's ([`RestQ::q_dps2_per_s`]); the per-sample level uses it at
 //! still samples ([`crate::motion::MotionEstimator`]). The squared prediction error is
-//! the error against the true drift plus the window's white noise, equal for every filter,
-//! so the least score is the least error against the drift (what static `e_truth`
-//! measures).
+//! the error against the true drift plus the window's white noise, the same for every
+//! filter in expectation, so the least score is the least error against the drift (what
+//! static `e_truth` measures).
 //!
-//! ASSUMED: the grid (4 decades and more around the measured families' best densities,
-//! 64 to 16,384); [`REST_Q_MIN_WINDOWS`] released windows before the choice replaces the
-//! image's density. Measured: `cargo run --release -p fog-lab --bin unit_family` (static
+//! ASSUMED: the grid (the measured families' best densities are 64 to 16,384; its top keeps
+//! the level's time constant near 2 s or more at the E-Core's noise, so that a slow turn is
+//! not followed within a window); [`REST_Q_MIN_WINDOWS`] released windows before the
+//! choice replaces the image's density. A window mean beyond twice the drift bound is not
+//! scored (no unit's level is there). Measured: `cargo run --release -p fog-lab --bin unit_family` (static
 //! rows, docs/unit-fit.md). Cost per released window: [`REST_Q_GRID`] divisions; state
 //! `3 * REST_Q_GRID + 3` words.
 
 /// Densities in the grid.
-pub const REST_Q_GRID: usize = 9;
+pub const REST_Q_GRID: usize = 8;
 
-/// Released windows scored before the choice is used (ASSUMED: 30, half a minute at the
+/// Released windows scored before the choice is used (ASSUMED: 5, five seconds at the
 /// default 1-s window; before it, the image's density).
 pub const REST_Q_MIN_WINDOWS: u32 = 5;
 
@@ -100,12 +102,13 @@ impl RestQ {
     }
 
     /// A released window mean `z_dps` (the level's observation: rate minus the model and
-    /// the second state) with its white-noise variance `r_dps2`. Non-finite or
-    /// non-positive variances are ignored. Not inlined: its frame stays apart from the
+    /// the second state) with its white-noise variance `r_dps2`. Ignored: a non-finite
+    /// mean or one beyond twice the drift bound, a non-finite or non-positive variance. Not inlined: its frame stays apart from the
     /// caller's (16 B less stack high-water in the firmware's HIL run).
     #[inline(never)]
     pub fn update(&mut self, z_dps: f32, r_dps2: f32) {
-        if !z_dps.is_finite() || !r_dps2.is_finite() || r_dps2 <= 0.0 {
+        let plausible = z_dps.is_finite() && z_dps * z_dps <= 4.0 * self.prior_var_dps2;
+        if !plausible || !r_dps2.is_finite() || r_dps2 <= 0.0 {
             return;
         }
         let scored = self.windows > 0;
@@ -127,7 +130,8 @@ impl RestQ {
             *var = p - g * p;
             least = least.min(*score);
         }
-        // Scores relative to the least: the differences stay exact in f32 over any run.
+        // Scores relative to the least: they stay bounded (and their differences precise)
+        // over any run.
         if least.is_finite() {
             for s in &mut self.score {
                 *s -= least;
@@ -213,6 +217,8 @@ mod tests {
         sel.update(f32::NAN, 1e-6);
         sel.update(1e-3, 0.0);
         sel.update(1e-3, f32::INFINITY);
+        sel.update(1.0, 1e-6); // 3600 deg/h: beyond twice the 30-deg/h bound
+        sel.update(f32::MAX, 1e-6);
         sel.elapse(f32::NAN);
         sel.elapse(-1.0);
         assert_eq!(sel, before);
