@@ -16,10 +16,6 @@ pub struct Args {
     /// each (the CI test's variant).
     #[arg(long)]
     pub quick: bool,
-    /// Shrink the trained model by leave-one-record-out (`identify --preset motion
-    /// --shrink`; not the firmware's default).
-    #[arg(long)]
-    pub shrink: bool,
     /// The bench trainer of the model (`identify --preset motion --motion-trainer`).
     #[arg(long, value_enum, default_value_t = crate::motion::TrainerArg::DrlsChecked)]
     pub trainer: crate::motion::TrainerArg,
@@ -37,7 +33,6 @@ pub fn run(args: &Args) -> Result<()> {
     } else {
         DemoConfig::full()
     };
-    cfg.shrink = args.shrink;
     cfg.trainer = args.trainer;
     cfg.arrangements = args.level_update.iter().map(|l| l.arrangement()).collect();
     let index = demo::run(&args.out, &cfg)?;

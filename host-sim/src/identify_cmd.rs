@@ -123,11 +123,6 @@ pub struct Args {
     /// default 600).
     #[arg(long)]
     pub stale_s: Option<f32>,
-    /// `--preset motion`: shrink the model by leave-one-record-out cross-validation
-    /// (host_sim::motion::Shrinkage: alpha in [0, 1] folded into the output weights). Off
-    /// by default: it costs in motion on families A and B (docs/unit-fit.md).
-    #[arg(long)]
-    pub shrink: bool,
     /// `--preset motion`: the bench trainer of the model's output weights: the paper's DRLS
     /// (`--epochs` passes) kept only when least squares with leave-one-record-out finds a
     /// shape the records share (`drls-checked`, the default), DRLS alone, or least squares
@@ -374,7 +369,6 @@ fn run_motion(a: &Args) -> Result<()> {
         o.config.stale_s = t;
     }
     o.epochs = a.epochs;
-    o.shrink = a.shrink;
     o.trainer = a.motion_trainer;
     if let Some(q) = a.level_q_dph2_per_h {
         o.config.level_q_dps2_per_s = q / (3600.0 * 3600.0 * 3600.0);
@@ -399,7 +393,7 @@ fn run_motion(a: &Args) -> Result<()> {
         still.noise_hi,
         f64::from(sensor.drift_bound_dps) * 3600.0
     );
-    let (mut image, rows, shrink) = (trained.image, trained.records, trained.shrinkage);
+    let (mut image, rows) = (trained.image, trained.records);
     let tuning = if a.tune_on.is_empty() {
         None
     } else {
@@ -427,19 +421,6 @@ fn run_motion(a: &Args) -> Result<()> {
             motion::describe_least_squares(ls)
         );
     }
-    if shrink.cross_validated {
-        eprintln!(
-            "motion shrinkage (leave-one-record-out over {} records, changes over {} windows): alpha {:.3}, held-out gain {:.1} % (unscaled {:.1} %); whole-record shape alpha {:.3}",
-            shrink.records.len(),
-            shrink.lag_windows,
-            shrink.alpha,
-            100.0 * shrink.heldout_gain,
-            100.0 * shrink.heldout_gain_unscaled,
-            shrink.alpha_whole_record
-        );
-    } else {
-        eprintln!("motion shrinkage: not run (alpha 1; --shrink)");
-    }
     let validation = if a.validate.is_empty() {
         None
     } else {
@@ -459,7 +440,6 @@ fn run_motion(a: &Args) -> Result<()> {
             "trainer": a.motion_trainer,
             "least_squares": trained.least_squares,
             "records": rows,
-            "shrinkage": shrink,
             "weights_dps": image.model.weights,
             "validation": validation,
             "tuning": tuning,

@@ -724,62 +724,6 @@ fn kvh_log_rotation_is_not_drift() {
     }
 }
 
-/// `identify --preset motion` shrinks the model by leave-one-record-out: the JSON names
-/// alpha and the held-out gains, and the saved weights are the unshrunk ones (the default,
-/// no `--shrink`) times alpha.
-#[test]
-fn identify_shrinks_the_model_by_cross_validation() {
-    let dir = tempfile::tempdir().expect("test");
-    let d = dir.path();
-    let inputs: Vec<PathBuf> = (11..14u64)
-        .map(|seed| {
-            let p = d.join(format!("s{seed}.csv"));
-            simulate(seed, "150", None, &p);
-            p
-        })
-        .collect();
-    let run = |shrink: bool| -> serde_json::Value {
-        let json = d.join(format!("r{shrink}.json"));
-        let mut c = host_sim();
-        c.args(["identify", "--preset", "motion", "--input"])
-            .args(&inputs)
-            .arg("--save-identifier")
-            .arg(d.join(format!("m{shrink}.fogi")))
-            .arg("--json")
-            .arg(&json);
-        if shrink {
-            c.arg("--shrink");
-        }
-        c.assert().success();
-        serde_json::from_str(&fs::read_to_string(&json).expect("test")).expect("test")
-    };
-    let (on, off) = (run(true), run(false));
-    let s = &on["shrinkage"];
-    assert_eq!(s["cross_validated"], true, "{s}");
-    assert_eq!(s["lag_windows"], 60);
-    assert_eq!(s["records"].as_array().map(Vec::len), Some(3));
-    let alpha = s["alpha"].as_f64().expect("alpha");
-    assert!((0.0..=1.0).contains(&alpha), "{alpha}");
-    assert!(s["heldout_gain"].as_f64().is_some());
-    assert_eq!(off["shrinkage"]["cross_validated"], false);
-    let w = |v: &serde_json::Value| -> Vec<f64> {
-        v["weights_dps"]
-            .as_array()
-            .expect("weights")
-            .iter()
-            .map(|x| x.as_f64().expect("f64"))
-            .collect()
-    };
-    let (ws, wu) = (w(&on), w(&off));
-    assert!(wu.iter().any(|x| *x != 0.0), "trained weights");
-    for (a, b) in ws.iter().zip(&wu) {
-        assert!(
-            (a - alpha * b).abs() <= 1e-6 * b.abs() + 1e-12,
-            "{a} vs {alpha} x {b}"
-        );
-    }
-}
-
 /// `identify --tune-on`: each `--level-update` value tuned on vehicle records with truth,
 /// the one with the least mean heading RMS saved; the picks in the JSON and the image.
 #[test]

@@ -76,9 +76,6 @@ pub struct DemoConfig {
     pub validate_records: u64,
     /// Length of every record, s.
     pub duration_s: f64,
-    /// Shrink the model by leave-one-record-out ([`motion::Shrinkage`]; off in the
-    /// firmware's preset).
-    pub shrink: bool,
     /// The bench trainer (default `drls-checked`, as `identify --preset motion`).
     pub trainer: motion::TrainerArg,
     /// Test vehicle records (units [`VEHICLE_UNIT`].., seeds [`VEHICLE_SEED`]..; the first
@@ -101,7 +98,6 @@ impl DemoConfig {
             train_records: 12,
             validate_records: 32,
             duration_s: 1800.0,
-            shrink: false,
             trainer: motion::TrainerArg::DrlsChecked,
             test_records: 32,
             arrangements: DEFAULT_ARRANGEMENTS.to_vec(),
@@ -199,7 +195,6 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         duration_s: cfg.duration_s,
     };
     let mut train_options = TrainOptions::new(sensor);
-    train_options.shrink = cfg.shrink;
     train_options.trainer = cfg.trainer;
     let first = *cfg
         .arrangements
@@ -207,7 +202,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         .context("demo: no arrangement to run")?;
     let train_options = train_options.with_arrangement(first);
     let trained = motion::train(&set, &train_options)?;
-    let (image, shrink) = (trained.image, trained.shrinkage);
+    let image = trained.image;
     let fogi = dir.join("identifier.fogi");
     eprintln!(
         "demo: trained the motion identifier on {} static {PRESET} records ({} s, unit spread {UNIT_SPREAD}, start {:?} C, self-heating {:?} C) -> {}",
@@ -222,15 +217,6 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
             "demo: trainer {:?}: {}",
             cfg.trainer,
             motion::describe_least_squares(ls)
-        );
-    }
-    if shrink.cross_validated {
-        eprintln!(
-            "demo: model shrunk by leave-one-record-out (changes over {} windows): alpha {:.3}, held-out gain {:.1} % (unscaled {:.1} %)",
-            shrink.lag_windows,
-            shrink.alpha,
-            100.0 * shrink.heldout_gain,
-            100.0 * shrink.heldout_gain_unscaled
         );
     }
     let mut val = Vec::new();

@@ -19,7 +19,7 @@ use crate::record;
 use anyhow::{anyhow, bail, Context, Result};
 use fog_core::image::{Image, IMAGE_LEN};
 use fog_core::motion::{
-    MotionConfig, MotionModel, MotionOutput, MotionTrainer, RecordFit, Transfer, MOTION_DRLS,
+    MotionConfig, MotionModel, MotionOutput, MotionTrainer, RecordFit, MOTION_DRLS,
 };
 use fog_core::motion_fit::{cross_validate, NormalEquations, RIDGE_GRID};
 use fog_core::preset::{Arrangement, PresetEstimator, SecondState};
@@ -127,25 +127,14 @@ pub struct TrainOptions {
     pub epochs: u32,
     /// Time range of the model, s.
     pub time_max_s: f32,
-    /// Shrink the model by leave-one-record-out cross-validation ([`Shrinkage`]). Off by
-    /// default: it costs in motion on families A and B (docs/unit-fit.md).
-    pub shrink: bool,
-    /// The drive the shrinkage scores the model over, detector windows
-    /// ([`fog_core::motion::Transfer::add_record`]'s `lag`; 0: the whole record's shape).
-    pub shrink_lag_windows: usize,
     /// How the image's level learns (default [`Arrangement::DualThermal`]).
     pub arrangement: Arrangement,
     /// The image's second-state parameters (default [`SecondState::THERMAL`]).
     pub second_state: SecondState,
 }
 
-/// Default drive of the shrinkage: 60 windows (60 s with the default 1-s window). ASSUMED:
-/// a typical time between stops of a land vehicle (the simulator's vehicle profile drives
-/// tens of seconds to a few minutes).
-pub const SHRINK_LAG_WINDOWS: usize = 60;
-
 impl TrainOptions {
-    /// Defaults for `sensor`: 3 passes, 1800 s, no shrinkage, the dual-thermal with the
+    /// Defaults for `sensor`: 3 passes, 1800 s, the dual-thermal with the
     /// default prior [`SecondState::THERMAL`], level noise [`DEFAULT_LEVEL_Q_DPH2_PER_H`].
     pub fn new(sensor: SensorConfig) -> Self {
         let mut config = MotionConfig::for_sensor(sensor);
@@ -155,8 +144,6 @@ impl TrainOptions {
             config,
             epochs: 3,
             time_max_s: 1800.0,
-            shrink: false,
-            shrink_lag_windows: SHRINK_LAG_WINDOWS,
             arrangement: Arrangement::DualThermal,
             second_state: SecondState::THERMAL,
         }
@@ -223,52 +210,6 @@ pub fn check_full_scale(s: &Series, sensor: &SensorConfig) -> Result<()> {
     Ok(())
 }
 
-/// Leave-one-record-out estimate of how well the family model transfers to an unseen unit,
-/// and the scale applied to the saved model.
-///
-/// For each training record: a model trained (same passes) on the OTHER records scores the
-/// held-out record's window means ([`Transfer`]): how well it predicts their changes over a
-/// drive of `shrink_lag_windows` windows (what the estimator needs in motion: the level
-/// holds the drift of the last stop). `alpha` = the scale in `[0, 1]` minimising the
-/// pooled held-out error; the saved model (trained on all records) has its
-/// output weights times `alpha` (folded into the weights: no image change). `alpha` = 0:
-/// the model does not transfer, the identifier is the gated level alone. ASSUMED: the
-/// training records are units of the family the identifier will meet (one record per unit;
-/// two records of one unit make the estimate optimistic). Fewer than 3 records: no
-/// cross-validation, `alpha` = 1. Opt-in (`identify --preset motion --shrink`).
-#[derive(Debug, Clone, Serialize)]
-pub struct Shrinkage {
-    /// The scale applied, in `[0, 1]`.
-    pub alpha: f32,
-    /// Pooled held-out gain at `alpha`: the fraction of the error of `m = 0` removed
-    /// (negative: worse than no model).
-    pub heldout_gain: f64,
-    /// Pooled held-out gain of the unscaled model (`alpha` = 1).
-    pub heldout_gain_unscaled: f64,
-    /// Per held-out record: (name, gain of the unscaled model, gain at `alpha`).
-    pub records: Vec<(String, f64, f64)>,
-    /// The drive scored, windows (0: the whole record's centred shape).
-    pub lag_windows: usize,
-    /// For comparison: the scale the whole record's centred shape (lag 0) would give.
-    pub alpha_whole_record: f32,
-    /// False when it was not run (no `--shrink`, fewer than 3 records, or 0 passes).
-    pub cross_validated: bool,
-}
-
-impl Shrinkage {
-    fn none() -> Self {
-        Self {
-            alpha: 1.0,
-            heldout_gain: f64::NAN,
-            heldout_gain_unscaled: f64::NAN,
-            records: Vec::new(),
-            lag_windows: 0,
-            alpha_whole_record: 1.0,
-            cross_validated: false,
-        }
-    }
-}
-
 /// What the least-squares trainer found ([`fog_core::motion_fit`]).
 #[derive(Debug, Clone, Serialize)]
 pub struct LeastSquaresFit {
@@ -323,8 +264,6 @@ pub struct Trained {
     pub image: Image,
     /// Per record (the last DRLS pass, or the least-squares fit).
     pub records: Vec<TrainedRecord>,
-    /// The opt-in shrinkage (`--shrink`).
-    pub shrinkage: Shrinkage,
     /// The least-squares fit or check (`None` with `drls` or 0 epochs).
     pub least_squares: Option<LeastSquaresFit>,
     /// What the calibration runs showed ([`calibration`]), folded into the image's sensor.
@@ -334,8 +273,8 @@ pub struct Trained {
 }
 
 /// Trains a model on `records` (each static, from power-on) with `o.trainer` and returns
-/// its image, the per-record figures, the least-squares cross-validation and the shrinkage
-/// ([`Shrinkage`], when `o.shrink`). The records are read once and held in memory.
+/// its image, the per-record figures and the least-squares cross-validation. The records
+/// are read once and held in memory.
 pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
     let all: Vec<Series> = (0..records.len())
         .map(|i| {
@@ -363,7 +302,7 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
     } else {
         match o.trainer {
             TrainerArg::Drls | TrainerArg::DrlsChecked => {
-                let (tr, fits) = train_on(&all, None, o)?;
+                let (tr, fits) = train_on(&all, o)?;
                 let rows = all
                     .iter()
                     .zip(fits)
@@ -377,7 +316,7 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
                 let mut model = *tr.model();
                 let mut check = None;
                 if o.trainer == TrainerArg::DrlsChecked {
-                    let (ls, fit) = least_squares(&equations(&all, o)?, None, o)?;
+                    let (ls, fit) = least_squares(&equations(&all, o)?, o)?;
                     model = drls_checked(model, &fit, &ls);
                     check = Some(fit);
                 }
@@ -385,7 +324,7 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
             }
             TrainerArg::LeastSquares => {
                 let eqs = equations(&all, o)?;
-                let (model, fit) = least_squares(&eqs, None, o)?;
+                let (model, fit) = least_squares(&eqs, o)?;
                 let rows = all
                     .iter()
                     .zip(&eqs)
@@ -401,26 +340,15 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
             }
         }
     };
-    let shrinkage = if o.shrink && all.len() >= 3 && o.epochs > 0 {
-        shrink_by_cross_validation(&all, o)?
-    } else {
-        Shrinkage::none()
-    };
     let records_trained = match o.trainer {
         TrainerArg::Drls | TrainerArg::DrlsChecked => o.epochs.saturating_mul(all.len() as u32),
         TrainerArg::LeastSquares if o.epochs > 0 => all.len() as u32,
         TrainerArg::LeastSquares => 0,
     };
     Ok(Trained {
-        image: Image::new(
-            o.config,
-            model.scaled(shrinkage.alpha),
-            &drls,
-            records_trained,
-        )
-        .with_arrangement(o.arrangement, o.second_state),
+        image: Image::new(o.config, model, &drls, records_trained)
+            .with_arrangement(o.arrangement, o.second_state),
         records: rows,
-        shrinkage,
         least_squares: ls,
         calibration: cal,
         calibration_warnings,
@@ -455,8 +383,6 @@ fn equations(all: &[Series], o: &TrainOptions) -> Result<Vec<(NormalEquations, f
         .collect()
 }
 
-/// The least-squares model on `eqs` except record `skip`, its ridge picked by
-/// leave-one-record-out over the records used.
 /// The `drls-checked` rule: `model` (DRLS's) unless the least-squares cross-validation
 /// `fit` found no shape the records share, then the empty model.
 pub fn drls_checked(
@@ -474,17 +400,12 @@ pub fn drls_checked(
     model
 }
 
+/// The least-squares model on `eqs`, its ridge picked by leave-one-record-out.
 fn least_squares(
     eqs: &[(NormalEquations, f32)],
-    skip: Option<usize>,
     o: &TrainOptions,
 ) -> Result<(MotionModel, LeastSquaresFit)> {
-    let used: Vec<NormalEquations> = eqs
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| Some(*i) != skip)
-        .map(|(_, e)| e.0)
-        .collect();
+    let used: Vec<NormalEquations> = eqs.iter().map(|e| e.0).collect();
     least_squares_fit(&used, o.time_max_s)
 }
 
@@ -565,19 +486,12 @@ fn links_only(model: &MotionModel) -> [bool; fog_core::motion::MOTION_L] {
     keep
 }
 
-/// `o.epochs` passes over `all` except record `skip`; the fits of the last pass.
-fn train_on(
-    all: &[Series],
-    skip: Option<usize>,
-    o: &TrainOptions,
-) -> Result<(MotionTrainer, Vec<RecordFit>)> {
+/// `o.epochs` passes over `all`; the fits of the last pass.
+fn train_on(all: &[Series], o: &TrainOptions) -> Result<(MotionTrainer, Vec<RecordFit>)> {
     let mut tr = trainer(o)?;
     let mut fits = Vec::new();
     for pass in 0..o.epochs {
-        for (i, s) in all.iter().enumerate() {
-            if Some(i) == skip {
-                continue;
-            }
+        for s in all {
             let fit: RecordFit = tr
                 .train_record(
                     &s.rate_dps,
@@ -591,58 +505,6 @@ fn train_on(
         }
     }
     Ok((tr, fits))
-}
-
-fn shrink_by_cross_validation(all: &[Series], o: &TrainOptions) -> Result<Shrinkage> {
-    let (mut pooled, mut whole) = (Transfer::default(), Transfer::default());
-    let mut each = Vec::new();
-    let fs = o.config.sensor.sample_rate_hz;
-    let window_s = o.config.still.window_s;
-    let eqs = match o.trainer {
-        TrainerArg::LeastSquares | TrainerArg::DrlsChecked => Some(equations(all, o)?),
-        TrainerArg::Drls => None,
-    };
-    for (i, s) in all.iter().enumerate() {
-        // Each fold's model is made the way the trainer makes the whole model: for
-        // `drls-checked`, DRLS on the other records checked by their own cross-validation.
-        let model = match (o.trainer, &eqs) {
-            (TrainerArg::LeastSquares, Some(eqs)) => least_squares(eqs, Some(i), o)?.0,
-            (TrainerArg::DrlsChecked, Some(eqs)) => {
-                let (ls, fit) = least_squares(eqs, Some(i), o)?;
-                drls_checked(*train_on(all, Some(i), o)?.0.model(), &fit, &ls)
-            }
-            _ => *train_on(all, Some(i), o)?.0.model(),
-        };
-        let temp = s.temp_c.as_deref();
-        let err = |e| anyhow!("{}: {e}", s.name);
-        let one = pooled
-            .add_record(
-                &model,
-                &s.rate_dps,
-                temp,
-                fs,
-                window_s,
-                o.shrink_lag_windows,
-            )
-            .map_err(err)?;
-        whole
-            .add_record(&model, &s.rate_dps, temp, fs, window_s, 0)
-            .map_err(err)?;
-        each.push((s.name.clone(), one));
-    }
-    let alpha = pooled.alpha();
-    Ok(Shrinkage {
-        alpha,
-        heldout_gain: pooled.gain(alpha),
-        heldout_gain_unscaled: pooled.gain(1.0),
-        records: each
-            .into_iter()
-            .map(|(n, t)| (n, t.gain(1.0), t.gain(alpha)))
-            .collect(),
-        lag_windows: o.shrink_lag_windows,
-        alpha_whole_record: whole.alpha(),
-        cross_validated: true,
-    })
 }
 
 fn trainer(o: &TrainOptions) -> Result<MotionTrainer> {
@@ -800,38 +662,5 @@ mod tests {
         let own = Synthetic(vec![8.0, -10.0, 6.0, -7.0, 3.0]);
         assert!(any(&weights(&own, TrainerArg::Drls)));
         assert!(!any(&weights(&own, TrainerArg::DrlsChecked)));
-    }
-
-    #[test]
-    fn drls_checked_shrinkage_scores_checked_folds() {
-        let shrink = |records: &Synthetic, trainer: TrainerArg| {
-            let mut o = TrainOptions::new(SensorConfig::ECORE_2000);
-            o.time_max_s = 600.0;
-            o.trainer = trainer;
-            o.shrink = true;
-            train(records, &o).expect("train").shrinkage
-        };
-        // Unit-specific shapes: every fold's check empties its model, so no held-out record
-        // gains or loses anything; unchecked DRLS folds do change the held-out error.
-        let own = Synthetic(vec![8.0, -10.0, 6.0, -7.0, 3.0]);
-        let s = shrink(&own, TrainerArg::DrlsChecked);
-        assert!(s.cross_validated);
-        assert!(
-            s.records.iter().all(|(_, g, _)| *g == 0.0),
-            "{:?}",
-            s.records
-        );
-        let d = shrink(&own, TrainerArg::Drls);
-        assert!(
-            d.records.iter().any(|(_, g, _)| *g != 0.0),
-            "{:?}",
-            d.records
-        );
-        // A shared shape survives every fold's check: the same folds as DRLS.
-        let shared = Synthetic(vec![10.0; 5]);
-        assert_eq!(
-            shrink(&shared, TrainerArg::DrlsChecked).records,
-            shrink(&shared, TrainerArg::Drls).records
-        );
     }
 }
