@@ -2,11 +2,13 @@
 //! names ([`Arrangement`]); the default, [`Arrangement::DualThermal`], everywhere (fog-core,
 //! host-sim, the firmware).
 //!
-//! **Dual-thermal** runs two [`MotionEstimator`]s of the same model and configuration side
-//! by side on the same samples, each with its own stillness detector and the unit's own
-//! temperature link `c (T - T0)` as second state ([`MotionEstimator::with_thermal`]):
-//! - `rest` = per-sample level with rollback ([`LevelUpdate::Sample`]),
-//! - `hold` = level per released window ([`LevelUpdate::Window`]).
+//! **Dual-thermal** runs two estimators of the same model and configuration side by side on
+//! the same samples, each with its own stillness detector and the unit's own temperature
+//! link `c (T - T0)` as second state ([`MotionEstimator::with_thermal`]):
+//! - `rest` = a [`MotionEstimator`], per-sample level with rollback
+//!   ([`LevelUpdate::Sample`]),
+//! - `hold` = a [`LevelCore`] (the estimator without the model and its inputs), level per
+//!   released window ([`LevelUpdate::Window`]), fed `rest`'s model inputs and model term.
 //!
 //! Its drift is `rest`'s while `rest` flags the sample still (after its fast gate), and
 //! `hold`'s otherwise: at rest the per-sample level follows the bias wander; from the
@@ -16,7 +18,7 @@
 //! window level's protection buys nothing). Neither estimator learns from a moving sample, so a
 //! rotation in motion never moves the estimate (tested). Cost: two estimators' state, two
 //! detectors and level steps per sample; the model inputs and the network (once per
-//! window) are computed once and shared (the two estimators hold the same model).
+//! window) are computed once, by `rest`, and given to `hold` (which holds no model).
 //!
 //! The two **bank** arrangements ([`Arrangement::is_bank`]) keep the level as the sensor's
 //! Allan noise model ([`crate::bank::LevelBank`]) beside a per-sample estimator that is the
@@ -24,6 +26,7 @@
 //! family where dual-thermal does not (docs/unit-fit.md), so a calibration may pick one.
 
 use crate::bank::{BankConfig, LevelBank};
+use crate::level::LevelCore;
 use crate::motion::{LevelUpdate, MotionConfig, MotionError, MotionEstimator, MotionModel};
 use crate::motion::{MotionOutput, MotionStats};
 use crate::rest_q::RestQ;
@@ -132,8 +135,9 @@ impl SecondState {
     }
 }
 
-/// The estimator of an [`Arrangement`] (module docs). No heap; it holds two
-/// [`MotionEstimator`]s (dual-thermal) or one and two level banks (the bank arrangements).
+/// The estimator of an [`Arrangement`] (module docs). No heap; it holds a
+/// [`MotionEstimator`] and a [`LevelCore`] (dual-thermal) or a [`MotionEstimator`] and two
+/// level banks (the bank arrangements).
 #[derive(Debug, Clone)]
 pub struct PresetEstimator {
     /// The per-sample estimator.
@@ -150,8 +154,8 @@ pub struct PresetEstimator {
 #[derive(Debug, Clone)]
 #[allow(clippy::large_enum_variant)] // no heap: the slot is the point
 enum SecondSlot {
-    /// The dual's window estimator.
-    Hold(MotionEstimator),
+    /// The dual's window estimator (its inputs and model term are `rest`'s).
+    Hold(LevelCore),
     /// The bank arrangements ([`Arrangement::is_bank`]).
     Bank(BankLevel),
 }
@@ -196,7 +200,7 @@ impl PresetEstimator {
         // instead of 15,796).
         let mut p = Self {
             rest: MotionEstimator::new(model, cfg)?,
-            second: SecondSlot::Hold(MotionEstimator::new(model, cfg)?),
+            second: SecondSlot::Hold(LevelCore::new(cfg)?),
             wander: RestQ::new(cfg.sensor.drift_bound_dps),
         };
         p.rest.set_level_update(LevelUpdate::Sample);
@@ -271,9 +275,7 @@ impl PresetEstimator {
         external_still: Option<bool>,
     ) -> Result<MotionOutput, MotionError> {
         if let SecondSlot::Bank(b) = &mut self.second {
-            let (o, _) = self
-                .rest
-                .push_shared(rate_dps, temp_c, external_still, None)?;
+            let o = self.rest.push(rate_dps, temp_c, external_still)?;
             // At the per-sample estimator's window starts, the bank's checkpoint (before this
             // sample reaches it).
             if self.rest.window_started() {
@@ -329,15 +331,12 @@ impl PresetEstimator {
                 ..o
             });
         }
-        let (o, x) = match self
-            .rest
-            .push_shared(rate_dps, temp_c, external_still, None)
-        {
+        let (o, x) = match self.rest.push_inputs(rate_dps, temp_c, external_still) {
             Ok(v) => v,
             Err(e) => {
-                // Counted by both (the same check refuses it in both).
+                // Counted by both (a non-finite rate: refused by both).
                 if let SecondSlot::Hold(h) = &mut self.second {
-                    let _ = h.push(rate_dps, temp_c, external_still);
+                    h.refuse();
                 }
                 return Err(e);
             }
@@ -357,16 +356,19 @@ impl PresetEstimator {
                 }
             }
         }
-        // The twin's inputs and model term (the same model, evaluated at the same window
-        // starts): the window estimator does not evaluate the network again.
-        let held = h.push_shared(rate_dps, temp_c, external_still, Some((x, o.model_dps)));
+        // `rest`'s inputs and model term (evaluated at the same window starts: the two count
+        // the same samples): the window estimator holds no model of its own. `rate_dps` is
+        // finite (`rest` took it).
+        let held = h.push_finite(rate_dps, temp_c, external_still, &x, o.model_dps);
         // An external flag is trusted (as in the bank arrangements): the per-sample level
         // then holds no suspect sample, so it stays the output in motion too.
-        Ok(match held {
-            Ok((h, _)) if !o.still && external_still.is_none() => {
-                MotionOutput { still: false, ..h }
+        Ok(if !o.still && external_still.is_none() {
+            MotionOutput {
+                still: false,
+                ..held
             }
-            _ => o,
+        } else {
+            o
         })
     }
 
@@ -390,8 +392,9 @@ impl PresetEstimator {
         &self.rest
     }
 
-    /// The dual's window estimator (`None` in the bank arrangements).
-    pub fn hold(&self) -> Option<&MotionEstimator> {
+    /// The dual's window estimator: a core without model or inputs, fed `rest`'s (`None`
+    /// in the bank arrangements).
+    pub fn hold(&self) -> Option<&LevelCore> {
         match &self.second {
             SecondSlot::Hold(h) => Some(h),
             _ => None,
@@ -530,7 +533,13 @@ mod tests {
         );
         assert!(dual.push(f32::NAN, 0.0, None).is_err());
         assert_eq!(dual.stats().rejected, 1);
-        assert_eq!(dual.hold().map(|h| h.stats().rejected), Some(1));
+        // The window estimator: a core (no model of its own) that saw every sample.
+        let h = dual.hold().expect("dual");
+        assert_eq!(h.stats().rejected, 1);
+        assert_eq!(h.stats().samples, dual.stats().samples);
+        assert_eq!(h.level_update(), LevelUpdate::Window);
+        assert!(h.has_thermal());
+        assert_eq!(h.level(), hold.level());
     }
 
     /// A static unit whose drift wanders fast (a random walk of 4096 (deg/h)^2/h, 1024x the
