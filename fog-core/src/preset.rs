@@ -25,7 +25,7 @@
 //! detector's drift reference. Each gives the least heading error on one measured vehicle
 //! family where dual-thermal does not (docs/unit-fit.md), so a calibration may pick one.
 
-use crate::bank::{BankConfig, LevelBank};
+use crate::bank::{BankConfig, BankState, LevelBank};
 use crate::level::LevelCore;
 use crate::motion::{LevelUpdate, MotionConfig, MotionError, MotionEstimator, MotionModel};
 use crate::motion::{MotionOutput, MotionStats};
@@ -175,8 +175,9 @@ enum Guard {
 struct BankLevel {
     /// Per still sample (the per-sample estimator's flags); rolled back per [`Guard`].
     level: LevelBank,
-    /// `BankDual`: per released window mean (one window late), the output in motion.
-    hold: LevelBank,
+    /// `BankDual`: per released window mean (one window late), the output in motion. Under
+    /// `level`'s constants (the same noise model), without checkpoints.
+    hold: BankState,
     guard: Guard,
     since_prev: u32,
     since_now: u32,
@@ -216,7 +217,7 @@ impl PresetEstimator {
             )
             .ok_or(MotionError::BadBank)?;
             p.second = SecondSlot::Bank(BankLevel {
-                hold: level.clone(),
+                hold: level.params().power_on(),
                 guard: if arrangement == Arrangement::BankDual {
                     Guard::Dual
                 } else {
@@ -255,7 +256,7 @@ impl PresetEstimator {
             SecondSlot::Hold(h) => h.restart(),
             SecondSlot::Bank(b) => {
                 b.level.restart();
-                b.hold.restart();
+                b.level.params().restart(&mut b.hold);
                 b.since_prev = 0;
                 b.since_now = 0;
                 b.external = false;
@@ -303,7 +304,9 @@ impl PresetEstimator {
                 b.since_now = 0;
             }
             if b.guard == Guard::Dual && self.rest.window_ended() {
-                b.hold.predict_many(self.rest.window_samples());
+                b.level
+                    .params()
+                    .predict_many(&mut b.hold, self.rest.window_samples());
                 if let Some((z, r)) = self.rest.released_window() {
                     b.hold.update_mean(z, r);
                 }
@@ -779,9 +782,13 @@ mod tests {
             let SecondSlot::Bank(b) = &p.second else {
                 panic!("bank")
             };
-            let level = if o.still { &b.level } else { &b.hold };
+            let level = if o.still {
+                b.level.estimate_dps()
+            } else {
+                b.hold.estimate_dps()
+            };
             let want = if o.verified {
-                S.clamp_drift(level.estimate_dps() + o.model_dps)
+                S.clamp_drift(level + o.model_dps)
             } else {
                 S.clamp_drift(rest_level + o.model_dps)
             };
