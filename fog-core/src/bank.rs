@@ -124,7 +124,8 @@ impl LevelBank {
     /// A filter at power-on: state 0, the random walk's variance `bound^2` (the whole
     /// drift bound, deg/s), each Gauss-Markov state at its stationary variance.
     /// `sample_var_dps2`: white noise per sample, `sample_rate_hz` > 0. `None` when `cfg`
-    /// or the numbers are invalid.
+    /// or the numbers are invalid. Always inlined: built in its caller's slot.
+    #[inline(always)]
     pub fn new(
         cfg: BankConfig,
         bound_dps: f32,
