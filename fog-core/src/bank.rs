@@ -74,17 +74,37 @@ const fn row_start(i: usize) -> usize {
 }
 
 /// State and covariance (deg/h, (deg/h)^2; the covariance as its packed upper triangle):
-/// what a checkpoint holds.
+/// what a checkpoint holds. Advanced by a [`BankParams`]; the preset's bank of released
+/// windows is one of these beside a [`LevelBank`], under that bank's constants.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct State {
+pub(crate) struct BankState {
     x: [f32; BANK_STATES],
     p: [f32; PACKED],
 }
 
-const ZERO: State = State {
+const ZERO: BankState = BankState {
     x: [0.0; BANK_STATES],
     p: [0.0; PACKED],
 };
+
+/// The bank's constants, from its [`BankConfig`] and the sensor: set at construction,
+/// never changed by a sample (the per-sample state is a [`BankState`]).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct BankParams {
+    // Per-sample transition a_i, the products a_i a_j (packed), the process noise added to
+    // each diagonal entry per sample ((deg/h)^2; q[0] the random walk's).
+    a: [f32; BANK_STATES],
+    aa: [f32; PACKED],
+    q: [f32; BANK_STATES],
+    // Stationary variance of each Gauss-Markov state ((deg/h)^2; 0 for the random walk and
+    // the unused states).
+    var: [f32; BANK_STATES],
+    // Sample period, s; the random walk's variance at power-on and one sample's white
+    // noise variance, (deg/h)^2.
+    dt_s: f32,
+    p0_dph2: f32,
+    r_dph2: f32,
+}
 
 /// The filter: state `[b, g_1 .. g_M]` (deg/h), drift `b + sum g`. [`LevelBank::predict`]
 /// every sample (still or not), [`LevelBank::update`] only with still samples;
@@ -94,27 +114,18 @@ const ZERO: State = State {
 /// multiply-adds to update.
 #[derive(Debug, Clone)]
 pub struct LevelBank {
-    s: State,
-    // Per-sample transition a_i, the products a_i a_j (packed), the process noise added to
-    // each diagonal entry per sample ((deg/h)^2; q[0] the random walk's).
-    a: [f32; BANK_STATES],
-    aa: [f32; PACKED],
-    q: [f32; BANK_STATES],
-    // Stationary variance of each Gauss-Markov state ((deg/h)^2; 0 for the random walk and
-    // the unused states).
-    var: [f32; BANK_STATES],
-    dt_s: f32,
-    p0_dph2: f32,
-    r_dph2: f32,
-    cp_now: State,
-    cp_prev: State,
+    params: BankParams,
+    s: BankState,
+    cp_now: BankState,
+    cp_prev: BankState,
 }
 
 impl LevelBank {
     /// A filter at power-on: state 0, the random walk's variance `bound^2` (the whole
     /// drift bound, deg/s), each Gauss-Markov state at its stationary variance.
     /// `sample_var_dps2`: white noise per sample, `sample_rate_hz` > 0. `None` when `cfg`
-    /// or the numbers are invalid.
+    /// or the numbers are invalid. Always inlined: built in its caller's slot.
+    #[inline(always)]
     pub fn new(
         cfg: BankConfig,
         bound_dps: f32,
@@ -155,14 +166,16 @@ impl LevelBank {
         }
         let bound_dph = bound_dps * DPH_PER_DPS;
         let mut f = Self {
+            params: BankParams {
+                a,
+                aa,
+                q,
+                var,
+                dt_s,
+                p0_dph2: bound_dph * bound_dph,
+                r_dph2: sample_var_dps2 * DPH_PER_DPS * DPH_PER_DPS,
+            },
             s: ZERO,
-            a,
-            aa,
-            q,
-            var,
-            dt_s,
-            p0_dph2: bound_dph * bound_dph,
-            r_dph2: sample_var_dps2 * DPH_PER_DPS * DPH_PER_DPS,
             cp_now: ZERO,
             cp_prev: ZERO,
         };
@@ -172,11 +185,7 @@ impl LevelBank {
 
     /// Back to power-on.
     pub fn restart(&mut self) {
-        self.s = ZERO;
-        self.s.p[0] = self.p0_dph2;
-        for i in 1..BANK_STATES {
-            self.s.p[row_start(i)] = self.var[i];
-        }
+        self.params.restart(&mut self.s);
         self.cp_now = self.s;
         self.cp_prev = self.s;
     }
@@ -184,98 +193,25 @@ impl LevelBank {
     /// One sample's prediction.
     #[inline]
     pub fn predict(&mut self) {
-        // All BANK_STATES states, the unused ones at 0 (a = 1, q = 0): constant loop bounds
-        // (unrolled, no index checks) and the same values as over the used states alone.
-        for i in 1..BANK_STATES {
-            self.s.x[i] *= self.a[i];
-        }
-        for k in 0..PACKED {
-            self.s.p[k] *= self.aa[k];
-        }
-        for i in 0..BANK_STATES {
-            self.s.p[row_start(i)] += self.q[i];
-        }
+        self.params.predict(&mut self.s);
     }
 
     /// Prediction over `k` samples at once (a window, or a rollback): `a^k` per state.
     pub fn predict_many(&mut self, k: u32) {
-        if k == 0 {
-            return;
-        }
-        // Constant loop bounds (no index checks); the unused states stay 0 (their
-        // stationary variance `var` is 0).
-        let mut ak = [1.0f32; BANK_STATES];
-        let mut tau = 1.0f32;
-        for v in ak.iter_mut().skip(1) {
-            *v = crate::wnn::exp_anchor((-(k as f32) * self.dt_s / tau).max(-87.0));
-            tau *= 10.0;
-        }
-        for i in 1..BANK_STATES {
-            self.s.x[i] *= ak[i];
-        }
-        for i in 0..BANK_STATES {
-            let r = row_start(i);
-            for j in i..BANK_STATES {
-                self.s.p[r + j - i] *= ak[i] * ak[j];
-            }
-        }
-        // q[0]: the random walk's growth per sample.
-        self.s.p[0] += self.q[0] * k as f32;
-        for i in 1..BANK_STATES {
-            self.s.p[row_start(i)] += self.var[i] * (1.0 - ak[i] * ak[i]);
-        }
-    }
-
-    /// `h = P 1` (row sums of the covariance) and `1' P 1`.
-    fn row_sums(&self) -> ([f32; BANK_STATES], f32) {
-        let mut h = [0.0f32; BANK_STATES];
-        for i in 0..BANK_STATES {
-            let r = row_start(i);
-            h[i] += self.s.p[r];
-            for j in i + 1..BANK_STATES {
-                let v = self.s.p[r + j - i];
-                h[i] += v;
-                h[j] += v;
-            }
-        }
-        let total = h.iter().sum();
-        (h, total)
+        self.params.predict_many(&mut self.s, k);
     }
 
     /// Kalman update with one still sample `z_dps` (= rate - model), white noise of the
     /// configured variance. A non-finite sample or result changes nothing.
     pub fn update(&mut self, z_dps: f32) {
-        self.update_with(z_dps, self.r_dph2);
+        self.s.update_with(z_dps, self.params.r_dph2);
     }
 
     /// Kalman update with a window mean `z_dps` of white-noise variance `r_dps2`
     /// (ASSUMED: the states at the window's end; the 1-s state moves within a window, so
     /// its share is smoothed).
     pub fn update_mean(&mut self, z_dps: f32, r_dps2: f32) {
-        if r_dps2.is_finite() && r_dps2 > 0.0 {
-            self.update_with(z_dps, r_dps2 * DPH_PER_DPS * DPH_PER_DPS);
-        }
-    }
-
-    fn update_with(&mut self, z_dps: f32, r_dph2: f32) {
-        let (h, total) = self.row_sums();
-        let s = total + r_dph2;
-        let innovation = z_dps * DPH_PER_DPS - self.estimate_dph();
-        // Finite, positive s and a finite innovation: every gain is in [0, 1] and every
-        // result finite, so the update is done in place.
-        if !(s.is_finite() && s > 0.0 && innovation.is_finite()) {
-            return;
-        }
-        let inv = 1.0 / s;
-        for i in 0..BANK_STATES {
-            let k = h[i] * inv;
-            self.s.x[i] += k * innovation;
-            let r = row_start(i);
-            for j in i..BANK_STATES {
-                self.s.p[r + j - i] -= k * h[j];
-            }
-            self.s.p[r] = self.s.p[r].max(0.0);
-        }
+        self.s.update_mean(z_dps, r_dps2);
     }
 
     /// At a detector window start: the previous checkpoint becomes the current one and the
@@ -298,25 +234,147 @@ impl LevelBank {
     }
 
     /// Back to `cp`, predicted over `samples`; both checkpoints become that state.
-    fn restore(&mut self, cp: State, samples: u32) {
+    fn restore(&mut self, cp: BankState, samples: u32) {
         self.s = cp;
-        self.predict_many(samples);
+        self.params.predict_many(&mut self.s, samples);
         self.cp_now = self.s;
         self.cp_prev = self.s;
     }
 
-    fn estimate_dph(&self) -> f32 {
-        self.s.x.iter().sum()
-    }
-
     /// The drift estimate, deg/s.
     pub fn estimate_dps(&self) -> f32 {
-        self.estimate_dph() / DPH_PER_DPS
+        self.s.estimate_dps()
     }
 
     /// The variance of the drift estimate, (deg/s)^2.
     pub fn estimate_var_dps2(&self) -> f32 {
-        self.row_sums().1 / (DPH_PER_DPS * DPH_PER_DPS)
+        self.s.row_sums().1 / (DPH_PER_DPS * DPH_PER_DPS)
+    }
+
+    /// The constants (for a second state beside this bank).
+    pub(crate) fn params(&self) -> &BankParams {
+        &self.params
+    }
+}
+
+impl BankParams {
+    /// `s` at power-on: state 0, the random walk's variance `bound^2`, each Gauss-Markov
+    /// state at its stationary variance.
+    pub(crate) fn restart(&self, s: &mut BankState) {
+        *s = ZERO;
+        s.p[0] = self.p0_dph2;
+        for i in 1..BANK_STATES {
+            s.p[row_start(i)] = self.var[i];
+        }
+    }
+
+    /// A state at power-on ([`BankParams::restart`]).
+    pub(crate) fn power_on(&self) -> BankState {
+        let mut s = ZERO;
+        self.restart(&mut s);
+        s
+    }
+
+    /// One sample's prediction of `s`.
+    #[inline]
+    fn predict(&self, s: &mut BankState) {
+        // All BANK_STATES states, the unused ones at 0 (a = 1, q = 0): constant loop bounds
+        // (unrolled, no index checks) and the same values as over the used states alone.
+        for i in 1..BANK_STATES {
+            s.x[i] *= self.a[i];
+        }
+        for k in 0..PACKED {
+            s.p[k] *= self.aa[k];
+        }
+        for i in 0..BANK_STATES {
+            s.p[row_start(i)] += self.q[i];
+        }
+    }
+
+    /// Prediction of `s` over `k` samples at once (a window, or a rollback): `a^k` per
+    /// state.
+    pub(crate) fn predict_many(&self, s: &mut BankState, k: u32) {
+        if k == 0 {
+            return;
+        }
+        // Constant loop bounds (no index checks); the unused states stay 0 (their
+        // stationary variance `var` is 0).
+        let mut ak = [1.0f32; BANK_STATES];
+        let mut tau = 1.0f32;
+        for v in ak.iter_mut().skip(1) {
+            *v = crate::wnn::exp_anchor((-(k as f32) * self.dt_s / tau).max(-87.0));
+            tau *= 10.0;
+        }
+        for i in 1..BANK_STATES {
+            s.x[i] *= ak[i];
+        }
+        for i in 0..BANK_STATES {
+            let r = row_start(i);
+            for j in i..BANK_STATES {
+                s.p[r + j - i] *= ak[i] * ak[j];
+            }
+        }
+        // q[0]: the random walk's growth per sample.
+        s.p[0] += self.q[0] * k as f32;
+        for i in 1..BANK_STATES {
+            s.p[row_start(i)] += self.var[i] * (1.0 - ak[i] * ak[i]);
+        }
+    }
+}
+
+impl BankState {
+    /// [`LevelBank::update_mean`] (no constant needed: the noise is the mean's).
+    pub(crate) fn update_mean(&mut self, z_dps: f32, r_dps2: f32) {
+        if r_dps2.is_finite() && r_dps2 > 0.0 {
+            self.update_with(z_dps, r_dps2 * DPH_PER_DPS * DPH_PER_DPS);
+        }
+    }
+
+    /// Kalman update with `z_dps` of white-noise variance `r_dph2`, (deg/h)^2.
+    fn update_with(&mut self, z_dps: f32, r_dph2: f32) {
+        let (h, total) = self.row_sums();
+        let s = total + r_dph2;
+        let innovation = z_dps * DPH_PER_DPS - self.estimate_dph();
+        // Finite, positive s and a finite innovation: every gain is in [0, 1] and every
+        // result finite, so the update is done in place.
+        if !(s.is_finite() && s > 0.0 && innovation.is_finite()) {
+            return;
+        }
+        let inv = 1.0 / s;
+        for i in 0..BANK_STATES {
+            let k = h[i] * inv;
+            self.x[i] += k * innovation;
+            let r = row_start(i);
+            for j in i..BANK_STATES {
+                self.p[r + j - i] -= k * h[j];
+            }
+            self.p[r] = self.p[r].max(0.0);
+        }
+    }
+
+    /// `h = P 1` (row sums of the covariance) and `1' P 1`.
+    fn row_sums(&self) -> ([f32; BANK_STATES], f32) {
+        let mut h = [0.0f32; BANK_STATES];
+        for i in 0..BANK_STATES {
+            let r = row_start(i);
+            h[i] += self.p[r];
+            for j in i + 1..BANK_STATES {
+                let v = self.p[r + j - i];
+                h[i] += v;
+                h[j] += v;
+            }
+        }
+        let total = h.iter().sum();
+        (h, total)
+    }
+
+    fn estimate_dph(&self) -> f32 {
+        self.x.iter().sum()
+    }
+
+    /// The drift estimate, deg/s.
+    pub(crate) fn estimate_dps(&self) -> f32 {
+        self.estimate_dph() / DPH_PER_DPS
     }
 }
 

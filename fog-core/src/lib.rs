@@ -11,6 +11,7 @@
 //! - [`still`]: sensor configuration and the causal stillness detector;
 //! - [`bank`]: the level as the sensor's Allan noise model (random walk + flicker bank);
 //! - [`motion`]: the motion-safe identifier (learn at rest, compensate in motion);
+//! - [`level`]: its model-free core (detector, level, safety net), fed the model's term;
 //! - [`rest_q`]: the unit's own level wander at rest, chosen on line;
 //! - [`image`]: the trained identifier as a versioned, checksummed binary image;
 //! - [`baseline`]: causal estimators to compare with;
@@ -30,6 +31,7 @@ pub mod features;
 pub mod frame;
 pub mod identify;
 pub mod image;
+pub mod level;
 pub mod motion;
 pub mod motion_fit;
 pub mod preset;

@@ -25,7 +25,9 @@
 //!   default), a second state beside the level: the unit's own temperature coefficient
 //!   ([`MotionEstimator::with_thermal`], `c (T - T0)`), learned with the level (per sample
 //!   with rollback, or per released window as a two-state Kalman step). The product runs
-//!   two of these estimators side by side ([`crate::preset`], [`crate::preset::Arrangement`]).
+//!   one of these estimators ([`LevelUpdate::Sample`]) beside a second level fed the same
+//!   model term (by default a [`LevelUpdate::Window`] core; [`crate::preset`],
+//!   [`crate::preset::Arrangement`]).
 //! - The clamp to the sensor's drift bound ([`SensorConfig::drift_bound_dps`]) means that
 //!   no state can subtract more than the bound from the rate.
 //!
@@ -34,10 +36,15 @@
 //! [`LevelUpdate::Sample`] the level step (1 division, about 14 multiply/add/subtract with
 //! the second state, 2 compares); once per window the network (`L` Gaussians), a scalar
 //! Kalman step (`Window`) or a 5-float checkpoint copy (`Sample`).
+//!
+//! [`MotionEstimator`] is the model and its input map around a model-free core
+//! ([`crate::level::LevelCore`]: the detector, the level and its second state, the safety
+//! net), which takes each sample's inputs `x` and model term `m(x)` from it.
 
 use crate::denoise::{denoise_in_place, DenoiseConfig};
-use crate::features::{FeatureMap, TimeTemp, TEMP_RATE_BINS};
-use crate::still::{SensorConfig, StillConfig, Stillness};
+use crate::features::{FeatureMap, TimeTemp};
+use crate::level::LevelCore;
+use crate::still::{SensorConfig, StillConfig};
 use crate::train::{Drls, DrlsConfig, DrlsForm, DrlsMode, Trainer};
 use crate::wnn::{dot, Activation, Group, InputScaling, ShapeError, WnnShape};
 
@@ -100,8 +107,10 @@ pub struct MotionConfig {
     /// The stillness detector.
     pub still: StillConfig,
     /// Random-walk density of the level, deg^2/s^2 per s (>= 0): how fast the residual
-    /// drift may wander. Its variance grows by `q * window` every window, still or not,
-    /// and by the square of the model term's change at each window start.
+    /// drift may wander. Its variance grows by `q * window` every window (the window
+    /// level) or `q / rate` every sample (the per-sample level, whose still samples take
+    /// the unit's own density instead: [`crate::rest_q`]), and in the first 60 s by the
+    /// square of the model term's change at each window start (up to the bound squared).
     pub level_q_dps2_per_s: f32,
     /// The safety net's time, s (> 0): after this long without a still sample the output
     /// holds the drift last verified at rest ([`MotionOutput::verified`]).
@@ -293,73 +302,14 @@ pub struct MotionStats {
     pub unverified_samples: u32,
 }
 
-/// The per-sample estimator (see the module docs). Build it from a trained model and a
-/// configuration, or from an identifier image ([`crate::image`]).
+/// The per-sample estimator (see the module docs): the model, its input map and a
+/// model-free [`LevelCore`] (detector, level, second state, safety net). Build it from a
+/// trained model and a configuration, or from an identifier image ([`crate::image`]).
 #[derive(Debug, Clone)]
 pub struct MotionEstimator {
-    cfg: MotionConfig,
     model: MotionModel,
     inputs: Inputs,
-    still: Stillness,
-    window_q: f32,
-    // Level Kalman state.
-    level: f32,
-    level_var: f32,
-    // Model term held for the current window, and for the previous one (the one the
-    // detector may release).
-    model_now: f32,
-    model_prev: f32,
-    update: LevelUpdate,
-    // Per-sample mode: random-walk variance per sample, the level at the start of the
-    // current and of the previous window, and the samples since the previous one.
-    sample_q: f32,
-    // Per-sample mode: the random-walk variance per sample at a still sample (the unit's
-    // wander at rest, [`crate::rest_q`]); `sample_q` unless set.
-    rest_q: f32,
-    sample_r: f32,
-    // Checkpoints: [level, level_var, coef, cov(level, coef), coef_var].
-    checkpoint_now: [f32; 5],
-    checkpoint_prev: [f32; 5],
-    // The second state (the thermal coefficient, deg/s per deg C; 0 with variance 0 when
-    // off), its variance and its covariance with the level.
-    coef: f32,
-    coef_var: f32,
-    coef_cov: f32,
-    // Whether there is a second state, and its prior.
-    second: Second,
-    since_prev: u32,
-    since_now: u32,
-    // Per-sample mode: a sample of this window was beyond the fast gate.
-    halted: bool,
-    // The verdict of the detector window the last push ended (`Some(passed)`), if any.
-    last_window: Option<bool>,
-    // The window mean the last push released, minus its model term (deg/s).
-    released_z: Option<f32>,
-    // Safety net: a still sample since power-on, samples since the last one (saturating),
-    // the model term then, and `stale_s` in samples.
-    rest_verified: bool,
-    since_still: u32,
-    model_verified: f32,
-    stale_n: u32,
-    // Thermal second state: the first window's measured temperature (deg C), and
-    // `T - T0` of the current and previous windows.
-    temp0: Option<f32>,
-    u_now: f32,
-    u_prev: f32,
-    stats: MotionStats,
-}
-
-/// What sits beside the level.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Second {
-    /// Nothing: the level alone (the coefficient stays 0 with variance 0, so the two-state
-    /// arithmetic gives the one-state filter's bits).
-    Off,
-    /// The unit's own temperature link: a constant coefficient `c` (deg/s per deg C, prior
-    /// `N(0, sigma2)`) observed with coefficient `T - T0` (the window's temperature minus the
-    /// first window's), so that the drift follows the unit's temperature in motion; 0
-    /// without a temperature channel.
-    Thermal { sigma2: f32 },
+    core: LevelCore,
 }
 
 /// Fast gate of [`LevelUpdate::Sample`], in sigma of the innovation (ASSUMED: 5 sigma,
@@ -389,105 +339,38 @@ pub enum LevelUpdate {
 
 impl MotionEstimator {
     /// An estimator at power-on. Always inlined: built in its caller's slot (the dual
-    /// builds two; a call would return each through a stack temporary).
+    /// builds it beside its window core; a call would return it through a stack
+    /// temporary).
     #[inline(always)]
     pub fn new(model: MotionModel, cfg: MotionConfig) -> Result<Self, MotionError> {
-        cfg.check()?;
-        let still = Stillness::new(&cfg.sensor, &cfg.still).ok_or(MotionError::BadStillConfig)?;
-        let window_s = still.window_samples() as f32 / cfg.sensor.sample_rate_hz;
-        let mut e = Self {
-            cfg,
-            model,
+        Ok(Self {
+            core: LevelCore::new(cfg)?,
             inputs: Inputs::new(cfg.sensor.sample_rate_hz, model.scaling.offset[1]),
-            still,
-            window_q: cfg.level_q_dps2_per_s * window_s,
-            level: 0.0,
-            level_var: 0.0,
-            model_now: 0.0,
-            model_prev: 0.0,
-            update: LevelUpdate::default(),
-            sample_q: cfg.level_q_dps2_per_s / cfg.sensor.sample_rate_hz,
-            rest_q: cfg.level_q_dps2_per_s / cfg.sensor.sample_rate_hz,
-            sample_r: cfg.sensor.sample_var_dps2() * cfg.still.noise_scale,
-            checkpoint_now: [0.0; 5],
-            checkpoint_prev: [0.0; 5],
-            coef: 0.0,
-            coef_var: 0.0,
-            coef_cov: 0.0,
-            second: Second::Off,
-            since_prev: 0,
-            since_now: 0,
-            halted: false,
-            last_window: None,
-            released_z: None,
-            rest_verified: false,
-            since_still: 0,
-            model_verified: 0.0,
-            stale_n: {
-                let n = libm::roundf(cfg.stale_s * cfg.sensor.sample_rate_hz);
-                if n < 4.0e9 {
-                    n as u32
-                } else {
-                    u32::MAX
-                }
-            },
-            temp0: None,
-            u_now: 0.0,
-            u_prev: 0.0,
-            stats: MotionStats::default(),
-        };
-        e.restart();
-        Ok(e)
+            model,
+        })
     }
 
     /// Back to power-on: time 0, level 0 with the variance of the whole bound, detector
     /// presumed still ([`crate::still`]), nothing verified. Keeps the model.
     pub fn restart(&mut self) {
         self.inputs.reset();
-        self.still.reset();
-        self.level = 0.0;
-        let b = self.cfg.sensor.drift_bound_dps;
-        self.level_var = b * b;
-        self.model_now = 0.0;
-        self.model_prev = 0.0;
-        self.coef = 0.0;
-        self.coef_var = match self.second {
-            Second::Off => 0.0,
-            Second::Thermal { sigma2 } => sigma2,
-        };
-        self.coef_cov = 0.0;
-        self.checkpoint_now = self.level_state();
-        self.checkpoint_prev = self.checkpoint_now;
-        self.since_prev = 0;
-        self.since_now = 0;
-        self.halted = false;
-        self.last_window = None;
-        self.released_z = None;
-        self.rest_verified = false;
-        self.since_still = 0;
-        self.model_verified = 0.0;
-        self.temp0 = None;
-        self.u_now = 0.0;
-        self.u_prev = 0.0;
-        self.sample_r = self.still.noise_var_dps2();
-        self.rest_q = self.sample_q;
-        self.stats = MotionStats::default();
+        self.core.restart();
     }
 
     /// Chooses how the level learns ([`LevelUpdate`]; default [`LevelUpdate::Window`]).
     pub fn with_level_update(mut self, update: LevelUpdate) -> Self {
-        self.update = update;
+        self.set_level_update(update);
         self
     }
 
     /// [`MotionEstimator::with_level_update`] in place.
     pub fn set_level_update(&mut self, update: LevelUpdate) {
-        self.update = update;
+        self.core.set_level_update(update);
     }
 
     /// How the level learns.
     pub fn level_update(&self) -> LevelUpdate {
-        self.update
+        self.core.level_update()
     }
 
     /// The unit's own temperature link as the second state:
@@ -502,89 +385,19 @@ impl MotionEstimator {
 
     /// [`MotionEstimator::with_thermal`] in place (restarts the estimator).
     pub fn set_thermal(&mut self, sigma_dps_per_c: f32) {
-        self.second = if sigma_dps_per_c.is_finite() && sigma_dps_per_c > 0.0 {
-            Second::Thermal {
-                sigma2: sigma_dps_per_c * sigma_dps_per_c,
-            }
-        } else {
-            Second::Off
-        };
-        self.restart();
+        self.inputs.reset();
+        self.core.set_thermal(sigma_dps_per_c);
     }
 
     /// The second state is the unit's temperature link ([`MotionEstimator::with_thermal`]).
     pub fn has_thermal(&self) -> bool {
-        matches!(self.second, Second::Thermal { .. })
+        self.core.has_thermal()
     }
 
     /// The unit's temperature coefficient and its variance (0, 0 unless
     /// [`MotionEstimator::with_thermal`]), deg/s per deg C.
     pub fn thermal(&self) -> (f32, f32) {
-        match self.second {
-            Second::Thermal { .. } => (self.coef, self.coef_var),
-            Second::Off => (0.0, 0.0),
-        }
-    }
-
-    /// The second state's observation coefficient: the window's `T - T0` (thermal), 0 when
-    /// off (so `coef * 0` adds exact zeros and the level alone decides).
-    fn second_coef(&self) -> f32 {
-        match self.second {
-            Second::Off => 0.0,
-            Second::Thermal { .. } => self.u_now,
-        }
-    }
-
-    /// Variance of `level + h coef` (what the detector's mean test uses).
-    fn drift_var(&self) -> f32 {
-        match self.second {
-            Second::Thermal { .. } => {
-                let h = self.second_coef();
-                self.level_var + 2.0 * h * self.coef_cov + h * h * self.coef_var
-            }
-            Second::Off => self.level_var,
-        }
-    }
-
-    /// [`LevelUpdate::Window`] with a second state: one two-state Kalman step on a
-    /// released window mean `z` (= `rate - m`, variance `r`), observation `level + h c`
-    /// (`h` = the released window's `T - T0`).
-    fn window_step_two(&mut self, z: f32, r: f32, h: f32) {
-        let innovation = z - self.level - h * self.coef;
-        let ph0 = self.level_var + h * self.coef_cov;
-        let ph1 = self.coef_cov + h * self.coef_var;
-        let s = ph0 + h * ph1 + r;
-        let k0 = ph0 / s;
-        let k1 = ph1 / s;
-        let level = self.level + k0 * innovation;
-        let c = self.coef + k1 * innovation;
-        if level.is_finite() && c.is_finite() {
-            self.level = level;
-            self.coef = c;
-            self.level_var -= k0 * ph0;
-            self.coef_cov -= k0 * ph1;
-            self.coef_var -= k1 * ph1;
-        }
-    }
-
-    fn level_state(&self) -> [f32; 5] {
-        [
-            self.level,
-            self.level_var,
-            self.coef,
-            self.coef_cov,
-            self.coef_var,
-        ]
-    }
-
-    fn set_level_state(&mut self, v: [f32; 5]) {
-        [
-            self.level,
-            self.level_var,
-            self.coef,
-            self.coef_cov,
-            self.coef_var,
-        ] = v;
+        self.core.thermal()
     }
 
     /// One sample: `rate_dps`, `temp_c` (NaN: none), `external_still` (overrides the
@@ -595,223 +408,39 @@ impl MotionEstimator {
         temp_c: f32,
         external_still: Option<bool>,
     ) -> Result<MotionOutput, MotionError> {
-        self.push_shared(rate_dps, temp_c, external_still, None)
+        self.push_inputs(rate_dps, temp_c, external_still)
             .map(|(o, _)| o)
     }
 
-    /// [`MotionEstimator::push`], also returning the sample's model inputs `x`; with
-    /// `given` = `(x, m(x))` of a twin estimator (same model, configuration and sample
-    /// count: [`crate::preset::PresetEstimator`]'s dual), its inputs and model term are
-    /// taken instead of computed (the same bits: the twin computed them from the same
-    /// samples; this estimator's own input state is then not advanced).
-    pub(crate) fn push_shared(
+    /// [`MotionEstimator::push`], also returning the sample's model inputs `x` (what
+    /// [`crate::preset::PresetEstimator`]'s dual gives its window core, with the model
+    /// term: the network is evaluated once per window for both).
+    pub(crate) fn push_inputs(
         &mut self,
         rate_dps: f32,
         temp_c: f32,
         external_still: Option<bool>,
-        given: Option<([f32; MOTION_N], f32)>,
     ) -> Result<(MotionOutput, [f32; MOTION_N]), MotionError> {
         if !rate_dps.is_finite() {
-            self.stats.rejected = self.stats.rejected.wrapping_add(1);
-            return Err(MotionError::NonFinite);
+            return Err(self.core.refuse());
         }
-        let k = self.stats.samples;
-        let x = match given {
-            Some((x, _)) => x,
-            None => {
-                let t_s = k as f32 / self.cfg.sensor.sample_rate_hz;
-                self.inputs.next(t_s, temp_c)
-            }
-        };
-        if k.is_multiple_of(self.still.window_samples()) {
-            self.checkpoint_prev = self.checkpoint_now;
-            self.checkpoint_now = self.level_state();
-            // Samples since the new previous checkpoint: the last window's.
-            self.since_prev = self.since_now;
-            self.since_now = 0;
-            self.halted = false;
-            self.model_prev = self.model_now;
-            if self.temp0.is_none() && temp_c.is_finite() {
-                self.temp0 = Some(x[1]);
-            }
-            self.u_prev = self.u_now;
-            let u = self.temp0.map_or(0.0, |t0| x[1] - t0);
-            self.u_now = if u.is_finite() { u } else { 0.0 };
-            self.model_now = match given {
-                Some((_, m)) => m,
-                None => self.model.eval(&x),
-            };
-            if !self.model_now.is_finite() {
-                self.model_now = 0.0;
-            }
-            // While the temperature-rate input settles (its first TEMP_RATE_BINS seconds),
-            // the model term can step by tens of deg/h from one window to the next; the
-            // level, seconds old, would unlearn such a step slowly. So in that time its
-            // variance grows by the step squared (ASSUMED: the step is uncertain by its
-            // size), never beyond the power-on prior (the bound squared): a temperature
-            // glitch then costs what power-on costs, and later not at all. A rollback
-            // restores its checkpoint's variance.
-            let settling = (k as f32) < TEMP_RATE_BINS as f32 * self.cfg.sensor.sample_rate_hz;
-            if settling {
-                let dm = self.model_now - self.model_prev;
-                let b = self.cfg.sensor.drift_bound_dps;
-                self.level_var = (self.level_var + dm * dm).min(b * b).max(self.level_var);
-            }
-        }
-        let second = self.second_coef() * self.coef;
-        let reference = self
-            .cfg
-            .sensor
-            .clamp_drift(self.level + self.model_now + second);
-        // The safety net (MotionOutput::verified): decided on the state before this sample.
-        let verified = self.rest_verified && self.since_still <= self.stale_n;
-        // Tentative: nothing verified yet, the sample flagged still (presumed at power-on),
-        // a per-sample level that learns from it and is rolled back if its window fails.
-        let tentative = !self.rest_verified
-            && self.update == LevelUpdate::Sample
-            && external_still.unwrap_or(self.still.is_still());
-        let drift = if verified || tentative {
-            reference
-        } else if self.rest_verified {
-            self.cfg
-                .sensor
-                .clamp_drift(self.level + self.model_verified + second)
+        let t_s = self.core.stats().samples as f32 / self.core.config().sensor.sample_rate_hz;
+        let x = self.inputs.next(t_s, temp_c);
+        // The network once per detector window (at its first sample); held in between.
+        let m = if self.core.next_starts_window() {
+            self.model.eval(&x)
         } else {
-            0.0
+            self.core.model_dps()
         };
-        let s = self
-            .still
-            .push(rate_dps, reference, self.drift_var(), external_still);
-        let mut still = s.still;
-        self.last_window = s.window.map(|w| w.passed);
-        self.released_z = None;
-        if s.window.is_some() {
-            self.sample_r = self.still.noise_var_dps2();
-        }
-        if self.update == LevelUpdate::Sample {
-            still = self.sample_step(rate_dps, still, external_still.is_none());
-        }
-        if still {
-            // An external still flag is trusted: verified at once.
-            self.rest_verified |= external_still == Some(true);
-            self.since_still = 0;
-            self.model_verified = self.model_now;
-        } else {
-            self.since_still = self.since_still.saturating_add(1);
-        }
-        if let Some(w) = s.window {
-            if self.update == LevelUpdate::Sample {
-                if !w.passed {
-                    // Rollback: no sample of this window or of the one before reaches the level.
-                    self.set_level_state(self.checkpoint_prev);
-                    self.level_var += self.sample_q * self.since_prev as f32;
-                    self.checkpoint_now = self.level_state();
-                    self.checkpoint_prev = self.checkpoint_now;
-                    self.since_prev = 0;
-                    self.since_now = 0;
-                }
-            } else {
-                self.level_var += self.window_q;
-            }
-            if let Some(mean) = w.confirmed_mean_dps {
-                // Released: its window and the next passed in the still state.
-                self.rest_verified = true;
-                self.released_z = Some(mean - self.model_prev);
-                if self.update == LevelUpdate::Window {
-                    // The released window is the previous one: its model term is
-                    // model_prev (windows and evaluations coincide).
-                    let z = mean - self.model_prev;
-                    let r = self.still.window_mean_var_dps2();
-                    let h = match self.second {
-                        // The released window is the previous one: its `T - T0`.
-                        Second::Thermal { .. } => Some(self.u_prev),
-                        Second::Off => None,
-                    };
-                    if let Some(h) = h {
-                        self.window_step_two(z, r, h);
-                    } else {
-                        let gain = self.level_var / (self.level_var + r);
-                        let level = self.level + gain * (z - self.level);
-                        if level.is_finite() {
-                            self.level = level;
-                            self.level_var *= 1.0 - gain;
-                        }
-                    }
-                    self.stats.level_updates = self.stats.level_updates.wrapping_add(1);
-                }
-            }
-        }
-        self.stats.samples = k.wrapping_add(1);
-        if still {
-            self.stats.still_samples = self.stats.still_samples.wrapping_add(1);
-        }
-        if !verified {
-            self.stats.unverified_samples = self.stats.unverified_samples.wrapping_add(1);
-        }
-        Ok((
-            MotionOutput {
-                drift_dps: drift,
-                compensated_dps: rate_dps - drift,
-                still,
-                level_dps: self.level,
-                model_dps: self.model_now,
-                verified,
-            },
-            x,
-        ))
-    }
-
-    /// Per-sample level step ([`LevelUpdate::Sample`]): the random walk always; when the
-    /// sample is flagged still, the fast gate, then the Kalman update on `rate - m`.
-    /// Returns the still flag after the fast gate. The gate is off for a sample with an
-    /// external still flag (the flag overrides the detector, as documented).
-    ///
-    /// Fast gate: a still-flagged sample whose innovation exceeds [`FAST_GATE_K`] sigma
-    /// (the sample noise and the level's variance) marks the rest of its window as moving
-    /// at once: no update, flag false, until the detector's verdict at the window end (a
-    /// failed window rolls back; a passing one, a false alarm of 1 in 1.7 million samples
-    /// of white noise, resumes). This closes the detector's one-window lag at the start of
-    /// a drive for any motion above the gate (0.06 deg/s for the E-Core).
-    fn sample_step(&mut self, rate_dps: f32, still: bool, gate: bool) -> bool {
-        self.since_prev = self.since_prev.saturating_add(1);
-        self.since_now = self.since_now.saturating_add(1);
-        if !still || self.halted {
-            self.level_var += self.sample_q;
-            return false;
-        }
-        // At a still sample the unit's own wander (rest q); a sample the gate stops is
-        // moving: the configuration's.
-        let level_var = self.level_var + self.rest_q;
-        // Observation rate - m = level + h c: H = [1, h], h = the window's T - T0 (0: off).
-        let h = self.second_coef();
-        let innovation = rate_dps - self.model_now - self.level - self.coef * h;
-        let ph0 = level_var + self.coef_cov * h;
-        let ph1 = self.coef_cov + self.coef_var * h;
-        let s = ph0 + ph1 * h + self.sample_r;
-        if gate && innovation * innovation > FAST_GATE_K * FAST_GATE_K * s {
-            self.level_var += self.sample_q;
-            self.halted = true;
-            return false;
-        }
-        self.level_var = level_var;
-        let k0 = ph0 / s;
-        let k1 = ph1 / s;
-        let level = self.level + k0 * innovation;
-        let c = self.coef + k1 * innovation;
-        if level.is_finite() && c.is_finite() {
-            self.level = level;
-            self.coef = c;
-            self.level_var -= k0 * ph0;
-            self.coef_cov -= k0 * ph1;
-            self.coef_var -= k1 * ph1;
-        }
-        self.stats.level_updates = self.stats.level_updates.wrapping_add(1);
-        true
+        let o = self
+            .core
+            .push_finite(rate_dps, temp_c, external_still, &x, m);
+        Ok((o, x))
     }
 
     /// The configuration.
     pub fn config(&self) -> &MotionConfig {
-        &self.cfg
+        self.core.config()
     }
 
     /// The model.
@@ -819,43 +448,47 @@ impl MotionEstimator {
         &self.model
     }
 
+    /// The model-free core (detector, level, second state, safety net).
+    pub fn core(&self) -> &LevelCore {
+        &self.core
+    }
+
     /// The detector's noise reference: one sample's variance at rest, deg^2/s^2, learned
     /// on line ([`crate::still`], "Noise reference"); the per-sample level's `r`.
     pub fn noise_var_dps2(&self) -> f32 {
-        self.still.noise_var_dps2()
+        self.core.noise_var_dps2()
     }
 
     /// Level estimate and its variance (deg/s, deg^2/s^2).
     pub fn level(&self) -> (f32, f32) {
-        (self.level, self.level_var)
+        self.core.level()
     }
 
     /// Counters.
     pub fn stats(&self) -> &MotionStats {
-        &self.stats
+        self.core.stats()
     }
 
     /// The last [`MotionEstimator::push`] ended a detector window that failed.
     pub fn window_failed(&self) -> bool {
-        self.last_window == Some(false)
+        self.core.window_failed()
     }
 
     /// The last accepted [`MotionEstimator::push`] was a detector window's first sample
     /// (where the level is checkpointed); false before the first. Derived from the sample
     /// count (no per-sample cost); the count wraps after 2^32 samples (497 days at 100 Hz).
     pub fn window_started(&self) -> bool {
-        let pushed = self.stats.samples;
-        pushed != 0 && (pushed - 1).is_multiple_of(self.still.window_samples())
+        self.core.window_started()
     }
 
     /// Samples per detector window.
     pub fn window_samples(&self) -> u32 {
-        self.still.window_samples()
+        self.core.window_samples()
     }
 
     /// The last [`MotionEstimator::push`] ended a detector window.
     pub fn window_ended(&self) -> bool {
-        self.last_window.is_some()
+        self.core.window_ended()
     }
 
     /// The per-sample level's random-walk density at still samples, deg^2/s^3
@@ -863,31 +496,21 @@ impl MotionEstimator {
     /// configuration's [`MotionConfig::level_q_dps2_per_s`]. Moving samples and rolled-back
     /// windows keep the configuration's. [`MotionEstimator::restart`] sets it back to that.
     pub fn set_rest_q(&mut self, q_dps2_per_s: f32) {
-        let q = if q_dps2_per_s.is_finite() && q_dps2_per_s >= 0.0 {
-            q_dps2_per_s
-        } else {
-            self.cfg.level_q_dps2_per_s
-        };
-        self.rest_q = q / self.cfg.sensor.sample_rate_hz;
+        self.core.set_rest_q(q_dps2_per_s);
     }
 
     /// [`MotionEstimator::released_window`] less the second state's term at that window
     /// (`c (T - T0)`, exact 0 without it): what the level alone observed, deg/s, and the
     /// window mean's variance, (deg/s)^2.
     pub fn released_level_obs(&self) -> Option<(f32, f32)> {
-        let h = match self.second {
-            Second::Thermal { .. } => self.u_prev,
-            Second::Off => 0.0,
-        };
-        self.released_window().map(|(z, r)| (z - h * self.coef, r))
+        self.core.released_level_obs()
     }
 
     /// The window mean the last [`MotionEstimator::push`] released (still, and the window
     /// after it still too) minus that window's model term, deg/s, with its variance
     /// (white noise over a window), (deg/s)^2.
     pub fn released_window(&self) -> Option<(f32, f32)> {
-        self.released_z
-            .map(|z| (z, self.still.window_mean_var_dps2()))
+        self.core.released_window()
     }
 }
 
@@ -1240,7 +863,7 @@ mod tests {
             if k == 100 {
                 // ... the creeping window passed, but the turn's first sample trips the
                 // fast gate: called moving at once.
-                passed_creep = b.still.is_still();
+                passed_creep = b.core.detector().is_still();
                 assert!(!o.still);
             }
         }

@@ -2,11 +2,13 @@
 //! names ([`Arrangement`]); the default, [`Arrangement::DualThermal`], everywhere (fog-core,
 //! host-sim, the firmware).
 //!
-//! **Dual-thermal** runs two [`MotionEstimator`]s of the same model and configuration side
-//! by side on the same samples, each with its own stillness detector and the unit's own
-//! temperature link `c (T - T0)` as second state ([`MotionEstimator::with_thermal`]):
-//! - `rest` = per-sample level with rollback ([`LevelUpdate::Sample`]),
-//! - `hold` = level per released window ([`LevelUpdate::Window`]).
+//! **Dual-thermal** runs two estimators of the same model and configuration side by side on
+//! the same samples, each with its own stillness detector and the unit's own temperature
+//! link `c (T - T0)` as second state ([`MotionEstimator::with_thermal`]):
+//! - `rest` = a [`MotionEstimator`], per-sample level with rollback
+//!   ([`LevelUpdate::Sample`]),
+//! - `hold` = a [`LevelCore`] (the estimator without the model and its inputs), level per
+//!   released window ([`LevelUpdate::Window`]), fed `rest`'s model inputs and model term.
 //!
 //! Its drift is `rest`'s while `rest` flags the sample still (after its fast gate), and
 //! `hold`'s otherwise: at rest the per-sample level follows the bias wander; from the
@@ -16,14 +18,15 @@
 //! window level's protection buys nothing). Neither estimator learns from a moving sample, so a
 //! rotation in motion never moves the estimate (tested). Cost: two estimators' state, two
 //! detectors and level steps per sample; the model inputs and the network (once per
-//! window) are computed once and shared (the two estimators hold the same model).
+//! window) are computed once, by `rest`, and given to `hold` (which holds no model).
 //!
 //! The two **bank** arrangements ([`Arrangement::is_bank`]) keep the level as the sensor's
 //! Allan noise model ([`crate::bank::LevelBank`]) beside a per-sample estimator that is the
 //! detector's drift reference. Each gives the least heading error on one measured vehicle
 //! family where dual-thermal does not (docs/unit-fit.md), so a calibration may pick one.
 
-use crate::bank::{BankConfig, LevelBank};
+use crate::bank::{BankConfig, BankState, LevelBank};
+use crate::level::LevelCore;
 use crate::motion::{LevelUpdate, MotionConfig, MotionError, MotionEstimator, MotionModel};
 use crate::motion::{MotionOutput, MotionStats};
 use crate::rest_q::RestQ;
@@ -132,8 +135,9 @@ impl SecondState {
     }
 }
 
-/// The estimator of an [`Arrangement`] (module docs). No heap; it holds two
-/// [`MotionEstimator`]s (dual-thermal) or one and two level banks (the bank arrangements).
+/// The estimator of an [`Arrangement`] (module docs). No heap; it holds a
+/// [`MotionEstimator`] and a [`LevelCore`] (dual-thermal) or a [`MotionEstimator`] and two
+/// level banks (the bank arrangements).
 #[derive(Debug, Clone)]
 pub struct PresetEstimator {
     /// The per-sample estimator.
@@ -150,8 +154,8 @@ pub struct PresetEstimator {
 #[derive(Debug, Clone)]
 #[allow(clippy::large_enum_variant)] // no heap: the slot is the point
 enum SecondSlot {
-    /// The dual's window estimator.
-    Hold(MotionEstimator),
+    /// The dual's window estimator (its inputs and model term are `rest`'s).
+    Hold(LevelCore),
     /// The bank arrangements ([`Arrangement::is_bank`]).
     Bank(BankLevel),
 }
@@ -171,13 +175,46 @@ enum Guard {
 struct BankLevel {
     /// Per still sample (the per-sample estimator's flags); rolled back per [`Guard`].
     level: LevelBank,
-    /// `BankDual`: per released window mean (one window late), the output in motion.
-    hold: LevelBank,
+    /// `BankDual`: per released window mean (one window late), the output in motion. Under
+    /// `level`'s constants (the same noise model), without checkpoints.
+    hold: BankState,
     guard: Guard,
     since_prev: u32,
     since_now: u32,
     // A sample of the current window carried an external still flag.
     external: bool,
+}
+
+impl BankLevel {
+    /// At power-on, for a bank `arrangement` with the bank's `second` fields. Always
+    /// inlined: built in the estimator's slot.
+    #[inline(always)]
+    fn new(
+        cfg: &MotionConfig,
+        arrangement: Arrangement,
+        second: SecondState,
+    ) -> Result<Self, MotionError> {
+        let s = &cfg.sensor;
+        let level = LevelBank::new(
+            second.bank(cfg.level_q_dps2_per_s),
+            s.drift_bound_dps,
+            s.sample_var_dps2(),
+            s.sample_rate_hz,
+        )
+        .ok_or(MotionError::BadBank)?;
+        Ok(Self {
+            hold: level.params().power_on(),
+            guard: if arrangement == Arrangement::BankDual {
+                Guard::Dual
+            } else {
+                Guard::Window
+            },
+            level,
+            since_prev: 0,
+            since_now: 0,
+            external: false,
+        })
+    }
 }
 
 impl PresetEstimator {
@@ -190,46 +227,27 @@ impl PresetEstimator {
         arrangement: Arrangement,
         second: SecondState,
     ) -> Result<Self, MotionError> {
-        // Built in place (setters, no builder moves, no clone): the firmware's setup
-        // holds no extra copy of an estimator on its stack. An early return in this
-        // function costs the firmware a copy of the stage on its stack (HIL: 22,052 B
-        // instead of 15,796).
+        // Built in place (setters, no builder moves, no clone; the second slot's variant
+        // chosen in the literal): the firmware's setup holds no extra copy of an estimator
+        // on its stack. An early return in this function after `p` exists costs the
+        // firmware a copy of the stage on its stack.
         let mut p = Self {
             rest: MotionEstimator::new(model, cfg)?,
-            second: SecondSlot::Hold(MotionEstimator::new(model, cfg)?),
+            second: if arrangement.is_bank() {
+                SecondSlot::Bank(BankLevel::new(&cfg, arrangement, second)?)
+            } else {
+                SecondSlot::Hold(LevelCore::new(cfg)?)
+            },
             wander: RestQ::new(cfg.sensor.drift_bound_dps),
         };
+        // The per-sample estimator; in a bank arrangement (random-walk level, no second
+        // state) the detector's drift reference, the bank being the output's level.
         p.rest.set_level_update(LevelUpdate::Sample);
-        if arrangement.is_bank() {
-            // The per-sample estimator (random-walk level, no second state) is the
-            // detector's drift reference; the bank is the output's level.
-            let s = &cfg.sensor;
-            let level = LevelBank::new(
-                second.bank(cfg.level_q_dps2_per_s),
-                s.drift_bound_dps,
-                s.sample_var_dps2(),
-                s.sample_rate_hz,
-            )
-            .ok_or(MotionError::BadBank)?;
-            p.second = SecondSlot::Bank(BankLevel {
-                hold: level.clone(),
-                guard: if arrangement == Arrangement::BankDual {
-                    Guard::Dual
-                } else {
-                    Guard::Window
-                },
-                level,
-                since_prev: 0,
-                since_now: 0,
-                external: false,
-            });
-        } else {
+        if let SecondSlot::Hold(h) = &mut p.second {
             p.rest.set_thermal(second.sigma);
             // Set up in the slot (no move of a built estimator).
-            if let SecondSlot::Hold(h) = &mut p.second {
-                h.set_level_update(LevelUpdate::Window);
-                h.set_thermal(second.sigma);
-            }
+            h.set_level_update(LevelUpdate::Window);
+            h.set_thermal(second.sigma);
         }
         Ok(p)
     }
@@ -251,7 +269,7 @@ impl PresetEstimator {
             SecondSlot::Hold(h) => h.restart(),
             SecondSlot::Bank(b) => {
                 b.level.restart();
-                b.hold.restart();
+                b.level.params().restart(&mut b.hold);
                 b.since_prev = 0;
                 b.since_now = 0;
                 b.external = false;
@@ -271,9 +289,7 @@ impl PresetEstimator {
         external_still: Option<bool>,
     ) -> Result<MotionOutput, MotionError> {
         if let SecondSlot::Bank(b) = &mut self.second {
-            let (o, _) = self
-                .rest
-                .push_shared(rate_dps, temp_c, external_still, None)?;
+            let o = self.rest.push(rate_dps, temp_c, external_still)?;
             // At the per-sample estimator's window starts, the bank's checkpoint (before this
             // sample reaches it).
             if self.rest.window_started() {
@@ -301,7 +317,9 @@ impl PresetEstimator {
                 b.since_now = 0;
             }
             if b.guard == Guard::Dual && self.rest.window_ended() {
-                b.hold.predict_many(self.rest.window_samples());
+                b.level
+                    .params()
+                    .predict_many(&mut b.hold, self.rest.window_samples());
                 if let Some((z, r)) = self.rest.released_window() {
                     b.hold.update_mean(z, r);
                 }
@@ -329,15 +347,12 @@ impl PresetEstimator {
                 ..o
             });
         }
-        let (o, x) = match self
-            .rest
-            .push_shared(rate_dps, temp_c, external_still, None)
-        {
+        let (o, x) = match self.rest.push_inputs(rate_dps, temp_c, external_still) {
             Ok(v) => v,
             Err(e) => {
-                // Counted by both (the same check refuses it in both).
+                // Counted by both (a non-finite rate: refused by both).
                 if let SecondSlot::Hold(h) = &mut self.second {
-                    let _ = h.push(rate_dps, temp_c, external_still);
+                    h.refuse();
                 }
                 return Err(e);
             }
@@ -357,16 +372,19 @@ impl PresetEstimator {
                 }
             }
         }
-        // The twin's inputs and model term (the same model, evaluated at the same window
-        // starts): the window estimator does not evaluate the network again.
-        let held = h.push_shared(rate_dps, temp_c, external_still, Some((x, o.model_dps)));
+        // `rest`'s inputs and model term (evaluated at the same window starts: the two count
+        // the same samples): the window estimator holds no model of its own. `rate_dps` is
+        // finite (`rest` took it).
+        let held = h.push_finite(rate_dps, temp_c, external_still, &x, o.model_dps);
         // An external flag is trusted (as in the bank arrangements): the per-sample level
         // then holds no suspect sample, so it stays the output in motion too.
-        Ok(match held {
-            Ok((h, _)) if !o.still && external_still.is_none() => {
-                MotionOutput { still: false, ..h }
+        Ok(if !o.still && external_still.is_none() {
+            MotionOutput {
+                still: false,
+                ..held
             }
-            _ => o,
+        } else {
+            o
         })
     }
 
@@ -390,8 +408,9 @@ impl PresetEstimator {
         &self.rest
     }
 
-    /// The dual's window estimator (`None` in the bank arrangements).
-    pub fn hold(&self) -> Option<&MotionEstimator> {
+    /// The dual's window estimator: a core without model or inputs, fed `rest`'s (`None`
+    /// in the bank arrangements).
+    pub fn hold(&self) -> Option<&LevelCore> {
         match &self.second {
             SecondSlot::Hold(h) => Some(h),
             _ => None,
@@ -530,7 +549,13 @@ mod tests {
         );
         assert!(dual.push(f32::NAN, 0.0, None).is_err());
         assert_eq!(dual.stats().rejected, 1);
-        assert_eq!(dual.hold().map(|h| h.stats().rejected), Some(1));
+        // The window estimator: a core (no model of its own) that saw every sample.
+        let h = dual.hold().expect("dual");
+        assert_eq!(h.stats().rejected, 1);
+        assert_eq!(h.stats().samples, dual.stats().samples);
+        assert_eq!(h.level_update(), LevelUpdate::Window);
+        assert!(h.has_thermal());
+        assert_eq!(h.level(), hold.level());
     }
 
     /// A static unit whose drift wanders fast (a random walk of 4096 (deg/h)^2/h, 1024x the
@@ -803,9 +828,13 @@ mod tests {
             let SecondSlot::Bank(b) = &p.second else {
                 panic!("bank")
             };
-            let level = if o.still { &b.level } else { &b.hold };
+            let level = if o.still {
+                b.level.estimate_dps()
+            } else {
+                b.hold.estimate_dps()
+            };
             let want = if o.verified {
-                S.clamp_drift(level.estimate_dps() + o.model_dps)
+                S.clamp_drift(level + o.model_dps)
             } else {
                 S.clamp_drift(rest_level + o.model_dps)
             };
