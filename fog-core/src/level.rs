@@ -14,9 +14,9 @@
 //! only at construction and through the setters; the state changes with every sample and
 //! goes back to power-on with [`LevelCore::restart`].
 
+use crate::features::TEMP_RATE_BINS;
 use crate::motion::{LevelUpdate, MotionConfig, MotionError, MotionOutput, MotionStats};
 use crate::motion::{FAST_GATE_K, MOTION_N};
-use crate::features::TEMP_RATE_BINS;
 use crate::still::Stillness;
 
 /// The model-free core of a motion estimator (module docs): per sample it takes the rate,

@@ -10,6 +10,10 @@
 //! - `hold` = a [`LevelCore`] (the estimator without the model and its inputs), level per
 //!   released window ([`LevelUpdate::Window`]), fed `rest`'s model inputs and model term.
 //!
+//! `rest`'s random-walk density at still samples is the unit's own, chosen on line from
+//! `rest`'s released windows ([`RestQ`]); `hold` keeps the configuration's (it holds the
+//! level through drives).
+//!
 //! Its drift is `rest`'s while `rest` flags the sample still (after its fast gate), and
 //! `hold`'s otherwise: at rest the per-sample level follows the bias wander; from the
 //! first sample `rest` sees as moving, the output is the window level, which no sample of
