@@ -184,7 +184,7 @@ where
         return Stop::Setup;
     };
     // The stage is used where `new_stage` wrote it (a borrow of the result, not a move out
-    // of it): moving it out would keep a second copy of it (about 9 KiB) on the stack.
+    // of it): moving it out would keep a second copy of it (about 8 KiB) on the stack.
     let mut built = pipeline::new_stage(IDENTIFIER_IMAGE);
     let stage = match &mut built {
         Ok(s) => s,

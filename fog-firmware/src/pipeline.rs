@@ -151,7 +151,7 @@ impl Stage {
 /// nearer end of the range).
 ///
 /// Stack: the caller should use the result where it is (`match &mut result`), not move the
-/// stage out of it (a second copy of about 9 KiB).
+/// stage out of it (a second copy of about 8 KiB).
 pub fn new_stage(image: &[u8]) -> Result<Stage, SetupError> {
     // The parsed image only lives in this block (its stack slot is free after it).
     let estimator = {
