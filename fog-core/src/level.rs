@@ -555,26 +555,14 @@ impl LevelConfig {
         // Observation rate - m = level + h c: H = [1, h], h = the window's T - T0 (0: off).
         let h = self.second_coef(s);
         let innovation = rate_dps - s.model_now - s.level - s.coef * h;
-        let ph0 = level_var + s.coef_cov * h;
-        let ph1 = s.coef_cov + s.coef_var * h;
-        let sk = ph0 + ph1 * h + s.sample_r;
+        let (ph0, ph1, sk) = s.gain_terms(level_var, h, s.sample_r);
         if gate && innovation * innovation > FAST_GATE_K * FAST_GATE_K * sk {
             s.level_var += self.sample_q;
             s.halted = true;
             return false;
         }
         s.level_var = level_var;
-        let k0 = ph0 / sk;
-        let k1 = ph1 / sk;
-        let level = s.level + k0 * innovation;
-        let c = s.coef + k1 * innovation;
-        if level.is_finite() && c.is_finite() {
-            s.level = level;
-            s.coef = c;
-            s.level_var -= k0 * ph0;
-            s.coef_cov -= k0 * ph1;
-            s.coef_var -= k1 * ph1;
-        }
+        s.update_two(innovation, ph0, ph1, sk);
         s.stats.level_updates = s.stats.level_updates.wrapping_add(1);
         true
     }
@@ -586,9 +574,23 @@ impl LevelState {
     /// (`h` = the released window's `T - T0`).
     fn window_step_two(&mut self, z: f32, r: f32, h: f32) {
         let innovation = z - self.level - h * self.coef;
-        let ph0 = self.level_var + h * self.coef_cov;
+        let (ph0, ph1, s) = self.gain_terms(self.level_var, h, r);
+        self.update_two(innovation, ph0, ph1, s);
+    }
+
+    /// Observation `level + h c` with noise variance `r`, the level's variance taken as
+    /// `level_var`: `P H^T = (ph0, ph1)` and the innovation variance `s`.
+    #[inline(always)]
+    fn gain_terms(&self, level_var: f32, h: f32, r: f32) -> (f32, f32, f32) {
+        let ph0 = level_var + h * self.coef_cov;
         let ph1 = self.coef_cov + h * self.coef_var;
-        let s = ph0 + h * ph1 + r;
+        (ph0, ph1, ph0 + h * ph1 + r)
+    }
+
+    /// The two-state Kalman update with [`LevelState::gain_terms`]'s `(ph0, ph1, s)`; a
+    /// non-finite result leaves the state as it was.
+    #[inline(always)]
+    fn update_two(&mut self, innovation: f32, ph0: f32, ph1: f32, s: f32) {
         let k0 = ph0 / s;
         let k1 = ph1 / s;
         let level = self.level + k0 * innovation;

@@ -67,11 +67,19 @@ impl RestQ {
     /// At power-on: every level 0 with variance `drift_bound_dps^2`.
     pub fn new(drift_bound_dps: f32) -> Self {
         let prior = drift_bound_dps * drift_bound_dps;
-        let prior_var_dps2 = if prior.is_finite() && prior > 0.0 {
+        Self::at_power_on(if prior.is_finite() && prior > 0.0 {
             prior
         } else {
             1.0
-        };
+        })
+    }
+
+    /// Back to power-on.
+    pub fn restart(&mut self) {
+        *self = Self::at_power_on(self.prior_var_dps2);
+    }
+
+    fn at_power_on(prior_var_dps2: f32) -> Self {
         Self {
             level_dps: [0.0; REST_Q_GRID],
             var_dps2: [prior_var_dps2; REST_Q_GRID],
@@ -80,18 +88,6 @@ impl RestQ {
             windows: 0,
             prior_var_dps2,
         }
-    }
-
-    /// Back to power-on.
-    pub fn restart(&mut self) {
-        *self = Self {
-            level_dps: [0.0; REST_Q_GRID],
-            var_dps2: [self.prior_var_dps2; REST_Q_GRID],
-            score: [0.0; REST_Q_GRID],
-            pending_s: 0.0,
-            windows: 0,
-            prior_var_dps2: self.prior_var_dps2,
-        };
     }
 
     /// `dt_s` of time passed (one detector window, still or not).

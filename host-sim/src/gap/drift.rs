@@ -336,14 +336,9 @@ impl Problem {
         self.eval(u, x)
     }
 
-    /// The null fit: a grid of starting shares, then Nelder-Mead.
+    /// The null fit: a 5 x 5 grid of starting shares, then Nelder-Mead.
     pub fn fit_null(&self) -> Option<NoiseFit> {
-        let g = [-8.0, -3.0, 0.0, 3.0, 8.0];
-        let start: Vec<[f64; 2]> = g
-            .iter()
-            .flat_map(|&a| g.iter().map(move |&b| [a, b]))
-            .collect();
-        self.fit(&[], &start)
+        self.fit(&[], &share_grid().collect::<Vec<_>>())
     }
 
     /// Whitened regressors and data at the share logits `u` (the null's, for the
@@ -352,6 +347,12 @@ impl Problem {
         let w = self.whiten(u)?;
         Some((x.iter().map(|c| w.f.whiten(c)).collect(), w.z))
     }
+}
+
+/// Starting share logits on a 5 x 5 grid (shares from about e^-8 to e^8 of the third).
+fn share_grid() -> impl Iterator<Item = [f64; 2]> {
+    const G: [f64; 5] = [-8.0, -3.0, 0.0, 3.0, 8.0];
+    G.iter().flat_map(|&a| G.iter().map(move |&b| [a, b]))
 }
 
 /// Nelder-Mead minimisation in two dimensions.
@@ -526,10 +527,7 @@ fn coef_profile(prob: &Problem, x: &[Vec<f64>], k: usize, f: &NoiseFit) -> Optio
     let target = f.loglik - PROFILE_DROP_95;
     // The fit's shares and the null's grid: a share the fit drove to nothing (a flat
     // likelihood in its logit) is tried again at every point.
-    let g = [-8.0, -3.0, 0.0, 3.0, 8.0];
-    let starts: Vec<[f64; 2]> = std::iter::once(f.u)
-        .chain(g.iter().flat_map(|&a| g.iter().map(move |&b| [a, b])))
-        .collect();
+    let starts: Vec<[f64; 2]> = std::iter::once(f.u).chain(share_grid()).collect();
     let passes = |b: f64| -> bool {
         let held = Problem {
             d: prob.d.iter().zip(xk).map(|(d, x)| d - b * x).collect(),
