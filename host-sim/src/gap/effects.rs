@@ -147,6 +147,35 @@ impl Spec {
         }
     }
 
+    /// The deterministic part of this spec beyond `base` at the real record's samples,
+    /// deg/s: ramp, warm-up, sinusoid, temperature link and scale-factor error on the
+    /// reference rate (what a candidate adds to the baseline).
+    pub fn signal_beyond(&self, base: &Spec, real: &Rec) -> Vec<f64> {
+        let own = |s: &Spec, i: usize| -> f64 {
+            let t = real.t_s[i];
+            let mut v = s.model.noise.rate_ramp_dps_per_s * t;
+            if let Some((a, tau)) = s.warmup {
+                v += a * (-t / tau).exp();
+            }
+            if let Some((a, f, p)) = s.sine {
+                v += a * (std::f64::consts::TAU * f * t + p).sin();
+            }
+            if let Some(r) = &real.ref_dps {
+                v += 1e-6 * s.sf_ppm * r[i];
+            }
+            if let Some(tc) = &real.temp_c {
+                v += s.temp_dps_per_c * (tc[i] - s.temp_ref_c);
+            }
+            if let Some(d) = s.dtemp_c_per_s.get(i) {
+                v += s.temp_rate_dps_per_c_per_s * d;
+            }
+            v
+        };
+        (0..real.t_s.len())
+            .map(|i| own(self, i) - own(base, i))
+            .collect()
+    }
+
     /// One simulated record on the real record's time span: (t_s, rate_dps, rate_dps less
     /// `g_base` times the reference rate).
     pub fn simulate(&self, real: &Rec, seed: u64, g_base: f64) -> Result<Sim> {
@@ -260,6 +289,10 @@ pub struct FitCtx<'a> {
     /// Without a user model: the baseline refitted with a Gauss-Markov term (N, B, K,
     /// sigma, T jointly on the fit blocks' AVAR).
     pub joint_markov: Option<Model>,
+    /// Without a user model: the record's blocks, to refit the baseline's noise terms with a
+    /// candidate's signal taken out (a deterministic effect the first fit absorbed into
+    /// its noise terms would otherwise be simulated twice).
+    pub refit_layout: Option<&'a super::features::Layout>,
 }
 
 /// Variogram of `W`-s window means at lag `L >= W` (start to start) of a unit rate random
@@ -566,7 +599,50 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             Err(why) => return Ok(Fitted::NotApplicable(why)),
         },
     }
+    // A deterministic candidate is fitted together with the baseline: the noise terms are
+    // refitted with its signal taken out (a ramp, a warm-up, a line, a temperature link or
+    // a scale-factor error that the first fit absorbed would otherwise be simulated twice).
+    let deterministic = matches!(
+        effect,
+        Effect::RateRamp
+            | Effect::Warmup
+            | Effect::Temperature
+            | Effect::Sinusoid
+            | Effect::ScaleFactor
+    );
+    if let (true, Some(layout)) = (deterministic, ctx.refit_layout) {
+        let mut less = real.clone();
+        for (v, s) in less
+            .rate_dps
+            .iter_mut()
+            .zip(spec.signal_beyond(ctx.base, real))
+        {
+            *v -= s;
+        }
+        refit_noise(&mut spec, &less, layout, &ctx.fit_ranges, &mut p);
+    }
     Ok(Fitted::Spec(Box::new(spec), p, excluded))
+}
+
+/// Refits the baseline's noise terms (N, B, K) on `less`, the record with the candidate's
+/// signal taken out, and reports them in `p` (`refit_*`); the spec keeps its noise when the
+/// fit fails.
+fn refit_noise(
+    spec: &mut Spec,
+    less: &Rec,
+    layout: &super::features::Layout,
+    fit_ranges: &[(usize, usize)],
+    p: &mut Params,
+) {
+    if let Ok(m) = super::fit_baseline(less, layout, fit_ranges) {
+        let n = &mut spec.model.noise;
+        n.arw_dps_per_rthz = m.noise.arw_dps_per_rthz;
+        n.bias_instability_dps = m.noise.bias_instability_dps;
+        n.rrw_dps_per_s_rthz = m.noise.rrw_dps_per_s_rthz;
+        p.insert("refit_arw_dps_per_rthz".into(), n.arw_dps_per_rthz);
+        p.insert("refit_bias_instability_dps".into(), n.bias_instability_dps);
+        p.insert("refit_rrw_dps_per_s_rthz".into(), n.rrw_dps_per_s_rthz);
+    }
 }
 
 /// Parameters of a fitted effect, unit in the key.
@@ -865,4 +941,43 @@ fn fit_sine(real: &Rec, ranges: &[(usize, usize)]) -> (f64, f64, f64) {
     .unwrap_or_else(|| vec![0.0; nb + 2]);
     let (s, co) = (beta[nb], beta[nb + 1]);
     (f, s.hypot(co), co.atan2(s))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What a candidate adds beyond the baseline, sample by sample: ramp, warm-up, line,
+    /// scale-factor error on the reference and the temperature link.
+    #[test]
+    fn signal_beyond_is_what_the_candidate_adds() {
+        let n = 5;
+        let real = Rec {
+            name: "t".into(),
+            t_s: (0..n).map(|i| i as f64).collect(),
+            rate_dps: vec![0.0; n],
+            temp_c: Some(vec![20.0, 21.0, 22.0, 23.0, 24.0]),
+            ref_dps: Some(vec![0.0, 10.0, -10.0, 5.0, 0.0]),
+            dt_s: 1.0,
+        };
+        let base = Spec::from_model(&Model::default(), true);
+        let mut c = base.clone();
+        c.model.noise.rate_ramp_dps_per_s = 1e-3;
+        c.warmup = Some((0.01, 2.0));
+        c.sine = Some((0.002, 0.25, 0.0));
+        c.sf_ppm = 100.0;
+        c.temp_dps_per_c = 1e-4;
+        c.temp_ref_c = 22.0;
+        let s = c.signal_beyond(&base, &real);
+        for (i, v) in s.iter().enumerate() {
+            let t = i as f64;
+            let want = 1e-3 * t
+                + 0.01 * (-t / 2.0).exp()
+                + 0.002 * (std::f64::consts::TAU * 0.25 * t).sin()
+                + 1e-4 * real.ref_dps.as_ref().map_or(0.0, |r| r[i])
+                + 1e-4 * (20.0 + t - 22.0);
+            assert!((v - want).abs() < 1e-15, "{i}: {v} vs {want}");
+        }
+        assert!(base.signal_beyond(&base, &real).iter().all(|&v| v == 0.0));
+    }
 }

@@ -979,6 +979,7 @@ fn fit_ctx<'a>(s: &'a Setup, raw: &'a Rec, sims: &BaseSims, bursty: bool) -> Fit
         } else {
             None
         },
+        refit_layout: s.fitted_baseline.then_some(layout),
     }
 }
 
