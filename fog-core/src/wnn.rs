@@ -840,83 +840,112 @@ mod tests {
         check(crate::identify::presets::paper_shape::<30>(Activation::MexicanHat).expect("shape"));
     }
 
-    #[allow(clippy::needless_range_loop)]
-    /// Recurrence vs direct evaluation: the level-trend layout (bias, link, 14 + 14
-    /// Gaussians) and the paper's (15 + 15, Gaussian and Mexican hat), inputs over
-    /// [-4, 4] (the scaled range is [-1, 1]) plus NaN and infinities.
-    #[test]
-    fn recurrence_matches_direct() {
-        fn check<const N: usize, const L: usize>(shape: WnnShape<N, L>, name: &str) {
-            let fast = shape.with_recurrence();
-            let Evaluation::Recurrence { n, .. } = fast.evaluation else {
-                panic!("no recurrence");
-            };
-            assert_eq!(n, 2, "{name}: runs found");
-            let mut state = 99u32;
-            // Errors of both evaluations against eq. (5) in f64 (from the same f32 a, b, x).
-            let (mut rel_f, mut abs_f, mut rel_d, mut abs_d) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
-            for i in 0..20_000 {
-                let mut x = [0.0f32; N];
-                for v in x.iter_mut() {
-                    state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-                    *v = 8.0 * ((state >> 8) as f32 / (1u32 << 24) as f32) - 4.0;
-                }
-                let (mut hd, mut hf) = ([0.0f32; L], [0.0f32; L]);
-                if i % 1000 == 7 {
-                    // Non-finite input: the neurons along it give 0 both ways.
-                    x[N - 1] = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY][i / 1000 % 3];
-                    fast.hidden(&x, &mut hf);
-                    shape.hidden(&x, &mut hd);
-                    for l in 0..L {
-                        if shape.a[l][N - 1] != 0.0 {
-                            assert_eq!((hd[l], hf[l]), (0.0, 0.0), "{name}");
-                        }
+    /// Inputs over [-4, 4] (the scaled range is [-1, 1]) from a fixed LCG.
+    fn recurrence_inputs<const N: usize>(state: &mut u32) -> [f32; N] {
+        let mut x = [0.0f32; N];
+        for v in x.iter_mut() {
+            *state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            *v = 8.0 * ((*state >> 8) as f32 / (1u32 << 24) as f32) - 4.0;
+        }
+        x
+    }
+
+    /// Eq. (5) in f64 for wavelet neuron `l` (from the same f32 a, b, x), 0 past the cutoff.
+    fn wavelet_f64<const N: usize, const L: usize>(
+        shape: &WnnShape<N, L>,
+        x: &[f32; N],
+        l: usize,
+    ) -> f64 {
+        let mut t = -f64::from(shape.b[l]);
+        for (a, v) in shape.a[l].iter().zip(x) {
+            t += f64::from(*a) * f64::from(*v);
+        }
+        if t.abs() >= f64::from(T_CUTOFF) {
+            return 0.0;
+        }
+        let g = (-0.5 * t * t).exp();
+        match shape.activation {
+            Activation::Gaussian => g,
+            Activation::MexicanHat => (1.0 - t * t) * g,
+        }
+    }
+
+    /// Largest errors of the recurrence and of the direct evaluation against f64.
+    #[derive(Default)]
+    struct RecurrenceErrors {
+        rel_f: f64,
+        abs_f: f64,
+        rel_d: f64,
+        abs_d: f64,
+    }
+
+    /// Recurrence vs direct evaluation of `shape` (which must have two runs): bit-equal on
+    /// the neurons that are not wavelets, within f32 rounding of eq. (5) in f64 on the
+    /// wavelets, and 0 both ways on the neurons along a NaN or infinite input.
+    fn check_recurrence<const N: usize, const L: usize>(shape: WnnShape<N, L>, name: &str) {
+        extern crate std;
+        let fast = shape.with_recurrence();
+        let Evaluation::Recurrence { n, .. } = fast.evaluation else {
+            panic!("no recurrence");
+        };
+        assert_eq!(n, 2, "{name}: runs found");
+        let mut state = 99u32;
+        let mut err = RecurrenceErrors::default();
+        for i in 0..20_000 {
+            let mut x = recurrence_inputs::<N>(&mut state);
+            let (mut hd, mut hf) = ([0.0f32; L], [0.0f32; L]);
+            if i % 1000 == 7 {
+                // Non-finite input: the neurons along it give 0 both ways.
+                x[N - 1] = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY][i / 1000 % 3];
+                fast.hidden(&x, &mut hf);
+                shape.hidden(&x, &mut hd);
+                for l in 0..L {
+                    if shape.a[l][N - 1] != 0.0 {
+                        assert_eq!((hd[l], hf[l]), (0.0, 0.0), "{name}");
                     }
+                }
+                continue;
+            }
+            shape.hidden(&x, &mut hd);
+            fast.hidden(&x, &mut hf);
+            for l in 0..L {
+                if shape.kind[l] != Neuron::Wavelet {
+                    assert_eq!(hd[l].to_bits(), hf[l].to_bits());
                     continue;
                 }
-                shape.hidden(&x, &mut hd);
-                fast.hidden(&x, &mut hf);
-                for l in 0..L {
-                    if shape.kind[l] != Neuron::Wavelet {
-                        assert_eq!(hd[l].to_bits(), hf[l].to_bits());
-                        continue;
-                    }
-                    let mut t = -f64::from(shape.b[l]);
-                    for j in 0..N {
-                        t += f64::from(shape.a[l][j]) * f64::from(x[j]);
-                    }
-                    let g = (-0.5 * t * t).exp();
-                    let e = match shape.activation {
-                        Activation::Gaussian => g,
-                        Activation::MexicanHat => (1.0 - t * t) * g,
-                    };
-                    let e = if t.abs() >= f64::from(T_CUTOFF) {
-                        0.0
-                    } else {
-                        e
-                    };
-                    let (d, f) = (f64::from(hd[l]), f64::from(hf[l]));
-                    assert!(f.is_finite(), "{name}: {x:?}");
-                    abs_f = abs_f.max((f - e).abs());
-                    abs_d = abs_d.max((d - e).abs());
-                    if e.abs() > 1e-30 {
-                        rel_f = rel_f.max((f - e).abs() / e.abs());
-                        rel_d = rel_d.max((d - e).abs() / e.abs());
-                    }
+                let e = wavelet_f64(&shape, &x, l);
+                let (d, f) = (f64::from(hd[l]), f64::from(hf[l]));
+                assert!(f.is_finite(), "{name}: {x:?}");
+                err.abs_f = err.abs_f.max((f - e).abs());
+                err.abs_d = err.abs_d.max((d - e).abs());
+                if e.abs() > 1e-30 {
+                    err.rel_f = err.rel_f.max((f - e).abs() / e.abs());
+                    err.rel_d = err.rel_d.max((d - e).abs() / e.abs());
                 }
             }
-            std::println!(
-                "{name}: vs f64: recurrence max relative {rel_f:.2e} absolute {abs_f:.2e}; direct max relative {rel_d:.2e} absolute {abs_d:.2e}"
-            );
-            // Relative errors are dominated by the f32 rounding of t itself (t^2 * 2^-24 at
-            // the tails, and the Mexican hat's zero crossings), which both evaluations share.
-            assert!(abs_f < 1e-6, "{name}: {abs_f}");
-            assert!(
-                rel_f < 1.1 * rel_d + 1e-6,
-                "{name}: {rel_f} vs direct {rel_d}"
-            );
         }
-        extern crate std;
+        let RecurrenceErrors {
+            rel_f,
+            abs_f,
+            rel_d,
+            abs_d,
+        } = err;
+        std::println!(
+            "{name}: vs f64: recurrence max relative {rel_f:.2e} absolute {abs_f:.2e}; direct max relative {rel_d:.2e} absolute {abs_d:.2e}"
+        );
+        // Relative errors are dominated by the f32 rounding of t itself (t^2 * 2^-24 at
+        // the tails, and the Mexican hat's zero crossings), which both evaluations share.
+        assert!(abs_f < 1e-6, "{name}: {abs_f}");
+        assert!(
+            rel_f < 1.1 * rel_d + 1e-6,
+            "{name}: {rel_f} vs direct {rel_d}"
+        );
+    }
+
+    /// Recurrence vs direct evaluation, the level-trend layout (bias, link, 14 + 14
+    /// Gaussians); inputs over [-4, 4] plus NaN and infinities (see [`check_recurrence`]).
+    #[test]
+    fn recurrence_matches_direct_level_trend() {
         let lt = WnnShape::<3, 30>::from_groups(
             &[
                 Group::Bias,
@@ -935,7 +964,13 @@ mod tests {
             Activation::Gaussian,
         )
         .expect("valid");
-        check(lt, "level-trend 14+14 Gaussian");
+        check_recurrence(lt, "level-trend 14+14 Gaussian");
+    }
+
+    /// Recurrence vs direct evaluation, the paper's layout (15 + 15, Gaussian and Mexican
+    /// hat).
+    #[test]
+    fn recurrence_matches_direct_paper() {
         for act in [Activation::Gaussian, Activation::MexicanHat] {
             let p = WnnShape::<2, 30>::from_groups(
                 &[
@@ -953,7 +988,7 @@ mod tests {
                 act,
             )
             .expect("valid");
-            check(
+            check_recurrence(
                 p,
                 if act == Activation::Gaussian {
                     "paper 15+15 Gaussian"
@@ -962,7 +997,12 @@ mod tests {
                 },
             );
         }
-        // Wider overlap (neighbours half a sigma apart) and sparser (2.5 and 3.75 sigma).
+    }
+
+    /// Recurrence vs direct evaluation, wider overlap (neighbours half a sigma apart) and
+    /// sparser (2.5 and 3.75 sigma).
+    #[test]
+    fn recurrence_matches_direct_other_overlaps() {
         for overlap in [0.5f32, 2.5] {
             let s = WnnShape::<1, 10>::from_groups(
                 &[
@@ -980,16 +1020,25 @@ mod tests {
                 Activation::MexicanHat,
             )
             .expect("valid");
-            check(s, "1 input, 5+5 neurons, other overlaps");
+            check_recurrence(s, "1 input, 5+5 neurons, other overlaps");
         }
-        // A wavelet neuron outside the runs (the warm-up neuron): no list, neuron by neuron.
+    }
+
+    /// A wavelet neuron outside the runs (the warm-up neuron): no list, neuron by neuron,
+    /// and the recurrence still matches the direct evaluation.
+    #[test]
+    fn recurrence_matches_direct_wavelet_outside_runs() {
         let tt = crate::identify::presets::time_temp_shape::<30>().expect("valid");
         assert!(matches!(
             tt.with_recurrence().evaluation,
             Evaluation::Recurrence { listed: None, .. }
         ));
-        check(tt, "time-temp: warm-up neuron outside the runs");
-        // Biases and links only outside the runs: listed.
+        check_recurrence(tt, "time-temp: warm-up neuron outside the runs");
+    }
+
+    /// Biases and links only outside the runs: the level-trend preset lists them.
+    #[test]
+    fn recurrence_lists_biases_and_links() {
         let lt = crate::identify::presets::level_trend_shape::<30>().expect("valid");
         assert!(matches!(
             lt.evaluation,

@@ -9,8 +9,6 @@
 //! `tests/src/cycles.rs`).
 #![forbid(unsafe_code)]
 
-use core::fmt::Write as _;
-
 use embedded_hal_nb::serial::Write;
 use fog_core::denoise::{DenoiseConfig, ResumableDenoiser};
 use fog_core::frame::{ecore, Decoder, EcoreDecoder};
@@ -224,6 +222,24 @@ fn exp_table<C: TickCounter, W: core::fmt::Write>(
     Ok(())
 }
 
+/// Ticks per window kind over the [`SAMPLES`] samples, and what the run gave besides.
+#[derive(Default)]
+struct Measured {
+    decode: Acc,
+    detect: Acc,
+    estimate: Acc,
+    denoise: Acc,
+    /// The denoiser's pushes that do not complete a block.
+    denoise_mid: Acc,
+    stage: Acc,
+    /// Whole pipeline: frame decode, stage and record.
+    pipeline: Acc,
+    /// Samples the stage took as still.
+    still_samples: u32,
+    /// Sum of results, printed so that no timed call is optimised away.
+    sink: f32,
+}
+
 /// Measures and prints; false if something could not be set up.
 pub fn run<W, C>(tx: &mut W, c: &C, spin: fn(u32), stack_bytes: fn() -> u32) -> bool
 where
@@ -231,42 +247,43 @@ where
     C: TickCounter,
 {
     let cal = calibrate(c, spin);
-    let Ok(mut decoder) = EcoreDecoder::new(pipeline::FULL_SCALE_DPS) else {
+    let mut measured = Measured::default();
+    if measure(c, &mut measured).is_none() {
         return false;
-    };
-    let Ok(mut stage) = pipeline::new_stage(IDENTIFIER_IMAGE) else {
-        return false;
-    };
+    }
+    // Stack used by all of the above (the stage and the copies live on the stack here).
+    let stack = stack_bytes();
+    let mut out = Out(tx);
+    let r = report(&mut out, c, &cal, &measured, stack);
+    let _ = nb::block!(out.0.flush());
+    r.is_ok()
+}
+
+/// Builds the stage and stand-alone copies of its parts, then runs the [`SAMPLES`] samples
+/// of [`Source`] through the whole pipeline and through each part on its own, timing every
+/// window; `None` if something could not be set up.
+///
+/// Inlined into [`run`]: the stage and the copies live in its frame, which the stack
+/// high-water mark holds. A window's count includes the instructions of this code around
+/// the timed call (register moves, spills, the record): an edit here can move the table by
+/// a few instructions per window with fog-core unchanged (the per-function table of
+/// `fw-cycles` tells them apart: `fog_firmware::budget::run`).
+#[inline(always)]
+fn measure<C: TickCounter>(c: &C, m: &mut Measured) -> Option<()> {
+    let mut decoder = EcoreDecoder::new(pipeline::FULL_SCALE_DPS).ok()?;
+    let mut stage = pipeline::new_stage(IDENTIFIER_IMAGE).ok()?;
     // Stand-alone copies of the stage's parts, timed one by one on the same samples.
-    let Ok(image) = Image::parse(IDENTIFIER_IMAGE) else {
-        return false;
-    };
-    let Ok(mut estimator) = image.estimator() else {
-        return false;
-    };
+    let image = Image::parse(IDENTIFIER_IMAGE).ok()?;
+    let mut estimator = image.estimator().ok()?;
     let cfg = *estimator.config();
-    let Some(mut detector) = Stillness::new(&cfg.sensor, &cfg.still) else {
-        return false;
-    };
-    let Ok(mut denoiser) = ResumableDenoiser::<BLOCK>::new(DenoiseConfig::PAPER) else {
-        return false;
-    };
+    let mut detector = Stillness::new(&cfg.sensor, &cfg.still)?;
+    let mut denoiser = ResumableDenoiser::<BLOCK>::new(DenoiseConfig::PAPER).ok()?;
 
     let mut source = Source {
         state: 0x5EED,
         k: 0,
     };
-    let (mut a_decode, mut a_detect, mut a_estimate, mut a_denoise, mut a_denoise_mid) = (
-        Acc::default(),
-        Acc::default(),
-        Acc::default(),
-        Acc::default(),
-        Acc::default(),
-    );
-    let (mut a_stage, mut a_pipe_all) = (Acc::default(), Acc::default());
-    let mut sink = 0.0f32;
     let mut frames = 0u32;
-    let mut still_samples = 0u32;
     let mut drift_dps = 0.0f32;
 
     for k in 0..SAMPLES {
@@ -287,15 +304,15 @@ where
                     let r = pipeline::sample_record(frames, f.rate_dps, &out, status);
                     frames += 1;
                     rate_dps = f.rate_dps;
-                    sink += f32::from(r[7]);
+                    m.sink += f32::from(r[7]);
                     if status & pipeline::STATUS_STILL != 0 {
-                        still_samples += 1;
+                        m.still_samples += 1;
                     }
                 }
             }
         });
-        a_pipe_all.add(ticks);
-        a_stage.add(stage_ticks);
+        m.pipeline.add(ticks);
+        m.stage.add(stage_ticks);
 
         // Frame decode alone, on a second decoder fed the same bytes.
         let mut d2 = decoder.clone();
@@ -308,23 +325,23 @@ where
             }
             n
         });
-        a_decode.add(t);
+        m.decode.add(t);
 
         // The stillness detector alone, against the estimator copy's drift of the previous
         // sample (what the estimator gives it).
         let (s, t) = time::<probe::Detect, _, _>(c, || {
             detector.push(rate_dps, drift_dps, cfg.sensor.sample_var_dps2(), None)
         });
-        a_detect.add(t);
-        sink += f32::from(u8::from(s.still));
+        m.detect.add(t);
+        m.sink += f32::from(u8::from(s.still));
 
         // The estimator alone (detector included): model once per window, level update on
         // released still windows, clamp.
-        let (m, t) = time::<probe::Estimate, _, _>(c, || estimator.push(rate_dps, f32::NAN, None));
-        a_estimate.add(t);
-        if let Ok(m) = m {
-            drift_dps = m.drift_dps;
-            sink += m.compensated_dps;
+        let (e, t) = time::<probe::Estimate, _, _>(c, || estimator.push(rate_dps, f32::NAN, None));
+        m.estimate.add(t);
+        if let Ok(e) = e {
+            drift_dps = e.drift_dps;
+            m.sink += e.compensated_dps;
         }
 
         // The resumable denoiser alone (db4, 3 levels, B = 512), every push.
@@ -332,156 +349,171 @@ where
             Ok(Some(v)) => v,
             _ => 0.0,
         });
-        a_denoise.add(t);
+        m.denoise.add(t);
         if denoiser.filled() != 0 {
-            a_denoise_mid.add(t);
+            m.denoise_mid.add(t);
         }
-        sink += d;
+        m.sink += d;
     }
-    // Stack used by all of the above (the stage and the copies live on the stack here).
-    let stack = stack_bytes();
+    Some(())
+}
 
-    let instr_per_sample = (CLOCK_HZ / SAMPLE_RATE_HZ) as u32;
-    let pipe_mean_x10 = cal.instr_x10(a_pipe_all.ticks, a_pipe_all.n) / a_pipe_all.n.max(1);
-    let pipe = pipe_mean_x10 / 10;
-    let worst = cal.instr_x10(u64::from(a_pipe_all.max), 1) / 10;
+/// Instructions per sample available at [`CLOCK_HZ`] and [`SAMPLE_RATE_HZ`].
+const INSTR_PER_SAMPLE: u64 = CLOCK_HZ / SAMPLE_RATE_HZ;
 
-    let mut out = Out(tx);
-    let r = (|| -> core::fmt::Result {
-        writeln!(
-            out,
-            "fog-firmware instruction budget (QEMU mps2-an386, -icount shift=6)"
-        )?;
-        writeln!(
-            out,
-            "calibration: {} instructions (subs/bne loop) = {} ticks; counter overhead {} ticks (removed)",
-            cal.cal_instr, cal.cal_ticks, cal.overhead_ticks
-        )?;
-        writeln!(
-            out,
-            "ticks per instruction x1000 = {}",
-            (cal.cal_ticks * 1000 + cal.cal_instr / 2) / cal.cal_instr.max(1)
-        )?;
-        writeln!(
-            out,
-            "{} samples ({} blocks of {}) at 100 Hz, a {} deg/s turn on samples {}..{}; motion-safe identifier from the embedded image ({} bytes); {} samples taken as still",
-            SAMPLES,
-            SAMPLES / BLOCK,
-            BLOCK,
-            TURN_DPS,
-            TURN.start,
-            TURN.end,
-            IDENTIFIER_IMAGE.len(),
-            still_samples
-        )?;
-        writeln!(out)?;
-        writeln!(
-            out,
-            "| {:<40} | {:<6} | {:>9} | {:>9} |",
-            "stage", "per", "mean", "max"
-        )?;
-        writeln!(out, "|{:-<42}|{:-<8}|{:->11}|{:->11}|", "", "", "", "")?;
-        row(&mut out, &cal, "frame decode (8 bytes)", "frame", &a_decode)?;
-        row(&mut out, &cal, "stillness detector", "sample", &a_detect)?;
-        row(
-            &mut out,
-            &cal,
-            "estimator push (detector included)",
-            "sample",
-            &a_estimate,
-        )?;
-        row(
-            &mut out,
-            &cal,
-            "denoise db4 x3, B=512, resumable",
-            "sample",
-            &a_denoise,
-        )?;
-        row(
-            &mut out,
-            &cal,
+/// Prints the whole budget: the measured table, the goals, the exp and resumable-denoiser
+/// comparisons (measured here) and the worst sample against the sample period. Out of
+/// line: `m` and `cal` stay in memory during the measurement, as they did when this was a
+/// closure of [`run`].
+#[inline(never)]
+fn report<C: TickCounter, W: core::fmt::Write>(
+    out: &mut W,
+    c: &C,
+    cal: &Calibration,
+    m: &Measured,
+    stack: u32,
+) -> core::fmt::Result {
+    let pipe_mean_x10 = cal.instr_x10(m.pipeline.ticks, m.pipeline.n) / m.pipeline.n.max(1);
+    let worst = cal.instr_x10(u64::from(m.pipeline.max), 1) / 10;
+    header(out, cal, m.still_samples)?;
+    stage_table(out, cal, m)?;
+    goals(out, pipe_mean_x10, worst)?;
+    writeln!(out)?;
+    exp_table(c, cal, out)?;
+    writeln!(out)?;
+    resumable::table(c, cal, out)?;
+    writeln!(out)?;
+    writeln!(
+        out,
+        "worst sample: {worst} instructions = {}.{:03} sample periods ({} us at least) at {} MHz, {} Hz",
+        worst / INSTR_PER_SAMPLE,
+        worst * 1000 / INSTR_PER_SAMPLE % 1000,
+        worst * 1_000_000 / CLOCK_HZ,
+        CLOCK_HZ / 1_000_000,
+        SAMPLE_RATE_HZ
+    )?;
+    writeln!(
+        out,
+        "budget-variant stack high-water: {stack} bytes (holds the stage and copies of its parts; see the production figure from the HIL test)"
+    )?;
+    writeln!(
+        out,
+        "(checksum of results, ignore: {})",
+        m.sink.to_bits() & 0xFF
+    )
+}
+
+/// The title, the calibration and what was measured.
+fn header<W: core::fmt::Write>(
+    out: &mut W,
+    cal: &Calibration,
+    still_samples: u32,
+) -> core::fmt::Result {
+    writeln!(
+        out,
+        "fog-firmware instruction budget (QEMU mps2-an386, -icount shift=6)"
+    )?;
+    writeln!(
+        out,
+        "calibration: {} instructions (subs/bne loop) = {} ticks; counter overhead {} ticks (removed)",
+        cal.cal_instr, cal.cal_ticks, cal.overhead_ticks
+    )?;
+    writeln!(
+        out,
+        "ticks per instruction x1000 = {}",
+        (cal.cal_ticks * 1000 + cal.cal_instr / 2) / cal.cal_instr.max(1)
+    )?;
+    writeln!(
+        out,
+        "{} samples ({} blocks of {}) at 100 Hz, a {} deg/s turn on samples {}..{}; motion-safe identifier from the embedded image ({} bytes); {} samples taken as still",
+        SAMPLES,
+        SAMPLES / BLOCK,
+        BLOCK,
+        TURN_DPS,
+        TURN.start,
+        TURN.end,
+        IDENTIFIER_IMAGE.len(),
+        still_samples
+    )?;
+    writeln!(out)
+}
+
+/// Mean and max instructions of each stage, then of the whole pipeline.
+fn stage_table<W: core::fmt::Write>(
+    out: &mut W,
+    cal: &Calibration,
+    m: &Measured,
+) -> core::fmt::Result {
+    writeln!(
+        out,
+        "| {:<40} | {:<6} | {:>9} | {:>9} |",
+        "stage", "per", "mean", "max"
+    )?;
+    writeln!(out, "|{:-<42}|{:-<8}|{:->11}|{:->11}|", "", "", "", "")?;
+    let rows: [(&str, &str, &Acc); 7] = [
+        ("frame decode (8 bytes)", "frame", &m.decode),
+        ("stillness detector", "sample", &m.detect),
+        ("estimator push (detector included)", "sample", &m.estimate),
+        ("denoise db4 x3, B=512, resumable", "sample", &m.denoise),
+        (
             "  of which pushes not completing a block",
             "sample",
-            &a_denoise_mid,
-        )?;
-        row(
-            &mut out,
-            &cal,
-            "stage (estimator + denoiser + status)",
-            "sample",
-            &a_stage,
-        )?;
-        row(
-            &mut out,
-            &cal,
+            &m.denoise_mid,
+        ),
+        ("stage (estimator + denoiser + status)", "sample", &m.stage),
+        (
             "whole pipeline (decode+stage+record)",
             "sample",
-            &a_pipe_all,
-        )?;
-        writeln!(out)?;
+            &m.pipeline,
+        ),
+    ];
+    for (name, per, acc) in rows {
+        row(out, cal, name, per, acc)?;
+    }
+    writeln!(out)
+}
+
+/// The budget line and the goals on the pipeline's mean and worst sample (instructions;
+/// the mean times 10).
+fn goals<W: core::fmt::Write>(out: &mut W, pipe_mean_x10: u64, worst: u64) -> core::fmt::Result {
+    let pipe = pipe_mean_x10 / 10;
+    // pipe_mean_x10 * 100 / instr = percent times 10.
+    let percent_x10 = pipe_mean_x10 * 100 / INSTR_PER_SAMPLE;
+    writeln!(
+        out,
+        "budget at {} MHz, {} Hz: {} instructions per sample available; pipeline uses {} ({}.{} %)",
+        CLOCK_HZ / 1_000_000,
+        SAMPLE_RATE_HZ,
+        INSTR_PER_SAMPLE,
+        pipe,
+        percent_x10 / 10,
+        percent_x10 % 10
+    )?;
+    if pipe <= GOAL_PIPELINE_INSTR {
         writeln!(
             out,
-            "budget at {} MHz, {} Hz: {} instructions per sample available; pipeline uses {} ({}.{} %)",
-            CLOCK_HZ / 1_000_000,
-            SAMPLE_RATE_HZ,
-            instr_per_sample,
-            pipe,
-            // pipe_mean_x10 * 100 / instr = percent times 10.
-            pipe_mean_x10 * 100 / u64::from(instr_per_sample) / 10,
-            pipe_mean_x10 * 100 / u64::from(instr_per_sample) % 10
+            "goal <= {GOAL_PIPELINE_INSTR} instructions per sample (mean): met, {} to spare",
+            GOAL_PIPELINE_INSTR - pipe
         )?;
-        if pipe <= GOAL_PIPELINE_INSTR {
-            writeln!(
-                out,
-                "goal <= {GOAL_PIPELINE_INSTR} instructions per sample (mean): met, {} to spare",
-                GOAL_PIPELINE_INSTR - pipe
-            )?;
+    } else {
+        writeln!(
+            out,
+            "goal <= {GOAL_PIPELINE_INSTR} instructions per sample (mean): NOT met, over by {}",
+            pipe - GOAL_PIPELINE_INSTR
+        )?;
+    }
+    let ratio_x10 = worst * 10 / pipe.max(1);
+    writeln!(
+        out,
+        "goal worst sample <= {GOAL_WORST_OVER_MEAN}x the mean: {} ({worst} / {pipe} = {}.{}x)",
+        if worst <= GOAL_WORST_OVER_MEAN * pipe {
+            "met"
         } else {
-            writeln!(
-                out,
-                "goal <= {GOAL_PIPELINE_INSTR} instructions per sample (mean): NOT met, over by {}",
-                pipe - GOAL_PIPELINE_INSTR
-            )?;
-        }
-        let ratio_x10 = worst * 10 / pipe.max(1);
-        writeln!(
-            out,
-            "goal worst sample <= {GOAL_WORST_OVER_MEAN}x the mean: {} ({worst} / {pipe} = {}.{}x)",
-            if worst <= GOAL_WORST_OVER_MEAN * pipe {
-                "met"
-            } else {
-                "NOT met"
-            },
-            ratio_x10 / 10,
-            ratio_x10 % 10
-        )?;
-        writeln!(out)?;
-        exp_table(c, &cal, &mut out)?;
-        writeln!(out)?;
-        resumable::table(c, &cal, &mut out)?;
-        writeln!(out)?;
-        writeln!(
-            out,
-            "worst sample: {worst} instructions = {}.{:03} sample periods ({} us at least) at {} MHz, {} Hz",
-            worst / u64::from(instr_per_sample),
-            worst * 1000 / u64::from(instr_per_sample) % 1000,
-            worst * 1_000_000 / CLOCK_HZ,
-            CLOCK_HZ / 1_000_000,
-            SAMPLE_RATE_HZ
-        )?;
-        writeln!(
-            out,
-            "budget-variant stack high-water: {stack} bytes (holds the stage and copies of its parts; see the production figure from the HIL test)"
-        )?;
-        writeln!(
-            out,
-            "(checksum of results, ignore: {})",
-            sink.to_bits() & 0xFF
-        )?;
-        Ok(())
-    })();
-    let _ = nb::block!(out.0.flush());
-    r.is_ok()
+            "NOT met"
+        },
+        ratio_x10 / 10,
+        ratio_x10 % 10
+    )
 }
 
 /// `core::fmt::Write` over the UART (bytes sent as they are).
