@@ -112,12 +112,12 @@ def sensor_temp(rng, temp):
 
 
 def smooth_derivative(temp, dt, win_s=30.0):
+    """dT/dt: a 30-s moving mean, the window shrunk to the samples available at the ends
+    (falling back to the raw series there made a jump, hence outliers in the drift of a
+    strong dT/dt link, 15 s from each end), then np.gradient."""
     k = max(1, int(round(win_s / dt)))
-    ker = np.ones(k) / k
-    sm = np.convolve(temp, ker, mode="same")
-    # Edges: fall back to the raw series.
-    sm[: k // 2 + 1] = temp[: k // 2 + 1]
-    sm[-(k // 2 + 1):] = temp[-(k // 2 + 1):]
+    ker = np.ones(k)
+    sm = np.convolve(temp, ker, mode="same") / np.convolve(np.ones(len(temp)), ker, mode="same")
     return np.gradient(sm, dt)
 
 
