@@ -114,7 +114,9 @@ def sensor_temp(rng, temp):
 def smooth_derivative(temp, dt, win_s=30.0):
     """dT/dt: a 30-s moving mean, the window shrunk to the samples available at the ends
     (falling back to the raw series there made a jump, hence outliers in the drift of a
-    strong dT/dt link, 15 s from each end), then np.gradient."""
+    strong dT/dt link, 15 s from each end), then np.gradient. The one-sided means at the ends
+    lag: a linear temperature shows half its slope over the first and last 15 s (the drift
+    is made from this same series, so the truth is what it says)."""
     k = max(1, int(round(win_s / dt)))
     ker = np.ones(k)
     sm = np.convolve(temp, ker, mode="same") / np.convolve(np.ones(len(temp)), ker, mode="same")

@@ -587,9 +587,13 @@ fn chi2_sf(x: f64, k: f64) -> f64 {
     ChiSquared::new(k).map_or(1.0, |c| c.sf(x.max(0.0)))
 }
 
-/// One-sided normal score of a p-value.
+/// One-sided normal score of a p-value (p clamped to [1e-300, 1 - 1e-16]: finite scores;
+/// 0 for a NaN p).
 pub fn z_of_p(p: f64) -> f64 {
-    let p = p.clamp(1e-300, 1.0);
+    if p.is_nan() {
+        return 0.0;
+    }
+    let p = p.clamp(1e-300, 1.0 - 1e-16);
     -Normal::standard().inverse_cdf(p)
 }
 

@@ -947,37 +947,49 @@ fn fit_sine(real: &Rec, ranges: &[(usize, usize)]) -> (f64, f64, f64) {
 mod tests {
     use super::*;
 
-    /// What a candidate adds beyond the baseline, sample by sample: ramp, warm-up, line,
-    /// scale-factor error on the reference and the temperature link.
+    /// What a candidate adds beyond the baseline is what its simulation adds: the same seed
+    /// (same noise) with and without ramp, warm-up, line, scale-factor error and both
+    /// temperature links, on a record with a reference rate and a temperature.
     #[test]
-    fn signal_beyond_is_what_the_candidate_adds() {
-        let n = 5;
+    fn signal_beyond_is_what_the_simulation_adds() {
+        let (n, dt) = (400, 0.1);
+        let t_s: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
         let real = Rec {
             name: "t".into(),
-            t_s: (0..n).map(|i| i as f64).collect(),
             rate_dps: vec![0.0; n],
-            temp_c: Some(vec![20.0, 21.0, 22.0, 23.0, 24.0]),
-            ref_dps: Some(vec![0.0, 10.0, -10.0, 5.0, 0.0]),
-            dt_s: 1.0,
+            temp_c: Some(t_s.iter().map(|t| 20.0 + 0.05 * t).collect()),
+            ref_dps: Some(t_s.iter().map(|t| 10.0 * (0.3 * t).sin()).collect()),
+            t_s,
+            dt_s: dt,
         };
-        let base = Spec::from_model(&Model::default(), true);
+        let model = Model {
+            sample_rate_hz: Some(1.0 / dt),
+            ..Default::default()
+        };
+        let mut base = Spec::from_model(&model, true);
+        base.dtemp_c_per_s = std::sync::Arc::new(vec![0.05; n]);
         let mut c = base.clone();
-        c.model.noise.rate_ramp_dps_per_s = 1e-3;
-        c.warmup = Some((0.01, 2.0));
-        c.sine = Some((0.002, 0.25, 0.0));
+        c.model.noise.rate_ramp_dps_per_s = 1e-4;
+        c.warmup = Some((0.01, 5.0));
+        c.sine = Some((0.002, 0.25, 0.3));
         c.sf_ppm = 100.0;
         c.temp_dps_per_c = 1e-4;
         c.temp_ref_c = 22.0;
+        c.temp_rate_dps_per_c_per_s = 0.02;
+        let (with, without) = match (c.simulate(&real, 7, 1.0), base.simulate(&real, 7, 1.0)) {
+            (Ok(a), Ok(b)) => (a, b),
+            _ => panic!("simulation failed"),
+        };
         let s = c.signal_beyond(&base, &real);
+        assert_eq!(with.raw.len(), n);
         for (i, v) in s.iter().enumerate() {
-            let t = i as f64;
-            let want = 1e-3 * t
-                + 0.01 * (-t / 2.0).exp()
-                + 0.002 * (std::f64::consts::TAU * 0.25 * t).sin()
-                + 1e-4 * real.ref_dps.as_ref().map_or(0.0, |r| r[i])
-                + 1e-4 * (20.0 + t - 22.0);
-            assert!((v - want).abs() < 1e-15, "{i}: {v} vs {want}");
+            let sim = with.raw[i] - without.raw[i];
+            assert!((v - sim).abs() < 1e-9, "{i}: {v} vs {sim}");
         }
+        assert!(
+            s.iter().any(|v| v.abs() > 1e-3),
+            "the signal is not trivial"
+        );
         assert!(base.signal_beyond(&base, &real).iter().all(|&v| v == 0.0));
     }
 }

@@ -14,6 +14,8 @@
 //!   round (the first round's fitted baseline when there was none): `quantization`
 //!   (rounding), `markov` (a Gauss-Markov term), `white_noise`, `bias_instability`,
 //!   `rate_random_walk` (added in quadrature);
+//! - an effect that enters a fitted baseline (`rate_ramp`, the first `warmup`, `markov`)
+//!   brings the N, B, K its candidate was refitted with (`refit_*`);
 //! - `dropouts` cannot be undone: it leaves the vocabulary.
 //!
 //! A record changed under a model that rounds is rounded again to the model's quantum.
@@ -57,6 +59,22 @@ fn p(params: &Option<BTreeMap<String, f64>>, k: &str) -> f64 {
         .unwrap_or(0.0)
 }
 
+/// An effect that enters the model takes the noise terms its candidate was fitted with
+/// (`refit_*`: a fitted baseline refitted together with it), so that the next round does
+/// not simulate what the first fit absorbed twice; a user model's candidates carry none.
+fn take_refit_noise(m: &mut Model, pr: &Option<BTreeMap<String, f64>>) {
+    let get = |k: &str| pr.as_ref().and_then(|x| x.get(k).copied());
+    if let (Some(n), Some(b), Some(k)) = (
+        get("refit_arw_dps_per_rthz"),
+        get("refit_bias_instability_dps"),
+        get("refit_rrw_dps_per_s_rthz"),
+    ) {
+        m.noise.arw_dps_per_rthz = n;
+        m.noise.bias_instability_dps = b;
+        m.noise.rrw_dps_per_s_rthz = k;
+    }
+}
+
 /// Applies a named effect: the record for the next round, the model (if it changed) and
 /// what was done, in words.
 fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Model>, String) {
@@ -72,6 +90,7 @@ fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Mod
     let t = &rec.t_s;
     let what = match e {
         Effect::RateRamp => {
+            take_refit_noise(&mut m, pr);
             m.noise.rate_ramp_dps_per_s += p(pr, "rate_ramp_dps_per_s");
             format!(
                 "model's rate ramp {:.4} deg/h/h",
@@ -79,6 +98,7 @@ fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Mod
             )
         }
         Effect::Warmup if m.bias.warmup_dps == 0.0 => {
+            take_refit_noise(&mut m, pr);
             m.bias.warmup_dps = p(pr, "warmup_dps");
             m.bias.warmup_tau_s = p(pr, "warmup_tau_s").max(1e-6);
             format!(
@@ -151,6 +171,7 @@ fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Mod
             format!("model rounds to {:.6e} deg/s", m.quantization.quantum_dps)
         }
         Effect::Markov => {
+            take_refit_noise(&mut m, pr);
             m.noise.gm_sigma_dps = p(pr, "gm_sigma_dps");
             m.noise.gm_tau_s = p(pr, "gm_tau_s").max(1e-6);
             format!(
