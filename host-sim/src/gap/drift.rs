@@ -528,11 +528,15 @@ fn coef_profile(prob: &Problem, x: &[Vec<f64>], k: usize, f: &NoiseFit) -> Optio
     // The fit's shares and the null's grid: a share the fit drove to nothing (a flat
     // likelihood in its logit) is tried again at every point.
     let starts: Vec<[f64; 2]> = std::iter::once(f.u).chain(share_grid()).collect();
-    let passes = |b: f64| -> bool {
-        let held = Problem {
-            d: prob.d.iter().zip(xk).map(|(d, x)| d - b * x).collect(),
-            unit: prob.unit.clone(),
-        };
+    // One problem for every point: its data are the record less `b` times the regressor.
+    let mut held = Problem {
+        d: prob.d.clone(),
+        unit: prob.unit.clone(),
+    };
+    let mut passes = |b: f64| -> bool {
+        for ((h, d), x) in held.d.iter_mut().zip(&prob.d).zip(xk) {
+            *h = d - b * x;
+        }
         held.fit(&rest, &starts).is_some_and(|g| g.loglik >= target)
     };
     let mut out = [beta, beta];

@@ -625,8 +625,8 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
 }
 
 /// Refits the baseline's noise terms (N, B, K) on `less`, the record with the candidate's
-/// signal taken out, and reports them in `p` (`refit_*`); the spec keeps its noise when the
-/// fit fails.
+/// signal taken out, and reports them in `p` ([`REFIT_KEYS`]); the spec keeps its noise
+/// when the fit fails.
 fn refit_noise(
     spec: &mut Spec,
     less: &Rec,
@@ -635,13 +635,7 @@ fn refit_noise(
     p: &mut Params,
 ) {
     if let Ok(m) = super::fit_baseline(less, layout, fit_ranges) {
-        let n = &mut spec.model.noise;
-        n.arw_dps_per_rthz = m.noise.arw_dps_per_rthz;
-        n.bias_instability_dps = m.noise.bias_instability_dps;
-        n.rrw_dps_per_s_rthz = m.noise.rrw_dps_per_s_rthz;
-        p.insert("refit_arw_dps_per_rthz".into(), n.arw_dps_per_rthz);
-        p.insert("refit_bias_instability_dps".into(), n.bias_instability_dps);
-        p.insert("refit_rrw_dps_per_s_rthz".into(), n.rrw_dps_per_s_rthz);
+        take_noise_terms(&mut spec.model.noise, &m.noise, p);
     }
 }
 
@@ -661,16 +655,35 @@ fn short_joint_markov<'a>(ctx: &'a FitCtx, t_rec_s: f64) -> Option<&'a Model> {
 /// (`joint`): its noise terms replace the baseline's in `n`.
 fn set_joint_markov(n: &mut Noise, joint: &Model, p: &mut Params) {
     let m = &joint.noise;
-    n.arw_dps_per_rthz = m.arw_dps_per_rthz;
-    n.bias_instability_dps = m.bias_instability_dps;
-    n.rrw_dps_per_s_rthz = m.rrw_dps_per_s_rthz;
+    take_noise_terms(n, m, p);
     n.gm_sigma_dps = m.gm_sigma_dps;
     n.gm_tau_s = m.gm_tau_s;
     p.insert("gm_sigma_dps".into(), m.gm_sigma_dps);
     p.insert("gm_tau_s".into(), m.gm_tau_s);
-    p.insert("refit_arw_dps_per_rthz".into(), m.arw_dps_per_rthz);
-    p.insert("refit_bias_instability_dps".into(), m.bias_instability_dps);
-    p.insert("refit_rrw_dps_per_s_rthz".into(), m.rrw_dps_per_s_rthz);
+}
+
+/// Parameter keys of a candidate's refitted N, B, K, in that order (`--rounds` carries
+/// them into the next round's model).
+pub const REFIT_KEYS: [&str; 3] = [
+    "refit_arw_dps_per_rthz",
+    "refit_bias_instability_dps",
+    "refit_rrw_dps_per_s_rthz",
+];
+
+/// Takes the noise terms N, B, K of `from` into `n` and reports them in `p`
+/// ([`REFIT_KEYS`]).
+fn take_noise_terms(n: &mut Noise, from: &Noise, p: &mut Params) {
+    n.arw_dps_per_rthz = from.arw_dps_per_rthz;
+    n.bias_instability_dps = from.bias_instability_dps;
+    n.rrw_dps_per_s_rthz = from.rrw_dps_per_s_rthz;
+    let values = [
+        n.arw_dps_per_rthz,
+        n.bias_instability_dps,
+        n.rrw_dps_per_s_rthz,
+    ];
+    for (k, v) in REFIT_KEYS.iter().zip(values) {
+        p.insert((*k).into(), v);
+    }
 }
 
 /// The `markov` candidate as the Gauss-Markov term of [`markov_grid`] added to `n`

@@ -60,15 +60,13 @@ fn p(params: &Option<BTreeMap<String, f64>>, k: &str) -> f64 {
 }
 
 /// An effect that enters the model takes the noise terms its candidate was fitted with
-/// (`refit_*`: a fitted baseline refitted together with it), so that the next round does
-/// not simulate what the first fit absorbed twice; a user model's candidates carry none.
+/// ([`super::effects::REFIT_KEYS`]: a fitted baseline refitted together with it), so that
+/// the next round does not simulate what the first fit absorbed twice; a user model's
+/// candidates carry none.
 fn take_refit_noise(m: &mut Model, pr: &Option<BTreeMap<String, f64>>) {
     let get = |k: &str| pr.as_ref().and_then(|x| x.get(k).copied());
-    if let (Some(n), Some(b), Some(k)) = (
-        get("refit_arw_dps_per_rthz"),
-        get("refit_bias_instability_dps"),
-        get("refit_rrw_dps_per_s_rthz"),
-    ) {
+    let [n_key, b_key, k_key] = super::effects::REFIT_KEYS;
+    if let (Some(n), Some(b), Some(k)) = (get(n_key), get(b_key), get(k_key)) {
         m.noise.arw_dps_per_rthz = n;
         m.noise.bias_instability_dps = b;
         m.noise.rrw_dps_per_s_rthz = k;
