@@ -725,7 +725,11 @@ def main():
                      "bias_dps_per_c": ("bias_deg_h_per_c", 3600.0),
                      "bias_dps_per_c_per_s": ("bias_deg_h_per_c_per_s", 3600.0),
                      "warmup_dps": ("warmup_deg_h", 3600.0),
-                     "warmup_tau_s": ("warmup_tau_s", 1.0)}
+                     "warmup_tau_s": ("warmup_tau_s", 1.0),
+                     "gm_sigma_dps": ("gm_sigma_deg_h", 3600.0),
+                     "gm_tau_s": ("gm_tau_s", 1.0),
+                     "sine_amplitude_dps": ("sine_amplitude_dps", 1.0),
+                     "sine_freq_hz": ("sine_freq_hz", 1.0)}
         man_by = {m["name"]: m for m in man}
         cov, tot, miss_cov = 0, 0, []
         for r in ok:

@@ -425,11 +425,12 @@ pub struct DriftModel {
     pub fit: NoiseFit,
     /// The warm-up's time constant, s.
     pub tau_s: Option<f64>,
-    /// The warm-up's 95 % profile-likelihood intervals (`warmup_profile`): amplitude
-    /// (deg/s) and time constant (s).
+    /// The warm-up's 95 % profile-likelihood intervals (`warmup_profile`, projections of the
+    /// joint region): amplitude (deg/s) and time constant (s).
     pub warmup_ci95: Option<WarmupIntervals>,
     /// The ramp's and the temperature links' 95 % profile-likelihood intervals, one per
-    /// coefficient in the fit's order (`coef_profile`: the noise re-fitted at every point).
+    /// coefficient in the fit's order (`coef_profile`: the noise re-fitted at every point;
+    /// the two links' are projections of their joint region).
     pub coef_ci95: Option<Vec<[f64; 2]>>,
 }
 
@@ -442,19 +443,27 @@ pub struct WarmupIntervals {
     pub tau_s: [f64; 2],
 }
 
-/// Half the 95 % quantile of chi-square(1): the log-likelihood drop of a 95 % profile
-/// interval.
-const PROFILE_DROP_95: f64 = 1.920_729;
+/// Half the 95 % quantiles of chi-square(1) and chi-square(2): the log-likelihood drop
+/// that bounds the joint 95 % likelihood-ratio region of an effect's 1 or 2 parameters.
+/// Every stated interval is that region's projection on one parameter, so all the
+/// effect's parameters lie inside their intervals together with at least 95 % probability
+/// (asymptotically); with one parameter it is the usual profile interval.
+const PROFILE_DROP_95: [f64; 2] = [1.920_729, 2.995_732];
+
+/// The drop for an effect of `k` parameters (1 or 2; more are held at 2's).
+pub(super) fn profile_drop_95(k: usize) -> f64 {
+    PROFILE_DROP_95[k.clamp(1, 2) - 1]
+}
 
 /// The warm-up's 95 % profile-likelihood intervals. The amplitude's standard error at the
 /// best tau ignores how uncertain tau is (amplitude and tau trade off), so the interval is
 /// taken over every tau of the grid instead: at the fitted noise shares `u`, each tau's
 /// regression gives the concentrated log-likelihood of any amplitude `A` in closed form,
 /// `L_tau(A) = -n/2 ln(q(A)/n) + const` with `q(A) = q_min + (A - beta)^2 / ginv`; the
-/// interval is the hull of the amplitudes with `L_tau(A) >= L_best - 1.92` over the grid,
+/// interval is the hull of the amplitudes with `L_tau(A) >= L_best - 3.00` over the grid,
 /// and the tau interval the hull of the grid cells whose point has `L_tau(beta) >= L_best -
-/// 1.92`. The noise
-/// shares are held at the fit's (not re-optimised per tau).
+/// 3.00`: the projections of the joint 95 % region of (A, tau) (`PROFILE_DROP_95`). The
+/// noise shares are held at the fit's (not re-optimised per tau).
 fn warmup_profile(
     prob: &Problem,
     u: [f64; 2],
@@ -476,7 +485,7 @@ fn warmup_profile(
         [f64::INFINITY, f64::NEG_INFINITY],
     );
     for (tau, f) in &fits {
-        let r = 2.0 * (f.loglik - best + PROFILE_DROP_95) / n;
+        let r = 2.0 * (f.loglik - best + profile_drop_95(2)) / n;
         let (Some(&beta), Some(&se)) = (f.beta.first(), f.beta_se.first()) else {
             continue;
         };
@@ -504,7 +513,8 @@ const PROFILE_BISECTIONS: usize = 10;
 /// The 95 % profile-likelihood interval of coefficient `k` of the model with regressors
 /// `x` fitted as `f`: the coefficient held at `b`, the other coefficients, the noise scale
 /// and the three noise shares re-fitted (from the fit's shares), and the interval the `b`
-/// whose log-likelihood is within 1.92 of the fit's. The Wald interval (`1.96` standard
+/// whose log-likelihood is within `profile_drop_95(x.len())` of the fit's (1.92 for one
+/// coefficient; 3.00 for two, the projection of their joint region). The Wald interval (`1.96` standard
 /// errors at the fitted noise) ignores how a drift and the record's own slow noise trade
 /// off; re-fitting the noise at each `b` lets the random walk and flicker take what they
 /// can of a different drift, which widens the interval where they can. Each side: doubling
@@ -524,7 +534,7 @@ fn coef_profile(prob: &Problem, x: &[Vec<f64>], k: usize, f: &NoiseFit) -> Optio
         .filter(|(i, _)| *i != k)
         .map(|(_, c)| c.clone())
         .collect();
-    let target = f.loglik - PROFILE_DROP_95;
+    let target = f.loglik - profile_drop_95(x.len());
     // The fit's shares and the null's grid: a share the fit drove to nothing (a flat
     // likelihood in its logit) is tried again at every point.
     let starts: Vec<[f64; 2]> = std::iter::once(f.u).chain(share_grid()).collect();
@@ -789,15 +799,14 @@ impl DriftTests {
         let m = self.models.iter().find(|m| m.effect == e)?;
         let mut p = BTreeMap::new();
         let mut ci = BTreeMap::new();
-        // The profile interval where there is one, else the Wald interval.
+        // The profile interval where there is one, else the Wald interval (of the joint
+        // region's projection).
         let mut put = |k: &str, i: usize| {
             let (v, se) = (m.fit.beta[i], m.fit.beta_se[i]);
             p.insert(k.to_string(), v);
             let profile = m.coef_ci95.as_ref().and_then(|c| c.get(i)).copied();
-            ci.insert(
-                k.to_string(),
-                profile.unwrap_or([v - 1.96 * se, v + 1.96 * se]),
-            );
+            let half = (2.0 * profile_drop_95(m.params)).sqrt() * se;
+            ci.insert(k.to_string(), profile.unwrap_or([v - half, v + half]));
         };
         match e {
             Effect::RateRamp => put("rate_ramp_dps_per_s", 0),

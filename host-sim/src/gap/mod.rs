@@ -1240,8 +1240,9 @@ fn gap_rule_decision(c: &Candidate, gaps: &Gaps) -> Named {
 }
 
 /// A named drift effect's parameters from the drift tests' whole-record likelihood fit, and
-/// their 95 % intervals (GLS standard errors at the fitted noise), returned; a named markov
-/// effect's from the markov test's Whittle fit. Added to `params`.
+/// their 95 % intervals (profile likelihood), returned; a named markov effect's from the
+/// markov test's Whittle fit, with the projections of its joint 95 % region. Added to
+/// `params`.
 fn add_test_params(
     params: &mut Option<BTreeMap<String, f64>>,
     named: Option<Effect>,
@@ -1258,6 +1259,11 @@ fn add_test_params(
         let p = params.get_or_insert_with(BTreeMap::new);
         p.insert("gm_sigma_dps".into(), m.gm_sigma_dps);
         p.insert("gm_tau_s".into(), m.gm_tau_s);
+        if let Some((sigma, tau)) = m.ci95 {
+            let ci = params_ci95.get_or_insert_with(BTreeMap::new);
+            ci.insert("gm_sigma_dps".into(), sigma);
+            ci.insert("gm_tau_s".into(), tau);
+        }
     }
     params_ci95
 }
@@ -1367,7 +1373,10 @@ pub fn diagnose(
     } = decide(&choice, &tests.all, &gaps);
     let best_effect = choice.best.map(|c| c.effect);
     let named = best_effect.filter(|_| effect != "none");
-    let params_ci95 = add_test_params(&mut params, named, &tests);
+    let mut params_ci95 = add_test_params(&mut params, named, &tests);
+    if let (Some(Effect::Sinusoid), Some(p)) = (named, &params) {
+        params_ci95 = effects::sine_intervals(ctx.real, &ctx.fit_ranges, p);
+    }
     let curves = report_curves(
         &s.layout,
         s.resid.dt_s,

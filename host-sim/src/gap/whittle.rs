@@ -66,10 +66,13 @@ pub struct Fit {
     pub c: Vec<f64>,
 }
 
-fn loglik(b: &Binned, cols: &[&[f64]], c: &[f64], i: &[f64]) -> f64 {
+/// The Whittle log-likelihood of the bins' means `i` under the PSD `fixed + sum c_j col_j`
+/// (`fixed` empty: none).
+fn loglik(b: &Binned, cols: &[&[f64]], fixed: &[f64], c: &[f64], i: &[f64]) -> f64 {
     let mut l = 0.0;
     for k in 0..b.m.len() {
-        let s: f64 = cols.iter().zip(c).map(|(col, c)| col[k] * c).sum();
+        let s: f64 = fixed.get(k).copied().unwrap_or(0.0)
+            + cols.iter().zip(c).map(|(col, c)| col[k] * c).sum::<f64>();
         if s <= 0.0 || !s.is_finite() {
             return f64::NEG_INFINITY;
         }
@@ -79,8 +82,9 @@ fn loglik(b: &Binned, cols: &[&[f64]], c: &[f64], i: &[f64]) -> f64 {
 }
 
 /// Maximum Whittle likelihood over non-negative variances (projected Fisher scoring with
-/// step halving), columns scaled to the data.
-fn fit_cols(b: &Binned, cols: &[&[f64]], i: &[f64]) -> Fit {
+/// step halving), columns scaled to the data; `fixed` (empty: none) a PSD term held as it
+/// is.
+fn fit_cols(b: &Binned, cols: &[&[f64]], fixed: &[f64], i: &[f64]) -> Fit {
     let p = cols.len();
     let nb = b.m.len();
     // Start: every term explains an equal share of the mean level.
@@ -97,12 +101,13 @@ fn fit_cols(b: &Binned, cols: &[&[f64]], i: &[f64]) -> Fit {
         })
         .collect();
     let scale = c.clone();
-    let mut l = loglik(b, cols, &c, i);
+    let mut l = loglik(b, cols, fixed, &c, i);
     for _ in 0..60 {
         let mut g = vec![0.0; p];
         let mut f = vec![vec![0.0; p + 1]; p];
         for k in 0..nb {
-            let s: f64 = cols.iter().zip(&c).map(|(col, c)| col[k] * c).sum();
+            let s: f64 = fixed.get(k).copied().unwrap_or(0.0)
+                + cols.iter().zip(&c).map(|(col, c)| col[k] * c).sum::<f64>();
             let r = b.m[k] * (i[k] - s) / (s * s);
             for a in 0..p {
                 let xa = cols[a][k] * scale[a];
@@ -125,7 +130,7 @@ fn fit_cols(b: &Binned, cols: &[&[f64]], i: &[f64]) -> Fit {
             let cand: Vec<f64> = (0..p)
                 .map(|a| (c[a] + t * step[a] * scale[a]).max(0.0))
                 .collect();
-            let lc = loglik(b, cols, &cand, i);
+            let lc = loglik(b, cols, fixed, &cand, i);
             if lc > l {
                 improved = lc - l > 1e-9 * l.abs().max(1.0);
                 c = cand;
@@ -233,7 +238,7 @@ impl Binned {
 
     fn null(&self, i: &[f64]) -> Fit {
         let cols: Vec<&[f64]> = self.base.iter().map(|v| v.as_slice()).collect();
-        fit_cols(self, &cols, i)
+        fit_cols(self, &cols, &[], i)
     }
 
     /// The best Gauss-Markov alternative: (index of T, fit).
@@ -246,11 +251,82 @@ impl Binned {
                     .map(|v| v.as_slice())
                     .chain(std::iter::once(self.gm[t].as_slice()))
                     .collect();
-                (t, fit_cols(self, &cols, i))
+                (t, fit_cols(self, &cols, &[], i))
             })
             .max_by(|a, b| a.1.loglik.total_cmp(&b.1.loglik))
     }
+
+    /// The baseline refitted with the Gauss-Markov term of correlation time index `t` held
+    /// at variance `s2`: its log-likelihood.
+    fn held(&self, t: usize, s2: f64, i: &[f64]) -> f64 {
+        let fixed: Vec<f64> = self.gm[t].iter().map(|g| g * s2).collect();
+        let cols: Vec<&[f64]> = self.base.iter().map(|v| v.as_slice()).collect();
+        fit_cols(self, &cols, &fixed, i).loglik
+    }
+
+    /// The projections of the joint 95 % likelihood-ratio region of (sigma, T) (drop
+    /// [`super::drift::profile_drop_95`]`(2)` from the best fit `best`): T's interval the
+    /// hull of the grid cells whose best fit passes (half a grid step either side), sigma's
+    /// the hull over those cells of the variances whose held fit passes (each side from the
+    /// cell's fit: doubling, then bisection). Sigma in deg/s, T in s.
+    fn intervals(&self, best: f64, taus: &[f64], i: &[f64]) -> Option<([f64; 2], [f64; 2])> {
+        let target = best - super::drift::profile_drop_95(2);
+        let (mut sig, mut tau) = (
+            [f64::INFINITY, f64::NEG_INFINITY],
+            [f64::INFINITY, f64::NEG_INFINITY],
+        );
+        for (t, &tau_s) in taus.iter().enumerate() {
+            let cols: Vec<&[f64]> = self
+                .base
+                .iter()
+                .map(|v| v.as_slice())
+                .chain(std::iter::once(self.gm[t].as_slice()))
+                .collect();
+            let f = fit_cols(self, &cols, &[], i);
+            let Some(&s2) = f.c.get(3) else { continue };
+            if f.loglik < target || s2 <= 0.0 {
+                continue;
+            }
+            tau = [tau[0].min(tau_s), tau[1].max(tau_s)];
+            let lo = if self.held(t, 0.0, i) >= target {
+                0.0
+            } else {
+                let (mut inside, mut outside) = (s2, 0.0_f64);
+                for _ in 0..PROFILE_BISECTIONS {
+                    let mid = (inside * outside.max(s2 * 1e-6)).sqrt();
+                    if self.held(t, mid, i) >= target {
+                        inside = mid;
+                    } else {
+                        outside = mid;
+                    }
+                }
+                outside
+            };
+            let (mut inside, mut outside) = (s2, None);
+            for _ in 0..PROFILE_BISECTIONS {
+                match outside {
+                    None if self.held(t, inside * 4.0, i) >= target => inside *= 4.0,
+                    None => outside = Some(inside * 4.0),
+                    Some(o) => {
+                        let mid = (inside * o).sqrt();
+                        if self.held(t, mid, i) >= target {
+                            inside = mid;
+                        } else {
+                            outside = Some(mid);
+                        }
+                    }
+                }
+            }
+            let hi = outside.unwrap_or(f64::INFINITY);
+            sig = [sig[0].min(lo.sqrt()), sig[1].max(hi.sqrt())];
+        }
+        let half_step = 10f64.powf(0.5 / TAUS_PER_DECADE);
+        (sig[0] <= sig[1]).then_some((sig, [tau[0] / half_step, tau[1] * half_step]))
+    }
 }
+
+/// Steps of each side's search in [`Binned::intervals`].
+const PROFILE_BISECTIONS: usize = 14;
 
 fn tau_grid(dt_s: f64, t_total_s: f64) -> Vec<f64> {
     let mut v = Vec::new();
@@ -279,7 +355,14 @@ pub struct MarkovTest {
     pub null_arw_bi_rrw: [f64; 3],
     /// Bins used.
     pub bins: usize,
+    /// The projections of the joint 95 % region of (sigma deg/s, T s) (`Binned::intervals`);
+    /// computed only where the test's p-value is below [`INTERVALS_BELOW_P`].
+    pub ci95: Option<([f64; 2], [f64; 2])>,
 }
+
+/// The p-value below which the test's intervals are computed (a term that is named needs
+/// p < 0.006; the profile costs a few hundred refits).
+pub const INTERVALS_BELOW_P: f64 = 0.05;
 
 impl MarkovTest {
     /// Runs the test on the rate `y` (deg/s, sample period `dt_s`); deterministic (`seed`).
@@ -329,14 +412,21 @@ impl MarkovTest {
         }
         let dof = 0.5 * (lo + hi);
         let p_value = ChiSquared::new(dof).map_or(1.0, |c| c.sf(lr));
+        let taus = tau_grid(dt_s, t_total);
+        let ci95 = if p_value < INTERVALS_BELOW_P {
+            b.intervals(f1.loglik, &taus, &b.i)
+        } else {
+            None
+        };
         Some(MarkovTest {
             lr,
             p_value,
             tail_dof: dof,
-            gm_tau_s: tau_grid(dt_s, t_total)[ti],
+            gm_tau_s: taus[ti],
             gm_sigma_dps: f1.c[3].sqrt(),
             null_arw_bi_rrw: [f0.c[0].sqrt(), f0.c[1].sqrt(), f0.c[2].sqrt()],
             bins: b.m.len(),
+            ci95,
         })
     }
 
@@ -400,5 +490,13 @@ mod tests {
         assert!(t.p_value < 1e-4, "{t:?}");
         assert!((2.0..=12.0).contains(&t.gm_tau_s), "{t:?}");
         assert!((t.gm_sigma_dps / sigma - 1.0).abs() < 0.5, "{t:?}");
+        // The joint region's projections hold the estimate and the truth.
+        let (s_ci, t_ci) = t.ci95.expect("intervals of a passed test");
+        assert!(
+            s_ci[0] <= t.gm_sigma_dps && t.gm_sigma_dps <= s_ci[1],
+            "{t:?}"
+        );
+        assert!(s_ci[0] <= sigma && sigma <= s_ci[1], "{t:?}");
+        assert!(t_ci[0] <= 5.0 && 5.0 <= t_ci[1], "{t:?}");
     }
 }
