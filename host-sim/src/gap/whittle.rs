@@ -241,18 +241,21 @@ impl Binned {
         fit_cols(self, &cols, &[], i)
     }
 
+    /// The baseline plus the Gauss-Markov term of correlation time index `t`, fitted.
+    fn alt_at(&self, t: usize, i: &[f64]) -> Fit {
+        let cols: Vec<&[f64]> = self
+            .base
+            .iter()
+            .map(|v| v.as_slice())
+            .chain(std::iter::once(self.gm[t].as_slice()))
+            .collect();
+        fit_cols(self, &cols, &[], i)
+    }
+
     /// The best Gauss-Markov alternative: (index of T, fit).
     fn alt(&self, i: &[f64]) -> Option<(usize, Fit)> {
         (0..self.gm.len())
-            .map(|t| {
-                let cols: Vec<&[f64]> = self
-                    .base
-                    .iter()
-                    .map(|v| v.as_slice())
-                    .chain(std::iter::once(self.gm[t].as_slice()))
-                    .collect();
-                (t, fit_cols(self, &cols, &[], i))
-            })
+            .map(|t| (t, self.alt_at(t, i)))
             .max_by(|a, b| a.1.loglik.total_cmp(&b.1.loglik))
     }
 
@@ -276,13 +279,7 @@ impl Binned {
             [f64::INFINITY, f64::NEG_INFINITY],
         );
         for (t, &tau_s) in taus.iter().enumerate() {
-            let cols: Vec<&[f64]> = self
-                .base
-                .iter()
-                .map(|v| v.as_slice())
-                .chain(std::iter::once(self.gm[t].as_slice()))
-                .collect();
-            let f = fit_cols(self, &cols, &[], i);
+            let f = self.alt_at(t, i);
             let Some(&s2) = f.c.get(3) else { continue };
             if f.loglik < target || s2 <= 0.0 {
                 continue;
