@@ -329,11 +329,13 @@ pub struct Diagnosis {
     pub params: Option<BTreeMap<String, f64>>,
     /// Their standard uncertainty (jackknife over the three fit blocks: the fit repeated
     /// with each fit block left out, `sqrt(2/3 sum (p_i - mean)^2)`); only for a named
-    /// sinusoid or scale_factor; `null` otherwise (a named drift effect carries
+    /// scale_factor; `null` otherwise (the other named effects with parameters carry
     /// `params_ci95` instead).
     pub params_sigma: Option<BTreeMap<String, f64>>,
-    /// 95 % intervals of a named drift effect's parameters (rate_ramp, temperature,
-    /// warm-up amplitude) from the whole-record likelihood fit.
+    /// 95 % intervals of a named effect's parameters, the projections of their joint 95 %
+    /// region (all inside together at 95 %): rate_ramp, temperature and warm-up from the
+    /// whole-record likelihood fit (profile likelihood), markov from its Whittle fit
+    /// (profile), sinusoid from the Cramer-Rao bounds at the line's local noise.
     pub params_ci95: Option<BTreeMap<String, [f64; 2]>>,
     /// The drift tests' fits (null and each drift model).
     pub drift: Option<drift::DriftTests>,
@@ -1384,12 +1386,10 @@ pub fn diagnose(
         &sims.outs,
         best_effect.and_then(|e| curves_by.get(&e)),
     );
-    // The jackknife is for the sinusoid and the scale factor; a named drift effect carries
+    // The jackknife is for the scale factor; the other named effects with parameters carry
     // 95 % intervals instead.
     let params_sigma = match named {
-        Some(e @ (Effect::Sinusoid | Effect::ScaleFactor)) => {
-            jackknife_sigma(e, &mut ctx, params.as_ref())
-        }
+        Some(e @ Effect::ScaleFactor) => jackknife_sigma(e, &mut ctx, params.as_ref()),
         _ => None,
     };
     let task = if o.task {

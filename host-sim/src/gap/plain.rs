@@ -1,7 +1,7 @@
 //! The gap in plain units, for a person: how far the real record's Allan deviation, PSD,
 //! time-window means and value distribution sit from the model (in %, deg/h, at which tau,
-//! frequency or time), before and after adding the named effect; and the named effect's
-//! parameters with a jackknife uncertainty.
+//! frequency or time), before and after adding the named effect (the effect's parameters
+//! and their 95 % intervals head the HTML report, `report.rs`).
 
 use super::{Curves, FeatureRow};
 use serde::Serialize;

@@ -163,9 +163,13 @@ pub fn write(dir: &Path, d: &Diagnosis) -> Result<PathBuf> {
             .params
             .iter()
             .flat_map(|m| m.iter())
-            .map(|(k, v)| match d.params_sigma.as_ref().and_then(|s| s.get(k)) {
-                Some(e) => format!("{k} = {v:.4e} +- {e:.1e}"),
-                None => format!("{k} = {v:.4e}"),
+            .map(|(k, v)| {
+                let ci = d.params_ci95.as_ref().and_then(|c| c.get(k));
+                match (ci, d.params_sigma.as_ref().and_then(|s| s.get(k))) {
+                    (Some([lo, hi]), _) => format!("{k} = {v:.4e} (95 %: {lo:.4e} to {hi:.4e})"),
+                    (None, Some(e)) => format!("{k} = {v:.4e} +- {e:.1e}"),
+                    (None, None) => format!("{k} = {v:.4e}"),
+                }
             })
             .collect::<Vec<_>>()
             .join(", ")),
