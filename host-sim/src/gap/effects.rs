@@ -957,16 +957,18 @@ fn sine_at(real: &Rec, ranges: &[(usize, usize)], f_hz: f64) -> Option<(f64, f64
 
 /// The strongest sinusoid in the fit blocks: (frequency Hz, amplitude deg/s, phase rad at
 /// t = 0). The blocks (each less its mean) are laid on a zero-filled time line and
-/// transformed; the peak above 4 cycles per block is refined by a parabola on the log power
+/// transformed; the bin above 4 cycles per block furthest above its chunk's median (as the
+/// line test looks: `evidence::chunk_peak`) is refined by a parabola on the log power
 /// (within 3 Cramer-Rao standard errors: `a_line_is_fitted_to_its_bound`), then amplitude
 /// and phase come from least squares with an offset per block.
 fn fit_sine(real: &Rec, ranges: &[(usize, usize)]) -> (f64, f64, f64) {
     let dt = real.dt_s;
     let (p, nfft, block_len) = block_spectrum(real, ranges, &|_| 0.0);
     let k_lo = ((4.0 * nfft as f64 / block_len.max(1) as f64).ceil() as usize).max(2);
-    let k = (k_lo..nfft / 2 - 1)
-        .max_by(|&a, &b| p[a].total_cmp(&p[b]))
-        .unwrap_or(k_lo);
+    let k = match super::evidence::chunk_peak(&p, k_lo, nfft / 2 - 1) {
+        (r, k) if r > 0.0 => k,
+        _ => k_lo,
+    };
     let (a, b, c) = (p[k - 1].ln(), p[k].ln(), p[k + 1].ln());
     let den = a - 2.0 * b + c;
     let delta = if den.abs() > 0.0 {
@@ -1042,6 +1044,42 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
+
+    /// A line over a strong random walk: the walk's low-frequency power is far above the
+    /// line's bin, yet the fit finds the line (the bin furthest above its chunk's median),
+    /// not a bin of the walk.
+    #[test]
+    fn a_line_over_a_random_walk_is_found() {
+        let (hz, n, f) = (20.0, 20_000, 3.1);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(77);
+        let mut walk = 0.0;
+        let t_s: Vec<f64> = (0..n).map(|k| k as f64 / hz).collect();
+        let rate_dps = t_s
+            .iter()
+            .map(|&t| {
+                let (w, e): (f64, f64) = (
+                    StandardNormal.sample(&mut rng),
+                    StandardNormal.sample(&mut rng),
+                );
+                walk += 0.003 * w;
+                walk + 0.003 * (std::f64::consts::TAU * f * t).sin() + 0.01 * e
+            })
+            .collect();
+        let real = Rec {
+            name: "line over a walk".into(),
+            t_s,
+            rate_dps,
+            temp_c: None,
+            ref_dps: None,
+            dt_s: 1.0 / hz,
+        };
+        let ranges: Vec<(usize, usize)> = (0..3)
+            .map(|b| (2 * b * n / 6, (2 * b + 1) * n / 6))
+            .collect();
+        let (f_hat, a_hat, _) = fit_sine(&real, &ranges);
+        assert!((f_hat - f).abs() < 1e-3, "{f_hat} Hz");
+        assert!((a_hat / 0.003 - 1.0).abs() < 0.2, "{a_hat}");
+    }
 
     /// A line in white noise, fitted on blocks 0, 2, 4 of 6: the frequency is within 3
     /// Cramer-Rao standard errors of the truth on every record, and the stated intervals

@@ -296,26 +296,38 @@ pub fn line_stat(t_s: &[f64], y: &[f64], dt_s: f64, f_min_hz: f64) -> (f64, f64)
     let mut planner = rustfft::FftPlanner::<f64>::new();
     planner.plan_fft_forward(nfft).process(&mut buf);
     let p: Vec<f64> = buf[..nfft / 2].iter().map(|c| c.norm_sqr()).collect();
-    const CHUNK: usize = 256;
     let k_lo = ((f_min_hz * nfft as f64 * dt_s).ceil() as usize).max(1);
-    let mut best = (0.0f64, 0.0);
+    let (r, k) = chunk_peak(&p, k_lo, p.len());
+    (r.max(1e-300).ln(), k as f64 / (nfft as f64 * dt_s))
+}
+
+/// Bins of the chunks whose median is a line's local noise level.
+const LINE_CHUNK: usize = 256;
+
+/// The periodogram bin in `k_lo..k_hi` (a `k_hi` past `p` is `p`'s end) furthest above its
+/// [`LINE_CHUNK`]-bin chunk's median: (that ratio, the bin); `(0, 0)` when none has a
+/// positive median. The line test and the sinusoid candidate's fit both look for a line
+/// this way, so that a coloured noise's low-frequency power is not taken for one.
+pub fn chunk_peak(p: &[f64], k_lo: usize, k_hi: usize) -> (f64, usize) {
+    let k_hi = k_hi.min(p.len());
+    let mut best = (0.0f64, 0);
     let mut k0 = 0;
-    while k0 < p.len() {
-        let k1 = (k0 + CHUNK).min(p.len());
+    while k0 < k_hi {
+        let k1 = (k0 + LINE_CHUNK).min(p.len());
         if k1 > k_lo {
             let med = median(&p[k0..k1]);
             if med > 0.0 {
-                for (k, &v) in p.iter().enumerate().take(k1).skip(k0.max(k_lo)) {
+                for (k, &v) in p.iter().enumerate().take(k1.min(k_hi)).skip(k0.max(k_lo)) {
                     let r = v / med;
                     if r > best.0 {
-                        best = (r, k as f64 / (nfft as f64 * dt_s));
+                        best = (r, k);
                     }
                 }
             }
         }
         k0 = k1;
     }
-    (best.0.max(1e-300).ln(), best.1)
+    best
 }
 
 /// The tests' statistics of one series.
