@@ -742,6 +742,9 @@ def main():
                     continue
                 tk, sc = truth_key[k]
                 tv = man_by[r["name"]]["params"].get(tk)
+                # An unbounded side is written as null in the JSON.
+                lo = -math.inf if lo is None else lo
+                hi = math.inf if hi is None else hi
                 if tv is not None and not (lo * sc <= tv <= hi * sc):
                     inside = False
             tot += 1

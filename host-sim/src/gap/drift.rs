@@ -514,11 +514,12 @@ const PROFILE_BISECTIONS: usize = 10;
 /// `x` fitted as `f`: the coefficient held at `b`, the other coefficients, the noise scale
 /// and the three noise shares re-fitted (from the fit's shares), and the interval the `b`
 /// whose log-likelihood is within `profile_drop_95(x.len())` of the fit's (1.92 for one
-/// coefficient; 3.00 for two, the projection of their joint region). The Wald interval (`1.96` standard
-/// errors at the fitted noise) ignores how a drift and the record's own slow noise trade
-/// off; re-fitting the noise at each `b` lets the random walk and flicker take what they
-/// can of a different drift, which widens the interval where they can. Each side: doubling
-/// steps from the Wald half-width until the drop passes 1.92, then bisection; the outer
+/// coefficient; 3.00 for two, the projection of their joint region). The Wald interval
+/// (`1.96` standard errors at the fitted noise) ignores how a drift and the record's own
+/// slow noise trade off; re-fitting the noise at each `b` lets the random walk and flicker
+/// take what they can of a different drift, which widens the interval where they can. Each
+/// side: doubling steps from the Wald half-width until the drop passes that, then
+/// bisection; the outer
 /// end of the last bracket is kept. A side never bracketed (the likelihood flat over
 /// `2^10` Wald half-widths) is infinite. `None` without a finite, positive standard error.
 fn coef_profile(prob: &Problem, x: &[Vec<f64>], k: usize, f: &NoiseFit) -> Option<[f64; 2]> {

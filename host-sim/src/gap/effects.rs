@@ -959,12 +959,19 @@ fn sine_at(real: &Rec, ranges: &[(usize, usize)], f_hz: f64) -> Option<(f64, f64
 /// t = 0). The blocks (each less its mean) are laid on a zero-filled time line and
 /// transformed; the bin above 4 cycles per block furthest above its chunk's median (as the
 /// line test looks: `evidence::chunk_peak`) is refined by a parabola on the log power
-/// (within 3 Cramer-Rao standard errors: `a_line_is_fitted_to_its_bound`), then amplitude
-/// and phase come from least squares with an offset per block.
+/// (within 3 Cramer-Rao standard errors of the truth in
+/// `a_line_is_fitted_to_its_bound_and_its_intervals_cover_it`: white noise, amplitude 10
+/// standard errors; a strong line's parabola bias, a fixed share of a bin, may exceed its
+/// smaller standard error), then amplitude and phase come from least squares with an
+/// offset per block.
 fn fit_sine(real: &Rec, ranges: &[(usize, usize)]) -> (f64, f64, f64) {
     let dt = real.dt_s;
     let (p, nfft, block_len) = block_spectrum(real, ranges, &|_| 0.0);
     let k_lo = ((4.0 * nfft as f64 / block_len.max(1) as f64).ceil() as usize).max(2);
+    if k_lo + 2 >= p.len() {
+        // Blocks of a few samples: no bin above 4 cycles per block.
+        return (0.0, 0.0, 0.0);
+    }
     let k = match super::evidence::chunk_peak(&p, k_lo, nfft / 2 - 1) {
         (r, k) if r > 0.0 => k,
         _ => k_lo,
@@ -993,6 +1000,8 @@ const SINE_NOISE_BINS: (usize, usize) = (8, 72);
 /// either side of it in the blocks' transform with the line taken out, over `ln 2` and `n`
 /// (the median of an exponential law is `ln 2` times its mean). Locally white: exact for
 /// white noise; for a line where the noise's spectrum bends within 72 bins, approximate.
+/// The amplitude's lower end is at least 0. The phase has no interval (a simulation's
+/// statistics do not depend on it).
 pub fn sine_intervals(
     real: &Rec,
     ranges: &[(usize, usize)],
@@ -1032,7 +1041,7 @@ pub fn sine_intervals(
         BTreeMap::from([
             (
                 "sine_amplitude_dps".to_string(),
-                [a - z * se_a, a + z * se_a],
+                [(a - z * se_a).max(0.0), a + z * se_a],
             ),
             ("sine_freq_hz".to_string(), [f - z * se_f, f + z * se_f]),
         ])

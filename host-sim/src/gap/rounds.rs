@@ -36,9 +36,9 @@ pub struct Round {
     pub effect: String,
     /// Its parameters.
     pub params: Option<BTreeMap<String, f64>>,
-    /// 95 % intervals where known (drift effects).
+    /// 95 % intervals where known (drift effects, markov, sinusoid).
     pub params_ci95: Option<BTreeMap<String, [f64; 2]>>,
-    /// Jackknife standard uncertainty where known (sinusoid, scale factor).
+    /// Jackknife standard uncertainty where known (scale factor).
     pub params_sigma: Option<BTreeMap<String, f64>>,
     /// Held-out gap before and after, and the shrink.
     pub gap_before: f64,

@@ -269,9 +269,12 @@ impl Binned {
 
     /// The projections of the joint 95 % likelihood-ratio region of (sigma, T) (drop
     /// [`super::drift::profile_drop_95`]`(2)` from the best fit `best`): T's interval the
-    /// hull of the grid cells whose best fit passes (half a grid step either side), sigma's
-    /// the hull over those cells of the variances whose held fit passes (each side from the
-    /// cell's fit: doubling, then bisection). Sigma in deg/s, T in s.
+    /// hull of the grid cells whose best fit passes (half a grid step either side; open, 0
+    /// or infinite, on a side where the grid's end cell passes), sigma's the hull over those
+    /// cells of the variances whose held fit passes (from the cell's fit: below, geometric
+    /// bisection towards `s2 1e-6`, 0 when even no term passes; above, x4 steps, then
+    /// bisection). Cells whose best fit has no Gauss-Markov term are left out (for a named
+    /// term, p < 0.006, the null is outside the region). Sigma in deg/s, T in s.
     fn intervals(&self, best: f64, taus: &[f64], i: &[f64]) -> Option<([f64; 2], [f64; 2])> {
         let target = best - super::drift::profile_drop_95(2);
         let (mut sig, mut tau) = (
@@ -318,7 +321,18 @@ impl Binned {
             sig = [sig[0].min(lo.sqrt()), sig[1].max(hi.sqrt())];
         }
         let half_step = 10f64.powf(0.5 / TAUS_PER_DECADE);
-        (sig[0] <= sig[1]).then_some((sig, [tau[0] / half_step, tau[1] * half_step]))
+        let (first, last) = (taus.first().copied(), taus.last().copied());
+        let t_lo = if Some(tau[0]) == first {
+            0.0
+        } else {
+            tau[0] / half_step
+        };
+        let t_hi = if Some(tau[1]) == last {
+            f64::INFINITY
+        } else {
+            tau[1] * half_step
+        };
+        (sig[0] <= sig[1]).then_some((sig, [t_lo, t_hi]))
     }
 }
 
