@@ -302,7 +302,7 @@ pub fn line_stat(t_s: &[f64], y: &[f64], dt_s: f64, f_min_hz: f64) -> (f64, f64)
 }
 
 /// Bins of the chunks whose median is a line's local noise level.
-const LINE_CHUNK: usize = 256;
+pub const LINE_CHUNK: usize = 256;
 
 /// The periodogram bin in `k_lo..k_hi` (a `k_hi` past `p` is `p`'s end) furthest above its
 /// [`LINE_CHUNK`]-bin chunk's median: (that ratio, the bin); `(0, 0)` when none has a
