@@ -252,11 +252,16 @@ impl Binned {
         fit_cols(self, &cols, &[], i)
     }
 
+    /// The baseline plus each Gauss-Markov term of the grid, fitted (in the grid's order).
+    fn alts(&self, i: &[f64]) -> Vec<Fit> {
+        (0..self.gm.len()).map(|t| self.alt_at(t, i)).collect()
+    }
+
     /// The best Gauss-Markov alternative: (index of T, fit).
     fn alt(&self, i: &[f64]) -> Option<(usize, Fit)> {
-        (0..self.gm.len())
-            .map(|t| (t, self.alt_at(t, i)))
-            .max_by(|a, b| a.1.loglik.total_cmp(&b.1.loglik))
+        let mut fits = self.alts(i);
+        let t = best_alt(&fits)?;
+        Some((t, fits.swap_remove(t)))
     }
 
     /// The baseline refitted with the Gauss-Markov term of correlation time index `t` held
@@ -275,14 +280,20 @@ impl Binned {
     /// bisection towards `s2 1e-6`, 0 when even no term passes; above, x4 steps, then
     /// bisection). Cells whose best fit has no Gauss-Markov term are left out (for a named
     /// term, p < 0.006, the null is outside the region). Sigma in deg/s, T in s.
-    fn intervals(&self, best: f64, taus: &[f64], i: &[f64]) -> Option<([f64; 2], [f64; 2])> {
+    /// `alts`: [`Binned::alts`] of the same data `i`.
+    fn intervals(
+        &self,
+        best: f64,
+        taus: &[f64],
+        alts: &[Fit],
+        i: &[f64],
+    ) -> Option<([f64; 2], [f64; 2])> {
         let target = best - super::drift::profile_drop_95(2);
         let (mut sig, mut tau) = (
             [f64::INFINITY, f64::NEG_INFINITY],
             [f64::INFINITY, f64::NEG_INFINITY],
         );
-        for (t, &tau_s) in taus.iter().enumerate() {
-            let f = self.alt_at(t, i);
+        for ((t, &tau_s), f) in taus.iter().enumerate().zip(alts) {
             let Some(&s2) = f.c.get(3) else { continue };
             if f.loglik < target || s2 <= 0.0 {
                 continue;
@@ -292,7 +303,7 @@ impl Binned {
                 0.0
             } else {
                 let (mut inside, mut outside) = (s2, 0.0_f64);
-                for _ in 0..PROFILE_BISECTIONS {
+                for _ in 0..SIGMA_SEARCH_STEPS {
                     let mid = (inside * outside.max(s2 * 1e-6)).sqrt();
                     if self.held(t, mid, i) >= target {
                         inside = mid;
@@ -303,7 +314,7 @@ impl Binned {
                 outside
             };
             let (mut inside, mut outside) = (s2, None);
-            for _ in 0..PROFILE_BISECTIONS {
+            for _ in 0..SIGMA_SEARCH_STEPS {
                 match outside {
                     None if self.held(t, inside * 4.0, i) >= target => inside *= 4.0,
                     None => outside = Some(inside * 4.0),
@@ -336,8 +347,17 @@ impl Binned {
     }
 }
 
-/// Steps of each side's search in [`Binned::intervals`].
-const PROFILE_BISECTIONS: usize = 14;
+/// Steps of each side's search for sigma in [`Binned::intervals`] (x4 steps and
+/// bisections together on the upper side).
+const SIGMA_SEARCH_STEPS: usize = 14;
+
+/// The index of the fit of largest likelihood among `fits`.
+fn best_alt(fits: &[Fit]) -> Option<usize> {
+    fits.iter()
+        .enumerate()
+        .max_by(|a, b| a.1.loglik.total_cmp(&b.1.loglik))
+        .map(|(t, _)| t)
+}
 
 fn tau_grid(dt_s: f64, t_total_s: f64) -> Vec<f64> {
     let mut v = Vec::new();
@@ -387,7 +407,9 @@ impl MarkovTest {
             return None;
         }
         let f0 = b.null(&b.i);
-        let (ti, f1) = b.alt(&b.i)?;
+        let alts = b.alts(&b.i);
+        let ti = best_alt(&alts)?;
+        let f1 = &alts[ti];
         let lr = (2.0 * (f1.loglik - f0.loglik)).max(0.0);
         // Bootstrap of the fitted null.
         let s0: Vec<f64> = (0..b.m.len())
@@ -425,7 +447,7 @@ impl MarkovTest {
         let p_value = ChiSquared::new(dof).map_or(1.0, |c| c.sf(lr));
         let taus = tau_grid(dt_s, t_total);
         let ci95 = if p_value < INTERVALS_BELOW_P {
-            b.intervals(f1.loglik, &taus, &b.i)
+            b.intervals(f1.loglik, &taus, &alts, &b.i)
         } else {
             None
         };
