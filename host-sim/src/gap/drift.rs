@@ -519,9 +519,9 @@ const PROFILE_BISECTIONS: usize = 10;
 /// slow noise trade off; re-fitting the noise at each `b` lets the random walk and flicker
 /// take what they can of a different drift, which widens the interval where they can. Each
 /// side: doubling steps from the Wald half-width until the drop passes that, then
-/// bisection; the outer
-/// end of the last bracket is kept. A side never bracketed (the likelihood flat over
-/// `2^10` Wald half-widths) is infinite. `None` without a finite, positive standard error.
+/// bisection; the outer end of the last bracket is kept. A side never bracketed (the
+/// likelihood flat over `2^10` Wald half-widths) is infinite. `None` without a finite,
+/// positive standard error.
 fn coef_profile(prob: &Problem, x: &[Vec<f64>], k: usize, f: &NoiseFit) -> Option<[f64; 2]> {
     let beta = *f.beta.get(k)?;
     let se = *f.beta_se.get(k)?;

@@ -940,16 +940,13 @@ fn sine_at(real: &Rec, ranges: &[(usize, usize)], f_hz: f64) -> Option<(f64, f64
         .enumerate()
         .flat_map(|(b, &(lo, hi))| (lo..hi).map(move |i| (b, i)))
         .collect();
-    let cols = |b: usize, i: usize, r: &mut [f64]| {
+    let beta = lstsq(at.len(), nb + 2, &mut |k, r| {
+        let (b, i) = at[k];
         let w = std::f64::consts::TAU * f_hz * real.t_s[i];
         r.fill(0.0);
         r[b] = 1.0;
         r[nb] = w.sin();
         r[nb + 1] = w.cos();
-    };
-    let beta = lstsq(at.len(), nb + 2, &mut |k, r| {
-        let (b, i) = at[k];
-        cols(b, i, r);
         real.rate_dps[i]
     })?;
     Some((beta[nb], beta[nb + 1]))
