@@ -21,6 +21,11 @@ declare -A MAX_LEN=([ecore]=4096 [dsp3000]=4096 [csv_record]=4096 [identifier]=1
 
 host=$(rustc -vV | sed -n 's/^host: //p')
 export CARGO_TARGET_DIR="${FUZZ_TARGET_DIR:-$PWD/fuzz/target}"
+# One run at a time per target directory: two runs (two test-all.sh at once, or --minimize
+# beside a run) would share the logs, the new inputs and the corpus being replaced.
+mkdir -p "$CARGO_TARGET_DIR"
+exec 9>"$CARGO_TARGET_DIR/fuzz.lock"
+flock 9
 # RUSTFLAGS apply only to the target crates because --target is given (build scripts and
 # proc-macros are not instrumented), as cargo-fuzz does.
 export RUSTFLAGS="-Cpasses=sancov-module \

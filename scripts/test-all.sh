@@ -16,11 +16,13 @@ step "fog-core builds no_std for the Cortex-M4F (with and without defmt)"
 cargo build -q -p fog-core --target thumbv7em-none-eabihf
 cargo build -q -p fog-core --target thumbv7em-none-eabihf --features defmt
 cargo clippy -q -p fog-core --target thumbv7em-none-eabihf --features defmt -- -D warnings
-step "tests (host workspace)"
-cargo test --workspace
-# fog-firmware is its own workspace (defmt, cortex-m-rt): checked apart from the host crates.
-# Its hardware-in-the-loop test under QEMU runs above, in `cargo test --workspace`
-# (tests/tests/firmware_qemu.rs). The STM32F407 board builds into its own target directory so
+step "tests (host workspace, but the system tests)"
+cargo test --workspace --exclude fog-system-tests
+# The system tests (the firmware's hardware-in-the-loop tests under QEMU and its builds,
+# tests/tests/): a debug and a release run at once, each in parallel.
+step "system tests: debug and release runs at the same time"
+bash scripts/test-firmware-parallel.sh
+# fog-firmware is its own workspace (defmt, cortex-m-rt): checked apart from the host crates. The STM32F407 board builds into its own target directory so
 # that switching boards does not rebuild the QEMU board's dependencies.
 step "fog-firmware: rustfmt, clippy -D warnings, build (QEMU mps2-an386, STM32F407 and its netduinoplus2 variant)"
 (

@@ -12,8 +12,25 @@ use crate::temperature::TemperatureSource;
 
 /// The identifier image embedded at build time: `build.rs` copies the file named by
 /// `FOG_IDENTIFIER` (default `fog-firmware/identifier/default.fogi`) to `OUT_DIR`. It is
-/// parsed and checked at boot ([`pipeline::new_stage`]).
-pub static IDENTIFIER_IMAGE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/identifier.fogi"));
+/// parsed and checked at boot ([`pipeline::new_stage`]), read through [`image_bytes`]. An
+/// array (not a slice reference), so that the ELF's symbol table names its bytes and their
+/// length: the HIL tests read the image back from the ELF they run (`tests/src/lib.rs`,
+/// `Firmware::embedded`).
+pub static IDENTIFIER_IMAGE: [u8; IDENTIFIER_IMAGE_LEN] =
+    *include_bytes!(concat!(env!("OUT_DIR"), "/identifier.fogi"));
+
+/// Length of [`IDENTIFIER_IMAGE`], bytes.
+pub const IDENTIFIER_IMAGE_LEN: usize =
+    include_bytes!(concat!(env!("OUT_DIR"), "/identifier.fogi")).len();
+
+/// The embedded image as data the compiler knows nothing of ([`core::hint::black_box`]):
+/// the firmware parses whatever bytes the flash holds at [`IDENTIFIER_IMAGE`]. Without it the
+/// compiler evaluates the parse of a known image at build time (a truncated image's parse
+/// folded to its error) and drops the bytes from the ELF, so the image written into the
+/// ELF or the flash would not be the one that runs, and could not be read back.
+pub fn image_bytes() -> &'static [u8] {
+    core::hint::black_box(&IDENTIFIER_IMAGE)
+}
 
 /// Periodic statistics on defmt every this many samples.
 pub const STATS_EVERY_SAMPLES: u32 = 1000;
@@ -185,7 +202,7 @@ where
     };
     // The stage is used where `new_stage` wrote it (a borrow of the result, not a move out
     // of it): moving it out would keep a second copy of it (about 8 KiB) on the stack.
-    let mut built = pipeline::new_stage(IDENTIFIER_IMAGE);
+    let mut built = pipeline::new_stage(image_bytes());
     let stage = match &mut built {
         Ok(s) => s,
         Err(pipeline::SetupError::Image(e)) => {

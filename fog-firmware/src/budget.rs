@@ -15,7 +15,7 @@ use fog_core::frame::{ecore, Decoder, EcoreDecoder};
 use fog_core::image::Image;
 use fog_core::still::Stillness;
 
-use crate::app::{TickCounter, IDENTIFIER_IMAGE};
+use crate::app::{image_bytes, TickCounter, IDENTIFIER_IMAGE};
 use crate::pipeline::{self, BLOCK};
 
 mod probe;
@@ -271,9 +271,9 @@ where
 #[inline(always)]
 fn measure<C: TickCounter>(c: &C, m: &mut Measured) -> Option<()> {
     let mut decoder = EcoreDecoder::new(pipeline::FULL_SCALE_DPS).ok()?;
-    let mut stage = pipeline::new_stage(IDENTIFIER_IMAGE).ok()?;
+    let mut stage = pipeline::new_stage(image_bytes()).ok()?;
     // Stand-alone copies of the stage's parts, timed one by one on the same samples.
-    let image = Image::parse(IDENTIFIER_IMAGE).ok()?;
+    let image = Image::parse(image_bytes()).ok()?;
     let mut estimator = image.estimator().ok()?;
     let cfg = *estimator.config();
     let mut detector = Stillness::new(&cfg.sensor, &cfg.still)?;

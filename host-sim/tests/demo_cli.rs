@@ -20,11 +20,13 @@ const SVGS: [&str; 4] = [
 fn demo() -> &'static (PathBuf, String, String) {
     static DEMO: OnceLock<(PathBuf, String, String)> = OnceLock::new();
     DEMO.get_or_init(|| {
-        // Under target/tmp: kept for inspection, replaced on the next run.
-        let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("demo_cli");
-        if out.exists() {
-            fs::remove_dir_all(&out).expect("clean the previous demo");
-        }
+        // A folder of this run's own under target/tmp (`demo_cli-XXXXXX`; a debug and a
+        // release run share target/tmp), kept for inspection: `cargo clean` removes it.
+        let out = tempfile::Builder::new()
+            .prefix("demo_cli-")
+            .tempdir_in(env!("CARGO_TARGET_TMPDIR"))
+            .expect("a folder under target/tmp")
+            .keep();
         let a = Command::cargo_bin("host-sim")
             .expect("binary built")
             .args(["demo", "--quick", "--out"])
@@ -136,14 +138,15 @@ fn demo_writes_the_report() {
 /// beats no compensation.
 #[test]
 fn demo_runs_another_arrangement() {
-    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("demo_cli_bank_guarded");
-    if out.exists() {
-        fs::remove_dir_all(&out).expect("clean the previous demo");
-    }
+    let tmp = tempfile::Builder::new()
+        .prefix("demo_cli_bank_guarded-")
+        .tempdir_in(env!("CARGO_TARGET_TMPDIR"))
+        .expect("a folder under target/tmp");
+    let out = tmp.path();
     Command::cargo_bin("host-sim")
         .expect("binary built")
         .args(["demo", "--quick", "--level-update", "bank-guarded", "--out"])
-        .arg(&out)
+        .arg(out)
         .assert()
         .success();
     let image =
@@ -206,6 +209,8 @@ fn headless(browser: &Path, profile: &Path, extra: &[&str], url: &str) -> (Strin
             "--v=0",
         ])
         .arg(format!("--user-data-dir={}", profile.display()))
+        // Its HOME too (certificate store, crash reports): nothing shared with another run.
+        .env("HOME", profile)
         .args(extra)
         .arg(url)
         .stdin(Stdio::null())

@@ -630,7 +630,8 @@ fn bad_identifiers_are_refused() {
     host_sim()
         .args(["identify", "--preset", "motion", "--input"])
         .arg(&slow)
-        .args(["--json", "x.json"])
+        .arg("--json")
+        .arg(d.join("x.json"))
         .assert()
         .failure()
         .stderr(predicates::str::contains("required"));

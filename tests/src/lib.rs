@@ -1,6 +1,6 @@
 //! Helpers for the system tests in `tests/tests/`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
@@ -46,43 +46,236 @@ pub fn firmware_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fog-firmware")
 }
 
-/// Builds the firmware (`cargo build --release` inside `fog-firmware/`, same toolchain,
-/// `extra_args` appended, e.g. features) and returns the ELF's path. The firmware always
-/// builds into `fog-firmware/target`, whatever `CARGO_TARGET_DIR` says, and without the
-/// caller's `RUSTFLAGS` (they are meant for host crates).
+/// One firmware build: where cargo builds it and what it builds it from.
 ///
-/// # Panics
-/// If the build fails.
-pub fn firmware_elf(extra_args: &[&str]) -> PathBuf {
-    firmware_elf_in("target", extra_args, &[])
+/// Builds that differ only in their inputs share a target directory, so that only the
+/// firmware crate itself rebuilds between them.
+#[derive(Clone, Copy, Debug)]
+pub struct FirmwareBuild<'a> {
+    /// Cargo's target directory, relative to `fog-firmware/` (e.g. `target/bankimg`).
+    pub target_subdir: &'a str,
+    /// Arguments after `cargo build -q --release` (features).
+    pub cargo_args: &'a [&'a str],
+    /// Files `build.rs` embeds, as (environment variable naming the file, its bytes):
+    /// `FOG_IDENTIFIER` (the identifier image; absent: `identifier/default.fogi`),
+    /// `FOG_RT_CAPTURE` (the real-time feed's capture).
+    pub input_files: &'a [(&'a str, &'a [u8])],
+    /// Other environment variables for the build (e.g. `FOG_RT_BAUD`).
+    pub envs: &'a [(&'a str, &'a str)],
 }
 
-/// [`firmware_elf`] into `fog-firmware/TARGET_SUBDIR` (so that a test build with other
-/// features does not replace the ELF other tests use), with `envs` set for the build.
+impl FirmwareBuild<'static> {
+    /// The release build for the QEMU board (`mps2-an386`) with the default image, into
+    /// `fog-firmware/target` (where `scripts/test-all.sh` and a user build it).
+    pub const DEFAULT: FirmwareBuild<'static> = FirmwareBuild {
+        target_subdir: "target",
+        cargo_args: &[],
+        input_files: &[],
+        envs: &[],
+    };
+}
+
+/// Every variable `fog-firmware/build.rs` reads: removed from the caller's environment so
+/// that only the build's own values reach it.
+const FIRMWARE_BUILD_VARS: [&str; 3] = ["FOG_IDENTIFIER", "FOG_RT_CAPTURE", "FOG_RT_BAUD"];
+
+/// The static of the firmware that holds each embedded input, by its variable.
+const EMBEDDED_STATICS: [(&str, &str); 2] = [
+    ("FOG_IDENTIFIER", "IDENTIFIER_IMAGE"),
+    ("FOG_RT_CAPTURE", "CAPTURE"),
+];
+
+/// A firmware ELF of one test's own: a copy of the build's ELF in a folder no other test
+/// writes (`fog-firmware/target/hil/LABEL-XXXXXX`), for the test's captures and logs too.
+/// The folder is removed when the test passes and kept (its path printed) when it panics,
+/// or always with `FOG_KEEP_HIL=1`.
+#[derive(Debug)]
+pub struct Firmware {
+    /// The ELF this test runs.
+    pub elf: PathBuf,
+    dir: Option<tempfile::TempDir>,
+    path: PathBuf,
+}
+
+impl Firmware {
+    /// The test's own folder.
+    pub fn dir(&self) -> &Path {
+        &self.path
+    }
+
+    /// A file named `name` in the test's own folder.
+    pub fn file(&self, name: &str) -> PathBuf {
+        self.path.join(name)
+    }
+
+    /// The bytes of the firmware's static `name` (e.g. `IDENTIFIER_IMAGE`), read from the
+    /// ELF's symbol table and the section that holds it; `None` if no symbol names it.
+    ///
+    /// # Panics
+    /// If the ELF cannot be read or parsed, or the symbol's bytes are outside its section.
+    pub fn embedded(&self, name: &str) -> Option<Vec<u8>> {
+        embedded_static(&self.elf, name)
+    }
+}
+
+impl Drop for Firmware {
+    fn drop(&mut self) {
+        let keep = std::thread::panicking() || std::env::var_os("FOG_KEEP_HIL").is_some();
+        if let Some(dir) = self.dir.take() {
+            if keep {
+                eprintln!("kept for inspection: {}", dir.keep().display());
+            }
+        }
+    }
+}
+
+/// The bytes of static `name` of `elf`: the symbol whose (mangled) name has the path
+/// segment `name` (`..3app16IDENTIFIER_IMAGE17h..E`), its address and size.
+fn embedded_static(elf: &Path, name: &str) -> Option<Vec<u8>> {
+    use object::{Object, ObjectSection, ObjectSymbol};
+    let data = std::fs::read(elf).unwrap_or_else(|e| panic!("{}: {e}", elf.display()));
+    let file = object::File::parse(&*data).unwrap_or_else(|e| panic!("{}: {e}", elf.display()));
+    let segment = format!("{}{name}17h", name.len());
+    let symbol = file
+        .symbols()
+        .find(|s| s.name().is_ok_and(|n| n.contains(&segment)))?;
+    let section = symbol
+        .section_index()
+        .and_then(|i| file.section_by_index(i).ok())
+        .unwrap_or_else(|| panic!("{}: {name} has no section", elf.display()));
+    let bytes = section
+        .data_range(symbol.address(), symbol.size())
+        .ok()
+        .flatten()
+        .unwrap_or_else(|| panic!("{}: {name}'s bytes are outside its section", elf.display()));
+    Some(bytes.to_vec())
+}
+
+/// FNV-1a, 64 bits: names an input file by its content.
+fn fnv1a64(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01B3)
+    })
+}
+
+/// Builds the firmware as `build` says (`cargo build --release` inside `fog-firmware/`, same
+/// toolchain, without the caller's `RUSTFLAGS` and `FOG_*` variables) and returns a copy of
+/// its ELF in a folder of the test's own, named `label-XXXXXX`.
+///
+/// Tests build in parallel, in one process and across processes (a debug and a release
+/// `cargo test` at once): a build, and the copy of its ELF, hold an exclusive lock on
+/// `TARGET_SUBDIR/.fog-build.lock`, so no other build can replace the ELF between the two.
+/// Each input file is written (under that lock) to `TARGET_SUBDIR/inputs/VAR-HASH.bin`,
+/// named by its content, so a build of other content never rewrites it.
+///
+/// The copy is then proven to carry what was asked: every embedded static read back from
+/// the ELF's symbol table equals its input byte for byte (the image: `FOG_IDENTIFIER`'s
+/// bytes, else `identifier/default.fogi`).
 ///
 /// # Panics
-/// If the build fails.
-pub fn firmware_elf_in(
-    target_subdir: &str,
-    extra_args: &[&str],
-    envs: &[(&str, &std::ffi::OsStr)],
-) -> PathBuf {
-    let dir = firmware_dir();
+/// If the lock, the build or the copy fails, or the ELF does not carry its inputs.
+pub fn firmware(build: &FirmwareBuild, label: &str) -> Firmware {
+    let target_dir = firmware_dir().join(build.target_subdir);
+    std::fs::create_dir_all(target_dir.join("inputs"))
+        .unwrap_or_else(|e| panic!("{}: {e}", target_dir.display()));
+    let runs = firmware_dir().join("target/hil");
+    std::fs::create_dir_all(&runs).unwrap_or_else(|e| panic!("{}: {e}", runs.display()));
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("{label}-"))
+        .tempdir_in(&runs)
+        .unwrap_or_else(|e| panic!("a folder in {}: {e}", runs.display()));
+    let elf = dir.path().join(format!("{label}.elf"));
+
+    let lock_path = target_dir.join(".fog-build.lock");
+    let lock = std::fs::File::options()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock_path)
+        .unwrap_or_else(|e| panic!("{}: {e}", lock_path.display()));
+    lock.lock()
+        .unwrap_or_else(|e| panic!("locking {}: {e}", lock_path.display()));
+    let mut inputs = Vec::new();
+    for (var, bytes) in build.input_files {
+        let path = target_dir
+            .join("inputs")
+            .join(format!("{var}-{:016x}.bin", fnv1a64(bytes)));
+        if std::fs::read(&path).ok().as_deref() != Some(*bytes) {
+            std::fs::write(&path, bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        }
+        inputs.push((*var, path));
+    }
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let target_dir = dir.join(target_subdir);
-    let status = Command::new(cargo)
-        .current_dir(&dir)
+    let mut command = Command::new(cargo);
+    command
+        .current_dir(firmware_dir())
         .args(["build", "-q", "--release"])
-        .args(extra_args)
-        .envs(envs.iter().copied())
+        .args(build.cargo_args)
         .env("CARGO_TARGET_DIR", &target_dir)
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_ENCODED_RUSTFLAGS")
-        .env_remove("CARGO_BUILD_TARGET")
-        .status()
-        .expect("cargo runs");
-    assert!(status.success(), "building fog-firmware failed");
-    target_dir.join("thumbv7em-none-eabihf/release/fog-firmware")
+        .env_remove("CARGO_BUILD_TARGET");
+    for var in FIRMWARE_BUILD_VARS {
+        command.env_remove(var);
+    }
+    command.envs(inputs.iter().map(|(v, p)| (*v, p.as_os_str())));
+    command.envs(build.envs.iter().copied());
+    let status = command.status().expect("cargo runs");
+    assert!(status.success(), "building fog-firmware ({label}) failed");
+    let built = target_dir.join("thumbv7em-none-eabihf/release/fog-firmware");
+    std::fs::copy(&built, &elf)
+        .unwrap_or_else(|e| panic!("{} -> {}: {e}", built.display(), elf.display()));
+    drop(lock);
+
+    let fw = Firmware {
+        elf,
+        path: dir.path().to_path_buf(),
+        dir: Some(dir),
+    };
+    let default_image;
+    let image: &[u8] = match build
+        .input_files
+        .iter()
+        .find(|(v, _)| *v == "FOG_IDENTIFIER")
+    {
+        Some((_, bytes)) => bytes,
+        None => {
+            let p = firmware_dir().join("identifier/default.fogi");
+            default_image = std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            &default_image
+        }
+    };
+    let expected = build
+        .input_files
+        .iter()
+        .filter(|(v, _)| *v != "FOG_IDENTIFIER")
+        .map(|(v, b)| (*v, *b))
+        .chain([("FOG_IDENTIFIER", image)]);
+    for (var, bytes) in expected {
+        let name = EMBEDDED_STATICS
+            .iter()
+            .find(|(v, _)| *v == var)
+            .map(|(_, s)| *s)
+            .unwrap_or_else(|| panic!("no embedded static known for {var}"));
+        let embedded = fw
+            .embedded(name)
+            .unwrap_or_else(|| panic!("{label}: no symbol {name} in {}", fw.elf.display()));
+        assert!(
+            embedded == bytes,
+            "{label}: the ELF's {name} ({} bytes, FNV-1a {:016x}) is not the {var} asked for \
+             ({} bytes, {:016x})",
+            embedded.len(),
+            fnv1a64(&embedded),
+            bytes.len(),
+            fnv1a64(bytes)
+        );
+    }
+    fw
+}
+
+/// [`firmware`] with [`FirmwareBuild::DEFAULT`].
+pub fn default_firmware(label: &str) -> Firmware {
+    firmware(&FirmwareBuild::DEFAULT, label)
 }
 
 fn on_path(program: &str) -> Option<PathBuf> {

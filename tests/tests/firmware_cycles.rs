@@ -12,7 +12,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use fog_system_tests::{firmware_elf_in, fw_cycles, qemu_system_arm};
+use fog_system_tests::{firmware, fw_cycles, qemu_system_arm, FirmwareBuild};
 
 fn on_path(program: &str) -> Option<PathBuf> {
     std::env::var_os("PATH").and_then(|paths| {
@@ -105,7 +105,15 @@ fn trace_counts_equal_icount_and_every_address_maps_to_a_function() {
     if qemu_system_arm().is_none() || !tools_present() {
         return;
     }
-    let elf = firmware_elf_in("target/budget", &["--features", "budget"], &[]);
+    let fw = firmware(
+        &FirmwareBuild {
+            target_subdir: "target/budget",
+            cargo_args: &["--features", "budget"],
+            ..FirmwareBuild::DEFAULT
+        },
+        "cycles-budget",
+    );
+    let elf = &fw.elf;
     let dir = tempfile::tempdir().expect("temp dir");
     let (out, text) = run(&["--keep".as_ref(), dir.path().as_os_str(), elf.as_os_str()]);
     eprintln!("{text}");
@@ -140,7 +148,7 @@ fn trace_counts_equal_icount_and_every_address_maps_to_a_function() {
     let mean: f64 = f[3].trim().parse().expect("mean");
     let moved = row.replacen(f[3].trim(), &format!("{:.1}", mean + 2.0), 1);
     std::fs::write(&table_path, table.replacen(row, &moved, 1)).expect("write");
-    let (out, text) = offline(dir.path(), &elf);
+    let (out, text) = offline(dir.path(), elf);
     assert!(!out.status.success(), "a moved figure passed");
     assert!(text.contains("cross-check FAILED"), "{text}");
     std::fs::write(&table_path, &table).expect("restore");
@@ -150,7 +158,7 @@ fn trace_counts_equal_icount_and_every_address_maps_to_a_function() {
     let mut trace = std::fs::read(&trace_path).expect("trace kept");
     trace.extend_from_slice(&0x10u32.to_le_bytes());
     std::fs::write(&trace_path, &trace).expect("write");
-    let (out, text) = offline(dir.path(), &elf);
+    let (out, text) = offline(dir.path(), elf);
     assert!(!out.status.success(), "an unmapped address passed");
     let (_, unmapped, undisassembled) = trace_line(&text);
     assert_eq!((unmapped, undisassembled), (1, 1));

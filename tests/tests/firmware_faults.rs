@@ -35,7 +35,7 @@ use std::collections::BTreeSet;
 use std::time::{Duration, Instant};
 
 use fog_core::frame::ecore;
-use fog_system_tests::{firmware_elf, qemu_system_arm};
+use fog_system_tests::{default_firmware, qemu_system_arm};
 
 mod hil;
 use hil::{host_reference, parse_records, pipeline, run_qemu_paced, Piece, Rng};
@@ -182,7 +182,7 @@ fn firmware_survives_faults_and_accounts_for_every_byte() {
     let Some(qemu) = qemu_system_arm() else {
         return;
     };
-    let elf = firmware_elf(&[]);
+    let fw = default_firmware("hil-faults");
     let built = t0.elapsed();
 
     let plan = plan(0xFA17_5EED);
@@ -212,9 +212,9 @@ fn firmware_survives_faults_and_accounts_for_every_byte() {
             },
         })
         .collect();
-    let log = elf.with_file_name("hil-faults-defmt.bin");
+    let log = fw.file("defmt.bin");
     let t_run = Instant::now();
-    let run = run_qemu_paced(&qemu, &elf, pieces, &log);
+    let run = run_qemu_paced(&qemu, &fw.elf, pieces, &log);
     let ran = t_run.elapsed();
     let (records, stats) = parse_records(&run.out);
 

@@ -20,7 +20,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use fog_system_tests::{firmware_elf, firmware_elf_in};
+use fog_system_tests::{default_firmware, firmware, FirmwareBuild};
 
 /// Functions (innermost fog-core / fog-firmware frame) that still hold a panicking check in
 /// the release ELF, and why none can fire. Keep in step with docs/reliability.md.
@@ -186,27 +186,33 @@ fn release_firmware_has_no_unlisted_panic_path() {
     // directory, as scripts/test-all.sh builds it), and the STM32 build's QEMU variant
     // (feature qemu-netduinoplus2, as the HIL test builds it).
     let boards = [
-        ("mps2-an386", firmware_elf(&[])),
+        ("mps2-an386", default_firmware("no-panic-mps2")),
         (
             "stm32f407",
-            firmware_elf_in(
-                "target/stm32",
-                &["--no-default-features", "--features", "board-stm32f407"],
-                &[],
+            firmware(
+                &FirmwareBuild {
+                    target_subdir: "target/stm32",
+                    cargo_args: &["--no-default-features", "--features", "board-stm32f407"],
+                    ..FirmwareBuild::DEFAULT
+                },
+                "no-panic-stm32f407",
             ),
         ),
         (
             "stm32f407 qemu-netduinoplus2",
-            firmware_elf_in(
-                "target/netduino",
-                &["--no-default-features", "--features", "qemu-netduinoplus2"],
-                &[],
+            firmware(
+                &FirmwareBuild {
+                    target_subdir: "target/netduino",
+                    cargo_args: &["--no-default-features", "--features", "qemu-netduinoplus2"],
+                    ..FirmwareBuild::DEFAULT
+                },
+                "no-panic-netduino",
             ),
         ),
     ];
-    for (board, elf) in &boards {
-        eprintln!("== {board}: {}", elf.display());
-        check_elf(&objdump, &addr2line, &nm, elf);
+    for (board, fw) in &boards {
+        eprintln!("== {board}: {}", fw.elf.display());
+        check_elf(&objdump, &addr2line, &nm, &fw.elf);
     }
 }
 

@@ -18,7 +18,7 @@
 use std::time::{Duration, Instant};
 
 use fog_core::frame::ecore;
-use fog_system_tests::{firmware_elf, firmware_elf_in, host_sim, qemu_system_arm};
+use fog_system_tests::{default_firmware, firmware, host_sim, qemu_system_arm, FirmwareBuild};
 
 mod hil;
 use hil::{default_image, defmt_payloads, host_reference, parse_records, pipeline, run_qemu, Rng};
@@ -133,20 +133,18 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
     let Some(qemu) = qemu_system_arm() else {
         return;
     };
-    let elf = firmware_elf(&[]);
+    let fw = default_firmware("hil-vehicle");
     let built = t0.elapsed();
 
-    let dir = elf.with_file_name("hil-vehicle");
-    std::fs::create_dir_all(&dir).expect("capture folder");
-    let (capture, truth) = vehicle_capture(&dir);
+    let (capture, truth) = vehicle_capture(fw.dir());
     let samples = truth.len();
     assert_eq!(samples, DURATION_S as usize * 100);
     let stream = wire_stream(&capture, 0xBADB_17E5);
     let expected = host_reference(&stream);
 
-    let log = elf.with_file_name("hil-defmt.bin");
+    let log = fw.file("hil-defmt.bin");
     let t_run = Instant::now();
-    let (out, code) = run_qemu(&qemu, &elf, stream.clone(), &log);
+    let (out, code) = run_qemu(&qemu, &fw.elf, stream.clone(), &log);
     let ran = t_run.elapsed();
     let (records, stats) = parse_records(&out);
 
@@ -319,24 +317,24 @@ fn matches_preset_estimator(
     still
 }
 
-/// Builds the firmware with `image` embedded (`FOG_IDENTIFIER`, into `target/badimg`), runs
-/// it with only the end marker on its UART; returns (UART output, defmt bytes, exit code).
+/// Builds the firmware with `image` embedded (`FOG_IDENTIFIER`, built in `target/badimg`),
+/// runs it with only the end marker on its UART; returns (UART output, defmt bytes, exit
+/// code).
 fn run_with_image(
     qemu: &std::path::Path,
     name: &str,
     image: &[u8],
 ) -> (Vec<u8>, Vec<u8>, Option<i32>) {
-    let dir = fog_system_tests::firmware_dir().join("target/badimg");
-    std::fs::create_dir_all(&dir).expect("target/badimg");
-    let path = dir.join(format!("{name}.fogi"));
-    std::fs::write(&path, image).expect("image written");
-    let elf = firmware_elf_in(
-        "target/badimg",
-        &[],
-        &[("FOG_IDENTIFIER", path.as_os_str())],
+    let fw = firmware(
+        &FirmwareBuild {
+            target_subdir: "target/badimg",
+            input_files: &[("FOG_IDENTIFIER", image)],
+            ..FirmwareBuild::DEFAULT
+        },
+        &format!("badimg-{name}"),
     );
-    let log = dir.join(format!("{name}-defmt.bin"));
-    let (out, code) = run_qemu(qemu, &elf, pipeline::END_MARKER.to_vec(), &log);
+    let log = fw.file("defmt.bin");
+    let (out, code) = run_qemu(qemu, &fw.elf, pipeline::END_MARKER.to_vec(), &log);
     (out, std::fs::read(&log).expect("defmt log"), code)
 }
 
@@ -482,22 +480,19 @@ fn image_runs_bit_for_bit(
     let mut bytes = vec![0u8; fog_core::image::IMAGE_LEN];
     let n = image.to_bytes(&mut bytes).expect("image written");
     bytes.truncate(n);
-    let dir = fog_system_tests::firmware_dir().join("target/bankimg");
-    std::fs::create_dir_all(&dir).expect("target/bankimg");
-    let path = dir.join(format!("{name}.fogi"));
-    std::fs::write(&path, &bytes).expect("image file");
-    let elf = firmware_elf_in(
-        "target/bankimg",
-        &[],
-        &[("FOG_IDENTIFIER", path.as_os_str())],
+    let fw = firmware(
+        &FirmwareBuild {
+            target_subdir: "target/bankimg",
+            input_files: &[("FOG_IDENTIFIER", &bytes)],
+            ..FirmwareBuild::DEFAULT
+        },
+        &format!("hil-{name}"),
     );
-    let capture_dir = elf.with_file_name(format!("hil-{name}"));
-    std::fs::create_dir_all(&capture_dir).expect("capture folder");
-    let (capture, _) = vehicle_capture(&capture_dir);
+    let (capture, _) = vehicle_capture(fw.dir());
     let stream = wire_stream(&capture, 0xBADB_17E5);
     let expected = hil::host_reference_with(&stream, &bytes);
-    let log = elf.with_file_name(format!("hil-{name}-defmt.bin"));
-    let (out, code) = run_qemu(qemu, &elf, stream, &log);
+    let log = fw.file("defmt.bin");
+    let (out, code) = run_qemu(qemu, &fw.elf, stream, &log);
     let (records, stats) = parse_records(&out);
     assert_eq!(code, Some(0), "{name}: QEMU's exit code (semihosting)");
     let stats = stats.expect("final statistics record");
@@ -532,6 +527,14 @@ fn image_runs_bit_for_bit(
     (still, verified)
 }
 
+/// The STM32 build's QEMU variant (`netduinoplus2`), in its own target directory.
+const NETDUINO: FirmwareBuild<'static> = FirmwareBuild {
+    target_subdir: "target/netduino",
+    cargo_args: &["--no-default-features", "--features", "qemu-netduinoplus2"],
+    input_files: &[],
+    envs: &[],
+};
+
 /// USART2 control register 1 of the STM32F4 (RM0090: USART2 at 0x4000_4400, CR1 at 0x0C).
 const USART2_CR1: u32 = 0x4000_440C;
 /// CR1: UE (bit 13), RE (bit 2), RXNEIE (bit 5).
@@ -556,20 +559,14 @@ fn stm32_build_under_netduinoplus2_matches_host_bit_for_bit() {
     let Some(qemu) = qemu_system_arm() else {
         return;
     };
-    let elf = firmware_elf_in(
-        "target/netduino",
-        &["--no-default-features", "--features", "qemu-netduinoplus2"],
-        &[],
-    );
+    let fw = firmware(&NETDUINO, "hil-netduino");
     let built = t0.elapsed();
-    let dir = elf.with_file_name("hil-vehicle");
-    std::fs::create_dir_all(&dir).expect("capture folder");
-    let (capture, _) = vehicle_capture(&dir);
+    let (capture, _) = vehicle_capture(fw.dir());
     let stream = wire_stream(&capture, 0xBADB_17E5);
     let expected = host_reference(&stream);
 
-    let log = elf.with_file_name("hil-netduino-qemu.log");
-    let int_log = elf.with_file_name("hil-netduino-int.log");
+    let log = fw.file("qemu.log");
+    let int_log = fw.file("int.log");
     let int_log_arg = int_log.display().to_string();
     let args = [
         "-machine",
@@ -592,7 +589,7 @@ fn stm32_build_under_netduinoplus2_matches_host_bit_for_bit() {
     let run = hil::run_qemu_steps(
         &qemu,
         &args,
-        &elf,
+        &fw.elf,
         vec![hil::Step {
             wait_output: 0,
             bytes: stream.clone(),

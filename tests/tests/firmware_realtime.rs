@@ -17,8 +17,8 @@
 //!   register, and the loss markers must reach the decoder at their place: every frame the
 //!   firmware decodes is a real one, in order, and decoding resumes after each loss.
 //!
-//! The capture is generated here (seeded), written next to the builds and compiled into the
-//! test images (`FOG_RT_CAPTURE`).
+//! The capture is generated here (seeded) and compiled into the test images
+//! (`FOG_RT_CAPTURE`); each image is read back from its ELF before it runs.
 
 use std::io::Read;
 use std::path::Path;
@@ -27,7 +27,7 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use fog_core::frame::ecore;
-use fog_system_tests::{firmware_dir, firmware_elf_in, qemu_system_arm};
+use fog_system_tests::{firmware, qemu_system_arm, Firmware, FirmwareBuild};
 
 mod hil;
 use hil::{host_reference, parse_records, pipeline, spawn_qemu, Rng, StatsRecord};
@@ -122,20 +122,18 @@ fn run_icount(qemu: &Path, elf: &Path, defmt_log: &Path) -> (Vec<u8>, Option<i32
     (out, code)
 }
 
-/// Builds the test image with `feature` (into `fog-firmware/target/rt`) and keeps a copy
-/// of it under `name`, since the next build replaces the ELF.
-fn build(feature: &str, capture_path: &Path, baud: &str, name: &str) -> std::path::PathBuf {
-    let elf = firmware_elf_in(
-        "target/rt",
-        &["--features", feature],
-        &[
-            ("FOG_RT_CAPTURE", capture_path.as_os_str()),
-            ("FOG_RT_BAUD", baud.as_ref()),
-        ],
-    );
-    let kept = elf.with_file_name(name);
-    std::fs::copy(&elf, &kept).expect("copy of the test image");
-    kept
+/// Builds the test image with `feature` and `capture` at `baud` (in `fog-firmware/target/rt`);
+/// the test's own copy, its capture read back from the ELF.
+fn build(feature: &str, capture: &[u8], baud: &str, name: &str) -> Firmware {
+    firmware(
+        &FirmwareBuild {
+            target_subdir: "target/rt",
+            cargo_args: &["--features", feature],
+            input_files: &[("FOG_RT_CAPTURE", capture)],
+            envs: &[("FOG_RT_BAUD", baud)],
+        },
+        name,
+    )
 }
 
 #[test]
@@ -145,32 +143,17 @@ fn bytes_arriving_at_115200_baud_none_lost_with_the_receive_interrupt() {
         return;
     };
     let stream = capture(0x0A11_7E57);
-    let dir = firmware_dir().join("target/rt");
-    std::fs::create_dir_all(&dir).expect("target/rt");
-    let capture_path = dir.join("rt-capture.bin");
     let ramp = ramp_capture(0x005E_ED0F_F457);
-    let ramp_path = dir.join("rt-capture-ramp.bin");
-    // Rewritten only when they changed, so that cargo's fingerprint stays fresh.
-    for (path, bytes) in [(&capture_path, &stream), (&ramp_path, &ramp)] {
-        if std::fs::read(path).ok().as_deref() != Some(&bytes[..]) {
-            std::fs::write(path, bytes).expect("capture written");
-        }
-    }
-    let isr_elf = build("rt-feed", &capture_path, BAUD, "fog-firmware-rt-isr");
-    let poll_elf = build(
-        "rt-feed-poll",
-        &capture_path,
-        POLL_BAUD,
-        "fog-firmware-rt-poll",
-    );
-    let fast_elf = build("rt-feed", &ramp_path, FAST_BAUD, "fog-firmware-rt-fast");
+    let isr = build("rt-feed", &stream, BAUD, "rt-isr");
+    let poll = build("rt-feed-poll", &stream, POLL_BAUD, "rt-poll");
+    let fast = build("rt-feed", &ramp, FAST_BAUD, "rt-fast");
     let built = t0.elapsed();
     let expected = host_reference(&stream);
     assert_eq!(expected.samples.len(), SAMPLES);
 
     // The production receive path: interrupt + queue.
     let t_run = Instant::now();
-    let (out, code) = run_icount(&qemu, &isr_elf, &dir.join("rt-isr-defmt.bin"));
+    let (out, code) = run_icount(&qemu, &isr.elf, &isr.file("defmt.bin"));
     let ran_isr = t_run.elapsed();
     assert_eq!(code, Some(0), "QEMU's exit code (semihosting)");
     let (records, stats) = parse_records(&out);
@@ -209,7 +192,7 @@ fn bytes_arriving_at_115200_baud_none_lost_with_the_receive_interrupt() {
     // The same line without the receive interrupt: the main loop polls the register between
     // samples, and bytes that arrive during a long sample are overwritten.
     let t_run = Instant::now();
-    let (out, code) = run_icount(&qemu, &poll_elf, &dir.join("rt-poll-defmt.bin"));
+    let (out, code) = run_icount(&qemu, &poll.elf, &poll.file("defmt.bin"));
     let ran_poll = t_run.elapsed();
     assert_eq!(code, Some(0), "QEMU's exit code (semihosting), polling");
     let (poll_records, poll_stats) = parse_records(&out);
@@ -227,7 +210,7 @@ fn bytes_arriving_at_115200_baud_none_lost_with_the_receive_interrupt() {
 
     // Losses through the queue: markers at their place, every decoded frame a real one.
     let t_run = Instant::now();
-    let (out, code) = run_icount(&qemu, &fast_elf, &dir.join("rt-fast-defmt.bin"));
+    let (out, code) = run_icount(&qemu, &fast.elf, &fast.file("defmt.bin"));
     let ran_fast = t_run.elapsed();
     assert_eq!(
         code,

@@ -22,7 +22,7 @@ use std::io::{Read, Write};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use fog_system_tests::{firmware_elf, host_sim, qemu_system_arm};
+use fog_system_tests::{default_firmware, host_sim, qemu_system_arm};
 
 #[path = "../../fog-firmware/src/temperature_hold.rs"]
 mod temperature_hold;
@@ -41,9 +41,9 @@ use pipeline::{STATS_PAYLOAD_LEN, STATS_RECORD_LEN};
 /// returns (UART output, defmt bytes, exit code).
 fn run(name: &str, extra: &[&str]) -> Option<(Vec<u8>, Vec<u8>, Option<i32>)> {
     let qemu = qemu_system_arm()?;
-    let elf = firmware_elf(&[]);
+    let fw = default_firmware(&format!("temperature-{name}"));
     // To a file, as in the HIL test (through a pipe, the first frames got lost).
-    let log_path = elf.with_file_name(format!("temperature-{name}-defmt.bin"));
+    let log_path = fw.file("defmt.bin");
     let log_file = std::fs::File::create(&log_path).expect("defmt log file");
     let mut child = Command::new(qemu)
         .args(["-machine", "mps2-an386", "-nographic", "-monitor", "none"])
@@ -52,7 +52,7 @@ fn run(name: &str, extra: &[&str]) -> Option<(Vec<u8>, Vec<u8>, Option<i32>)> {
         .args(extra)
         .env_clear()
         .arg("-kernel")
-        .arg(&elf)
+        .arg(&fw.elf)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::from(log_file))
@@ -221,10 +221,8 @@ fn a_temperature_profile_over_qmp_reaches_the_estimator_bit_for_bit() {
     let Some(qemu) = qemu_system_arm() else {
         return;
     };
-    let elf = firmware_elf(&[]);
-    let dir = elf.with_file_name("hil-temperature");
-    std::fs::create_dir_all(&dir).expect("capture folder");
-    let capture = dir.join("capture.bin");
+    let fw = default_firmware("hil-temperature");
+    let capture = fw.file("capture.bin");
     let preset = fog_system_tests::firmware_dir().join("../host-sim/presets/ecore2000.toml");
     let st = host_sim()
         .args(["simulate", "--model"])
@@ -256,7 +254,7 @@ fn a_temperature_profile_over_qmp_reaches_the_estimator_bit_for_bit() {
 
     let held = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
     let held_in = std::sync::Arc::clone(&held);
-    let log = elf.with_file_name("hil-temperature-defmt.bin");
+    let log = fw.file("defmt.bin");
     let args = [
         "-machine",
         "mps2-an386",
@@ -274,7 +272,7 @@ fn a_temperature_profile_over_qmp_reaches_the_estimator_bit_for_bit() {
     let run = hil::run_qemu_steps(
         &qemu,
         &args,
-        &elf,
+        &fw.elf,
         steps,
         move |qmp, j| {
             let milli = PROFILE[j].1;

@@ -39,8 +39,12 @@ use super::Irq;
 // `BYTE_PERIOD_TICKS` and `BAUD`, from build.rs.
 include!(concat!(env!("OUT_DIR"), "/rt_feed_config.rs"));
 
-/// The capture, delivered byte by byte.
-static CAPTURE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rt_capture.bin"));
+/// The capture, delivered byte by byte. An array, so that the ELF's symbol table names it
+/// (the real-time test reads it back from the ELF it runs).
+static CAPTURE: [u8; CAPTURE_LEN] = *include_bytes!(concat!(env!("OUT_DIR"), "/rt_capture.bin"));
+
+/// Length of [`CAPTURE`], bytes.
+const CAPTURE_LEN: usize = include_bytes!(concat!(env!("OUT_DIR"), "/rt_capture.bin")).len();
 
 /// CMSDK APB timer 0.
 const TIMER0_BASE: usize = 0x4000_0000;

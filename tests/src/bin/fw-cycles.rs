@@ -158,16 +158,20 @@ fn build_plugin(dir: &Path) -> Result<PathBuf, String> {
 }
 
 fn run(elf: &Path, keep: Option<&Path>, top: usize) -> Result<bool, String> {
-    let dir = match keep {
-        Some(d) => d.to_path_buf(),
-        None => std::env::temp_dir().join(format!("fog-cycles-{}", std::process::id())),
-    };
-    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let result = run_in(elf, &dir, top);
-    if keep.is_none() {
-        let _ = std::fs::remove_dir_all(&dir);
+    match keep {
+        Some(d) => {
+            std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
+            run_in(elf, d, top)
+        }
+        // A folder of this run's own (`fog-cycles-XXXXXX`), removed at the end.
+        None => {
+            let dir = tempfile::Builder::new()
+                .prefix("fog-cycles-")
+                .tempdir()
+                .map_err(|e| format!("a temporary folder: {e}"))?;
+            run_in(elf, dir.path(), top)
+        }
     }
-    result
 }
 
 fn run_in(elf: &Path, dir: &Path, top: usize) -> Result<bool, String> {

@@ -594,16 +594,14 @@ pub fn run_qemu_steps(
 ) -> QemuRun {
     let start = Instant::now();
     // A Unix socket path must fit in sun_path (108 bytes): beside the log, under a deep
-    // checkout's target directory, it did not (110 bytes in a worktree). The temporary
-    // directory, with the process id and a counter for the tests running in parallel.
-    static SOCKETS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let qmp_path = std::env::temp_dir().join(format!(
-        "fog-qmp-{}-{}.sock",
-        std::process::id(),
-        SOCKETS.fetch_add(1, std::sync::atomic::Ordering::SeqCst)
-    ));
-    let _ = std::fs::remove_file(&qmp_path);
-    let qmp_socket = qmp_path.clone();
+    // checkout's target directory, it did not (110 bytes in a worktree). A folder of this
+    // run's own in the temporary directory (`/tmp/fog-qmp-XXXXXX/qmp.sock`): no other run,
+    // in this process or another, names the same socket.
+    let qmp_dir = tempfile::Builder::new()
+        .prefix("fog-qmp-")
+        .tempdir()
+        .expect("a folder for the QMP socket");
+    let qmp_path = qmp_dir.path().join("qmp.sock");
     let log_file = std::fs::File::create(log).expect("log file");
     let child = Command::new(qemu)
         .args(args)
@@ -684,7 +682,7 @@ pub fn run_qemu_steps(
         }
     }
     drop(qemu_proc);
-    let _ = std::fs::remove_file(&qmp_socket);
+    drop(qmp_dir);
     let resumed = writer
         .join()
         .expect("writer thread")
