@@ -116,6 +116,32 @@ impl Firmware {
     pub fn embedded(&self, name: &str) -> Option<Vec<u8>> {
         embedded_static(&self.elf, name)
     }
+
+    /// Panics unless the ELF's static for input `var` (`FOG_IDENTIFIER`: `IDENTIFIER_IMAGE`,
+    /// `FOG_RT_CAPTURE`: `CAPTURE`) holds exactly `bytes`.
+    ///
+    /// # Panics
+    /// If it does not, or `var` is not an embedded input.
+    pub fn assert_carries(&self, var: &str, bytes: &[u8]) {
+        let name = EMBEDDED_STATICS
+            .iter()
+            .find(|(v, _)| *v == var)
+            .map(|(_, s)| *s)
+            .unwrap_or_else(|| panic!("no embedded static known for {var}"));
+        let embedded = self
+            .embedded(name)
+            .unwrap_or_else(|| panic!("no symbol {name} in {}", self.elf.display()));
+        assert!(
+            embedded == bytes,
+            "{}: the ELF's {name} ({} bytes, FNV-1a {:016x}) is not the {var} asked for \
+             ({} bytes, {:016x})",
+            self.elf.display(),
+            embedded.len(),
+            fnv1a64(&embedded),
+            bytes.len(),
+            fnv1a64(bytes)
+        );
+    }
 }
 
 impl Drop for Firmware {
@@ -252,23 +278,7 @@ pub fn firmware(build: &FirmwareBuild, label: &str) -> Firmware {
         .map(|(v, b)| (*v, *b))
         .chain([("FOG_IDENTIFIER", image)]);
     for (var, bytes) in expected {
-        let name = EMBEDDED_STATICS
-            .iter()
-            .find(|(v, _)| *v == var)
-            .map(|(_, s)| *s)
-            .unwrap_or_else(|| panic!("no embedded static known for {var}"));
-        let embedded = fw
-            .embedded(name)
-            .unwrap_or_else(|| panic!("{label}: no symbol {name} in {}", fw.elf.display()));
-        assert!(
-            embedded == bytes,
-            "{label}: the ELF's {name} ({} bytes, FNV-1a {:016x}) is not the {var} asked for \
-             ({} bytes, {:016x})",
-            embedded.len(),
-            fnv1a64(&embedded),
-            bytes.len(),
-            fnv1a64(bytes)
-        );
+        fw.assert_carries(var, bytes);
     }
     fw
 }

@@ -386,6 +386,24 @@ fn a_corrupt_or_wrong_rate_image_stops_the_firmware_at_setup() {
     }
 }
 
+/// The read-back that proves an ELF carries its image can fail: the default build checked
+/// against the default image with one byte changed, and against its first 100 bytes.
+#[test]
+fn an_elf_that_does_not_carry_the_image_asked_for_is_refused() {
+    let fw = default_firmware("carries-control");
+    let good = default_image();
+    fw.assert_carries("FOG_IDENTIFIER", &good);
+    let mut changed = good.clone();
+    changed[good.len() / 2] ^= 0x01;
+    for (what, image) in [
+        ("one byte changed", changed),
+        ("truncated", good[..100].to_vec()),
+    ] {
+        let refused = std::panic::catch_unwind(|| fw.assert_carries("FOG_IDENTIFIER", &image));
+        assert!(refused.is_err(), "{what}: accepted as the embedded image");
+    }
+}
+
 #[test]
 fn the_default_image_parses_and_says_how_it_was_made() {
     let bytes = default_image();
