@@ -2,16 +2,16 @@
 //! the noise terms ([`crate::allan`] documents each method), JSON and an optional SVG plot.
 //!
 //! The sample period `tau0` comes from `t_s` (the record's stated rate is not trusted)
-//! ([`sample_period`]): the mean step with the gaps left out (steps over
-//! [`record::GAP_FACTOR`] x the median, reported on stderr and in the JSON) when they are
-//! rare (at most [`RARE_GAPS`] of the steps: missing data), else the mean of every step
-//! (irregular or bursty stamps, where the median is not the rate: said on stderr). The
+//! ([`sample_period`], the rule of [`record::Holes`]): the mean step with the gaps left out
+//! (steps over [`record::GAP_FACTOR`] x the median, reported on stderr and in the JSON) when
+//! they are rare (at most [`RARE_GAPS`] of the steps: missing data), else the mean of every
+//! step (irregular or bursty stamps, where the median is not the rate: said on stderr). The
 //! samples are analysed as if evenly spaced. The input (CSV, or `.csv.gz`) is read into
 //! memory ([`Record`]: `t_s` and the rate, f64: 16 bytes per sample) with only those two
 //! columns read.
 
 use crate::allan::{self, edf, Taus};
-use crate::record::{self, ReadOptions, Record};
+use crate::record::{self, Holes, ReadOptions, Record};
 use crate::record_args::RecordArgs;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
@@ -45,16 +45,14 @@ pub struct Args {
 pub struct AllanInput {
     /// The record (`t_s`, the rate column times the scale).
     pub record: Record,
-    /// Gaps: (line after the gap, step in s).
-    pub gaps: Vec<(u64, f64)>,
-    /// Median step of `t_s`, s (the gaps' reference).
-    pub median_step_s: f64,
+    /// Its gaps (against the median step).
+    pub holes: Holes,
 }
 
 /// Steps over [`record::GAP_FACTOR`] x the median are gaps (missing data, left out of
 /// `tau0`) when at most this fraction of the steps are (ASSUMED: 1 %); beyond it the stamps
-/// are irregular and `tau0` is the mean of every step.
-pub const RARE_GAPS: f64 = 0.01;
+/// are irregular and `tau0` is the mean of every step ([`record::RARE_GAPS`]).
+pub const RARE_GAPS: f64 = record::RARE_GAPS;
 
 /// How `tau0` was found ([`sample_period`]).
 pub struct SamplePeriod {
@@ -68,26 +66,18 @@ pub struct SamplePeriod {
     pub irregular: bool,
 }
 
-/// `tau0` of a series read by [`read_series`] (module docs).
+/// `tau0` of a series read by [`read_series`] (module docs; [`Holes::period_s`]).
 pub fn sample_period(s: &AllanInput) -> SamplePeriod {
-    let (t_s, gaps, median_s) = (&s.record.t_s, &s.gaps, s.median_step_s);
-    let steps = (t_s.len() - 1) as f64;
-    let span = t_s[t_s.len() - 1] - t_s[0];
-    if gaps.len() as f64 <= RARE_GAPS * steps {
-        let gap_sum: f64 = gaps.iter().map(|g| g.1).sum();
-        SamplePeriod {
-            tau0_s: (span - gap_sum) / (steps - gaps.len() as f64),
-            method: "mean t_s step, gaps left out",
-            median_s,
-            irregular: false,
-        }
-    } else {
-        SamplePeriod {
-            tau0_s: span / steps,
-            method: "mean of every t_s step (irregular stamps)",
-            median_s,
-            irregular: true,
-        }
+    let h = &s.holes;
+    SamplePeriod {
+        tau0_s: h.period_s(),
+        method: if h.irregular() {
+            "mean of every t_s step (irregular stamps)"
+        } else {
+            "mean t_s step, gaps left out"
+        },
+        median_s: h.nominal_step_s,
+        irregular: h.irregular(),
     }
 }
 
@@ -108,18 +98,8 @@ pub fn read_series(path: &Path, args: &RecordArgs) -> Result<AllanInput> {
             t_s.len()
         );
     }
-    let med = allan::median_step_s(t_s).with_context(|| name.to_string())?;
-    let gaps = t_s
-        .windows(2)
-        .enumerate()
-        .filter(|(_, w)| w[1] - w[0] > record::GAP_FACTOR * med)
-        .map(|(i, w)| (record.line(i + 1), w[1] - w[0]))
-        .collect();
-    Ok(AllanInput {
-        record,
-        gaps,
-        median_step_s: med,
-    })
+    let holes = record.holes();
+    Ok(AllanInput { record, holes })
 }
 
 #[derive(Serialize)]
@@ -157,17 +137,13 @@ pub fn run(args: &Args) -> Result<()> {
     let ms = allan::tau_factors(rate.len(), args.taus);
     let (points, fit) = allan::analyse(&rate, tau0_s, &ms, args.markov, edf::ONE_SIGMA)
         .with_context(|| name.clone())?;
-    let largest = s
-        .gaps
-        .iter()
-        .map(|g| g.1)
-        .fold(None, |a: Option<f64>, g| Some(a.map_or(g, |a| a.max(g))));
+    let largest = s.holes.largest.map(|g| g.dt_s);
     let doc = Output {
         input: name.clone(),
         n_samples: rate.len(),
         tau0_s,
         tau0_method: period.method,
-        gaps: s.gaps.len(),
+        gaps: s.holes.count as usize,
         largest_gap_s: largest,
         adev_method: "overlapping Allan deviation, NIST SP 1065 eq. 11, f64 cumulative sum (phase)",
         edf_method: "NIST SP 1065 Table 5 simple approximations (Howe/Allan/Barnes, Stein), \
@@ -270,21 +246,11 @@ pub fn run(args: &Args) -> Result<()> {
             "T_gm"
         )?;
     }
-    if period.irregular {
-        writeln!(
-            err,
-            "{name}: warning: irregular t_s: {} of {} steps over {} x the median step; tau0 is the mean step, and the samples are analysed as if evenly spaced",
-            s.gaps.len(),
-            s.record.len() - 1,
-            record::GAP_FACTOR,
-        )?;
-    } else if let Some(&(line, dt)) = s.gaps.iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
-        writeln!(
-            err,
-            "{name}: warning: {} gap(s) in t_s (step > {} x median), largest {dt:.4} s before line {line}; samples are analysed as if evenly spaced",
-            s.gaps.len(),
-            record::GAP_FACTOR,
-        )?;
+    if let Some(w) = s.holes.warning(
+        &name,
+        "tau0 is that period, and the samples are analysed as if evenly spaced",
+    ) {
+        writeln!(err, "{w}")?;
     }
     Ok(())
 }

@@ -188,7 +188,7 @@ pub fn run(args: &Args) -> Result<()> {
         wtr.flush()?;
         Ok(())
     })?;
-    let gaps = rec.gaps();
+    let holes = rec.holes();
     let mut err = std::io::stderr().lock();
     writeln!(
         err,
@@ -200,16 +200,11 @@ pub fn run(args: &Args) -> Result<()> {
         sigma_sum / blocks.len() as f64,
         out_path.display()
     )?;
-    if let Some(g) = gaps.iter().max_by(|a, b| a.dt_s.total_cmp(&b.dt_s)) {
-        writeln!(
-            err,
-            "{}: warning: {} gap(s) in t_s (step > {} x median), largest {:.4} s before line {}; samples are denoised as if evenly spaced",
-            args.input.display(),
-            gaps.len(),
-            record::GAP_FACTOR,
-            g.dt_s,
-            g.line
-        )?;
+    if let Some(w) = holes.warning(
+        &args.input.display().to_string(),
+        "samples are denoised as if evenly spaced, none dropped or interpolated",
+    ) {
+        writeln!(err, "{w}")?;
     }
     Ok(())
 }

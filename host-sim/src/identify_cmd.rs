@@ -6,7 +6,7 @@ use crate::motion;
 use crate::nav::NavRecord;
 use crate::record;
 use crate::record::ReadOptions;
-use crate::record_args::RecordArgs;
+use crate::record_args::{HolesSummary, RecordArgs};
 use crate::sensor::SensorSpec;
 use anyhow::{Context, Result};
 use fog_core::image::Image;
@@ -248,6 +248,39 @@ pub fn write_report<T: serde::Serialize>(
     Ok(())
 }
 
+/// Reads each of `files` once for the gaps in its `t_s` ([`record::Holes`]) and prints one
+/// line on stderr for each record with gaps: count, the largest one's start (time, line) and
+/// length, the samples missing, the rate (from the steps that are not gaps, so a hole does
+/// not move it) and what identify does with them. A record with gaps is used as it is,
+/// none of its samples dropped or interpolated: the identifier and the bench fits take the
+/// samples as evenly spaced at that rate, so after a gap their time since power-on is
+/// behind `t_s` by the gap's length (said in the line). Returns every record's, for the JSON.
+fn scan_holes(files: &[PathBuf], opts: &ReadOptions) -> Result<Vec<HolesSummary>> {
+    let opts = ReadOptions {
+        optional_columns: false,
+        ..opts.clone()
+    };
+    let mut out = Vec::with_capacity(files.len());
+    for p in files {
+        let r = record::Record::read(p, &opts)?;
+        let h = r.holes();
+        let how = if h.irregular() {
+            "identify takes the samples as evenly spaced at that rate (the identifier and the bench fits assume uniform sampling), none dropped or interpolated".to_string()
+        } else {
+            format!(
+                "the identifier and the bench fits assume uniform sampling: identify takes the samples as evenly spaced at that rate, none dropped or interpolated, so after the gaps their time since power-on runs {:.3} s behind t_s and the window across the largest joins samples {} s apart (split the record at the gap if that matters)",
+                h.behind_s(),
+                h.largest.map_or(0.0, |g| (g.dt_s * 1e6).round() / 1e6)
+            )
+        };
+        if let Some(w) = h.warning(&r.name, &how) {
+            eprintln!("{w}");
+        }
+        out.push(HolesSummary::new(&r.name, &h));
+    }
+    Ok(out)
+}
+
 /// Runs the command.
 pub fn run(a: &Args) -> Result<()> {
     if a.id.preset == Preset::Motion {
@@ -267,8 +300,24 @@ pub fn run(a: &Args) -> Result<()> {
     for p in train.0.iter().chain(&validate.0) {
         record::refuse_overwrite(p, json)?;
     }
+    let mut holes = scan_holes(&train.0, &train.1)?;
+    holes.extend(scan_holes(&validate.0, &validate.1)?);
     let report = identify::run(&options(&a.id), &train, &validate)?;
-    write_report(json, &report, &report)
+    /// The report with every record's gaps in `t_s`.
+    #[derive(serde::Serialize)]
+    struct WithHoles<'a> {
+        #[serde(flatten)]
+        report: &'a identify::Report,
+        holes: Vec<HolesSummary>,
+    }
+    write_report(
+        json,
+        &WithHoles {
+            report: &report,
+            holes,
+        },
+        &report,
+    )
 }
 
 /// The image's second-state fields for `arrangement` from the arguments: the bank's B and
@@ -361,6 +410,14 @@ fn run_motion(a: &Args) -> Result<()> {
             record::refuse_overwrite(p, j)?;
         }
     }
+    let mut holes = scan_holes(&train.0, &train.1)?;
+    // Records with truth are read at the image's (the sensor's) rate when they lack `t_s`.
+    let truth_opts = ReadOptions {
+        rate_hz: Some(f64::from(a.sensor.config.sample_rate_hz)),
+        ..ReadOptions::default()
+    };
+    holes.extend(scan_holes(&validate, &truth_opts)?);
+    holes.extend(scan_holes(&tune_on, &truth_opts)?);
     let mut o = motion::TrainOptions::new(a.sensor.config);
     if let Some(t) = a.stale_s {
         if !(t > 0.0 && t.is_finite()) {
@@ -443,6 +500,7 @@ fn run_motion(a: &Args) -> Result<()> {
             "weights_dps": image.model.weights,
             "validation": validation,
             "tuning": tuning,
+            "holes": holes,
         }))
         .context("report to JSON")?;
         record::write_atomic(j, |w| {

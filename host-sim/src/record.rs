@@ -15,8 +15,14 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-/// A time step larger than this many times the median step counts as a gap in the record.
+/// A time step larger than this many nominal sample periods is a gap (a hole) in `t_s`: one
+/// or more samples missing ([`Holes`], the rule every command applies).
 pub const GAP_FACTOR: f64 = 1.5;
+
+/// Gaps are missing samples when at most this share of the steps are gaps (ASSUMED: 1 %);
+/// beyond it the stamps are irregular (bursty host arrival times, coarse jitter), not a
+/// regular stream with holes ([`Holes::irregular`]).
+pub const RARE_GAPS: f64 = 0.01;
 
 /// How to read a record: the options every subcommand takes.
 #[derive(Debug, Clone, PartialEq)]
@@ -389,14 +395,194 @@ pub struct Record {
     pub moving: Option<Vec<bool>>,
     /// The external still flag per row (`None` where the cell is empty).
     pub still: Option<Vec<Option<bool>>>,
+    /// `(row, line)` wherever a row's line is not the previous row's plus one (blank or
+    /// multi-line rows before it): [`Record::line`] without [`ReadOptions::keep_rows`].
+    line_jumps: Vec<(usize, u64)>,
 }
 
-/// A gap in time: no samples between `line - 1` and `line`.
+/// A gap in time: no samples between line `start_line` and line `line`.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Gap {
+    /// Line of the last sample before the gap (header = 1).
+    pub start_line: u64,
     /// Line of the first sample after the gap.
     pub line: u64,
+    /// `t_s` of the last sample before the gap: where it starts, seconds.
+    pub t_s: f64,
     /// Length of the step, seconds.
     pub dt_s: f64,
+}
+
+/// The gaps (holes) in a record's `t_s`, found by one rule for every command that reads a
+/// record (`denoise`, `allan`, `identify`, `replay`):
+///
+/// - the **nominal period** is the median step of `t_s` (a hole is one step, so it does not
+///   move the median; the streamed replay takes the median of its look-ahead's steps);
+/// - a step longer than [`GAP_FACTOR`] (1.5) nominal periods is a **gap**: at least one
+///   sample is missing (a step of 1.5 periods or less is jitter: no whole sample fits in
+///   it); it misses `round(step / nominal) - 1` samples;
+/// - the **sample period** ([`Holes::period_s`]) is the mean of the steps that are not gaps
+///   (the median's value on evenly spaced stamps, to within their jitter and rounding; a
+///   gap does not move it), unless gaps are more than [`RARE_GAPS`] of the steps: then the
+///   stamps are irregular, not a stream with holes (e.g. host arrival times in bursts,
+///   where the median is not the rate), and the period is the mean of every step.
+///
+/// Nothing is interpolated or dropped: each command says on stderr how it treats the gaps
+/// ([`Holes::warning`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Holes {
+    /// The nominal period: the median step, s (0 below two samples; [`HoleFinder`]: the
+    /// period it was given).
+    pub nominal_step_s: f64,
+    /// Steps (samples - 1).
+    pub steps: u64,
+    /// `t_last - t_first`, s.
+    pub span_s: f64,
+    /// Gaps.
+    pub count: u64,
+    /// The longest gap (the first of equal ones).
+    pub largest: Option<Gap>,
+    /// Samples missing in all the gaps (each `round(step / nominal) - 1`).
+    pub samples_missing: u64,
+    /// The gaps' steps summed, s.
+    pub gaps_s: f64,
+}
+
+impl Holes {
+    /// The gaps of `t` (increasing); `line(i)` is the file line of sample `i`.
+    pub fn of(t: &[f64], line: impl Fn(usize) -> u64) -> Self {
+        let mut f = HoleFinder::new(median_step_s(t).unwrap_or(0.0));
+        for (i, &x) in t.iter().enumerate() {
+            f.push(x, line(i));
+        }
+        f.holes()
+    }
+
+    /// More than [`RARE_GAPS`] of the steps are gaps: irregular stamps, not holes.
+    pub fn irregular(&self) -> bool {
+        self.count as f64 > RARE_GAPS * self.steps as f64
+    }
+
+    /// The sample period, s: the mean step with the gaps left out, or the mean of every step
+    /// when the stamps are [`irregular`](Holes::irregular); 1 s below two samples (as
+    /// [`mean_step_s`]).
+    pub fn period_s(&self) -> f64 {
+        let kept = self.steps - self.count;
+        if self.steps == 0 || self.span_s <= 0.0 {
+            1.0
+        } else if self.irregular() || kept == 0 {
+            self.span_s / self.steps as f64
+        } else {
+            (self.span_s - self.gaps_s) / kept as f64
+        }
+    }
+
+    /// How far a reader that takes the samples as evenly spaced at [`Holes::period_s`] is
+    /// behind `t_s` after the gaps: their length beyond one period each, s.
+    pub fn behind_s(&self) -> f64 {
+        (self.gaps_s - self.count as f64 * self.period_s()).max(0.0)
+    }
+
+    /// The one line a command prints on stderr for a record with gaps (`None` without):
+    /// `NAME: warning: ...` with their count, the largest one's start (time and line) and
+    /// length, the samples missing and the rate, then `how`: what the command does with them.
+    pub fn warning(&self, name: &str, how: &str) -> Option<String> {
+        let g = self.largest?;
+        let hz = 1.0 / self.period_s();
+        let (nominal, largest) = (round6(self.nominal_step_s), round6(g.dt_s));
+        Some(if self.irregular() {
+            format!(
+                "{name}: warning: irregular t_s: {} of {} steps over {GAP_FACTOR}x the nominal period {nominal} s (too many for missing samples: bursty or jittery stamps), the largest {largest} s from t_s = {} s (line {}); rate {hz:.4} Hz from the mean of every step; {how}",
+                self.count,
+                self.steps,
+                round6(g.t_s),
+                g.start_line,
+            )
+        } else {
+            format!(
+                "{name}: warning: {} gap(s) in t_s (steps over {GAP_FACTOR}x the nominal period {nominal} s): the largest {largest} s from t_s = {} s (line {}) to line {}, {} samples missing in all; rate {hz:.4} Hz from the other steps; {how}",
+                self.count,
+                round6(g.t_s),
+                g.start_line,
+                g.line,
+                self.samples_missing,
+            )
+        })
+    }
+}
+
+/// `x` rounded to 6 decimals for messages (a step of 10.009999999999998 s prints 10.01).
+fn round6(x: f64) -> f64 {
+    (x * 1e6).round() / 1e6
+}
+
+/// [`Holes`] found sample by sample against a nominal period known beforehand (the
+/// streamed readers': the median step of the motion replay's look-ahead; `1 / --rate-hz`
+/// for the streamed level-trend and paper replays, whose identifier runs at that rate).
+#[derive(Debug, Clone, Default)]
+pub struct HoleFinder {
+    holes: Holes,
+    first_t: Option<f64>,
+    prev: Option<(f64, u64)>,
+}
+
+impl HoleFinder {
+    /// A finder for gaps against `nominal_step_s` (the median step).
+    pub fn new(nominal_step_s: f64) -> Self {
+        Self {
+            holes: Holes {
+                nominal_step_s,
+                ..Holes::default()
+            },
+            ..Self::default()
+        }
+    }
+
+    /// The next sample: its time, s, and its line in the file.
+    pub fn push(&mut self, t_s: f64, line: u64) {
+        let h = &mut self.holes;
+        if let Some((prev, prev_line)) = self.prev {
+            let dt = t_s - prev;
+            h.steps += 1;
+            if h.nominal_step_s > 0.0 && dt > GAP_FACTOR * h.nominal_step_s {
+                h.count += 1;
+                h.gaps_s += dt;
+                h.samples_missing += ((dt / h.nominal_step_s).round() as u64).saturating_sub(1);
+                if h.largest.is_none_or(|g| dt > g.dt_s) {
+                    h.largest = Some(Gap {
+                        start_line: prev_line,
+                        line,
+                        t_s: prev,
+                        dt_s: dt,
+                    });
+                }
+            }
+        }
+        let first = *self.first_t.get_or_insert(t_s);
+        h.span_s = t_s - first;
+        self.prev = Some((t_s, line));
+    }
+
+    /// What was found so far.
+    pub fn holes(&self) -> Holes {
+        self.holes
+    }
+}
+
+/// The median step of `t` (the value at sorted index `(n - 1) / 2` of the `n - 1` steps),
+/// s; `None` below two samples.
+pub fn median_step_s(t: &[f64]) -> Option<f64> {
+    let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if dt.is_empty() {
+        return None;
+    }
+    let mid = dt.len() / 2;
+    Some(*dt.select_nth_unstable_by(mid, f64::total_cmp).1)
+}
+
+/// The sample period of `t` by the rule of [`Holes`] ([`Holes::period_s`]), s.
+pub fn period_s(t: &[f64]) -> f64 {
+    Holes::of(t, |i| i as u64 + 2).period_s()
 }
 
 impl Record {
@@ -422,6 +608,9 @@ impl Record {
             ..Self::default()
         };
         while let Some(row) = rows.next_row()? {
+            if row.line != r.line(r.t_s.len()) {
+                r.line_jumps.push((r.t_s.len(), row.line));
+            }
             r.t_s.push(row.t_s);
             r.rate_dps.push(row.rate_dps);
             push(&mut r.temp_c, row.temp_c);
@@ -454,38 +643,46 @@ impl Record {
         missing_column(&self.name, &self.header, column)
     }
 
-    /// Sample period: the mean step of `t_s`, `(t_last - t_first) / (n - 1)` (1 s for a
-    /// one-sample record). The mean, not the median: some real recordings carry host arrival
-    /// times in bursts (the MPU6050 set: median step 2 ms, mean 10 ms), where only the mean
-    /// gives the sensor's rate; a gap lengthens it by the gap's share of the record.
+    /// Sample period ([`Holes::period_s`]): the mean step with the gaps in `t_s` left out,
+    /// so a hole does not move it; the mean of every step when the stamps are irregular
+    /// (some real recordings carry host arrival times in bursts, the MPU6050 set: median
+    /// step 2 ms, mean 10 ms, where only the mean gives the sensor's rate). 1 s for a
+    /// one-sample record.
     pub fn sample_period_s(&self) -> f64 {
-        mean_step_s(&self.t_s)
+        self.holes().period_s()
     }
 
     /// Line of data row `i` (header = 1).
     pub fn line(&self, i: usize) -> u64 {
-        self.rows
-            .get(i)
-            .and_then(|r| r.position())
-            .map_or(i as u64 + 2, |p| p.line())
+        if let Some(p) = self.rows.get(i).and_then(|r| r.position()) {
+            return p.line();
+        }
+        let k = self.line_jumps.partition_point(|&(row, _)| row <= i);
+        match k.checked_sub(1).map(|k| self.line_jumps[k]) {
+            Some((row, line)) => line + (i - row) as u64,
+            None => i as u64 + 2,
+        }
     }
 
-    /// Steps in `t_s` larger than [`GAP_FACTOR`] times the median step.
+    /// The gaps in `t_s` ([`Holes`]: count, the largest, samples missing, the period).
+    pub fn holes(&self) -> Holes {
+        Holes::of(&self.t_s, |i| self.line(i))
+    }
+
+    /// Every gap in `t_s`: each step larger than [`GAP_FACTOR`] times the median step.
     pub fn gaps(&self) -> Vec<Gap> {
-        let mut dt: Vec<f64> = self.t_s.windows(2).map(|w| w[1] - w[0]).collect();
-        if dt.is_empty() {
+        let Some(median) = median_step_s(&self.t_s) else {
             return Vec::new();
-        }
-        let steps = dt.clone();
-        let mid = dt.len() / 2;
-        let median = *dt.select_nth_unstable_by(mid, f64::total_cmp).1;
-        steps
-            .iter()
+        };
+        self.t_s
+            .windows(2)
             .enumerate()
-            .filter(|(_, &d)| d > GAP_FACTOR * median)
-            .map(|(i, &d)| Gap {
+            .filter(|(_, w)| w[1] - w[0] > GAP_FACTOR * median)
+            .map(|(i, w)| Gap {
+                start_line: self.line(i),
                 line: self.line(i + 1),
-                dt_s: d,
+                t_s: w[0],
+                dt_s: w[1] - w[0],
             })
             .collect()
     }
@@ -695,6 +892,91 @@ mod tests {
             ..ReadOptions::rate("gz_rads", 1.0)
         };
         assert!(err("gz_rads\n1\n", &stopped).contains("--rate-hz 0: must be finite and > 0"));
+    }
+
+    /// 100 Hz with samples 20.00 ..= 29.99 s missing: one gap of 10.01 s from line 2001
+    /// (t_s 19.99) to line 2002, 1000 samples missing; the period is still 10 ms.
+    #[test]
+    fn holes_count_the_gap_and_leave_the_period() {
+        let t: Vec<f64> = (0..4000)
+            .filter(|k| !(2000..3000).contains(k))
+            .map(|k| k as f64 * 0.01)
+            .collect();
+        let h = Holes::of(&t, |i| i as u64 + 2);
+        assert_eq!((h.count, h.samples_missing, h.steps), (1, 1000, 2999));
+        let g = h.largest.expect("a gap");
+        assert_eq!((g.start_line, g.line), (2001, 2002));
+        assert!((g.t_s - 19.99).abs() < 1e-9 && (g.dt_s - 10.01).abs() < 1e-9);
+        assert!((h.period_s() - 0.01).abs() < 1e-12 && !h.irregular());
+        assert!((h.behind_s() - 10.0).abs() < 1e-9);
+        let w = h.warning("r.csv", "HOW").expect("a warning");
+        assert!(
+            w.starts_with("r.csv: warning: 1 gap(s) in t_s")
+                && w.contains("the largest 10.01 s from t_s = 19.99 s (line 2001) to line 2002")
+                && w.contains("1000 samples missing")
+                && w.contains("rate 100.0000 Hz")
+                && w.ends_with("; HOW"),
+            "{w}"
+        );
+        // The mean step would say 75 Hz.
+        assert!((1.0 / mean_step_s(&t) - 75.0).abs() < 0.1);
+        // Evenly spaced: nothing to say; jitter below 1.5 periods is no gap.
+        let even: Vec<f64> = (0..500)
+            .map(|k| k as f64 * 0.01 + if k % 2 == 1 { 0.004 } else { 0.0 })
+            .collect();
+        let h = Holes::of(&even, |i| i as u64 + 2);
+        assert_eq!(h.count, 0);
+        assert!(h.warning("r.csv", "HOW").is_none());
+        assert!((h.period_s() - 0.01).abs() < 1e-5);
+        // Bursty stamps (2 ms, 2 ms, 26 ms): irregular, the period is the mean step.
+        let mut bursty = vec![0.0];
+        for k in 0..999 {
+            let last = bursty[bursty.len() - 1];
+            bursty.push(last + if k % 3 == 2 { 0.026 } else { 0.002 });
+        }
+        let h = Holes::of(&bursty, |i| i as u64 + 2);
+        assert!(h.irregular());
+        assert!((h.period_s() - mean_step_s(&bursty)).abs() < 1e-12);
+        assert!(h
+            .warning("r.csv", "HOW")
+            .expect("a warning")
+            .contains("irregular t_s: 333 of 999 steps"));
+        // Streamed against a nominal period known beforehand: the same.
+        let mut f = HoleFinder::new(median_step_s(&t).expect("steps"));
+        for (i, &x) in t.iter().enumerate() {
+            f.push(x, i as u64 + 2);
+        }
+        assert_eq!(f.holes(), Holes::of(&t, |i| i as u64 + 2));
+    }
+
+    /// The lines of the gaps are the row reader's ([`Row::line`]), blank lines in the file
+    /// or not, with or without the rows kept.
+    #[test]
+    fn gap_lines_are_the_readers() {
+        let text = "t_s,rate_dps\n0,1\n\n0.1,1\n0.2,1\n\n\n0.5,1\n0.6,1\n";
+        let mut rows =
+            Rows::new("r.csv", text.as_bytes(), &ReadOptions::default()).expect("header");
+        let mut lines = Vec::new();
+        while let Some(row) = rows.next_row().expect("row") {
+            lines.push(row.line);
+        }
+        assert_eq!(lines.len(), 5);
+        assert_ne!(lines[4], 6, "blank lines are counted");
+        for keep_rows in [false, true] {
+            let opts = ReadOptions {
+                keep_rows,
+                ..ReadOptions::default()
+            };
+            let r = read(text, &opts).expect("reads");
+            assert_eq!((0..5).map(|i| r.line(i)).collect::<Vec<_>>(), lines);
+            let h = r.holes();
+            let g = h.largest.expect("gap");
+            assert_eq!((h.count, h.samples_missing), (1, 2));
+            assert_eq!((g.start_line, g.line), (lines[2], lines[3]));
+            let gaps = r.gaps();
+            assert_eq!(gaps.len(), 1);
+            assert_eq!(gaps[0], g);
+        }
     }
 
     #[test]

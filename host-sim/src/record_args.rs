@@ -1,7 +1,10 @@
 //! The record options every subcommand that reads an interchange CSV takes, the same
-//! everywhere: they fill [`ReadOptions`] for [`crate::record::Record::read`].
+//! everywhere: they fill [`ReadOptions`] for [`crate::record::Record::read`]; and the JSON
+//! form of the gaps the reader finds in `t_s` ([`HolesSummary`]; `record.rs` itself is
+//! compiled into a fuzz target without serde).
 
-use crate::record::ReadOptions;
+use crate::record::{self, Holes, ReadOptions};
+use serde::Serialize;
 
 /// How a record's CSV is read: the rate column and its unit, and the sample rate of a
 /// record without `t_s`.
@@ -38,6 +41,58 @@ impl RecordArgs {
         ReadOptions {
             rate_hz: self.rate_hz,
             ..ReadOptions::rate(&self.rate_column, self.rate_scale)
+        }
+    }
+}
+
+/// The gaps in a record's `t_s` ([`Holes`]: the rule, the nominal period and the rate) as
+/// `identify` and `replay` write them in their JSON.
+#[derive(Debug, Clone, Serialize)]
+pub struct HolesSummary {
+    /// The record.
+    pub record: String,
+    /// The rule, in words.
+    pub rule: String,
+    /// The nominal period: the median step of `t_s`, s.
+    pub median_step_s: f64,
+    /// Gaps.
+    pub count: u64,
+    /// So many gaps that the stamps are irregular, not a stream with holes.
+    pub irregular: bool,
+    /// `t_s` of the last sample before the largest gap, s.
+    pub largest_start_t_s: Option<f64>,
+    /// Its line (header = 1).
+    pub largest_start_line: Option<u64>,
+    /// Line of the first sample after it.
+    pub largest_end_line: Option<u64>,
+    /// Its length (the step), s.
+    pub largest_s: Option<f64>,
+    /// Samples missing in all the gaps.
+    pub samples_missing: u64,
+    /// The sample rate from `t_s` ([`Holes::period_s`]), Hz.
+    pub rate_hz: f64,
+}
+
+impl HolesSummary {
+    /// `h`, found in `record`.
+    pub fn new(record: &str, h: &Holes) -> Self {
+        let g = h.largest;
+        Self {
+            record: record.to_string(),
+            rule: format!(
+                "a gap is a step over {}x the median step; the rate is the mean of the other steps (of every step when over {} % of them are gaps)",
+                record::GAP_FACTOR,
+                100.0 * record::RARE_GAPS
+            ),
+            median_step_s: h.nominal_step_s,
+            count: h.count,
+            irregular: h.irregular(),
+            largest_start_t_s: g.map(|g| g.t_s),
+            largest_start_line: g.map(|g| g.start_line),
+            largest_end_line: g.map(|g| g.line),
+            largest_s: g.map(|g| g.dt_s),
+            samples_missing: h.samples_missing,
+            rate_hz: 1.0 / h.period_s(),
         }
     }
 }

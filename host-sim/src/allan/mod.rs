@@ -97,20 +97,6 @@ pub fn tau_factors(n: usize, taus: Taus) -> Vec<usize> {
     ms
 }
 
-/// Median of the steps of `t_s`, s.
-pub fn median_step_s(t_s: &[f64]) -> Result<f64> {
-    let mut dt: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
-    if dt.is_empty() {
-        bail!("need at least 2 samples to find the sample period");
-    }
-    let mid = dt.len() / 2;
-    let med = *dt.select_nth_unstable_by(mid, f64::total_cmp).1;
-    if !(med.is_finite() && med > 0.0) {
-        bail!("median time step {med} s is not > 0");
-    }
-    Ok(med)
-}
-
 /// One point of the Allan deviation curve.
 #[derive(Debug, Clone, Serialize)]
 pub struct AdevPoint {

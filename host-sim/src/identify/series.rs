@@ -26,12 +26,13 @@ pub struct Series {
 }
 
 impl Series {
-    /// Sample period: the mean step of `t_s`, `(t_last - t_first) / (n - 1)` (1 s for a
-    /// one-sample record). The mean, not the median: some real recordings carry host arrival
-    /// times in bursts (the MPU6050 set: median step 2 ms, mean 10 ms), where only the mean
-    /// gives the sensor's rate; a gap lengthens it by the gap's share of the record.
+    /// Sample period ([`crate::record::Holes::period_s`]): the mean step of `t_s` with its
+    /// gaps (steps over 1.5x the median) left out, so a hole does not move it; the mean of
+    /// every step when the stamps are irregular (host arrival times in bursts, the MPU6050
+    /// set: median step 2 ms, mean 10 ms, where only the mean gives the sensor's rate). 1 s
+    /// for a one-sample record.
     pub fn sample_period_s(&self) -> f64 {
-        crate::record::mean_step_s(&self.t_s)
+        crate::record::period_s(&self.t_s)
     }
 }
 

@@ -3,7 +3,8 @@
 //! the image: the unit is never the datasheet.
 //!
 //! Per run (every sample at rest, from power-on):
-//! - **rate**, Hz: from `t_s` (the mean step, as [`Series::sample_period_s`]);
+//! - **rate**, Hz: from `t_s` (the mean step with the gaps left out, so a hole does not
+//!   move it, as [`Series::sample_period_s`]; `identify` reports the gaps);
 //! - **white noise**: from first differences, `var(diff) / 2` = one sample's white-noise
 //!   plus quantization variance (drift and slow noise cancel in a difference); as a density
 //!   `sqrt((var - q^2/12) / rate)`, deg/sqrt(h);

@@ -5,9 +5,12 @@
 //!
 //! The sample rate must be known before the estimator starts (the built-in sensor is picked
 //! by it and the image's rate is checked against it), so the first [`LOOKAHEAD`] samples
-//! are read ahead and the rate taken from their mean step; on a record no longer than that
-//! it is the whole record's. At the end the whole record's mean step is known
-//! ([`Input::sample_period_s`]) and the caller checks it again.
+//! are read ahead. Their median step is the nominal period against which every step of the
+//! record is checked for gaps ([`record::HoleFinder`], the rule of [`record::Holes`]: steps
+//! over 1.5x the median), and the rate is the look-ahead's mean step with the gaps left
+//! out, so a hole does not move it; on a record no longer than that it is the whole
+//! record's. At the end the whole record's is known ([`Input::sample_period_s`]) and the
+//! caller checks it again; [`Input::holes`] gives the gaps for the report.
 
 use super::stream::{self, Capture, CaptureEvent, InputFormat, Options};
 use crate::record::{self, Present, ReadOptions};
@@ -22,6 +25,8 @@ pub const LOOKAHEAD: usize = 1 << 16;
 /// One sample of a record, as in the file (rate times the scale).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
+    /// Line in the CSV (header = 1); for a capture, the sample's number from 1.
+    pub line: u64,
     /// Seconds since the start.
     pub t_s: f64,
     /// Rate, deg/s.
@@ -62,6 +67,8 @@ pub struct Input {
     read: u64,
     first_t: Option<f64>,
     last_t: Option<f64>,
+    /// The gaps in `t_s`, from the end of the look-ahead on (it fixes the nominal period).
+    holes: Option<record::HoleFinder>,
 }
 
 impl Input {
@@ -119,6 +126,7 @@ impl Input {
             read: 0,
             first_t: None,
             last_t: None,
+            holes: None,
         }
     }
 
@@ -130,6 +138,7 @@ impl Input {
         let s = loop {
             let next = match &mut self.source {
                 Source::Csv(rows) => rows.next_row()?.map(|r| Sample {
+                    line: r.line,
                     t_s: r.t_s,
                     rate_dps: r.rate_dps,
                     temp_c: r.temp_c,
@@ -145,6 +154,7 @@ impl Input {
                         continue;
                     }
                     Some(CaptureEvent::Sample { t_s, rate_dps }) => Some(Sample {
+                        line: self.read + 1,
                         t_s,
                         rate_dps: f64::from(rate_dps),
                         temp_c: None,
@@ -162,14 +172,19 @@ impl Input {
                 self.read += 1;
                 self.first_t.get_or_insert(s.t_s);
                 self.last_t = Some(s.t_s);
+                if let Some(h) = self.holes.as_mut() {
+                    h.push(s.t_s, s.line);
+                }
             }
             None => self.ended = true,
         }
         Ok(s)
     }
 
-    /// Reads up to [`LOOKAHEAD`] samples ahead and returns their mean step, s (the whole
-    /// record's when it is no longer). Refuses a record without a sample.
+    /// Reads up to [`LOOKAHEAD`] samples ahead, takes their median step as the nominal
+    /// period of the gap finder and returns their sample period ([`record::Holes::period_s`]:
+    /// the mean step with the gaps left out), s (the whole record's when it is no longer).
+    /// Refuses a record without a sample.
     pub fn lookahead_period_s(&mut self) -> Result<f64> {
         while self.ahead.len() < LOOKAHEAD {
             match self.read_one()? {
@@ -177,6 +192,12 @@ impl Input {
                 None => break,
             }
         }
+        let t: Vec<f64> = self.ahead.iter().map(|s| s.t_s).collect();
+        let mut finder = record::HoleFinder::new(record::median_step_s(&t).unwrap_or(0.0));
+        for s in &self.ahead {
+            finder.push(s.t_s, s.line);
+        }
+        self.holes = Some(finder);
         if self.ahead.is_empty() {
             bail!(
                 "{}: {}",
@@ -198,13 +219,25 @@ impl Input {
         }
     }
 
-    /// Mean step of the samples read so far, `(t_last - t_first) / (n - 1)` (1 s below two
-    /// samples): after the end, the whole record's ([`record::mean_step_s`]).
+    /// Sample period of the samples read so far ([`record::Holes::period_s`]: the mean step
+    /// with the gaps left out; before the look-ahead, the mean step; 1 s below two samples):
+    /// after the end, the whole record's.
     pub fn sample_period_s(&self) -> f64 {
+        if let Some(h) = &self.holes {
+            return h.holes().period_s();
+        }
         match (self.first_t, self.last_t) {
             (Some(a), Some(b)) if self.read > 1 && b > a => (b - a) / (self.read - 1) as f64,
             _ => 1.0,
         }
+    }
+
+    /// The gaps in `t_s` of the samples read so far (none before the look-ahead): after the
+    /// end, the whole record's.
+    pub fn holes(&self) -> record::Holes {
+        self.holes
+            .as_ref()
+            .map_or_else(record::Holes::default, record::HoleFinder::holes)
     }
 
     /// DSP-3000 fault lines so far (no sample, no output row).

@@ -20,6 +20,7 @@ use crate::motion::{self, OUTPUT_HEADER};
 use crate::nav::{self, BaselineConfig, Comparer, NavRecord, TruthSample};
 use crate::record;
 use crate::record::{ReadOptions, Record};
+use crate::record_args::HolesSummary;
 use crate::report::motion::MotionFigures;
 use crate::report::BytesSummary;
 use anyhow::{anyhow, bail, Result};
@@ -143,6 +144,11 @@ pub struct MotionSummary {
     pub compensated_angle_end_deg: f64,
     /// DSP-3000 fault lines.
     pub fault_lines: u64,
+    /// The gaps in `t_s` ([`record::Holes`]; none in a capture or a CSV without `t_s`).
+    pub holes: HolesSummary,
+    /// The line printed on stderr for them ([`record::Holes::warning`]), if any.
+    #[serde(skip)]
+    pub holes_warning: Option<String>,
     /// Byte counts of a capture.
     pub bytes: Option<BytesSummary>,
     /// Scores against the truth, identifier beside the baselines.
@@ -495,6 +501,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         })
     })?;
     let hz = (1.0 / rec.sample_period_s()) as f32;
+    let holes = rec.holes();
     let scores = cmp.map(Comparer::finish);
     let summary = MotionSummary {
         input: input.display().to_string(),
@@ -524,6 +531,8 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         raw_angle_end_deg: tally.raw.deg(),
         compensated_angle_end_deg: tally.compensated.deg(),
         fault_lines: rec.fault_lines(),
+        holes: HolesSummary::new(&input.display().to_string(), &holes),
+        holes_warning: holes.warning(&input.display().to_string(), &gap_treatment(&holes)),
         bytes: rec.bytes(),
         scores,
         test_set: None,
@@ -533,6 +542,25 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         summary,
         figures: figs,
     })
+}
+
+/// What the motion replay does with the gaps in `t_s` (the end of the line of
+/// [`record::Holes::warning`]): the estimator takes the samples as evenly spaced at the
+/// record's rate (it has no clock but the sample count), none dropped or interpolated, so
+/// after a gap its time since power-on is behind `t_s`; the raw and compensated angles (and
+/// the scores' headings) integrate the rate over the actual `t_s` steps, trapezoids, so a
+/// gap is bridged by one trapezoid over its whole length (rate x actual dt, not x the
+/// nominal period).
+pub fn gap_treatment(h: &record::Holes) -> String {
+    let angles = "the raw and compensated angles (and the scores' headings) bridge each gap with one trapezoid over its actual length (rate x actual dt)";
+    if h.irregular() {
+        format!("the estimator takes the samples as evenly spaced at that rate, none dropped or interpolated; {angles}")
+    } else {
+        format!(
+            "the estimator takes the samples as evenly spaced at that rate, none dropped or interpolated (after the gaps its time since power-on runs {:.3} s behind t_s); {angles}",
+            h.behind_s()
+        )
+    }
 }
 
 /// Prints the summary (and the score table) on stderr.
@@ -607,6 +635,9 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
             "{}: {} DSP-3000 fault lines (no output rows)",
             s.input, s.fault_lines
         )?;
+    }
+    if let Some(w) = &s.holes_warning {
+        writeln!(err, "{w}")?;
     }
     if let Some(c) = &s.scores {
         write!(err, "{}", nav::table(c))?;

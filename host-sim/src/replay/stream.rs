@@ -203,12 +203,11 @@ enum Event {
 struct CsvSource {
     name: String,
     rows: record::Rows<Box<dyn std::io::Read>>,
-    nominal_dt_s: f64,
     rows_read: u64,
     first_t: Option<f64>,
     prev_t: Option<f64>,
-    gaps: u64,
-    largest_gap: Option<(f64, u64)>,
+    /// Gaps against the identifier's period, `1 / rate_hz`.
+    holes: record::HoleFinder,
 }
 
 impl CsvSource {
@@ -219,12 +218,10 @@ impl CsvSource {
         Ok(Self {
             rows: record::Rows::new(&name, input, &record::ReadOptions::default())?,
             name,
-            nominal_dt_s: 1.0 / rate_hz,
             rows_read: 0,
             first_t: None,
             prev_t: None,
-            gaps: 0,
-            largest_gap: None,
+            holes: record::HoleFinder::new(1.0 / rate_hz),
         })
     }
 
@@ -236,15 +233,7 @@ impl CsvSource {
             return Ok(None);
         };
         let t = row.t_s;
-        if let Some(prev) = self.prev_t {
-            let dt = t - prev;
-            if dt > record::GAP_FACTOR * self.nominal_dt_s {
-                self.gaps += 1;
-                if self.largest_gap.is_none_or(|(g, _)| dt > g) {
-                    self.largest_gap = Some((dt, row.line));
-                }
-            }
-        }
+        self.holes.push(t, row.line);
         self.first_t.get_or_insert(t);
         self.prev_t = Some(t);
         self.rows_read += 1;
@@ -264,12 +253,14 @@ impl CsvSource {
             (Some(a), Some(b)) if self.rows_read > 1 => Some((b - a) / (self.rows_read - 1) as f64),
             _ => None,
         };
+        let h = self.holes.holes();
         CsvSummary {
             rows: self.rows_read,
-            gaps: self.gaps,
-            largest_gap_s: self.largest_gap.map(|g| g.0),
-            largest_gap_line: self.largest_gap.map(|g| g.1),
+            gaps: h.count,
+            largest_gap_s: h.largest.map(|g| g.dt_s),
+            largest_gap_line: h.largest.map(|g| g.line),
             mean_step_s: mean,
+            holes: h,
         }
     }
 }
@@ -919,12 +910,11 @@ pub fn print_summary(s: &Summary) -> Result<()> {
         }
     }
     if let Some(c) = &s.csv {
-        if let (Some(g), Some(l)) = (c.largest_gap_s, c.largest_gap_line) {
-            writeln!(
-                err,
-                "{}: warning: {} gap(s) in t_s (step > {} sample periods), largest {g:.4} s before line {l}; samples are identified as if evenly spaced",
-                s.input, c.gaps, record::GAP_FACTOR
-            )?;
+        if let Some(w) = c.holes.warning(
+            &s.input,
+            "the nominal period is 1/--rate-hz; samples are identified as if evenly spaced, none dropped or interpolated",
+        ) {
+            writeln!(err, "{w}")?;
         }
         if let Some(m) = c.mean_step_s {
             let nominal = 1.0 / s.rate_hz;

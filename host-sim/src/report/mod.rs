@@ -156,6 +156,9 @@ pub struct CsvSummary {
     pub largest_gap_line: Option<u64>,
     /// Mean step of `t_s`, s.
     pub mean_step_s: Option<f64>,
+    /// The gaps (against `1 / rate_hz`), for the warning line.
+    #[serde(skip)]
+    pub holes: record::Holes,
 }
 
 /// One figure per estimator of the drift.

@@ -27,7 +27,8 @@ use std::path::{Path, PathBuf};
 
 const BLUE_: RGBColor = RGBColor(31, 119, 180);
 
-/// Trapezoid integral of a stream of `(t_s, rate_dps)`, deg.
+/// Trapezoid integral of a stream of `(t_s, rate_dps)`, deg, over the actual steps of `t_s`:
+/// a gap in `t_s` is bridged by one trapezoid over its whole length (rate x actual dt).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Angle {
     deg: f64,

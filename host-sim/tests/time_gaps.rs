@@ -1,0 +1,139 @@
+//! Gaps in `t_s` are never silent: `identify` and `replay` take the rate from the steps that
+//! are not gaps (a 10-s hole does not move it) and report every record with a gap on stderr,
+//! naming the file, and in their JSON (`host_sim::record::Holes`); a record without a gap
+//! gets no such line.
+
+use assert_cmd::Command;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+fn host_sim() -> Command {
+    Command::cargo_bin("host-sim").expect("binary built")
+}
+
+/// A static 100-Hz record, `t_s,rate_dps,temp_c`, of 4000 sample slots (40 s): white noise
+/// of the E-Core's density (0.011 deg/s per sample) on a small constant drift; with `hole`,
+/// the 1000 samples of 20.00 ..= 29.99 s are missing (a 10-s hole: the step from line 2001,
+/// t_s 19.99 s, to line 2002, t_s 30 s).
+fn record(dir: &Path, name: &str, hole: bool) -> PathBuf {
+    let mut text = String::from("t_s,rate_dps,temp_c\n");
+    let mut x = 0x2545_f491_4f6c_dd1du64;
+    for k in 0..4000u32 {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        if hole && (2000..3000).contains(&k) {
+            continue;
+        }
+        let u = (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        text += &format!("{:.2},{},25\n", f64::from(k) * 0.01, 0.0005 + 0.0385 * u);
+    }
+    let p = dir.join(name);
+    fs::write(&p, text).expect("write the record");
+    p
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&fs::read_to_string(path).expect("JSON written")).expect("valid JSON")
+}
+
+fn stderr(a: &assert_cmd::assert::Assert) -> String {
+    String::from_utf8_lossy(&a.get_output().stderr).to_string()
+}
+
+/// The gap line for the hole record `p`: the file, the count, the largest one's start (line
+/// and time) and length, the samples missing, the rate from the other steps.
+fn assert_gap_line(err: &str, p: &Path) {
+    let line = err
+        .lines()
+        .find(|l| l.contains("gap(s) in t_s"))
+        .unwrap_or_else(|| panic!("no gap line:\n{err}"));
+    assert!(
+        line.starts_with(&format!("{}: warning: 1 gap(s) in t_s", p.display()))
+            && line.contains("the largest 10.01 s from t_s = 19.99 s (line 2001) to line 2002")
+            && line.contains("1000 samples missing")
+            && line.contains("rate 100.0000 Hz"),
+        "{line}"
+    );
+}
+
+/// The JSON's holes of the hole record.
+fn assert_holes_json(h: &serde_json::Value) {
+    assert_eq!(h["count"], 1, "{h}");
+    assert_eq!(h["samples_missing"], 1000, "{h}");
+    assert_eq!(h["largest_start_line"], 2001, "{h}");
+    assert!((h["largest_s"].as_f64().expect("length") - 10.01).abs() < 1e-9);
+    assert!(
+        (h["rate_hz"].as_f64().expect("rate") - 100.0).abs() < 0.1,
+        "{h}"
+    );
+}
+
+#[test]
+fn identify_takes_the_rate_from_the_steps_and_reports_the_hole() {
+    let dir = tempfile::tempdir().expect("tmp");
+    for (name, hole) in [("hole.csv", true), ("even.csv", false)] {
+        let p = record(dir.path(), name, hole);
+        let (image, out) = (dir.path().join("id.fogi"), dir.path().join("id.json"));
+        let a = host_sim()
+            .args(["identify", "--preset", "motion", "--input"])
+            .arg(&p)
+            .arg("--save-identifier")
+            .arg(&image)
+            .arg("--json")
+            .arg(&out)
+            .assert()
+            .success();
+        let err = stderr(&a);
+        let v = json(&out);
+        // The calibration's rate: 100 Hz within 0.1 % (the mean step would say 75 Hz and
+        // the sensor check refuse the record).
+        let hz = v["calibration"]["runs"][0]["rate_hz"]
+            .as_f64()
+            .expect("rate");
+        assert!((hz / 100.0 - 1.0).abs() < 1e-3, "{name}: {hz} Hz\n{err}");
+        if hole {
+            assert_gap_line(&err, &p);
+            assert!(err.contains("assume uniform sampling"), "{err}");
+            assert_holes_json(&v["holes"][0]);
+        } else {
+            assert!(!err.contains("gap(s)"), "{err}");
+            assert_eq!(v["holes"][0]["count"], 0);
+        }
+    }
+}
+
+#[test]
+fn replay_reports_the_hole_and_how_it_integrates_across_it() {
+    let dir = tempfile::tempdir().expect("tmp");
+    for (name, hole) in [("hole.csv", true), ("even.csv", false)] {
+        let p = record(dir.path(), name, hole);
+        let (out, summary) = (dir.path().join("out.csv"), dir.path().join("s.json"));
+        let a = host_sim()
+            .args(["replay", "--input"])
+            .arg(&p)
+            .arg("--output")
+            .arg(&out)
+            .arg("--json")
+            .arg(&summary)
+            .assert()
+            .success();
+        let err = stderr(&a);
+        let v = json(&summary);
+        // The built-in sensor picked by the record's rate: the E-Core's 100 Hz.
+        assert_eq!(v["sensor"]["sample_rate_hz"], 100.0, "{err}");
+        if hole {
+            assert_gap_line(&err, &p);
+            assert!(
+                err.contains("10.000 s behind t_s") && err.contains("rate x actual dt"),
+                "{err}"
+            );
+            assert_holes_json(&v["holes"]);
+            assert_eq!(v["rows"], 3000);
+        } else {
+            assert!(!err.contains("gap(s)"), "{err}");
+            assert_eq!(v["holes"]["count"], 0);
+            assert_eq!(v["rows"], 4000);
+        }
+    }
+}
