@@ -110,7 +110,7 @@ fn run_icount(qemu: &Path, elf: &Path, defmt_log: &Path) -> (Vec<u8>, Option<i32
         .recv_timeout(hil::DEADLINE)
         .unwrap_or_else(|_| panic!("QEMU did not finish within {:?}", hil::DEADLINE));
     r.expect("reading QEMU's stdout");
-    let until = Instant::now() + Duration::from_secs(5);
+    let until = Instant::now() + hil::EXIT_GRACE;
     let mut code = None;
     while Instant::now() < until {
         if let Ok(Some(status)) = proc.0.try_wait() {

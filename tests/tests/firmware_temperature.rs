@@ -72,10 +72,10 @@ fn run(name: &str, extra: &[&str]) -> Option<(Vec<u8>, Vec<u8>, Option<i32>)> {
         if let Some(status) = child.try_wait().expect("wait for QEMU") {
             break status.code();
         }
-        if start.elapsed() > Duration::from_secs(30) {
+        if start.elapsed() > hil::DEADLINE {
             let _ = child.kill();
             let _ = child.wait();
-            panic!("QEMU did not exit within 30 s");
+            panic!("QEMU did not exit within {:?}", hil::DEADLINE);
         }
         std::thread::sleep(Duration::from_millis(20));
     };

@@ -16,8 +16,14 @@ use fog_core::frame::{ByteStats, Decoder, EcoreDecoder, EcoreFrame};
 #[path = "../../../fog-firmware/src/pipeline.rs"]
 pub mod pipeline;
 
-/// A whole QEMU run, writing included, must end within this.
-pub const DEADLINE: Duration = Duration::from_secs(50);
+/// A whole QEMU run, writing included, must end within this: a guard against a hang, not a
+/// speed limit (speed is measured by `scripts/fw-budget.sh`, not asserted in tests). A run
+/// takes 1-10 s alone; the debug and release runs of `scripts/test-firmware-parallel.sh`
+/// on 2 cores with other work beside them took up to 50 s.
+pub const DEADLINE: Duration = Duration::from_secs(300);
+
+/// How long QEMU may take to exit once its output closed.
+pub const EXIT_GRACE: Duration = Duration::from_secs(60);
 
 /// xorshift64*: small, seeded, identical everywhere.
 pub struct Rng(pub u64);
@@ -388,7 +394,7 @@ pub fn run_qemu_paced(qemu: &Path, elf: &Path, pieces: Vec<Piece>, defmt_log: &P
     read_result.expect("reading QEMU's stdout");
     // stdout closed: QEMU is exiting; give it a moment, then kill.
     let mut code = None;
-    let wait_until = Instant::now() + Duration::from_secs(5);
+    let wait_until = Instant::now() + EXIT_GRACE;
     while Instant::now() < wait_until {
         if let Ok(Some(status)) = qemu_proc.0.try_wait() {
             code = status.code();
@@ -464,7 +470,7 @@ impl Qmp {
             match std::os::unix::net::UnixStream::connect(path) {
                 Ok(s) => break s,
                 // Not listening yet: QEMU is starting.
-                Err(_) if start.elapsed() < Duration::from_secs(10) => {
+                Err(_) if start.elapsed() < Duration::from_secs(60) => {
                     std::thread::sleep(Duration::from_millis(20));
                 }
                 Err(e) => panic!("QMP socket {}: {e}", path.display()),
@@ -672,7 +678,7 @@ pub fn run_qemu_steps(
     let ended_by_output = read_result.expect("reading QEMU's stdout");
     let mut code = None;
     if !ended_by_output {
-        let wait_until = Instant::now() + Duration::from_secs(5);
+        let wait_until = Instant::now() + EXIT_GRACE;
         while Instant::now() < wait_until {
             if let Ok(Some(status)) = qemu_proc.0.try_wait() {
                 code = status.code();
