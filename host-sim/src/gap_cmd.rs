@@ -39,9 +39,11 @@ pub struct Args {
     /// Skip the identification-task comparison.
     #[arg(long)]
     pub no_task: bool,
-    /// Rounds: after each named effect, add it to the model (or take it out of the record)
-    /// and diagnose again, until `none` or this many rounds (`rounds` in the JSON).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=12))]
+    /// Cap on the rounds: after each named effect, add it to the model (or take it out of
+    /// the record), drop it from the vocabulary, and diagnose again, until `none` (the gap
+    /// closed, or nothing left lowers it) or this many rounds (`rounds` in the JSON).
+    /// `--rounds 1`: the first decision alone.
+    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=12))]
     pub rounds: u32,
 }
 
@@ -83,12 +85,28 @@ pub fn run(a: &Args) -> Result<()> {
         o.effects = Effect::parse_list(e)?;
         o.explicit = true;
     }
-    let (d, rounds) = gap::rounds::run(&rec, time, model.as_ref(), &o, a.rounds as usize)?;
-    let mut value = serde_json::to_value(&d).context("JSON encoding")?;
+    // A record too short for the held-out split is refused before any round starts.
+    gap::features::Layout::new(&rec.t_s, rec.dt_s).with_context(|| rec.name.clone())?;
+    let seeds = o.seeds;
+    let out = gap::rounds::run(&rec, time, model.as_ref(), &o, a.rounds as usize, |k| {
+        eprintln!(
+            "{}: round {k} of at most {}: diagnosing ({seeds} simulations of the model) ...",
+            rec.name, a.rounds
+        );
+    })?;
+    let d = &out.first;
+    let mut value = serde_json::to_value(d).context("JSON encoding")?;
     if let Some(obj) = value.as_object_mut() {
         obj.insert(
             "rounds".into(),
-            serde_json::to_value(&rounds).context("JSON encoding")?,
+            serde_json::to_value(&out.rounds).context("JSON encoding")?,
+        );
+        obj.insert("rounds_stopped".into(), out.stopped.clone().into());
+        obj.insert("final_gap".into(), out.final_gap.into());
+        obj.insert("final_null_gap_95".into(), out.final_null_gap_95.into());
+        obj.insert(
+            "unexplained".into(),
+            serde_json::to_value(&out.unexplained).context("JSON encoding")?,
         );
     }
     let text = serde_json::to_string_pretty(&value).context("JSON encoding")?;
@@ -97,15 +115,11 @@ pub fn run(a: &Args) -> Result<()> {
         w.write_all(text.as_bytes())
             .with_context(|| format!("{}: write failed", a.json.display()))
     })?;
-    for r in &rounds {
+    for r in &out.rounds {
         eprintln!(
-            "{}: {}effect {} (held-out gap {:.3} -> {:.3}, shrink {:.3}); {}{}",
+            "{}: round {}: effect {} (held-out gap {:.3} -> {:.3}, shrink {:.3}); {}{}",
             rec.name,
-            if a.rounds > 1 {
-                format!("round {}: ", r.round)
-            } else {
-                String::new()
-            },
+            r.round,
             r.effect,
             r.gap_before,
             r.gap_after,
@@ -118,11 +132,59 @@ pub fn run(a: &Args) -> Result<()> {
             }
         );
     }
+    eprintln!("{}", headline(&rec.name, &out));
     if let Some(dir) = &a.report {
-        let page = gap::report::write(dir, &d)?;
+        let page = gap::report::write(dir, d)?;
         println!("{}", page.display());
     }
     Ok(())
+}
+
+/// The result in words: what the gap is, what was named and how far each shrank it, what
+/// stays unexplained.
+fn headline(record: &str, out: &gap::rounds::Outcome) -> String {
+    let named: Vec<String> = out
+        .rounds
+        .iter()
+        .filter(|r| r.effect != "none")
+        .map(|r| {
+            format!(
+                "{} (gap {:.3} -> {:.3})",
+                r.effect, r.gap_before, r.gap_after
+            )
+        })
+        .collect();
+    let mut s = format!(
+        "{record}: held-out gap (mean squared z-score of the record's Allan, PSD, distribution, \
+         time and drift features against simulations of the model; about 1 when the model \
+         describes the record, its null's 95 % here {:.2}): {:.3} against the first model",
+        out.first.null_gap_95, out.first.gap_before
+    );
+    if named.is_empty() {
+        s.push_str("; nothing named");
+    } else {
+        s.push_str(&format!("; named {}", named.join(", then ")));
+    }
+    s.push_str(&format!("; {}", out.stopped));
+    if out.unexplained.is_empty() {
+        s.push_str("; no group of features stays above its null's 95 %");
+    } else {
+        let groups: Vec<String> = out
+            .unexplained
+            .iter()
+            .map(|u| {
+                format!(
+                    "{} gap {:.1} (null 95 % {:.2}): {}",
+                    u.group, u.gap, u.null_gap_95, u.what
+                )
+            })
+            .collect();
+        s.push_str(&format!(
+            "; unexplained by the vocabulary: {}",
+            groups.join("; ")
+        ));
+    }
+    s
 }
 
 /// `host-sim gap-bench`.

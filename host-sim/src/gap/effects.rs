@@ -74,6 +74,40 @@ impl Effect {
         }
     }
 
+    /// The fitted parameters that are the effect's size (the keys of its candidate's
+    /// `params`): all zero means the fit found nothing of it.
+    pub fn size_keys(self) -> &'static [&'static str] {
+        match self {
+            Effect::Quantization => &["quantum_dps"],
+            Effect::WhiteNoise => &["added_arw_dps_per_rthz"],
+            Effect::BiasInstability => &["added_bias_instability_dps"],
+            Effect::RateRandomWalk => &["added_rrw_dps_per_s_rthz"],
+            Effect::RateRamp => &["rate_ramp_dps_per_s"],
+            Effect::Markov => &["gm_sigma_dps"],
+            Effect::Sinusoid => &["sine_amplitude_dps"],
+            Effect::Temperature => &["bias_dps_per_c", "bias_dps_per_c_per_s"],
+            Effect::Warmup => &["warmup_dps"],
+            Effect::Spikes => &["spike_probability"],
+            Effect::Dropouts => &["drop_probability"],
+            Effect::ScaleFactor => &["scale_factor_error_ppm"],
+        }
+    }
+
+    /// Whether `params` (a candidate's fit) give the effect a size of zero: every one of
+    /// its [`Effect::size_keys`] present is exactly 0 (and at least one is present). Such an
+    /// effect is never named: there is nothing of it to add or take away.
+    pub fn fitted_size_is_zero(self, params: Option<&BTreeMap<String, f64>>) -> bool {
+        let Some(p) = params else {
+            return false;
+        };
+        let sizes: Vec<f64> = self
+            .size_keys()
+            .iter()
+            .filter_map(|k| p.get(*k).copied())
+            .collect();
+        !sizes.is_empty() && sizes.iter().all(|v| *v == 0.0)
+    }
+
     /// Parses a comma-separated list of words.
     pub fn parse_list(s: &str) -> Result<Vec<Effect>> {
         let mut out = Vec::new();
@@ -1176,5 +1210,28 @@ mod tests {
             "the signal is not trivial"
         );
         assert!(base.signal_beyond(&base, &real).iter().all(|&v| v == 0.0));
+    }
+
+    /// Every effect's size keys are keys its fit writes, and a fit of size zero (all of them
+    /// 0) is refused while any non-zero size, or a fit without those keys, is not.
+    #[test]
+    fn a_fitted_size_of_zero_is_recognised() {
+        let p = |kv: &[(&str, f64)]| -> BTreeMap<String, f64> {
+            kv.iter().map(|(k, v)| (k.to_string(), *v)).collect()
+        };
+        for e in ALL {
+            assert!(!e.size_keys().is_empty(), "{}", e.name());
+            let zero = p(&e.size_keys().iter().map(|k| (*k, 0.0)).collect::<Vec<_>>());
+            assert!(e.fitted_size_is_zero(Some(&zero)), "{}", e.name());
+            let sized = p(&[(e.size_keys()[0], 1e-6)]);
+            assert!(!e.fitted_size_is_zero(Some(&sized)), "{}", e.name());
+            assert!(!e.fitted_size_is_zero(Some(&p(&[("other", 0.0)]))));
+            assert!(!e.fitted_size_is_zero(None));
+        }
+        // The temperature link is sized by either coefficient.
+        let t = p(&[("bias_dps_per_c", 0.0), ("bias_dps_per_c_per_s", 2e-5)]);
+        assert!(!Effect::Temperature.fitted_size_is_zero(Some(&t)));
+        let spikes = p(&[("spike_probability", 0.0), ("spike_amplitude_dps", 0.3)]);
+        assert!(Effect::Spikes.fitted_size_is_zero(Some(&spikes)));
     }
 }

@@ -1105,6 +1105,21 @@ fn exclude_failed_tests(candidates: &mut [Candidate], tests: &[evidence::Test]) 
     }
 }
 
+/// A candidate whose fit gives it no size ([`Effect::fitted_size_is_zero`], e.g. `spikes`
+/// with a spike probability of 0 where its test passed on the record's own tails) is never
+/// named, by its test or by the gap rule: marked here, and passed over by [`choose`].
+fn exclude_zero_size(candidates: &mut [Candidate]) {
+    for c in candidates.iter_mut() {
+        if c.effect.fitted_size_is_zero(c.params.as_ref()) {
+            let why = "its fitted size is zero: nothing of it to add or take away";
+            c.excluded = Some(match c.excluded.take() {
+                Some(other) => format!("{why}; {other}"),
+                None => why.into(),
+            });
+        }
+    }
+}
+
 /// The candidate chosen: by a passed dedicated test, or else by the gap rule.
 struct Choice<'c> {
     /// The chosen candidate (named only if the decision finds it significant).
@@ -1116,6 +1131,9 @@ struct Choice<'c> {
 /// Chooses the candidate. Among passed tests, the one furthest past its threshold; of the
 /// drift tests (temperature, warm-up, ramp: nested, a warm-up or temperature drift also
 /// gives a slope) only the one whose model is most likely ([`drift::DriftTests::pick`]).
+/// A passed quantization test goes before every other passed test (an effect taken out of
+/// the record before the quantum is modelled moves it off the output's lattice). A candidate
+/// with a fitted size of zero is never chosen ([`exclude_zero_size`]).
 /// The gap rule's candidate (lowest held-out gap, not excluded) overrides it when the gap
 /// exceeds [`OVERRIDE_RATIO`] times `g95` and its shrink beats the tested one's by 0.5
 /// (never a passed temperature test with [`OVERRIDE_SPARES_TEMPERATURE`]).
@@ -1132,11 +1150,34 @@ fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice
         .all
         .iter()
         .find(|t| t.passed && Some(t.effect) == drift_choice);
+    // A passed quantization test goes first: rounding is the output's last stage, and an
+    // effect taken out of the record before it is modelled moves the samples off the
+    // output's lattice, so the quantum is never found again (real ADIS16405 run 4 z with a
+    // temperature link added: temperature named first with shrink 0, quantization then
+    // lost, 746 left of a 59,746 gap).
+    let quantization_first = tests.all.iter().find(|t| {
+        t.passed
+            && t.effect == Effect::Quantization
+            && candidates.iter().any(|c| {
+                c.effect == t.effect
+                    && c.gap_after.is_some()
+                    && !c.effect.fitted_size_is_zero(c.params.as_ref())
+            })
+    });
     let tested = tests
         .all
         .iter()
-        .filter(|t| t.passed && !drift_rank(t.effect))
-        .chain(drift_pick)
+        .filter(|t| {
+            quantization_first.is_none_or(|q| std::ptr::eq(*t, q))
+                && t.passed
+                && !drift_rank(t.effect)
+        })
+        .chain(drift_pick.filter(|_| quantization_first.is_none()))
+        .filter(|t| {
+            !candidates
+                .iter()
+                .any(|c| c.effect == t.effect && c.effect.fitted_size_is_zero(c.params.as_ref()))
+        })
         .max_by(|a, b| (a.z / a.threshold).total_cmp(&(b.z / b.threshold)))
         .and_then(|t| {
             candidates
@@ -1366,6 +1407,7 @@ pub fn diagnose(
         exclude_baseline_terms(&mut candidates);
     }
     exclude_failed_tests(&mut candidates, &tests.all);
+    exclude_zero_size(&mut candidates);
     let choice = choose(&candidates, &tests, &gaps);
     let Named {
         effect,

@@ -207,20 +207,110 @@ fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Mod
     (r, changed.then_some(m), what)
 }
 
-/// Up to `n` rounds of the diagnosis; the first round's [`Diagnosis`] and every round.
+/// A group of the held-out features whose gap stays above its own null 95 % quantile once
+/// the rounds end: what no named effect of the vocabulary explained.
+#[derive(Debug, Clone, Serialize)]
+pub struct Unexplained {
+    /// The group (`adev`, `psd`, `dist`, `time`, `drift`; docs/gap.md).
+    pub group: String,
+    /// Its held-out gap (mean z^2 of its features) in the last round's diagnosis.
+    pub gap: f64,
+    /// The 95 % quantile of the same group's gap among the model's own simulations.
+    pub null_gap_95: f64,
+    /// Where and how far, in plain units (from the last round's plain summary).
+    pub what: String,
+}
+
+/// The rounds' outcome.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// The first round's diagnosis (the record against the user's or the fitted model).
+    pub first: Diagnosis,
+    /// Every round.
+    pub rounds: Vec<Round>,
+    /// The last round's diagnosis's held-out gap and its null 95 % quantile.
+    pub final_gap: f64,
+    /// See `final_gap`.
+    pub final_null_gap_95: f64,
+    /// The groups still above their null 95 % after the last round (empty when the gap
+    /// closed).
+    pub unexplained: Vec<Unexplained>,
+    /// Why the rounds stopped, in words.
+    pub stopped: String,
+}
+
+/// The groups of `d` whose held-out gap exceeds their null 95 % quantile, largest ratio
+/// first, each with the plain words for it.
+pub fn unexplained_groups(d: &Diagnosis) -> Vec<Unexplained> {
+    let mut out: Vec<Unexplained> = d
+        .group_gap_before
+        .iter()
+        .filter_map(|(g, &gap)| {
+            let nulls = d.null_group_gaps.get(g)?;
+            let q95 = super::features::quantile(nulls, 0.95);
+            (gap.is_finite() && gap > q95).then(|| Unexplained {
+                group: g.clone(),
+                gap,
+                null_gap_95: q95,
+                what: group_words(g, d),
+            })
+        })
+        .collect();
+    out.sort_by(|a, b| {
+        (b.gap / b.null_gap_95.max(1e-12)).total_cmp(&(a.gap / a.null_gap_95.max(1e-12)))
+    });
+    out
+}
+
+/// A group's departure in words, from the diagnosis's plain summary.
+fn group_words(group: &str, d: &Diagnosis) -> String {
+    let p = &d.plain;
+    let dep = |x: &Option<super::plain::Departure>, what: &str, unit: &str| {
+        x.as_ref().map_or(String::new(), |x| {
+            format!(
+                "{what} {:+.0} % at {:.3} {unit} (median {:.0} % over the curve)",
+                x.percent, x.at, x.median_abs_percent
+            )
+        })
+    };
+    match group {
+        "adev" => dep(&p.adev, "Allan deviation", "s"),
+        "psd" => dep(&p.psd, "PSD", "Hz"),
+        "dist" => {
+            if p.distribution.is_empty() {
+                "the value distribution".into()
+            } else {
+                p.distribution.join("; ")
+            }
+        }
+        "time" => p.mean_offset_dph.map_or(String::new(), |(o, [a, b])| {
+            format!("a window mean {o:+.1} deg/h off the model at {a:.0}-{b:.0} s")
+        }),
+        _ => "slow drift of the window means".into(),
+    }
+}
+
+/// The rounds of the diagnosis: each named effect is applied (above) and leaves the
+/// vocabulary, so no effect is named twice; the rounds stop at `none` (the gap closed, or
+/// nothing left in the vocabulary lowers it) or after `n`. `progress` is told when each
+/// round starts.
 pub fn run(
     rec: &Rec,
     time: TimeInfo,
     model: Option<&Model>,
     o: &Options,
     n: usize,
-) -> Result<(Diagnosis, Vec<Round>)> {
+    mut progress: impl FnMut(usize),
+) -> Result<Outcome> {
     let mut rec = rec.clone();
     let mut model: Option<Model> = model.cloned();
     let mut o = o.clone();
     let mut first = None;
+    let mut last = None;
     let mut rounds = Vec::new();
-    for k in 1..=n.max(1) {
+    let n = n.max(1);
+    for k in 1..=n {
+        progress(k);
         let d = diagnose(&rec, time.clone(), model.as_ref(), &o)?;
         let named = Effect::parse_list(&d.effect)
             .ok()
@@ -244,19 +334,45 @@ pub fn run(
             if let Some(m2) = m2 {
                 model = Some(m2);
             }
-            if e == Effect::Dropouts {
-                o.effects.retain(|x| *x != Effect::Dropouts);
-            }
+            // Named once: it leaves the vocabulary (a second line, warm-up or Gauss-Markov
+            // term is not looked for).
+            o.effects.retain(|x| *x != e);
             round.applied = what;
         }
         rounds.push(round);
+        let stop = named.is_none() || o.effects.is_empty();
         if first.is_none() {
             first = Some(d);
+        } else {
+            last = Some(d);
         }
-        if named.is_none() {
+        if stop {
             break;
         }
     }
     let first = first.ok_or_else(|| anyhow::anyhow!("no round ran"))?;
-    Ok((first, rounds))
+    let end = last.as_ref().unwrap_or(&first);
+    let k = rounds.len();
+    let stopped = match rounds.last().map(|r| r.effect.as_str()) {
+        Some("none") if end.gap_before <= end.null_gap_95 => format!(
+            "round {k} named none: the held-out gap {:.3} is within the null's 95 % ({:.3})",
+            end.gap_before, end.null_gap_95
+        ),
+        Some("none") => format!(
+            "round {k} named none: nothing left in the vocabulary lowers the held-out gap {:.3} significantly (the null's 95 % is {:.3})",
+            end.gap_before, end.null_gap_95
+        ),
+        _ if o.effects.is_empty() => format!("round {k}: every effect of the vocabulary named"),
+        _ => format!(
+            "the cap of {n} rounds reached (--rounds); the last round's effect is not applied and its diagnosis is before it"
+        ),
+    };
+    Ok(Outcome {
+        final_gap: end.gap_after,
+        final_null_gap_95: end.null_gap_95,
+        unexplained: unexplained_groups(end),
+        stopped,
+        rounds,
+        first,
+    })
 }
