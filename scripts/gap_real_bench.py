@@ -24,6 +24,7 @@ before it is rounded again to the record's output quantum:
 
 Scores, over the injected records (a name "of its own" is one the clean record also gets):
   - right: the injected effect is named, and every other name is one of the record's own;
+  - same: right, and every one of the record's own effects is named too;
   - twice: records (clean or injected) with an effect named twice;
   - zero: named effects whose fitted size is zero;
   - inside: of the rightly named, those whose true parameters are all inside the stated 95 %
@@ -216,6 +217,7 @@ def main():
     ap.add_argument("--records", default=",".join(RECORDS))
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--seed", type=int, default=38001)
+    ap.add_argument("--rescore", action="store_true", help="score the JSON already in --out, run nothing")
     a = ap.parse_args()
     if not os.path.isdir(REAL):
         print(f"SKIPPED: {REAL} is absent (real records are not in a user's clone)", file=sys.stderr)
@@ -245,6 +247,11 @@ def main():
         print(f"{name}: {len(t)} samples, {t[-1]:.0f} s, quantum {q:.5g} deg/s, s100 {s100 * 3600:.2f} deg/h", file=sys.stderr)
 
     results = {}
+    if a.rescore:
+        for n, e, b in jobs:
+            js = json.load(open(b + ".json")) if os.path.exists(b + ".json") else None
+            results[(n, e)] = (0 if js else 1, 0.0, js)
+        jobs = []
     with cf.ThreadPoolExecutor(max_workers=a.jobs) as ex:
         futs = {
             ex.submit(run_gap, a.bin, b + ".csv", b + ".json", b + ".log", a.rounds): (n, e, b)
@@ -258,7 +265,7 @@ def main():
             got = [r["effect"] for r in named_effects(js)] if js else f"rc {rc}"
             print(f"{n}-{e}: {got} ({secs:.0f} s)", file=sys.stderr)
 
-    rows, right, total, twice, zero, named_right, in_ci, ci_checked = [], 0, 0, 0, 0, 0, 0, 0
+    rows, right, total, twice, zero, named_right, in_ci, same_own = [], 0, 0, 0, 0, 0, 0, 0
     own = {}
     for n in names:
         rc, _, js = results[(n, "none")]
@@ -283,6 +290,9 @@ def main():
             ok = e in names_ and others_ok
             right += ok
             row["right"] = ok
+            same = ok and set(x for x in names_ if x != e) == own[n]
+            same_own += same
+            row["own_effects_the_same"] = same
             if e in names_:
                 r = next(r for r in named if r["effect"] == e)
                 inn, k = inside(r, truths[(n, e)])
@@ -297,6 +307,7 @@ def main():
         "scale": a.scale,
         "rounds": a.rounds,
         "injected_right": [right, total],
+        "injected_right_and_own_effects_the_same": [same_own, total],
         "records_with_an_effect_named_twice": [twice, len(results)],
         "named_with_zero_size": zero,
         "true_inside_ci95_of_rightly_named": [in_ci, named_right],
@@ -306,6 +317,7 @@ def main():
     }
     json.dump(summary, open(os.path.join(a.out, "summary.json"), "w"), indent=1)
     print(f"injected effect named, others the record's own: {right}/{total}")
+    print(f"... and every one of the record's own effects named too: {same_own}/{total}")
     print(f"records with an effect named twice: {twice}/{len(results)}")
     print(f"named effects with zero fitted size: {zero}")
     print(f"true parameters inside the 95 % intervals: {in_ci}/{named_right} rightly named (with intervals)")
