@@ -486,6 +486,10 @@ fn run_motion(a: &Args) -> Result<()> {
         crate::replay::motion::print_validation(&v)?;
         Some(v)
     };
+    // What the firmware does with the image; one it would refuse is not written, nor the
+    // report.
+    let firmware = crate::firmware_fit::check_image(&image)?;
+    firmware.refuse(out)?;
     if let Some(j) = &a.json {
         let text = serde_json::to_string_pretty(&serde_json::json!({
             "preset": "motion",
@@ -501,6 +505,7 @@ fn run_motion(a: &Args) -> Result<()> {
             "validation": validation,
             "tuning": tuning,
             "holes": holes,
+            "firmware": firmware,
         }))
         .context("report to JSON")?;
         record::write_atomic(j, |w| {
@@ -531,5 +536,6 @@ fn run_motion(a: &Args) -> Result<()> {
         },
         out.display()
     );
+    eprint!("{}", firmware.text());
     Ok(())
 }

@@ -7,6 +7,7 @@ pub mod allan_cmd;
 pub mod demo;
 pub mod demo_cmd;
 pub mod denoise_cmd;
+pub mod firmware_fit;
 pub mod gap;
 pub mod gap_cmd;
 pub mod identify;

@@ -241,7 +241,10 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         })
         .collect();
     let (image, tuning) = tune::pick_arrangement(&candidates, &val)?;
-    motion::write_image(&fogi, &image)?;
+    let firmware = motion::write_image(&fogi, &image)?;
+    for line in firmware.text().lines() {
+        eprintln!("demo: {line}");
+    }
     for line in tuning.lines() {
         eprintln!("demo: {line}");
     }
@@ -303,6 +306,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     print_test_set(&set);
     out.summary.test_set = Some(set);
     out.summary.level_tuning = Some(tuning);
+    out.summary.firmware = Some(firmware);
     report::motion::write(dir, &out)
 }
 

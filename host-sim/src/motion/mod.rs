@@ -14,6 +14,7 @@ pub mod calibration;
 pub mod show;
 pub mod tune;
 
+use crate::firmware_fit::{self, FirmwareFit};
 use crate::identify::series::{Records, Series};
 use crate::record;
 use anyhow::{anyhow, bail, Context, Result};
@@ -524,16 +525,25 @@ pub fn untrained(o: &TrainOptions) -> Result<Image> {
         .with_arrangement(o.arrangement, o.second_state))
 }
 
-/// Writes `image` to `path` atomically.
-pub fn write_image(path: &Path, image: &Image) -> Result<()> {
+/// `image` as the bytes of its file.
+pub fn image_bytes(image: &Image) -> Result<Vec<u8>> {
     let mut buf = [0u8; IMAGE_LEN];
-    let n = image
-        .to_bytes(&mut buf)
-        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let n = image.to_bytes(&mut buf).map_err(|e| anyhow!("{e}"))?;
+    Ok(buf[..n].to_vec())
+}
+
+/// Writes `image` to `path` atomically, unless the firmware would refuse it
+/// ([`crate::firmware_fit`]: then an error naming `path`, and nothing is written). Returns
+/// what the firmware does with it, for the caller to print and report.
+pub fn write_image(path: &Path, image: &Image) -> Result<FirmwareFit> {
+    let bytes = image_bytes(image).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let fit = firmware_fit::check(image, &bytes);
+    fit.refuse(path)?;
     record::write_atomic(path, |w| {
-        w.write_all(&buf[..n])
+        w.write_all(&bytes)
             .with_context(|| format!("{}: write failed", path.display()))
-    })
+    })?;
+    Ok(fit)
 }
 
 /// Reads an identifier image; any problem is one line naming the file.

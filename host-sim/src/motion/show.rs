@@ -1,6 +1,7 @@
 //! What an identifier image holds, for a person (`host-sim image`): format, checksum, the
 //! arrangement and its second state, the sensor and detector the calibration runs set, the
-//! level noise, the safety net's time, and the model's size and reach.
+//! level noise, the safety net's time, the model's size and reach, and what the firmware
+//! does with it ([`crate::firmware_fit`]).
 
 use super::LevelUpdateArg;
 use crate::replay::motion::uses_temperature;
@@ -53,6 +54,8 @@ pub struct ImageInfo {
     /// Record passes trained into the image (records x DRLS passes; least squares: the
     /// records).
     pub record_passes_trained: u32,
+    /// What the firmware does with the image ([`crate::firmware_fit`]).
+    pub firmware: crate::firmware_fit::FirmwareFit,
 }
 
 /// Describes `image`, parsed from `bytes`.
@@ -111,6 +114,7 @@ pub fn describe(image: &Image, bytes: &[u8]) -> ImageInfo {
         model_max_weight_dph: m.weights.iter().fold(0.0f32, |a, w| a.max(w.abs())) * 3600.0,
         uses_temperature: uses_temperature(image),
         record_passes_trained: image.records_trained,
+        firmware: crate::firmware_fit::check(image, bytes),
     }
 }
 

@@ -158,6 +158,10 @@ pub struct MotionSummary {
     /// How the identifier's level and arrangement were tuned (`host-sim demo`), when they
     /// were.
     pub level_tuning: Option<crate::motion::tune::Tuning>,
+    /// What the firmware does with the image (`host-sim demo`, which wrote it); absent from
+    /// the JSON otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub firmware: Option<crate::firmware_fit::FirmwareFit>,
 }
 
 /// Mean scores over several test records with truth, the identifier beside the baselines
@@ -537,6 +541,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         scores,
         test_set: None,
         level_tuning: None,
+        firmware: None,
     };
     Ok(MotionOutcome {
         summary,

@@ -1,0 +1,426 @@
+//! Whether an identifier image fits the firmware (`fog-firmware`), and what the firmware
+//! will do with it: `host-sim image` prints it, and every command that writes an image
+//! (`identify --preset motion --save-identifier`, `demo`) prints it and refuses to write an
+//! image the firmware would refuse ([`crate::motion::write_image`]).
+//!
+//! # Sources
+//! - **The firmware's own set-up code**: `fog-firmware/src/pipeline.rs` is compiled into
+//!   host-sim (as the hardware-in-the-loop tests do; it depends on `fog-core` and `core`
+//!   only), and an image is accepted exactly when its `new_stage` accepts the image's bytes
+//!   (parse, rate within [`MIN_RATE_HZ`] .. [`MAX_RATE_HZ`], estimator and denoiser built).
+//!   The decoder's full scale [`DECODER_FULL_SCALE_DPS`] and the record length come from
+//!   the same file.
+//! - **Measured figures** (per-sample instructions and estimated cycles, flash, RAM): the
+//!   last run of `bash scripts/fw-budget.sh`, copied here from `docs/STATUS.md` (a unit test
+//!   requires them to be the figures `docs/STATUS.md` states).
+//! - **The UART's baud rate**: both boards' `const BAUD` (`fog-firmware/src/board/`; a unit
+//!   test reads them).
+//!
+//! # Assumptions
+//! - A sample costs what it cost in the budget run at any rate, for any image: that run
+//!   used the committed default image (dual-thermal, 100 Hz, 1-s detector window). The work
+//!   done once per detector window (about 1,600 instructions at a window start: the model
+//!   `m(x)` and both window steps) is in the measured mean spread over 100 samples; at
+//!   10 Hz it is spread over 10, so there the mean is understated by about 145 instructions;
+//!   above 100 Hz it is overstated. The worst sample does not depend on the rate. The bank
+//!   arrangements were not measured in that run (a warning says so).
+//!   `FOG_IDENTIFIER=F.fogi bash scripts/fw-budget.sh` measures an image itself.
+//! - Cycles are the budget's estimate at [`CLOCK_HZ`] (instruction trace costed with the
+//!   Cortex-M4 timings, 5 flash wait states behind the ART accelerator:
+//!   `fog-firmware/README.md`, "Cycles"), not a measurement on a board.
+//! - RAM does not depend on the image: every buffer has a fixed size (const generics; the
+//!   estimator's slot is sized for the largest arrangement). The stack high-water marks were
+//!   measured with the default image.
+//! - The UART runs 8N1 (10 bit times per byte) at [`UART_BAUD`] in both directions, one
+//!   E-Core frame ([`FRAME_LEN`] bytes) in and one record ([`RECORD_LEN`] bytes) out per
+//!   sample; the logs do not use it (defmt goes to semihosting or RTT).
+
+use anyhow::{bail, Result};
+use fog_core::image::Image;
+use serde::Serialize;
+use std::path::Path;
+
+/// `fog-firmware/src/pipeline.rs`, the firmware's per-sample code, compiled on the host.
+#[allow(dead_code, clippy::all)]
+#[path = "../../fog-firmware/src/pipeline.rs"]
+mod pipeline;
+
+/// Slowest image rate the firmware runs, Hz (`pipeline::MIN_RATE_HZ`).
+pub const MIN_RATE_HZ: f32 = pipeline::MIN_RATE_HZ;
+/// Fastest image rate the firmware runs, Hz (`pipeline::MAX_RATE_HZ`).
+pub const MAX_RATE_HZ: f32 = pipeline::MAX_RATE_HZ;
+/// Full scale of the firmware's only decoder, E-Core 2000 frames, deg/s
+/// (`pipeline::FULL_SCALE_DPS`: 32768 counts = this rate).
+pub const DECODER_FULL_SCALE_DPS: f32 = pipeline::FULL_SCALE_DPS;
+/// Bytes of one E-Core 2000 frame (one sample in).
+pub const FRAME_LEN: usize = fog_core::frame::ecore::FRAME_LEN;
+/// Bytes of one per-sample record (one sample out; `pipeline::SAMPLE_RECORD_LEN`).
+pub const RECORD_LEN: usize = pipeline::SAMPLE_RECORD_LEN;
+
+/// Core clock the cycle figures are for, Hz (the STM32F407's 168 MHz).
+pub const CLOCK_HZ: f64 = 168e6;
+/// Whole pipeline (decode + stage + record), instructions per sample, mean (measured,
+/// `bash scripts/fw-budget.sh`, default image).
+pub const INSTRUCTIONS_MEAN: f64 = 1_327.8;
+/// The same, the worst sample.
+pub const INSTRUCTIONS_WORST: f64 = 3_265.0;
+/// Whole pipeline, estimated cycles per sample at [`CLOCK_HZ`], mean (the budget's
+/// estimate from the instruction trace, default image).
+pub const CYCLES_MEAN: f64 = 2_768.5;
+/// The same, the worst sample.
+pub const CYCLES_WORST: f64 = 6_312.0;
+/// RAM including the stack's high-water mark, `mps2-an386` build, bytes.
+pub const RAM_MPS2_BYTES: u32 = 14_396;
+/// RAM including the stack (measured on its QEMU variant), STM32F407 build, bytes.
+pub const RAM_STM32_BYTES: u32 = 14_524;
+/// The RAM budget, bytes (16 KiB).
+pub const RAM_BUDGET_BYTES: u32 = 16_384;
+/// Flash, `mps2-an386` build (the image included), bytes.
+pub const FLASH_BYTES: u32 = 42_920;
+/// The command that measured the figures above.
+pub const MEASURED_BY: &str = "bash scripts/fw-budget.sh";
+/// The gyro UART's baud rate on both boards (`const BAUD`, `fog-firmware/src/board/`).
+pub const UART_BAUD: f64 = 115_200.0;
+/// Bit times per byte on the UART (8N1).
+pub const UART_BITS_PER_BYTE: f64 = 10.0;
+
+/// What the firmware does with an image (units in the field names; shares are fractions).
+#[derive(Debug, Clone, Serialize)]
+pub struct FirmwareFit {
+    /// The firmware's set-up (`pipeline::new_stage`) accepts the image.
+    pub accepted: bool,
+    /// Why it refuses it (the firmware stops at set-up), if it does.
+    pub refusal: Option<String>,
+    /// The rate the firmware runs at: the image's, Hz.
+    pub sample_rate_hz: f32,
+    /// The rates the firmware accepts, Hz.
+    pub accepted_rate_hz: (f32, f32),
+    /// What the firmware decodes (its only decoder).
+    pub decoder: &'static str,
+    /// The decoder's full scale, deg/s.
+    pub decoder_full_scale_dps: f32,
+    /// The image's (the unit's) full scale, deg/s.
+    pub image_full_scale_dps: f32,
+    /// The image's arrangement (`--level-update` name).
+    pub arrangement: String,
+    /// What the per-sample figures were measured on, and by which command.
+    pub measured_on: String,
+    /// Instructions per sample (mean, worst), measured.
+    pub instructions_per_sample: (f64, f64),
+    /// Estimated cycles per sample (mean, worst) at `clock_hz`.
+    pub cycles_per_sample: (f64, f64),
+    /// Instructions per second at this rate (mean; every sample the worst).
+    pub instructions_per_s: (f64, f64),
+    /// Estimated cycles per second at this rate (mean; every sample the worst).
+    pub cycles_per_s: (f64, f64),
+    /// Share of the core (mean; every sample the worst = the worst sample's share of its
+    /// period).
+    pub core_share: (f64, f64),
+    /// Core clock, Hz.
+    pub clock_hz: f64,
+    /// RAM incl. stack, bytes: `mps2-an386`, STM32F407 (the same for every image).
+    pub ram_bytes: (u32, u32),
+    /// The RAM budget, bytes.
+    pub ram_budget_bytes: u32,
+    /// Flash, bytes (`mps2-an386`).
+    pub flash_bytes: u32,
+    /// UART baud rate.
+    pub uart_baud: f64,
+    /// Share of the UART's line at this rate: frames in, records out.
+    pub uart_share: (f64, f64),
+    /// Where the image does not fit (the firmware runs it, but not as the unit needs).
+    pub warnings: Vec<String>,
+}
+
+impl FirmwareFit {
+    /// `Err` naming `output` when the firmware would refuse the image (nothing is to be
+    /// written then).
+    pub fn refuse(&self, output: &Path) -> Result<()> {
+        if let Some(r) = &self.refusal {
+            bail!(
+                "{}: not written: the firmware would refuse this image at set-up: {r}",
+                output.display()
+            );
+        }
+        Ok(())
+    }
+
+    /// The statement, a few lines (each starting `firmware:`; warnings `firmware: WARNING:`).
+    pub fn text(&self) -> String {
+        let (lo, hi) = self.accepted_rate_hz;
+        let hz = self.sample_rate_hz;
+        let mut s = match &self.refusal {
+            Some(r) => format!("firmware: REFUSES this image (it stops at set-up): {r}\n"),
+            None => format!(
+                "firmware: accepts this image and runs at its {hz} Hz (accepted: {lo} to {hi} Hz)\n"
+            ),
+        };
+        s += &format!(
+            "firmware: decodes {}, full scale {} deg/s; this image's unit: {} deg/s\n",
+            self.decoder, self.decoder_full_scale_dps, self.image_full_scale_dps
+        );
+        let (im, iw) = self.instructions_per_sample;
+        let (cm, cw) = self.cycles_per_sample;
+        s += &format!(
+            "firmware: load at {hz} Hz: {} instructions/s, estimated {} cycles/s = {:.2} % of a {} MHz core; worst sample {} cycles = {:.2} % of its {}-us period\n",
+            grouped(self.instructions_per_s.0, 0),
+            grouped(self.cycles_per_s.0, 0),
+            100.0 * self.core_share.0,
+            self.clock_hz / 1e6,
+            grouped(cw, 0),
+            100.0 * self.core_share.1,
+            grouped(1e6 / f64::from(hz), 0),
+        );
+        s += &format!(
+            "firmware: per sample (mean / worst) {} / {} instructions, estimated {} / {} cycles, measured on {}\n",
+            grouped(im, 1),
+            grouped(iw, 1),
+            grouped(cm, 1),
+            grouped(cw, 0),
+            self.measured_on,
+        );
+        s += &format!(
+            "firmware: RAM incl. stack {} B (mps2-an386), {} B (STM32F407) of {} B, the same for every image (fixed sizes); flash {} B\n",
+            grouped(f64::from(self.ram_bytes.0), 0),
+            grouped(f64::from(self.ram_bytes.1), 0),
+            grouped(f64::from(self.ram_budget_bytes), 0),
+            grouped(f64::from(self.flash_bytes), 0),
+        );
+        s += &format!(
+            "firmware: UART {} baud at {hz} Hz: frames in {:.1} %, records out {:.1} % of the line\n",
+            grouped(self.uart_baud, 0),
+            100.0 * self.uart_share.0,
+            100.0 * self.uart_share.1,
+        );
+        for w in &self.warnings {
+            s += &format!("firmware: WARNING: {w}\n");
+        }
+        s
+    }
+}
+
+/// What the firmware does with the image `bytes` (already parsed as `image`): accepted or
+/// refused by its own set-up code, and the figures at the image's rate.
+pub fn check(image: &Image, bytes: &[u8]) -> FirmwareFit {
+    let refusal = match pipeline::new_stage(bytes) {
+        Ok(_) => None,
+        Err(e) => Some(setup_reason(&e)),
+    };
+    let s = &image.config.sensor;
+    assess(
+        s.sample_rate_hz,
+        s.full_scale_dps,
+        image.arrangement,
+        refusal,
+    )
+}
+
+/// [`check`] on an image not yet in bytes (a command about to write it).
+pub fn check_image(image: &Image) -> Result<FirmwareFit> {
+    let bytes = crate::motion::image_bytes(image)?;
+    Ok(check(image, &bytes))
+}
+
+/// Why the firmware's set-up refuses an image, in words.
+fn setup_reason(e: &pipeline::SetupError) -> String {
+    use fog_core::image::ImageError;
+    match e {
+        pipeline::SetupError::Image(ImageError::RateMismatch { image_hz, .. }) => format!(
+            "sample rate {image_hz} Hz outside the {MIN_RATE_HZ} to {MAX_RATE_HZ} Hz it runs"
+        ),
+        pipeline::SetupError::Image(e) => e.to_string(),
+        pipeline::SetupError::Estimator(e) => format!("estimator: {e}"),
+        pipeline::SetupError::Denoiser(e) => format!("denoiser: {e}"),
+    }
+}
+
+/// The figures and warnings for an image at `sample_rate_hz` from a unit of
+/// `full_scale_dps`, with `arrangement`; `refusal`: the set-up's verdict.
+pub fn assess(
+    sample_rate_hz: f32,
+    full_scale_dps: f32,
+    arrangement: fog_core::preset::Arrangement,
+    refusal: Option<String>,
+) -> FirmwareFit {
+    let hz = f64::from(sample_rate_hz);
+    let mut warnings = Vec::new();
+    let fs = DECODER_FULL_SCALE_DPS;
+    if full_scale_dps > fs * (1.0 + 1e-6) {
+        warnings.push(format!(
+            "the unit's full scale {full_scale_dps} deg/s is beyond the decoder's {fs} deg/s: the firmware decodes E-Core 2000 frames only (16-bit counts, 32768 = {fs} deg/s), so rates beyond {fs} deg/s cannot reach it, and a unit whose counts mean {full_scale_dps} deg/s is read at {:.3}x its rate",
+            fs / full_scale_dps
+        ));
+    } else if full_scale_dps < fs * (1.0 - 1e-6) {
+        warnings.push(format!(
+            "the unit's full scale {full_scale_dps} deg/s is not the decoder's {fs} deg/s: a unit whose E-Core counts mean {full_scale_dps} deg/s is read at {:.3}x its rate",
+            fs / full_scale_dps
+        ));
+    }
+    let name = crate::motion::LevelUpdateArg::of(arrangement).cli_name();
+    if arrangement != fog_core::preset::Arrangement::DualThermal {
+        warnings.push(format!(
+            "the per-sample figures are the dual-thermal's; this image's {name} was not measured (`FOG_IDENTIFIER=IMAGE {MEASURED_BY}` measures it)"
+        ));
+    }
+    let period_cycles = CLOCK_HZ / hz;
+    if CYCLES_MEAN > period_cycles {
+        warnings.push(format!(
+            "the mean sample ({} cycles) exceeds the {:.0}-cycle sample period: the firmware falls behind and loses frames",
+            grouped(CYCLES_MEAN, 1),
+            period_cycles
+        ));
+    } else if CYCLES_WORST > period_cycles {
+        warnings.push(format!(
+            "the worst sample ({} cycles) exceeds the {:.0}-cycle sample period: the receive queue must absorb it",
+            grouped(CYCLES_WORST, 0),
+            period_cycles
+        ));
+    }
+    let line = |bytes: usize| bytes as f64 * UART_BITS_PER_BYTE * hz / UART_BAUD;
+    let uart_share = (line(FRAME_LEN), line(RECORD_LEN));
+    let most_hz = |bytes: usize| UART_BAUD / (bytes as f64 * UART_BITS_PER_BYTE);
+    if uart_share.1 > 1.0 {
+        warnings.push(format!(
+            "the records ({RECORD_LEN} B per sample) need {:.0} % of the {} baud UART at {sample_rate_hz} Hz (at most {:.0} Hz fit): the firmware falls behind and loses frames",
+            100.0 * uart_share.1,
+            grouped(UART_BAUD, 0),
+            most_hz(RECORD_LEN).floor()
+        ));
+    }
+    if uart_share.0 > 1.0 {
+        warnings.push(format!(
+            "the frames ({FRAME_LEN} B per sample) need {:.0} % of the {} baud UART at {sample_rate_hz} Hz (at most {:.0} Hz fit)",
+            100.0 * uart_share.0,
+            grouped(UART_BAUD, 0),
+            most_hz(FRAME_LEN).floor()
+        ));
+    }
+    FirmwareFit {
+        accepted: refusal.is_none(),
+        refusal,
+        sample_rate_hz,
+        accepted_rate_hz: (MIN_RATE_HZ, MAX_RATE_HZ),
+        decoder: "E-Core 2000 frames only",
+        decoder_full_scale_dps: fs,
+        image_full_scale_dps: full_scale_dps,
+        arrangement: name,
+        measured_on: format!("the default image (dual-thermal, 100 Hz) by `{MEASURED_BY}`"),
+        instructions_per_sample: (INSTRUCTIONS_MEAN, INSTRUCTIONS_WORST),
+        cycles_per_sample: (CYCLES_MEAN, CYCLES_WORST),
+        instructions_per_s: (INSTRUCTIONS_MEAN * hz, INSTRUCTIONS_WORST * hz),
+        cycles_per_s: (CYCLES_MEAN * hz, CYCLES_WORST * hz),
+        core_share: (CYCLES_MEAN * hz / CLOCK_HZ, CYCLES_WORST * hz / CLOCK_HZ),
+        clock_hz: CLOCK_HZ,
+        ram_bytes: (RAM_MPS2_BYTES, RAM_STM32_BYTES),
+        ram_budget_bytes: RAM_BUDGET_BYTES,
+        flash_bytes: FLASH_BYTES,
+        uart_baud: UART_BAUD,
+        uart_share,
+        warnings,
+    }
+}
+
+/// `x` with `decimals` decimals and thousands separated by commas (`1,327.8`).
+pub fn grouped(x: f64, decimals: usize) -> String {
+    let text = format!("{:.*}", decimals, x.abs());
+    let (int, frac) = text.split_once('.').map_or((text.as_str(), ""), |p| p);
+    let mut out = String::new();
+    for (i, c) in int.chars().enumerate() {
+        if i > 0 && (int.len() - i) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    if !frac.is_empty() {
+        out.push('.');
+        out.push_str(frac);
+    }
+    if x < 0.0 && out.chars().any(|c| c.is_ascii_digit() && c != '0') {
+        out.insert(0, '-');
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fog_core::preset::Arrangement;
+
+    fn repo_file(rel: &str) -> String {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(rel);
+        std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+    }
+
+    /// The measured figures are those `docs/STATUS.md` states (re-measured: change both).
+    #[test]
+    fn figures_are_the_status_pages() {
+        let status = repo_file("docs/STATUS.md");
+        for figure in [
+            format!(
+                "{} mean / {} max",
+                grouped(INSTRUCTIONS_MEAN, 1),
+                grouped(INSTRUCTIONS_WORST, 1)
+            ),
+            format!(
+                "{} mean / {} worst",
+                grouped(CYCLES_MEAN, 1),
+                grouped(CYCLES_WORST, 0)
+            ),
+            format!(
+                "`mps2-an386` {} B, {} B",
+                grouped(f64::from(FLASH_BYTES), 0),
+                grouped(f64::from(RAM_MPS2_BYTES), 0)
+            ),
+            format!("{} B (", grouped(f64::from(RAM_STM32_BYTES), 0)),
+            format!("{} MHz", CLOCK_HZ / 1e6),
+        ] {
+            assert!(status.contains(&figure), "docs/STATUS.md lacks {figure:?}");
+        }
+    }
+
+    /// Both boards' UART runs at [`UART_BAUD`].
+    #[test]
+    fn baud_is_the_boards() {
+        for board in ["mps2_an386.rs", "stm32f4.rs"] {
+            let text = repo_file(&format!("fog-firmware/src/board/{board}"));
+            assert!(
+                text.contains(&format!(
+                    "const BAUD: u32 = {};",
+                    grouped(UART_BAUD, 0).replace(',', "_")
+                )),
+                "{board}: BAUD is not {UART_BAUD}"
+            );
+        }
+    }
+
+    #[test]
+    fn grouping() {
+        assert_eq!(grouped(1327.8, 1), "1,327.8");
+        assert_eq!(grouped(6312.0, 0), "6,312");
+        assert_eq!(grouped(115_200.0, 0), "115,200");
+        assert_eq!(grouped(999.96, 1), "1,000.0");
+        assert_eq!(grouped(12.0, 0), "12");
+        assert_eq!(grouped(-1234.5, 1), "-1,234.5");
+    }
+
+    /// Load and warnings follow the rate: 100 Hz fits quietly, 1 kHz overfills the UART's
+    /// records, a 100 deg/s unit is named, a bank arrangement is said to be unmeasured.
+    #[test]
+    fn warnings_follow_the_rate_and_unit() {
+        let at100 = assess(100.0, 60.0, Arrangement::DualThermal, None);
+        assert!(at100.warnings.is_empty(), "{:?}", at100.warnings);
+        assert!((at100.core_share.0 - 2768.5 * 100.0 / 168e6).abs() < 1e-12);
+        assert!((at100.uart_share.1 - 26.0 * 10.0 * 100.0 / 115_200.0).abs() < 1e-12);
+        let at1k = assess(1000.0, 60.0, Arrangement::DualThermal, None);
+        assert_eq!(at1k.warnings.len(), 1, "{:?}", at1k.warnings);
+        assert!(at1k.warnings[0].contains("at most 443 Hz fit"));
+        let fs100 = assess(200.0, 100.0, Arrangement::BankDual, None);
+        assert_eq!(fs100.warnings.len(), 2, "{:?}", fs100.warnings);
+        assert!(fs100.warnings[0].contains("beyond the decoder's 60 deg/s"));
+        assert!(fs100.warnings[1].contains("bank-dual was not measured"));
+        // A core too slow for the rate (not reachable within the firmware's range at 168
+        // MHz): named.
+        let fast = assess(100_000.0, 60.0, Arrangement::DualThermal, None);
+        assert!(fast.warnings.iter().any(|w| w.contains("the mean sample")));
+    }
+}
