@@ -279,20 +279,23 @@ pub fn assess(
     let line = |bytes: usize| bytes as f64 * UART_BITS_PER_BYTE * hz / UART_BAUD;
     let uart_share = (line(FRAME_LEN), line(RECORD_LEN));
     let most_hz = |bytes: usize| UART_BAUD / (bytes as f64 * UART_BITS_PER_BYTE);
-    if uart_share.1 > 1.0 {
+    for (what, bytes, share, consequence) in [
+        (
+            "records",
+            RECORD_LEN,
+            uart_share.1,
+            ": the firmware falls behind and loses frames",
+        ),
+        ("frames", FRAME_LEN, uart_share.0, ""),
+    ] {
+        if share <= 1.0 {
+            continue;
+        }
         warnings.push(format!(
-            "the records ({RECORD_LEN} B per sample) need {:.0} % of the {} baud UART at {sample_rate_hz} Hz (at most {:.0} Hz fit): the firmware falls behind and loses frames",
-            100.0 * uart_share.1,
+            "the {what} ({bytes} B per sample) need {:.0} % of the {} baud UART at {sample_rate_hz} Hz (at most {:.0} Hz fit){consequence}",
+            100.0 * share,
             grouped(UART_BAUD, 0),
-            most_hz(RECORD_LEN).floor()
-        ));
-    }
-    if uart_share.0 > 1.0 {
-        warnings.push(format!(
-            "the frames ({FRAME_LEN} B per sample) need {:.0} % of the {} baud UART at {sample_rate_hz} Hz (at most {:.0} Hz fit)",
-            100.0 * uart_share.0,
-            grouped(UART_BAUD, 0),
-            most_hz(FRAME_LEN).floor()
+            most_hz(bytes).floor()
         ));
     }
     FirmwareFit {

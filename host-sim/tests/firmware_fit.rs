@@ -13,6 +13,16 @@ fn host_sim() -> Command {
     Command::cargo_bin("host-sim").expect("binary built")
 }
 
+/// `host-sim image --input IMG --json J`, run.
+fn image(img: &Path, j: &Path) -> assert_cmd::assert::Assert {
+    host_sim()
+        .args(["image", "--input"])
+        .arg(img)
+        .arg("--json")
+        .arg(j)
+        .assert()
+}
+
 /// The firmware's committed default image (100 Hz, 60 deg/s, dual-thermal).
 fn default_image() -> Image {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fog-firmware/identifier/default.fogi");
@@ -40,12 +50,7 @@ fn a_100_hz_image_fits_and_says_so() {
     let dir = tempfile::tempdir().expect("tmp");
     let img = image_file(dir.path(), "u100.fogi", 100.0, 60.0);
     let j = dir.path().join("u100.json");
-    let a = host_sim()
-        .args(["image", "--input"])
-        .arg(&img)
-        .arg("--json")
-        .arg(&j)
-        .assert()
+    let a = image(&img, &j)
         .success()
         .stderr(contains(
             "firmware: accepts this image and runs at its 100 Hz (accepted: 10 to 2000 Hz)",
@@ -69,12 +74,7 @@ fn a_200_hz_image_of_a_100_dps_unit_is_warned_about() {
     let dir = tempfile::tempdir().expect("tmp");
     let img = image_file(dir.path(), "u200.fogi", 200.0, 100.0);
     let j = dir.path().join("u200.json");
-    host_sim()
-        .args(["image", "--input"])
-        .arg(&img)
-        .arg("--json")
-        .arg(&j)
-        .assert()
+    image(&img, &j)
         .success()
         .stderr(contains(
             "firmware: accepts this image and runs at its 200 Hz",
@@ -133,12 +133,7 @@ fn an_image_outside_the_firmwares_rates_is_refused_and_not_written() {
     let dir = tempfile::tempdir().expect("tmp");
     let img = image_file(dir.path(), "u5k.fogi", 5000.0, 60.0);
     let j = dir.path().join("u5k.json");
-    let a = host_sim()
-        .args(["image", "--input"])
-        .arg(&img)
-        .arg("--json")
-        .arg(&j)
-        .assert()
+    let a = image(&img, &j)
         .failure()
         .stderr(contains(
             "firmware: REFUSES this image (it stops at set-up): sample rate 5000 Hz outside the 10 to 2000 Hz it runs",
