@@ -73,6 +73,21 @@ impl FirmwareBuild<'static> {
         input_files: &[],
         envs: &[],
     };
+
+    /// The STM32F407 board build, in its own target directory (as `scripts/test-all.sh`
+    /// builds it).
+    pub const STM32F407: FirmwareBuild<'static> = FirmwareBuild {
+        target_subdir: "target/stm32",
+        cargo_args: &["--no-default-features", "--features", "board-stm32f407"],
+        ..Self::DEFAULT
+    };
+
+    /// The STM32 build's QEMU variant (`netduinoplus2`), in its own target directory.
+    pub const NETDUINO: FirmwareBuild<'static> = FirmwareBuild {
+        target_subdir: "target/netduino",
+        cargo_args: &["--no-default-features", "--features", "qemu-netduinoplus2"],
+        ..Self::DEFAULT
+    };
 }
 
 /// Every variable `fog-firmware/build.rs` reads: removed from the caller's environment so
@@ -93,19 +108,22 @@ const EMBEDDED_STATICS: [(&str, &str); 2] = [
 pub struct Firmware {
     /// The ELF this test runs.
     pub elf: PathBuf,
+    /// The folder (taken by `drop`, which keeps or removes it).
     dir: Option<tempfile::TempDir>,
-    path: PathBuf,
 }
 
 impl Firmware {
     /// The test's own folder.
     pub fn dir(&self) -> &Path {
-        &self.path
+        self.dir
+            .as_ref()
+            .map(tempfile::TempDir::path)
+            .expect("the folder is held until drop")
     }
 
     /// A file named `name` in the test's own folder.
     pub fn file(&self, name: &str) -> PathBuf {
-        self.path.join(name)
+        self.dir().join(name)
     }
 
     /// The bytes of the firmware's static `name` (e.g. `IDENTIFIER_IMAGE`), read from the
@@ -255,10 +273,9 @@ pub fn firmware(build: &FirmwareBuild, label: &str) -> Firmware {
 
     let fw = Firmware {
         elf,
-        path: dir.path().to_path_buf(),
         dir: Some(dir),
     };
-    let default_image;
+    let default;
     let image: &[u8] = match build
         .input_files
         .iter()
@@ -266,9 +283,8 @@ pub fn firmware(build: &FirmwareBuild, label: &str) -> Firmware {
     {
         Some((_, bytes)) => bytes,
         None => {
-            let p = firmware_dir().join("identifier/default.fogi");
-            default_image = std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-            &default_image
+            default = default_image();
+            &default
         }
     };
     let expected = build
@@ -281,6 +297,16 @@ pub fn firmware(build: &FirmwareBuild, label: &str) -> Firmware {
         fw.assert_carries(var, bytes);
     }
     fw
+}
+
+/// The identifier image the firmware embeds by default (`fog-firmware/identifier/default.fogi`,
+/// made by `scripts/train-default-identifier.sh`).
+///
+/// # Panics
+/// If it cannot be read.
+pub fn default_image() -> Vec<u8> {
+    let p = firmware_dir().join("identifier/default.fogi");
+    std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
 /// [`firmware`] with [`FirmwareBuild::DEFAULT`].

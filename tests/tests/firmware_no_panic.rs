@@ -189,25 +189,11 @@ fn release_firmware_has_no_unlisted_panic_path() {
         ("mps2-an386", default_firmware("no-panic-mps2")),
         (
             "stm32f407",
-            firmware(
-                &FirmwareBuild {
-                    target_subdir: "target/stm32",
-                    cargo_args: &["--no-default-features", "--features", "board-stm32f407"],
-                    ..FirmwareBuild::DEFAULT
-                },
-                "no-panic-stm32f407",
-            ),
+            firmware(&FirmwareBuild::STM32F407, "no-panic-stm32f407"),
         ),
         (
             "stm32f407 qemu-netduinoplus2",
-            firmware(
-                &FirmwareBuild {
-                    target_subdir: "target/netduino",
-                    cargo_args: &["--no-default-features", "--features", "qemu-netduinoplus2"],
-                    ..FirmwareBuild::DEFAULT
-                },
-                "no-panic-netduino",
-            ),
+            firmware(&FirmwareBuild::NETDUINO, "no-panic-netduino"),
         ),
     ];
     for (board, fw) in &boards {

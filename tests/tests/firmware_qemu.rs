@@ -540,14 +540,6 @@ fn image_runs_bit_for_bit(
     (still, verified)
 }
 
-/// The STM32 build's QEMU variant (`netduinoplus2`), in its own target directory.
-const NETDUINO: FirmwareBuild<'static> = FirmwareBuild {
-    target_subdir: "target/netduino",
-    cargo_args: &["--no-default-features", "--features", "qemu-netduinoplus2"],
-    input_files: &[],
-    envs: &[],
-};
-
 /// USART2 control register 1 of the STM32F4 (RM0090: USART2 at 0x4000_4400, CR1 at 0x0C).
 const USART2_CR1: u32 = 0x4000_440C;
 /// CR1: UE (bit 13), RE (bit 2), RXNEIE (bit 5).
@@ -572,7 +564,7 @@ fn stm32_build_under_netduinoplus2_matches_host_bit_for_bit() {
     let Some(qemu) = qemu_system_arm() else {
         return;
     };
-    let fw = firmware(&NETDUINO, "hil-netduino");
+    let fw = firmware(&FirmwareBuild::NETDUINO, "hil-netduino");
     let built = t0.elapsed();
     let (capture, _) = vehicle_capture(fw.dir());
     let stream = wire_stream(&capture, 0xBADB_17E5);

@@ -24,7 +24,7 @@ use std::io::Read;
 use std::path::Path;
 use std::process::Stdio;
 use std::sync::mpsc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use fog_core::frame::ecore;
 use fog_system_tests::{firmware, qemu_system_arm, Firmware, FirmwareBuild};
@@ -110,16 +110,7 @@ fn run_icount(qemu: &Path, elf: &Path, defmt_log: &Path) -> (Vec<u8>, Option<i32
         .recv_timeout(hil::DEADLINE)
         .unwrap_or_else(|_| panic!("QEMU did not finish within {:?}", hil::DEADLINE));
     r.expect("reading QEMU's stdout");
-    let until = Instant::now() + hil::EXIT_GRACE;
-    let mut code = None;
-    while Instant::now() < until {
-        if let Ok(Some(status)) = proc.0.try_wait() {
-            code = status.code();
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    (out, code)
+    (out, proc.exit_code())
 }
 
 /// Builds the test image with `feature` and `capture` at `baud` (in `fog-firmware/target/rt`);

@@ -45,12 +45,7 @@ impl Rng {
     }
 }
 
-/// The identifier image the firmware embeds by default (`fog-firmware/identifier/default.fogi`,
-/// made by `scripts/train-default-identifier.sh`).
-pub fn default_image() -> Vec<u8> {
-    let p = fog_system_tests::firmware_dir().join("identifier/default.fogi");
-    std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
-}
+pub use fog_system_tests::default_image;
 
 /// What the host expects: one entry per good frame, then the flushed counters.
 pub struct Expected {
@@ -251,6 +246,21 @@ pub fn parse_records(out: &[u8]) -> (Vec<SampleRecord>, Option<StatsRecord>) {
 /// Kills QEMU whatever happens to the test.
 pub struct KillOnDrop(pub Child);
 
+impl KillOnDrop {
+    /// QEMU's exit code once its output has closed: it is exiting, so it is waited for up to
+    /// [`EXIT_GRACE`]; `None` if it has not exited by then (it is killed on drop).
+    pub fn exit_code(&mut self) -> Option<i32> {
+        let wait_until = Instant::now() + EXIT_GRACE;
+        while Instant::now() < wait_until {
+            if let Ok(Some(status)) = self.0.try_wait() {
+                return status.code();
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        None
+    }
+}
+
 impl Drop for KillOnDrop {
     fn drop(&mut self) {
         let _ = self.0.kill();
@@ -393,15 +403,7 @@ pub fn run_qemu_paced(qemu: &Path, elf: &Path, pieces: Vec<Piece>, defmt_log: &P
     };
     read_result.expect("reading QEMU's stdout");
     // stdout closed: QEMU is exiting; give it a moment, then kill.
-    let mut code = None;
-    let wait_until = Instant::now() + EXIT_GRACE;
-    while Instant::now() < wait_until {
-        if let Ok(Some(status)) = qemu_proc.0.try_wait() {
-            code = status.code();
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let code = qemu_proc.exit_code();
     let resumed = writer
         .join()
         .expect("writer thread")
@@ -676,17 +678,11 @@ pub fn run_qemu_steps(
         panic!("QEMU did not finish within {DEADLINE:?}");
     };
     let ended_by_output = read_result.expect("reading QEMU's stdout");
-    let mut code = None;
-    if !ended_by_output {
-        let wait_until = Instant::now() + EXIT_GRACE;
-        while Instant::now() < wait_until {
-            if let Ok(Some(status)) = qemu_proc.0.try_wait() {
-                code = status.code();
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
+    let code = if ended_by_output {
+        None
+    } else {
+        qemu_proc.exit_code()
+    };
     drop(qemu_proc);
     drop(qmp_dir);
     let resumed = writer
