@@ -1180,29 +1180,26 @@ fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice
     // output's lattice, so the quantum is never found again (real ADIS16405 run 4 z with a
     // temperature link added: temperature named first with shrink 0, quantization then
     // lost, 746 left of a 59,746 gap).
-    let quantization_first = tests.all.iter().find(|t| {
-        t.passed
-            && t.effect == Effect::Quantization
-            && candidates.iter().any(|c| {
-                c.effect == t.effect
-                    && c.gap_after.is_some()
-                    && !c.effect.fitted_size_is_zero(c.params.as_ref())
-            })
-    });
+    let zero_size = |e: Effect| {
+        candidates
+            .iter()
+            .any(|c| c.effect == e && e.fitted_size_is_zero(c.params.as_ref()))
+    };
+    let quantization_first = !zero_size(Effect::Quantization)
+        && candidates
+            .iter()
+            .any(|c| c.effect == Effect::Quantization && c.gap_after.is_some())
+        && tests
+            .all
+            .iter()
+            .any(|t| t.passed && t.effect == Effect::Quantization);
     let tested = tests
         .all
         .iter()
-        .filter(|t| {
-            quantization_first.is_none_or(|q| std::ptr::eq(*t, q))
-                && t.passed
-                && !drift_rank(t.effect)
-        })
-        .chain(drift_pick.filter(|_| quantization_first.is_none()))
-        .filter(|t| {
-            !candidates
-                .iter()
-                .any(|c| c.effect == t.effect && c.effect.fitted_size_is_zero(c.params.as_ref()))
-        })
+        .filter(|t| t.passed && !drift_rank(t.effect))
+        .chain(drift_pick)
+        .filter(|t| !quantization_first || t.effect == Effect::Quantization)
+        .filter(|t| !zero_size(t.effect))
         .max_by(|a, b| (a.z / a.threshold).total_cmp(&(b.z / b.threshold)))
         .and_then(|t| {
             candidates
