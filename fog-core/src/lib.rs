@@ -15,6 +15,8 @@
 //! - [`rest_q`]: the unit's own level wander at rest, chosen on line;
 //! - [`image`]: the trained identifier as a versioned, checksummed binary image;
 //! - [`baseline`]: causal estimators to compare with;
+//! - [`gyro_model`]: the gyro model as data; [`kalman`]: the Kalman primitive;
+//!   [`drift_filter`]: the model's Kalman filter with its stillness test;
 //! - [`frame`], [`driver`]: gyro serial frames and the serial reader;
 //! - [`tmp117`], [`tmp105`]: drivers for the TI TMP117 and TMP105 I2C temperature sensors,
 //!   both read through [`temp_sensor::TemperatureSensor`].
@@ -26,11 +28,14 @@ pub mod bank;
 pub mod baseline;
 pub mod db4;
 pub mod denoise;
+pub mod drift_filter;
 pub mod driver;
 pub mod features;
 pub mod frame;
+pub mod gyro_model;
 pub mod identify;
 pub mod image;
+pub mod kalman;
 pub mod level;
 pub mod motion;
 pub mod motion_fit;

@@ -1,0 +1,567 @@
+//! The drift filter: the Kalman filter of a [`GyroModel`], run at the window rate, with the
+//! model's own stillness test.
+//!
+//! States (`x`, [`STATES`] of them): the level `b` (a random walk of the model's rate random
+//! walk), the Gauss-Markov terms `g_1..g_3` (absent terms have zero variance and stay 0),
+//! the warm-up amplitude `a` and the temperature and temperature-rate links `c`, `c'`
+//! (constants). Prior: the model's family means and spreads. Process noise: the model's,
+//! never chosen on line. The observation of one window is its mean rate `ybar` with the row
+//! `hbar = [1, 1, 1, 1, mean e^(-t/tau_w), mean (T - T0), dT/dt]`.
+//!
+//! Per window of `W` samples ([`DriftFilterConfig::window_s`]):
+//! 1. predict `W` steps of the model;
+//! 2. **stillness test** (a likelihood-ratio test on the window mean, as zero-velocity
+//!    detectors do): the window is still when its normalized innovation
+//!    `e^2 / (hbar P hbar' + R_W)` and the normalized squared difference of its two halves'
+//!    means are both below one chi-square(1) threshold ([`DriftFilterConfig::nis_limit`]).
+//!    The first test catches a rate that stays (the slow start of a drive), the second one
+//!    that changes within the window (a turn). `R_W` is the variance of a window mean at
+//!    rest, learned on the unit from the half-window differences of its still windows
+//!    (fast vibration averages out in a window mean: an idling engine makes a still window
+//!    worth less, it does not widen the test beyond what it must resolve). `R_W` lies
+//!    between the model's white-noise floor and a cap set by the rate the test must resolve
+//!    ([`DriftFilterConfig::resolve_dps`]). The first [`DriftFilterConfig::learn_windows`]
+//!    windows after power-on (the unit is presumed still when switched on) learn `R_W`
+//!    without the half-difference test; the mean test applies from the first window;
+//! 3. a still window updates the filter; the update is held back one window: when the next
+//!    window fails, the filter returns to its state before that update (one checkpoint,
+//!    written once per window). Nothing is learned from a window that failed.
+//!
+//! Output per sample: `drift = h(t, T) x`, clamped to the model's drift bound, and the
+//! compensated rate `rate - drift`. Cost per sample: a few additions and multiplications;
+//! per window one predict and one update of a 7-state filter (`O(49)` each).
+//!
+//! An external still flag (a vehicle's zero-speed signal) overrides the test for the
+//! window it is given in (the window is still when every sample with a flag says still, and
+//! moving when one says moving).
+
+use crate::gyro_model::{GyroModel, MAX_MARKOV};
+use crate::kalman::{DiagonalModel, Innovation, Kalman};
+
+/// Number of states: level, three Gauss-Markov terms, warm-up, temperature, temperature rate.
+pub const STATES: usize = 3 + MAX_MARKOV + 1;
+
+const LEVEL: usize = 0;
+const WARMUP: usize = 1 + MAX_MARKOV;
+const TEMP: usize = WARMUP + 1;
+const TEMP_RATE: usize = TEMP + 1;
+
+/// How the filter runs (apart from the model it runs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DriftFilterConfig {
+    /// Window length, s (> 0); at least 2 samples. ASSUMED default 2 s: short against the
+    /// drift's tens of seconds, long enough for idling vibration (> 5 Hz) to average out.
+    pub window_s: f32,
+    /// The stillness test's threshold on a normalized squared innovation (chi-square with
+    /// one degree of freedom): 10.83 is a false alarm of 1e-3 per window and test.
+    pub nis_limit: f32,
+    /// The smallest steady rate the test must still tell from rest, deg/s (> 0): caps `R_W`
+    /// at `(resolve_dps)^2 / nis_limit`. ASSUMED default 0.01 deg/s (36 deg/h).
+    pub resolve_dps: f32,
+    /// Windows after power-on whose half-difference learns `R_W` without being tested.
+    pub learn_windows: u32,
+    /// Time constant of the temperature-rate estimate, s (> 0).
+    pub temp_rate_tau_s: f32,
+}
+
+impl Default for DriftFilterConfig {
+    fn default() -> Self {
+        Self {
+            window_s: 2.0,
+            nis_limit: 10.83,
+            resolve_dps: 0.01,
+            learn_windows: 8,
+            temp_rate_tau_s: 60.0,
+        }
+    }
+}
+
+impl DriftFilterConfig {
+    /// Every field finite and > 0 (`learn_windows` may be 0).
+    pub fn is_valid(&self) -> bool {
+        let pos = |v: f32| v > 0.0 && v.is_finite();
+        pos(self.window_s)
+            && pos(self.nis_limit)
+            && pos(self.resolve_dps)
+            && pos(self.temp_rate_tau_s)
+    }
+}
+
+/// Why a filter cannot be built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DriftFilterError {
+    /// The model is not valid ([`GyroModel::is_valid`]).
+    BadModel,
+    /// The configuration is not valid or its window holds fewer than 2 samples.
+    BadConfig,
+    /// A rate that is not finite: refused, counted, nothing changed.
+    NonFiniteRate,
+}
+
+/// One sample's result.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DriftOutput {
+    /// Drift estimate, deg/s, within the model's bound.
+    pub drift_dps: f32,
+    /// `rate - drift`, deg/s.
+    pub compensated_dps: f32,
+    /// The last window the test decided was still (at power-on: presumed still).
+    pub still: bool,
+}
+
+/// Counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DriftStats {
+    /// Samples accepted.
+    pub samples: u32,
+    /// Samples refused (non-finite rate).
+    pub rejected: u32,
+    /// Windows ended.
+    pub windows: u32,
+    /// Windows found still (updates made).
+    pub still_windows: u32,
+    /// Updates undone because the next window failed.
+    pub undone: u32,
+}
+
+/// The model's constants the filter runs with (built once).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Built {
+    window: DiagonalModel<STATES>,
+    samples_per_window: u32,
+    /// `e^(-dt / tau_w)`.
+    warmup_step: f32,
+    r_floor: f32,
+    r_cap: f32,
+}
+
+/// The filter at one moment (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriftFilter {
+    model: GyroModel,
+    cfg: DriftFilterConfig,
+    built: Built,
+    kf: Kalman<STATES>,
+    /// The state before the last still window's update (module docs, step 3).
+    checkpoint: Kalman<STATES>,
+    pending: bool,
+    /// `R_W` estimate: sum of half-difference variances and their count (capped: an
+    /// exponential average over the last `R_MEMORY` windows once full).
+    r_sum: f32,
+    r_count: f32,
+    r_checkpoint: (f32, f32),
+    /// Window sums: rate (two halves), warm-up factor, temperature offset.
+    sum_first: f32,
+    sum_second: f32,
+    sum_warm: f32,
+    sum_temp: f32,
+    in_window: u32,
+    /// External flags seen in this window: any still, any moving.
+    ext_still: bool,
+    ext_moving: bool,
+    /// The warm-up factor `e^(-t/tau_w)` of the next sample.
+    warm: f32,
+    /// Last valid temperature minus `T0` (0 before any).
+    temp_off: f32,
+    /// Previous window's mean temperature offset, and the temperature-rate estimate, C/s.
+    temp_prev: Option<f32>,
+    temp_rate: f32,
+    /// The drift's window-constant part `b + sum g` and the coefficients, per sample.
+    still: bool,
+    stats: DriftStats,
+}
+
+/// Memory of the `R_W` average, windows.
+const R_MEMORY: f32 = 64.0;
+
+impl DriftFilter {
+    /// The filter of `model` at power-on.
+    pub fn new(model: GyroModel, cfg: DriftFilterConfig) -> Result<Self, DriftFilterError> {
+        if !model.is_valid() {
+            return Err(DriftFilterError::BadModel);
+        }
+        if !cfg.is_valid() {
+            return Err(DriftFilterError::BadConfig);
+        }
+        let w = libm::roundf(cfg.window_s * model.sample_rate_hz);
+        if !(2.0..=1.0e6).contains(&w) {
+            return Err(DriftFilterError::BadConfig);
+        }
+        let samples_per_window = w as u32;
+        let dt = model.sample_period_s();
+        let mut step = DiagonalModel {
+            phi: [1.0; STATES],
+            q: [0.0; STATES],
+        };
+        step.q[LEVEL] = model.rrw_dps_per_s_rthz * model.rrw_dps_per_s_rthz * dt;
+        for (i, m) in model.markov.iter().enumerate() {
+            if m.sigma_dps > 0.0 {
+                let phi = libm::expf(-dt / m.tau_s);
+                step.phi[1 + i] = phi;
+                step.q[1 + i] = m.sigma_dps * m.sigma_dps * (1.0 - phi * phi);
+            }
+        }
+        let r_floor = model.sample_var_dps2() / w;
+        let r_cap = (cfg.resolve_dps * cfg.resolve_dps / cfg.nis_limit).max(r_floor);
+        let built = Built {
+            window: step.repeated(samples_per_window),
+            samples_per_window,
+            warmup_step: libm::expf(-dt / model.warmup_tau_s),
+            r_floor,
+            r_cap,
+        };
+        let kf = Self::prior(&model);
+        Ok(Self {
+            model,
+            cfg,
+            built,
+            kf,
+            checkpoint: kf,
+            pending: false,
+            r_sum: 0.0,
+            r_count: 0.0,
+            r_checkpoint: (0.0, 0.0),
+            sum_first: 0.0,
+            sum_second: 0.0,
+            sum_warm: 0.0,
+            sum_temp: 0.0,
+            in_window: 0,
+            ext_still: false,
+            ext_moving: false,
+            warm: 1.0,
+            temp_off: 0.0,
+            temp_prev: None,
+            temp_rate: 0.0,
+            still: true,
+            stats: DriftStats::default(),
+        })
+    }
+
+    fn prior(model: &GyroModel) -> Kalman<STATES> {
+        let mut x0 = [0.0; STATES];
+        let mut p0 = [0.0; STATES];
+        x0[LEVEL] = model.turn_on_dps.mean;
+        p0[LEVEL] = model.turn_on_dps.sigma * model.turn_on_dps.sigma;
+        for (i, m) in model.markov.iter().enumerate() {
+            p0[1 + i] = m.sigma_dps * m.sigma_dps;
+        }
+        x0[WARMUP] = model.warmup_dps.mean;
+        p0[WARMUP] = model.warmup_dps.sigma * model.warmup_dps.sigma;
+        x0[TEMP] = model.temp_dps_per_c.mean;
+        p0[TEMP] = model.temp_dps_per_c.sigma * model.temp_dps_per_c.sigma;
+        x0[TEMP_RATE] = model.temp_rate_dps_per_c_per_s.mean;
+        p0[TEMP_RATE] =
+            model.temp_rate_dps_per_c_per_s.sigma * model.temp_rate_dps_per_c_per_s.sigma;
+        Kalman::new(x0, p0)
+    }
+
+    /// Back to power-on; keeps the model and the configuration.
+    pub fn restart(&mut self) {
+        if let Ok(f) = Self::new(self.model, self.cfg) {
+            *self = f;
+        }
+    }
+
+    /// The model.
+    pub fn model(&self) -> &GyroModel {
+        &self.model
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &DriftFilterConfig {
+        &self.cfg
+    }
+
+    /// The filter's state and covariance now.
+    pub fn kalman(&self) -> &Kalman<STATES> {
+        &self.kf
+    }
+
+    /// Samples per window.
+    pub fn window_samples(&self) -> u32 {
+        self.built.samples_per_window
+    }
+
+    /// `R_W`, the variance of a window mean at rest, deg^2/s^2, as learned now.
+    pub fn window_var_dps2(&self) -> f32 {
+        let r = if self.r_count > 0.0 {
+            self.r_sum / self.r_count
+        } else {
+            self.built.r_floor
+        };
+        r.clamp(self.built.r_floor, self.built.r_cap)
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> &DriftStats {
+        &self.stats
+    }
+
+    /// The drift at a sample with warm-up factor `warm` (deg/s, unclamped).
+    fn drift_now(&self) -> f32 {
+        let x = self.kf.x();
+        let mut d = 0.0;
+        for v in x.iter().take(WARMUP) {
+            d += v;
+        }
+        d + x[WARMUP] * self.warm + x[TEMP] * self.temp_off + x[TEMP_RATE] * self.temp_rate
+    }
+
+    /// One sample: `rate_dps`, `temp_c` (NaN: no reading; the last one is kept),
+    /// `external_still` (a trusted still / moving flag, or `None`). A non-finite rate is
+    /// refused and counted, nothing else changes.
+    pub fn push(
+        &mut self,
+        rate_dps: f32,
+        temp_c: f32,
+        external_still: Option<bool>,
+    ) -> Result<DriftOutput, DriftFilterError> {
+        if !rate_dps.is_finite() {
+            self.stats.rejected = self.stats.rejected.saturating_add(1);
+            return Err(DriftFilterError::NonFiniteRate);
+        }
+        self.stats.samples = self.stats.samples.saturating_add(1);
+        if temp_c.is_finite() {
+            self.temp_off = temp_c - self.model.temp_ref_c;
+        }
+        let drift = self.model.clamp_drift(self.drift_now());
+        // The window's sums (the sample's own h before the warm-up factor moves on).
+        let half = self.built.samples_per_window / 2;
+        if self.in_window < half {
+            self.sum_first += rate_dps;
+        } else {
+            self.sum_second += rate_dps;
+        }
+        self.sum_warm += self.warm;
+        self.sum_temp += self.temp_off;
+        match external_still {
+            Some(true) => self.ext_still = true,
+            Some(false) => self.ext_moving = true,
+            None => {}
+        }
+        self.in_window += 1;
+        self.warm *= self.built.warmup_step;
+        if self.in_window >= self.built.samples_per_window {
+            self.end_window(half);
+        }
+        Ok(DriftOutput {
+            drift_dps: drift,
+            compensated_dps: rate_dps - drift,
+            still: self.still,
+        })
+    }
+
+    fn end_window(&mut self, half: u32) {
+        let n = self.in_window as f32;
+        let n1 = half as f32;
+        let n2 = n - n1;
+        let mean = (self.sum_first + self.sum_second) / n;
+        let mean_temp = self.sum_temp / n;
+        // Temperature rate: a first-order average of the window-to-window slope.
+        let window_s = n * self.model.sample_period_s();
+        if let Some(prev) = self.temp_prev {
+            let slope = (mean_temp - prev) / window_s;
+            let a = (window_s / self.cfg.temp_rate_tau_s).min(1.0);
+            self.temp_rate += a * (slope - self.temp_rate);
+        }
+        self.temp_prev = Some(mean_temp);
+        let mut h = [1.0; STATES];
+        h[WARMUP] = self.sum_warm / n;
+        h[TEMP] = mean_temp;
+        h[TEMP_RATE] = self.temp_rate;
+        self.kf.predict(&self.built.window);
+        let r = self.window_var_dps2();
+        let inn: Innovation = self.kf.innovation(&h, mean, r);
+        // Half-difference: variance n (1/n1 + 1/n2) R_W at rest, whatever a constant rate.
+        let d = self.sum_first / n1 - self.sum_second / n2;
+        let d_scale = n * (1.0 / n1 + 1.0 / n2);
+        let learning = self.stats.windows < self.cfg.learn_windows;
+        let still = if self.ext_moving {
+            false
+        } else if self.ext_still {
+            true
+        } else {
+            inn.nis() < self.cfg.nis_limit
+                && (learning || d * d / (d_scale * r) < self.cfg.nis_limit)
+        };
+        self.stats.windows = self.stats.windows.saturating_add(1);
+        if still {
+            self.checkpoint = self.kf;
+            self.r_checkpoint = (self.r_sum, self.r_count);
+            self.pending = true;
+            self.kf.update(&h, mean, r);
+            // R_W from this window's half-difference (an average with a fast start).
+            let sample = d * d / d_scale;
+            if self.r_count >= R_MEMORY {
+                self.r_sum *= (R_MEMORY - 1.0) / R_MEMORY;
+            } else {
+                self.r_count += 1.0;
+            }
+            self.r_sum += sample;
+            self.stats.still_windows = self.stats.still_windows.saturating_add(1);
+        } else if self.pending {
+            self.kf = self.checkpoint;
+            self.kf.predict(&self.built.window);
+            (self.r_sum, self.r_count) = self.r_checkpoint;
+            self.pending = false;
+            self.stats.undone = self.stats.undone.saturating_add(1);
+        }
+        self.still = still;
+        // The next window.
+        self.sum_first = 0.0;
+        self.sum_second = 0.0;
+        self.sum_warm = 0.0;
+        self.sum_temp = 0.0;
+        self.in_window = 0;
+        self.ext_still = false;
+        self.ext_moving = false;
+        // The warm-up factor afresh from the time since power-on (no drift of the product).
+        let t_s = self.stats.samples as f32 * self.model.sample_period_s();
+        self.warm = libm::expf(-t_s / self.model.warmup_tau_s);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gyro_model::tests::ecore_like;
+
+    /// Gaussian noise (Box-Muller on a PCG-like stream).
+    struct Noise(u64);
+    impl Noise {
+        fn uniform(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        }
+        fn normal(&mut self) -> f64 {
+            let (u, v) = (self.uniform(), self.uniform());
+            (-2.0 * u.ln()).sqrt() * (2.0 * core::f64::consts::PI * v).cos()
+        }
+    }
+
+    fn sigma(m: &GyroModel) -> f64 {
+        (m.sample_var_dps2() as f64).sqrt()
+    }
+
+    #[test]
+    fn a_still_unit_converges_to_its_bias() {
+        let m = ecore_like();
+        let mut f = DriftFilter::new(m, DriftFilterConfig::default()).expect("test");
+        let mut n = Noise(7);
+        let bias = 20.0 / 3600.0;
+        let mut last = 0.0;
+        for _ in 0..(600.0 * m.sample_rate_hz) as usize {
+            last = f
+                .push((bias + sigma(&m) * n.normal()) as f32, 25.0, None)
+                .expect("test")
+                .drift_dps;
+        }
+        assert!(
+            (last as f64 - bias).abs() < 2.0 / 3600.0,
+            "{}",
+            last * 3600.0
+        );
+        let s = f.stats();
+        assert!(s.still_windows as f32 > 0.95 * s.windows as f32, "{s:?}");
+    }
+
+    #[test]
+    fn a_turn_is_never_learnt() {
+        // 60 s still at a 10 deg/h bias, then a 0.5 deg/s turn for 120 s, then still.
+        let m = ecore_like();
+        let mut f = DriftFilter::new(m, DriftFilterConfig::default()).expect("test");
+        let mut n = Noise(3);
+        let bias = 10.0 / 3600.0;
+        let fs = m.sample_rate_hz as usize;
+        let mut worst: f64 = 0.0;
+        for k in 0..(300 * fs) {
+            let t = k as f64 / fs as f64;
+            // A slow start: the rate ramps over 5 s.
+            let turn = if (60.0..180.0).contains(&t) {
+                0.5 * ((t - 60.0) / 5.0).min(1.0)
+            } else {
+                0.0
+            };
+            let o = f
+                .push((bias + turn + sigma(&m) * n.normal()) as f32, 25.0, None)
+                .expect("test");
+            if t > 30.0 {
+                worst = worst.max((o.drift_dps as f64 - bias).abs());
+            }
+        }
+        assert!(
+            worst < 5.0 / 3600.0,
+            "worst drift error {} deg/h",
+            worst * 3600.0
+        );
+    }
+
+    #[test]
+    fn idling_vibration_is_still_and_a_slow_turn_is_not() {
+        // Noise 3x, a 23 Hz engine line of 10x the white sigma: window means still resolve a
+        // 0.02 deg/s turn.
+        let m = ecore_like();
+        let mut f = DriftFilter::new(m, DriftFilterConfig::default()).expect("test");
+        let mut n = Noise(11);
+        let fs = m.sample_rate_hz as f64;
+        let s = sigma(&m);
+        let mut moving_still = 0;
+        let mut still_windows_at_rest = 0;
+        let mut windows_at_rest = 0;
+        for k in 0..(400.0 * fs) as usize {
+            let t = k as f64 / fs;
+            let vib = 10.0 * s * (2.0 * core::f64::consts::PI * 23.0 * t).sin();
+            let turn = if t >= 300.0 { 0.02 } else { 0.0 };
+            let o = f
+                .push((3.0 * s * n.normal() + vib + turn) as f32, 25.0, None)
+                .expect("test");
+            if k % (2.0 * fs) as usize == (2.0 * fs) as usize - 1 {
+                if t > 304.0 && o.still {
+                    moving_still += 1;
+                }
+                if (60.0..300.0).contains(&t) {
+                    windows_at_rest += 1;
+                    still_windows_at_rest += o.still as i32;
+                }
+            }
+        }
+        assert_eq!(moving_still, 0);
+        assert!(
+            still_windows_at_rest as f64 > 0.9 * windows_at_rest as f64,
+            "{still_windows_at_rest} of {windows_at_rest}"
+        );
+    }
+
+    #[test]
+    fn bad_input_is_refused() {
+        let m = ecore_like();
+        let mut f = DriftFilter::new(m, DriftFilterConfig::default()).expect("test");
+        assert_eq!(
+            f.push(f32::NAN, 25.0, None),
+            Err(DriftFilterError::NonFiniteRate)
+        );
+        assert_eq!(f.stats().rejected, 1);
+        assert_eq!(f.stats().samples, 0);
+        let mut bad = m;
+        bad.sample_rate_hz = 0.0;
+        assert_eq!(
+            DriftFilter::new(bad, DriftFilterConfig::default()).err(),
+            Some(DriftFilterError::BadModel)
+        );
+        let cfg = DriftFilterConfig {
+            window_s: 0.001,
+            ..DriftFilterConfig::default()
+        };
+        assert_eq!(
+            DriftFilter::new(m, cfg).err(),
+            Some(DriftFilterError::BadConfig)
+        );
+    }
+}
