@@ -1,0 +1,435 @@
+//! The drift filter (fog-core `drift_filter`, the fitted gyro model's Kalman filter) on
+//! gyro families, paired per vehicle with the product and the baselines `unit_family`
+//! measured on the same records.
+//!
+//! Per family folder (as `scripts/gen_unit_family.py` lays it out):
+//! 1. `train/`: the model fitted by `host_sim::gyro_fit` (printed);
+//! 2. `vehicles-test/`: heading RMS of the drift filter with its own stillness test and,
+//!    as the detector's limit, with the truth's still flags; of no compensation;
+//! 3. `static-test/`: e_truth = RMS(estimate - drift) / RMS(drift);
+//! 4. when `DIR/today.json` exists (`unit_family --json DIR/today.json`): the same
+//!    vehicles' rows of the product and its baselines, paired per vehicle: mean difference
+//!    and its 95 % interval (Student t), per family and pooled over every family.
+//!
+//! ```sh
+//! cargo run --release -p fog-lab --bin drift_filter_eval -- --family DIR [DIR...] [--json OUT]
+//! ```
+
+use anyhow::{Context, Result};
+use clap::Parser;
+use fog_core::drift_filter::{DriftFilter, DriftFilterConfig};
+use fog_core::gyro_model::GyroModel;
+use host_sim::identify::series::{CsvFiles, Records, Series};
+use host_sim::motion::calibration;
+use host_sim::nav::{self, NavRecord};
+use host_sim::record::{ReadOptions, Record};
+use serde::Serialize;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// Evaluate the drift filter on gyro families (see the file's docs).
+#[derive(Parser, Debug)]
+struct Args {
+    /// Family folders (train/, static-test/, vehicles-test/ [, today.json]).
+    #[arg(long, required = true, num_args = 1..)]
+    family: Vec<PathBuf>,
+    /// Write every figure here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Window length, s.
+    #[arg(long)]
+    window_s: Option<f32>,
+    /// Stillness threshold (chi-square(1) quantile).
+    #[arg(long)]
+    nis_limit: Option<f32>,
+    /// Rate the test must resolve, deg/h.
+    #[arg(long)]
+    resolve_dph: Option<f32>,
+    /// Exploration: set the model's rate random walk, deg/h/sqrt(h).
+    #[arg(long)]
+    rrw_dph_rth: Option<f32>,
+    /// Exploration: multiply the Gauss-Markov sigmas.
+    #[arg(long)]
+    markov_scale: Option<f32>,
+    /// Exploration: multiply the temperature links' spreads.
+    #[arg(long)]
+    prior_scale: Option<f32>,
+    /// Write each vehicle's `t_s,drift_dps,estimate_dps,moving` here (every 100th sample).
+    #[arg(long)]
+    dump: Option<PathBuf>,
+    /// Exploration: multiply the warm-up's spread.
+    #[arg(long)]
+    warmup_scale: Option<f32>,
+    /// Print every vehicle.
+    #[arg(long)]
+    verbose: bool,
+}
+
+#[derive(Debug, Serialize)]
+struct Vehicle {
+    record: String,
+    raw_deg: f64,
+    filter_deg: f64,
+    filter_truth_flags_deg: f64,
+    still_windows: u32,
+    windows: u32,
+    undone: u32,
+    bound_reached_inside: bool,
+    /// unit_family's rows for this record: [name, heading RMS deg].
+    today: Vec<(String, f64)>,
+}
+
+#[derive(Debug, Serialize)]
+struct Family {
+    family: String,
+    model: String,
+    fit: host_sim::gyro_fit::GyroFitReport,
+    /// (link spread scale, Gauss-Markov scale, mean heading RMS on the tune vehicles).
+    tuning: Vec<(f32, f32, f64)>,
+    vehicles: Vec<Vehicle>,
+    static_e_truth: Vec<(String, f64)>,
+}
+
+/// Scales of the links' prior spread tried on the tune vehicles.
+const LINK_SCALES: [f32; 4] = [0.1, 0.3, 0.6, 1.0];
+/// Scales of the Gauss-Markov sigmas tried.
+const MARKOV_SCALES: [f32; 4] = [1.0, 2.0, 3.0, 5.0];
+
+fn main() -> Result<()> {
+    let args = Args::parse();
+    let mut cfg = DriftFilterConfig::default();
+    if let Some(w) = args.window_s {
+        cfg.window_s = w;
+    }
+    if let Some(g) = args.nis_limit {
+        cfg.nis_limit = g;
+    }
+    if let Some(r) = args.resolve_dph {
+        cfg.resolve_dps = r / 3600.0;
+    }
+    let mut out = Vec::new();
+    for fam in &args.family {
+        let f = family(fam, cfg, &args).with_context(|| format!("family {}", fam.display()))?;
+        print_family(&f);
+        if args.verbose {
+            for v in &f.vehicles {
+                println!(
+                    "    {} raw {:.3} filter {:.3} truth-flags {:.3} product {:.3} still {}/{} undone {}",
+                    v.record,
+                    v.raw_deg,
+                    v.filter_deg,
+                    v.filter_truth_flags_deg,
+                    v.today.first().map_or(f64::NAN, |t| t.1),
+                    v.still_windows,
+                    v.windows,
+                    v.undone
+                );
+            }
+        }
+        out.push(f);
+    }
+    if out.len() > 1 {
+        print_pooled(&out);
+    }
+    if let Some(p) = &args.json {
+        std::fs::write(p, serde_json::to_string_pretty(&out)?)
+            .with_context(|| format!("{}: cannot write", p.display()))?;
+    }
+    Ok(())
+}
+
+fn files(dir: &Path) -> Result<CsvFiles> {
+    CsvFiles::from_args(&[dir.to_path_buf()], &ReadOptions::default())
+}
+
+fn name(p: &Path) -> String {
+    p.file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// Runs the filter over a record; `truth_flags`: the record's still truth as external flags.
+fn run(
+    model: GyroModel,
+    cfg: DriftFilterConfig,
+    r: &NavRecord,
+    truth_flags: bool,
+) -> Result<(Vec<f64>, fog_core::drift_filter::DriftStats)> {
+    let mut f = DriftFilter::new(model, cfg).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let mut drift = Vec::with_capacity(r.len());
+    let mut last = 0.0;
+    for k in 0..r.len() {
+        let temp = r
+            .temp_c
+            .as_ref()
+            .and_then(|t| t.get(k).copied())
+            .unwrap_or(f64::NAN) as f32;
+        let flag = truth_flags.then(|| !r.moving[k]);
+        if let Ok(o) = f.push(r.rate_dps[k] as f32, temp, flag) {
+            last = f64::from(o.drift_dps);
+        }
+        drift.push(last);
+    }
+    Ok((drift, *f.stats()))
+}
+
+fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
+    let train = files(&fam.join("train"))?;
+    let mut runs: Vec<Series> = Vec::new();
+    for i in 0..train.len() {
+        runs.push(train.get(i)?);
+    }
+    let cal = calibration::measure(&runs)?;
+    let (mut model, fit) = host_sim::gyro_fit::fit(&runs, &cal, 30.0 / 3600.0)?;
+    if let Some(k) = args.rrw_dph_rth {
+        model.rrw_dps_per_s_rthz = k / 3600.0 / 60.0;
+    }
+    if let Some(m) = args.markov_scale {
+        for t in &mut model.markov {
+            t.sigma_dps *= m;
+        }
+    }
+    if let Some(m) = args.warmup_scale {
+        model.warmup_dps.sigma *= m;
+    }
+    if let Some(m) = args.prior_scale {
+        model.temp_dps_per_c.sigma *= m;
+        model.temp_rate_dps_per_c_per_s.sigma *= m;
+    }
+    // Tuning on the family's tune vehicles (as the product's identify --tune-on and the
+    // baselines): the links' prior spread and the Gauss-Markov sigmas scaled, by the least
+    // mean heading RMS with the filter's own test. Skipped when a scale is given.
+    let mut tuning = Vec::new();
+    if args.prior_scale.is_none() && args.markov_scale.is_none() {
+        let tune: Vec<NavRecord> = files(&fam.join("vehicles-tune"))?
+            .0
+            .iter()
+            .map(|p| NavRecord::try_from(&Record::read(p, &ReadOptions::default())?))
+            .collect::<Result<_>>()?;
+        let mut best = (f64::INFINITY, model);
+        for link in LINK_SCALES {
+            for markov in MARKOV_SCALES {
+                let mut m = model;
+                m.temp_dps_per_c.sigma *= link;
+                m.temp_rate_dps_per_c_per_s.sigma *= link;
+                for t in &mut m.markov {
+                    t.sigma_dps *= markov;
+                }
+                let mut sum = 0.0;
+                for r in &tune {
+                    sum += nav::score_drift(r, &run(m, cfg, r, false)?.0).heading_rms_deg;
+                }
+                let score = sum / tune.len() as f64;
+                tuning.push((link, markov, score));
+                if score < best.0 {
+                    best = (score, m);
+                }
+            }
+        }
+        model = best.1;
+    }
+    let today: Option<Value> = std::fs::read_to_string(fam.join("today.json"))
+        .ok()
+        .and_then(|s| serde_json::from_str(&s).ok());
+    let today_rows = |rec: &str| -> Vec<(String, f64)> {
+        let Some(recs) = today
+            .as_ref()
+            .and_then(|t| t.get(0))
+            .and_then(|f| f.pointer("/vehicles_test/records"))
+            .and_then(|r| r.as_array())
+        else {
+            return Vec::new();
+        };
+        recs.iter()
+            .find(|r| r.get("record").and_then(|n| n.as_str()) == Some(rec))
+            .and_then(|r| r.get("rows"))
+            .and_then(|r| r.as_array())
+            .map(|rows| {
+                rows.iter()
+                    .filter_map(|row| {
+                        Some((row.get(0)?.as_str()?.to_string(), row.get(1)?.as_f64()?))
+                    })
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let mut vehicles = Vec::new();
+    for p in files(&fam.join("vehicles-test"))?.0 {
+        let r = NavRecord::try_from(&Record::read(&p, &ReadOptions::default())?)?;
+        let (d, st) = run(model, cfg, &r, false)?;
+        let (dt, _) = run(model, cfg, &r, true)?;
+        let bound = f64::from(model.drift_bound_dps);
+        let inside = r.drift_dps.iter().all(|v| v.abs() < bound);
+        let reached = d.iter().any(|v| v.abs() >= bound * (1.0 - 1e-6));
+        let rec = name(&p);
+        if let Some(dir) = &args.dump {
+            let mut text = String::from("t_s,drift_dps,estimate_dps,moving,temp_c\n");
+            for k in (0..r.len()).step_by(100) {
+                let temp = r.temp_c.as_ref().map_or(f64::NAN, |t| t[k]);
+                text += &format!(
+                    "{},{},{},{},{}\n",
+                    r.t_s[k],
+                    r.drift_dps[k],
+                    d[k],
+                    u8::from(r.moving[k]),
+                    temp
+                );
+            }
+            std::fs::write(dir.join(format!("{rec}.dump.csv")), text)?;
+        }
+        vehicles.push(Vehicle {
+            raw_deg: nav::score_drift(&r, &[]).heading_rms_deg,
+            filter_deg: nav::score_drift(&r, &d).heading_rms_deg,
+            filter_truth_flags_deg: nav::score_drift(&r, &dt).heading_rms_deg,
+            still_windows: st.still_windows,
+            windows: st.windows,
+            undone: st.undone,
+            bound_reached_inside: inside && reached,
+            today: today_rows(&rec),
+            record: rec,
+        });
+    }
+    let mut static_e_truth = Vec::new();
+    for p in files(&fam.join("static-test"))?.0 {
+        let r = NavRecord::try_from(&Record::read(&p, &ReadOptions::default())?)?;
+        let (d, _) = run(model, cfg, &r, false)?;
+        let num: f64 = d
+            .iter()
+            .zip(&r.drift_dps)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum();
+        let den: f64 = r.drift_dps.iter().map(|b| b * b).sum();
+        static_e_truth.push((name(&p), (num / den).sqrt()));
+    }
+    Ok(Family {
+        family: fam.display().to_string(),
+        model: format!("{model:?}"),
+        fit,
+        tuning,
+        vehicles,
+        static_e_truth,
+    })
+}
+
+/// Student t quantile 0.975 for `df` degrees of freedom (Cornish-Fisher, within 1e-3 for
+/// df >= 5).
+fn t975(df: f64) -> f64 {
+    let z: f64 = 1.959_964;
+    z + (z.powi(3) + z) / (4.0 * df)
+        + (5.0 * z.powi(5) + 16.0 * z.powi(3) + 3.0 * z) / (96.0 * df * df)
+}
+
+/// Mean and 95 % half-width of `d`.
+fn paired(d: &[f64]) -> (f64, f64) {
+    let n = d.len() as f64;
+    let m = d.iter().sum::<f64>() / n;
+    let var = d.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0);
+    (m, t975(n - 1.0) * (var / n).sqrt())
+}
+
+fn mean(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    s / n as f64
+}
+
+/// Columns compared: (label, value per vehicle).
+fn columns(v: &Vehicle) -> Vec<(String, f64)> {
+    let mut c = vec![
+        ("filter".to_string(), v.filter_deg),
+        ("filter, truth flags".to_string(), v.filter_truth_flags_deg),
+        ("raw".to_string(), v.raw_deg),
+    ];
+    for (n, x) in &v.today {
+        if n != "none" && n != "no compensation" {
+            c.push((n.clone(), *x));
+        }
+    }
+    c
+}
+
+fn report(vs: &[&Vehicle]) {
+    let cols = columns(vs[0]);
+    println!(
+        "  mean heading RMS over {} vehicles, and filter minus each (paired, 95 % interval):",
+        vs.len()
+    );
+    for (i, (label, _)) in cols.iter().enumerate() {
+        let vals: Vec<f64> = vs
+            .iter()
+            .map(|v| columns(v).get(i).map_or(f64::NAN, |c| c.1))
+            .collect();
+        let diffs: Vec<f64> = vs
+            .iter()
+            .zip(&vals)
+            .map(|(v, x)| v.filter_deg - x)
+            .collect();
+        let (m, h) = paired(&diffs);
+        let wins = diffs.iter().filter(|d| **d < 0.0).count();
+        println!(
+            "    {label:<22} {:8.3} deg   filter - it: {m:+8.3} +- {h:.3}   filter below on {wins}/{}",
+            mean(vals.iter().copied()),
+            vs.len()
+        );
+    }
+    let worse: Vec<&str> = vs
+        .iter()
+        .filter(|v| v.filter_deg > v.raw_deg + 0.3)
+        .map(|v| v.record.as_str())
+        .collect();
+    let bound: Vec<&str> = vs
+        .iter()
+        .filter(|v| v.bound_reached_inside)
+        .map(|v| v.record.as_str())
+        .collect();
+    println!(
+        "  filter worse than raw + 0.3 deg: {} {:?}",
+        worse.len(),
+        worse
+    );
+    println!(
+        "  drift bound reached where the true drift stays inside: {} {:?}",
+        bound.len(),
+        bound
+    );
+}
+
+fn print_family(f: &Family) {
+    println!("== {}", f.family);
+    println!("  model: {}", f.model);
+    println!(
+        "  warm-up tau {:.0} s; ADEV after the deterministic part (tau s, deg/h; fit): {}",
+        f.fit.warmup_tau_s,
+        f.fit
+            .adev_dph
+            .iter()
+            .zip(&f.fit.fit_adev_dph)
+            .map(|((t, a), (_, b))| format!("{t:.0}:{a:.2}/{b:.2}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    if let Some(best) = f.tuning.iter().min_by(|a, b| a.2.total_cmp(&b.2)) {
+        println!(
+            "  tuned on the tune vehicles: link spread x{}, Gauss-Markov x{} ({:.3} deg there)",
+            best.0, best.1, best.2
+        );
+    }
+    let vs: Vec<&Vehicle> = f.vehicles.iter().collect();
+    report(&vs);
+    let windows: u32 = f.vehicles.iter().map(|v| v.windows).sum();
+    let still: u32 = f.vehicles.iter().map(|v| v.still_windows).sum();
+    let undone: u32 = f.vehicles.iter().map(|v| v.undone).sum();
+    println!("  windows still {still} of {windows}, updates undone {undone}");
+    println!(
+        "  static e_truth mean {:.4} ({} records)",
+        mean(f.static_e_truth.iter().map(|x| x.1)),
+        f.static_e_truth.len()
+    );
+}
+
+fn print_pooled(fs: &[Family]) {
+    let vs: Vec<&Vehicle> = fs.iter().flat_map(|f| f.vehicles.iter()).collect();
+    println!("== pooled over {} families", fs.len());
+    if vs.iter().all(|v| v.today.len() == vs[0].today.len()) {
+        report(&vs);
+    }
+}

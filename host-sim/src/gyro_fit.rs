@@ -1,0 +1,633 @@
+//! Fits a [`GyroModel`] to a family's static calibration runs: the family values and their
+//! unit-to-unit spread.
+//!
+//! 1. White noise and quantum: the runs' measurements ([`crate::motion::calibration`]),
+//!    the median density.
+//! 2. The deterministic part on 10-s means, pooled over the runs: per run a level `b` and a
+//!    warm-up amplitude `a` (times `e^(-t/tau_w)`), shared by every run the temperature link
+//!    `c (T - T0)` and the temperature-rate link `c' dT/dt` (the family's), by least squares
+//!    for each `tau_w` of a log grid 30..3000 s; `tau_w` is the one with the least residual.
+//!    `dT/dt` is the drift filter's own causal estimate (first-order average of the slope,
+//!    time constant [`fog_core::drift_filter::DriftFilterConfig::temp_rate_tau_s`]).
+//!    `T0` = 25 C (ASSUMED reference). Without a temperature column the links are left out
+//!    (mean 0, spread 0).
+//! 3. Family mean and spread: of `b` and `a` the mean and standard deviation over the runs
+//!    (each run a unit's power-on); of `c` and `c'` the shared value and the scatter of each
+//!    run's own fit less what the fit's own error explains (white residuals assumed, so an
+//!    upper bound where they are correlated; `fog-lab drift_filter_eval` scales it on tune
+//!    vehicles).
+//! 4. The stochastic part: the runs' Allan variance after their deterministic part, averaged
+//!    over the runs, fitted (relative least squares, every coefficient >= 0) by white noise,
+//!    rate random walk and Gauss-Markov terms at 30, 300 and 3000 s (a flicker floor is a
+//!    sum of Gauss-Markov terms one per decade; ASSUMED correlation times). Terms fitted at
+//!    zero are absent.
+//! 5. Drift bound: 1.5x the largest |10-s mean| of the runs (as the sensor file's learned
+//!    bound), at least the file's.
+
+use crate::allan;
+use crate::identify::series::Series;
+use crate::motion::calibration::Calibration;
+use anyhow::{bail, Result};
+use fog_core::gyro_model::{GyroModel, MarkovTerm, Spread, MAX_MARKOV};
+use serde::Serialize;
+
+/// Length of the means the deterministic part is fitted on, s.
+const BIN_S: f64 = 10.0;
+/// Temperature the links are taken from, deg C (ASSUMED).
+pub const TEMP_REF_C: f64 = 25.0;
+/// Correlation times of the Gauss-Markov terms tried, s (ASSUMED: one per decade).
+const MARKOV_TAUS_S: [f64; MAX_MARKOV] = [30.0, 300.0, 3000.0];
+/// Time constant of the temperature-rate estimate, s (the drift filter's default).
+const TEMP_RATE_TAU_S: f64 = 60.0;
+
+/// One run's deterministic coefficients.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunFit {
+    /// The record.
+    pub name: String,
+    /// Level, deg/h.
+    pub level_dph: f64,
+    /// Warm-up amplitude, deg/h.
+    pub warmup_dph: f64,
+    /// Temperature link, deg/h per deg C.
+    pub temp_dph_per_c: f64,
+    /// Temperature-rate link, deg/h per deg C/min.
+    pub temp_rate_dph_per_c_per_min: f64,
+}
+
+/// What the fit found, for the report and the JSON.
+#[derive(Debug, Clone, Serialize)]
+pub struct GyroFitReport {
+    /// Warm-up time constant chosen, s.
+    pub warmup_tau_s: f64,
+    /// Per run.
+    pub runs: Vec<RunFit>,
+    /// The averaged Allan deviation after the deterministic part: (tau s, deg/h).
+    pub adev_dph: Vec<(f64, f64)>,
+    /// The fitted terms' Allan deviation at the same taus, deg/h.
+    pub fit_adev_dph: Vec<(f64, f64)>,
+    /// Whether the runs had a temperature column.
+    pub temperature: bool,
+}
+
+struct Bins {
+    t_s: Vec<f64>,
+    y: Vec<f64>,
+    temp_off: Vec<f64>,
+    temp_rate: Vec<f64>,
+}
+
+fn bins(s: &Series) -> Bins {
+    let dt = s.sample_period_s();
+    let per = ((BIN_S / dt).round() as usize).max(1);
+    let mut out = Bins {
+        t_s: Vec::new(),
+        y: Vec::new(),
+        temp_off: Vec::new(),
+        temp_rate: Vec::new(),
+    };
+    let mut rate = 0.0;
+    let mut prev: Option<f64> = None;
+    for (i, chunk) in s.rate_dps.chunks(per).enumerate() {
+        if chunk.len() < per / 2 {
+            break;
+        }
+        let start = i * per;
+        let n = chunk.len() as f64;
+        let t = s.t_s.get(start).copied().unwrap_or(0.0) + 0.5 * n * dt;
+        let y = chunk.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
+        let temp = s.temp_c.as_ref().map(|tc| {
+            tc[start..start + chunk.len()]
+                .iter()
+                .map(|&v| f64::from(v))
+                .sum::<f64>()
+                / n
+                - TEMP_REF_C
+        });
+        let temp = temp.unwrap_or(0.0);
+        if let Some(p) = prev {
+            let slope = (temp - p) / (n * dt);
+            let a = (n * dt / TEMP_RATE_TAU_S).min(1.0);
+            rate += a * (slope - rate);
+        }
+        prev = Some(temp);
+        out.t_s.push(t);
+        out.y.push(y);
+        out.temp_off.push(temp);
+        out.temp_rate.push(rate);
+    }
+    out
+}
+
+/// Least squares with a small ridge (collinear columns stay finite); `rows` of `K` values.
+fn least_squares<const K: usize>(rows: &[[f64; K]], y: &[f64]) -> Option<([f64; K], f64)> {
+    let mut a = [[0.0; K]; K];
+    let mut b = [0.0; K];
+    for (r, &v) in rows.iter().zip(y) {
+        for i in 0..K {
+            b[i] += r[i] * v;
+            for j in 0..K {
+                a[i][j] += r[i] * r[j];
+            }
+        }
+    }
+    for (i, row) in a.iter_mut().enumerate() {
+        row[i] += 1e-9 * row[i].abs() + 1e-15;
+    }
+    let x = solve(a, b)?;
+    let sse = rows
+        .iter()
+        .zip(y)
+        .map(|(r, &v)| {
+            let f: f64 = r.iter().zip(&x).map(|(a, b)| a * b).sum();
+            (v - f) * (v - f)
+        })
+        .sum();
+    Some((x, sse))
+}
+
+/// `a x = b` for fixed sizes, by [`solve_dyn`].
+fn solve<const K: usize>(a: [[f64; K]; K], b: [f64; K]) -> Option<[f64; K]> {
+    let x = solve_dyn(a.iter().map(|r| r.to_vec()).collect(), b.to_vec())?;
+    x.try_into().ok()
+}
+
+/// Sampling variances of the two link coefficients of a 4-column fit with residual `sse`
+/// (white residuals assumed: a lower bound where they are correlated).
+fn sampling_var(rows: &[[f64; 4]], sse: f64) -> [f64; 2] {
+    let n = rows.len() as f64;
+    let s2 = sse / (n - 4.0).max(1.0);
+    let mut a = [[0.0; 4]; 4];
+    for r in rows {
+        for i in 0..4 {
+            for j in 0..4 {
+                a[i][j] += r[i] * r[j];
+            }
+        }
+    }
+    let mut out = [f64::INFINITY; 2];
+    for (o, k) in out.iter_mut().zip([2usize, 3]) {
+        let mut e = [0.0; 4];
+        e[k] = 1.0;
+        if let Some(col) = solve(a, e) {
+            *o = s2 * col[k];
+        }
+    }
+    out
+}
+
+fn rows(b: &Bins, tau_s: f64, temperature: bool) -> Vec<[f64; 4]> {
+    (0..b.t_s.len())
+        .map(|i| {
+            let w = (-b.t_s[i] / tau_s).exp();
+            if temperature {
+                [1.0, w, b.temp_off[i], b.temp_rate[i]]
+            } else {
+                [1.0, w, 0.0, 0.0]
+            }
+        })
+        .collect()
+}
+
+/// The pooled fit at `tau_s`: per run a level and a warm-up amplitude, the temperature and
+/// temperature-rate links shared by every run (the family's). Returns
+/// `(per-run [b, a], [c, c'], sse)`.
+fn pooled(
+    binned: &[Bins],
+    tau_s: f64,
+    temperature: bool,
+) -> Option<(Vec<[f64; 2]>, [f64; 2], f64)> {
+    let r = binned.len();
+    let k = 2 * r + if temperature { 2 } else { 0 };
+    let mut a = vec![vec![0.0; k]; k];
+    let mut rhs = vec![0.0; k];
+    let row_of = |run: usize, x: &[f64; 4]| -> Vec<(usize, f64)> {
+        let mut v = vec![(2 * run, x[0]), (2 * run + 1, x[1])];
+        if temperature {
+            v.push((2 * r, x[2]));
+            v.push((2 * r + 1, x[3]));
+        }
+        v
+    };
+    for (run, b) in binned.iter().enumerate() {
+        for (x, &y) in rows(b, tau_s, temperature).iter().zip(&b.y) {
+            let entries = row_of(run, x);
+            for &(i, vi) in &entries {
+                rhs[i] += vi * y;
+                for &(j, vj) in &entries {
+                    a[i][j] += vi * vj;
+                }
+            }
+        }
+    }
+    for (i, row) in a.iter_mut().enumerate() {
+        row[i] += 1e-9 * row[i].abs() + 1e-15;
+    }
+    let x = solve_dyn(a, rhs)?;
+    let shared = if temperature {
+        [x[2 * r], x[2 * r + 1]]
+    } else {
+        [0.0, 0.0]
+    };
+    let per_run: Vec<[f64; 2]> = (0..r).map(|i| [x[2 * i], x[2 * i + 1]]).collect();
+    let mut sse = 0.0;
+    for (run, b) in binned.iter().enumerate() {
+        for (x, &y) in rows(b, tau_s, temperature).iter().zip(&b.y) {
+            let f = per_run[run][0] * x[0]
+                + per_run[run][1] * x[1]
+                + shared[0] * x[2]
+                + shared[1] * x[3];
+            sse += (y - f) * (y - f);
+        }
+    }
+    Some((per_run, shared, sse))
+}
+
+/// The spread of a per-unit constant around `mean` from per-run estimates `v` and their
+/// sampling variances `se2` (method of moments: the estimates' scatter less what their
+/// own error explains, at least 0).
+fn unit_spread(mean: f64, v: &[f64], se2: &[f64]) -> Spread {
+    let n = v.len() as f64;
+    let scatter = v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0).max(1.0);
+    let own = se2.iter().sum::<f64>() / n;
+    Spread {
+        mean: mean as f32,
+        sigma: (scatter - own).max(0.0).sqrt() as f32,
+    }
+}
+
+fn mean_sd(v: &[f64]) -> Spread {
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let var = if v.len() > 1 {
+        v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0)
+    } else {
+        m * m
+    };
+    Spread {
+        mean: m as f32,
+        sigma: var.sqrt() as f32,
+    }
+}
+
+/// Allan variance of a Gauss-Markov term of variance 1 and correlation time `t_s`.
+fn markov_avar(tau_s: f64, t_s: f64) -> f64 {
+    let x = tau_s / t_s;
+    if x < 1e-3 {
+        return 2.0 * tau_s / (3.0 * t_s);
+    }
+    (2.0 * t_s / tau_s) * (1.0 - (3.0 - 4.0 * (-x).exp() + (-2.0 * x).exp()) / (2.0 * x))
+}
+
+/// Basis of the stochastic fit at `tau_s`: white, rate random walk, Gauss-Markov terms.
+fn basis(tau_s: f64) -> [f64; 2 + MAX_MARKOV] {
+    let mut out = [0.0; 2 + MAX_MARKOV];
+    out[0] = 1.0 / tau_s;
+    out[1] = tau_s / 3.0;
+    for (o, t) in out[2..].iter_mut().zip(MARKOV_TAUS_S) {
+        *o = markov_avar(tau_s, t);
+    }
+    out
+}
+
+/// Non-negative relative least squares over every subset of the terms (32 subsets).
+fn fit_avar(points: &[(f64, f64)]) -> [f64; 2 + MAX_MARKOV] {
+    const K: usize = 2 + MAX_MARKOV;
+    let mut best = ([0.0; K], f64::INFINITY);
+    for mask in 1u32..(1 << K) {
+        let idx: Vec<usize> = (0..K).filter(|i| mask & (1 << i) != 0).collect();
+        // Normal equations of the chosen columns, rows weighted by 1/avar.
+        let m = idx.len();
+        let mut a = vec![vec![0.0; m]; m];
+        let mut b = vec![0.0; m];
+        for &(tau, avar) in points {
+            let f = basis(tau);
+            for (i, &ci) in idx.iter().enumerate() {
+                b[i] += f[ci] / avar;
+                for (j, &cj) in idx.iter().enumerate() {
+                    a[i][j] += f[ci] * f[cj] / (avar * avar);
+                }
+            }
+        }
+        let Some(x) = solve_dyn(a, b) else { continue };
+        if x.iter().any(|&v| v < 0.0) {
+            continue;
+        }
+        let mut coef = [0.0; K];
+        for (&ci, v) in idx.iter().zip(x) {
+            coef[ci] = v;
+        }
+        let cost: f64 = points
+            .iter()
+            .map(|&(tau, avar)| {
+                let f: f64 = basis(tau).iter().zip(&coef).map(|(a, b)| a * b).sum();
+                (f / avar - 1.0).powi(2)
+            })
+            .sum();
+        if cost < best.1 {
+            best = (coef, cost);
+        }
+    }
+    best.0
+}
+
+/// Gaussian elimination with partial pivoting; `None` when singular or not finite.
+#[allow(clippy::needless_range_loop)] // the elimination reads clearest with indices
+fn solve_dyn(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
+    let k = b.len();
+    for c in 0..k {
+        let p = (c..k).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if a[p][c].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(c, p);
+        b.swap(c, p);
+        for r in c + 1..k {
+            let f = a[r][c] / a[c][c];
+            for q in c..k {
+                a[r][q] -= f * a[c][q];
+            }
+            b[r] -= f * b[c];
+        }
+    }
+    let mut x = vec![0.0; k];
+    for c in (0..k).rev() {
+        let s: f64 = (c + 1..k).map(|q| a[c][q] * x[q]).sum();
+        x[c] = (b[c] - s) / a[c][c];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+/// Fits the family's model to its calibration `runs` (module docs); `cal` is their
+/// measurement, `file_bound_dps` the sensor file's drift bound.
+pub fn fit(
+    runs: &[Series],
+    cal: &Calibration,
+    file_bound_dps: f64,
+) -> Result<(GyroModel, GyroFitReport)> {
+    if runs.len() < 2 {
+        bail!(
+            "{} calibration run(s): the model's unit-to-unit spread needs at least 2",
+            runs.len()
+        );
+    }
+    let temperature = runs.iter().all(|s| s.temp_c.is_some());
+    let binned: Vec<Bins> = runs.iter().map(bins).collect();
+    if let Some((s, _)) = runs.iter().zip(&binned).find(|(_, b)| b.t_s.len() < 6) {
+        bail!(
+            "{}: shorter than 60 s, too short to fit a warm-up on",
+            s.name
+        );
+    }
+    // Warm-up time constant: least residual summed over the runs.
+    let mut best: Option<(f64, f64)> = None;
+    for i in 0..=24 {
+        let tau = 30.0 * 100f64.powf(i as f64 / 24.0);
+        let sse = pooled(&binned, tau, temperature).map_or(f64::INFINITY, |p| p.2);
+        if best.is_none_or(|(_, e)| sse < e) {
+            best = Some((tau, sse));
+        }
+    }
+    let Some((tau_w, _)) = best else {
+        bail!("no warm-up time constant fits the calibration runs");
+    };
+    let Some((per_run, shared, _)) = pooled(&binned, tau_w, temperature) else {
+        bail!("the deterministic part cannot be fitted on the calibration runs");
+    };
+    // Each run's own links (free), for their unit-to-unit spread around the shared ones.
+    let mut own: Vec<([f64; 4], [f64; 2])> = Vec::new();
+    for (s, b) in runs.iter().zip(&binned) {
+        let x_rows = rows(b, tau_w, temperature);
+        let Some((x, sse)) = least_squares(&x_rows, &b.y) else {
+            bail!("{}: the deterministic part cannot be fitted", s.name);
+        };
+        own.push((x, sampling_var(&x_rows, sse)));
+    }
+    let coefs: Vec<(String, [f64; 4])> = runs
+        .iter()
+        .zip(&per_run)
+        .map(|(s, p)| (s.name.clone(), [p[0], p[1], shared[0], shared[1]]))
+        .collect();
+    let col = |k: usize| coefs.iter().map(|(_, x)| x[k]).collect::<Vec<f64>>();
+    let (turn_on, warmup) = (mean_sd(&col(0)), mean_sd(&col(1)));
+    let (temp, temp_rate) = if temperature {
+        let pick = |k: usize| own.iter().map(|o| o.0[k]).collect::<Vec<f64>>();
+        let se = |k: usize| own.iter().map(|o| o.1[k]).collect::<Vec<f64>>();
+        (
+            unit_spread(shared[0], &pick(2), &se(0)),
+            unit_spread(shared[1], &pick(3), &se(1)),
+        )
+    } else {
+        (Spread::default(), Spread::default())
+    };
+    // Stochastic part: Allan variance of each run minus its deterministic part, averaged.
+    let mut avar_sum: Vec<(f64, f64, usize)> = Vec::new();
+    for ((s, b), (_, x)) in runs.iter().zip(&binned).zip(&coefs) {
+        let dt = s.sample_period_s();
+        let per = ((BIN_S / dt).round() as usize).max(1);
+        let resid: Vec<f64> = s
+            .rate_dps
+            .iter()
+            .enumerate()
+            .map(|(k, &y)| {
+                let i = (k / per).min(b.t_s.len() - 1);
+                let t = s.t_s[k];
+                let det =
+                    x[0] + x[1] * (-t / tau_w).exp() + x[2] * b.temp_off[i] + x[3] * b.temp_rate[i];
+                f64::from(y) - det
+            })
+            .collect();
+        let n = resid.len();
+        let mut ms = Vec::new();
+        let mut m = ((1.0 / dt).round() as usize).max(1);
+        while m * 8 <= n {
+            ms.push(m);
+            m *= 2;
+        }
+        for p in allan::oadev(&resid, dt, &ms) {
+            match avar_sum
+                .iter_mut()
+                .find(|(t, _, _)| (t / p.tau_s - 1.0).abs() < 1e-6)
+            {
+                Some(e) => {
+                    e.1 += p.adev_dps * p.adev_dps;
+                    e.2 += 1;
+                }
+                None => avar_sum.push((p.tau_s, p.adev_dps * p.adev_dps, 1)),
+            }
+        }
+    }
+    let points: Vec<(f64, f64)> = avar_sum
+        .iter()
+        .filter(|(_, v, c)| *c == runs.len() && *v > 0.0)
+        .map(|(t, v, c)| (*t, v / *c as f64))
+        .collect();
+    if points.len() < 3 {
+        bail!("the calibration runs are too short for an Allan fit (fewer than 3 taus from 1 s)");
+    }
+    let coef = fit_avar(&points);
+    let mut markov = [MarkovTerm::default(); MAX_MARKOV];
+    for ((m, &v), t) in markov.iter_mut().zip(&coef[2..]).zip(MARKOV_TAUS_S) {
+        if v > 0.0 {
+            *m = MarkovTerm {
+                sigma_dps: v.sqrt() as f32,
+                tau_s: t as f32,
+            };
+        }
+    }
+    let quantum = {
+        let mut q: Vec<f64> = cal.runs.iter().filter_map(|r| r.quantum_dps).collect();
+        q.sort_by(f64::total_cmp);
+        q.get(q.len() / 2).copied().unwrap_or(0.0)
+    };
+    let bound = (1.5 * cal.drift_abs_max_dph / 3600.0).max(file_bound_dps);
+    let model = GyroModel {
+        sample_rate_hz: cal.rate_hz as f32,
+        white_dps_rthz: (cal.noise_median_deg_rth / 60.0) as f32,
+        quantum_dps: quantum as f32,
+        markov,
+        rrw_dps_per_s_rthz: coef[1].sqrt() as f32,
+        turn_on_dps: turn_on,
+        warmup_dps: warmup,
+        warmup_tau_s: tau_w as f32,
+        temp_ref_c: TEMP_REF_C as f32,
+        temp_dps_per_c: temp,
+        temp_rate_dps_per_c_per_s: temp_rate,
+        drift_bound_dps: bound as f32,
+    };
+    if !model.is_valid() {
+        bail!("the fitted model is not valid: {model:?}");
+    }
+    let dph = 3600.0;
+    let report = GyroFitReport {
+        warmup_tau_s: tau_w,
+        runs: coefs
+            .iter()
+            .map(|(name, x)| RunFit {
+                name: name.clone(),
+                level_dph: x[0] * dph,
+                warmup_dph: x[1] * dph,
+                temp_dph_per_c: x[2] * dph,
+                temp_rate_dph_per_c_per_min: x[3] * dph / 60.0,
+            })
+            .collect(),
+        adev_dph: points.iter().map(|&(t, v)| (t, v.sqrt() * dph)).collect(),
+        fit_adev_dph: points
+            .iter()
+            .map(|&(t, _)| {
+                let f: f64 = basis(t).iter().zip(&coef).map(|(a, b)| a * b).sum();
+                (t, f.sqrt() * dph)
+            })
+            .collect(),
+        temperature,
+    };
+    Ok((model, report))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Runs of a family with a shared temperature link, per-run levels and warm-ups.
+    fn family_runs(c_dps_per_c: f64) -> Vec<Series> {
+        let mut state = 12345u64;
+        let mut normal = move || {
+            let mut u = || {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (a, b) = (u(), u());
+            (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
+        };
+        let dph = 1.0 / 3600.0;
+        (0..8)
+            .map(|r| {
+                let fs = 10.0;
+                let level = (r as f64 - 3.5) * 8.0 * dph;
+                let warm = (if r % 2 == 0 { 20.0 } else { -15.0 }) * dph;
+                let ambient = 5.0 + 4.0 * r as f64;
+                let n = (1800.0 * fs) as usize;
+                let t_s: Vec<f64> = (0..n).map(|k| k as f64 / fs).collect();
+                let temp: Vec<f64> = t_s
+                    .iter()
+                    .map(|t| ambient + 8.0 * (1.0 - (-t / 900.0).exp()))
+                    .collect();
+                let rate: Vec<f32> = t_s
+                    .iter()
+                    .zip(&temp)
+                    .map(|(t, tc)| {
+                        (level
+                            + warm * (-t / 400.0).exp()
+                            + c_dps_per_c * (tc - TEMP_REF_C)
+                            + 0.002 * normal()) as f32
+                    })
+                    .collect();
+                Series {
+                    name: format!("run{r}"),
+                    t_s,
+                    rate_dps: rate,
+                    drift_dps: None,
+                    temp_c: Some(temp.iter().map(|&v| v as f32).collect()),
+                    still: None,
+                    true_rate_dps: None,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_shared_link_and_the_warm_up_are_found() {
+        let c = 1.5 / 3600.0;
+        let runs = family_runs(c);
+        let cal = crate::motion::calibration::measure(&runs).expect("measure");
+        let (m, rep) = fit(&runs, &cal, 30.0 / 3600.0).expect("fit");
+        let c_fit = f64::from(m.temp_dps_per_c.mean);
+        assert!(
+            (c_fit / c - 1.0).abs() < 0.1,
+            "link {} dph/C",
+            c_fit * 3600.0
+        );
+        assert!(
+            (250.0..650.0).contains(&rep.warmup_tau_s),
+            "tau {}",
+            rep.warmup_tau_s
+        );
+        // White noise 0.002 deg/s at 10 Hz: density 0.002 / sqrt(10).
+        let n = f64::from(m.white_dps_rthz);
+        assert!((n / (0.002 / 10f64.sqrt()) - 1.0).abs() < 0.05, "{n}");
+        assert!(m.is_valid());
+    }
+
+    #[test]
+    fn one_run_is_refused() {
+        let runs = family_runs(0.0);
+        let cal = crate::motion::calibration::measure(&runs[..1]).expect("measure");
+        assert!(fit(&runs[..1], &cal, 30.0 / 3600.0).is_err());
+    }
+
+    #[test]
+    fn markov_avar_has_its_limits() {
+        // tau << T: K^2 tau / 3 with K^2 = 2 sigma^2 / T; tau >> T: 2 sigma^2 T / tau.
+        let t = 100.0;
+        assert!((markov_avar(0.01, t) / (2.0 * 0.01 / (3.0 * t)) - 1.0).abs() < 1e-3);
+        assert!((markov_avar(1e6, t) / (2.0 * t / 1e6) - 1.0).abs() < 1e-3);
+        assert!((markov_avar(0.2, t) / (2.0 * 0.2 / (3.0 * t)) - 1.0).abs() < 1e-2);
+    }
+
+    #[test]
+    fn the_avar_fit_finds_its_terms() {
+        // White 1e-6 / tau, a Gauss-Markov term of variance 4e-8 at 300 s.
+        let pts: Vec<(f64, f64)> = (0..12)
+            .map(|i| {
+                let tau = 2f64.powi(i);
+                (tau, 1e-6 / tau + 4e-8 * markov_avar(tau, 300.0))
+            })
+            .collect();
+        let c = fit_avar(&pts);
+        assert!((c[0] / 1e-6 - 1.0).abs() < 1e-6, "{c:?}");
+        assert!((c[3] / 4e-8 - 1.0).abs() < 1e-6, "{c:?}");
+        assert!(c[1] < 1e-20 && c[2] < 1e-20 && c[4] < 1e-20, "{c:?}");
+    }
+}
