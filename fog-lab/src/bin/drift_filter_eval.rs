@@ -71,6 +71,8 @@ struct Vehicle {
     raw_deg: f64,
     filter_deg: f64,
     filter_truth_flags_deg: f64,
+    /// The filter of the vehicle's own model (its sidecar's truth) with the truth's flags.
+    limit_deg: Option<f64>,
     still_windows: u32,
     windows: u32,
     undone: u32,
@@ -262,6 +264,10 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
         let inside = r.drift_dps.iter().all(|v| v.abs() < bound);
         let reached = d.iter().any(|v| v.abs() >= bound * (1.0 - 1e-6));
         let rec = name(&p);
+        let limit_deg = match true_model(&p, &model) {
+            Some(m) => Some(nav::score_drift(&r, &run(m, cfg, &r, true)?.0).heading_rms_deg),
+            None => None,
+        };
         if let Some(dir) = &args.dump {
             let mut text = String::from("t_s,drift_dps,estimate_dps,moving,temp_c\n");
             for k in (0..r.len()).step_by(100) {
@@ -281,6 +287,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             raw_deg: nav::score_drift(&r, &[]).heading_rms_deg,
             filter_deg: nav::score_drift(&r, &d).heading_rms_deg,
             filter_truth_flags_deg: nav::score_drift(&r, &dt).heading_rms_deg,
+            limit_deg,
             still_windows: st.still_windows,
             windows: st.windows,
             undone: st.undone,
@@ -311,6 +318,41 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
     })
 }
 
+/// The vehicle's own model from the generator's sidecar (`RECORD.csv.json`), on `fitted`'s
+/// sample rate, quantum and bound: white noise, rate random walk, turn-on (centre and
+/// power-on spread), the larger warm-up exactly, the links exactly (their spread 0). The
+/// flicker of bias instability `B` is three Gauss-Markov terms of sigma `B` at 30, 300 and
+/// 3000 s (an approximation: a flat Allan floor near 0.7 B over 30..3000 s). Not modelled:
+/// the second, short warm-up (10..120 s), the quadratic temperature term, and the filter's
+/// temperature rate is its causal estimate, not the truth's. So this is close to, not at,
+/// the causal limit.
+fn true_model(csv: &Path, fitted: &GyroModel) -> Option<GyroModel> {
+    let text = std::fs::read_to_string(format!("{}.json", csv.display())).ok()?;
+    let v: Value = serde_json::from_str(&text).ok()?;
+    let s = v.get("sensor")?;
+    let f = |k: &str| s.get(k).and_then(Value::as_f64);
+    let dph = 1.0 / 3600.0;
+    let b = f("bias_instability_dph")? * dph;
+    let mut m = *fitted;
+    m.white_dps_rthz = (f("arw_deg_rth")? / 60.0) as f32;
+    for (t, tau) in m.markov.iter_mut().zip([30.0, 300.0, 3000.0]) {
+        t.sigma_dps = b as f32;
+        t.tau_s = tau;
+    }
+    m.rrw_dps_per_s_rthz = (f("rrw_dph_rth")? * dph / 60.0) as f32;
+    m.turn_on_dps.mean = (f("turn_on_centre_dph")? * dph) as f32;
+    m.turn_on_dps.sigma = (f("turn_on_sigma_dph")? * dph) as f32;
+    m.warmup_dps.mean = (f("warmup1_dph")? * dph) as f32;
+    m.warmup_dps.sigma = 0.0;
+    m.warmup_tau_s = f("warmup1_tau_s")? as f32;
+    m.temp_ref_c = v.pointer("/family/t_ref_c").and_then(Value::as_f64)? as f32;
+    m.temp_dps_per_c.mean = (f("k1_dph_per_c")? * dph) as f32;
+    m.temp_dps_per_c.sigma = 0.0;
+    m.temp_rate_dps_per_c_per_s.mean = (f("shupe_dph_per_c_per_min")? * dph * 60.0) as f32;
+    m.temp_rate_dps_per_c_per_s.sigma = 0.0;
+    m.is_valid().then_some(m)
+}
+
 /// Student t quantile 0.975 for `df` degrees of freedom (Cornish-Fisher, within 1e-3 for
 /// df >= 5).
 fn t975(df: f64) -> f64 {
@@ -339,6 +381,9 @@ fn columns(v: &Vehicle) -> Vec<(String, f64)> {
         ("filter, truth flags".to_string(), v.filter_truth_flags_deg),
         ("raw".to_string(), v.raw_deg),
     ];
+    if let Some(l) = v.limit_deg {
+        c.push(("limit: true model".to_string(), l));
+    }
     for (n, x) in &v.today {
         if n != "none" && n != "no compensation" {
             c.push((n.clone(), *x));
