@@ -429,22 +429,7 @@ impl DriftFilter {
 mod tests {
     use super::*;
     use crate::gyro_model::tests::ecore_like;
-
-    /// Gaussian noise (Box-Muller on a PCG-like stream).
-    struct Noise(u64);
-    impl Noise {
-        fn uniform(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        }
-        fn normal(&mut self) -> f64 {
-            let (u, v) = (self.uniform(), self.uniform());
-            (-2.0 * u.ln()).sqrt() * (2.0 * core::f64::consts::PI * v).cos()
-        }
-    }
+    use crate::test_noise::Noise;
 
     fn sigma(m: &GyroModel) -> f64 {
         (m.sample_var_dps2() as f64).sqrt()
@@ -459,7 +444,11 @@ mod tests {
         let mut last = 0.0;
         for _ in 0..(600.0 * m.sample_rate_hz) as usize {
             last = f
-                .push((bias + sigma(&m) * n.normal()) as f32, 25.0, None)
+                .push(
+                    (bias + sigma(&m) * f64::from(n.normal12())) as f32,
+                    25.0,
+                    None,
+                )
                 .expect("test")
                 .drift_dps;
         }
@@ -490,7 +479,11 @@ mod tests {
                 0.0
             };
             let o = f
-                .push((bias + turn + sigma(&m) * n.normal()) as f32, 25.0, None)
+                .push(
+                    (bias + turn + sigma(&m) * f64::from(n.normal12())) as f32,
+                    25.0,
+                    None,
+                )
                 .expect("test");
             if t > 30.0 {
                 worst = worst.max((o.drift_dps as f64 - bias).abs());
@@ -520,7 +513,11 @@ mod tests {
             let vib = 10.0 * s * (2.0 * core::f64::consts::PI * 23.0 * t).sin();
             let turn = if t >= 300.0 { 0.02 } else { 0.0 };
             let o = f
-                .push((3.0 * s * n.normal() + vib + turn) as f32, 25.0, None)
+                .push(
+                    (3.0 * s * f64::from(n.normal12()) + vib + turn) as f32,
+                    25.0,
+                    None,
+                )
                 .expect("test");
             if k % (2.0 * fs) as usize == (2.0 * fs) as usize - 1 {
                 if t > 304.0 && o.still {
