@@ -17,6 +17,8 @@
 //! - [`baseline`]: causal estimators to compare with;
 //! - [`gyro_model`]: the gyro model as data; [`kalman`]: the Kalman primitive;
 //!   [`drift_filter`]: the model's Kalman filter with its stillness test;
+//! - [`drift_image`]: the gyro model and its filter's settings as a versioned, checksummed
+//!   binary image;
 //! - [`frame`], [`driver`]: gyro serial frames and the serial reader;
 //! - [`tmp117`], [`tmp105`]: drivers for the TI TMP117 and TMP105 I2C temperature sensors,
 //!   both read through [`temp_sensor::TemperatureSensor`].
@@ -29,6 +31,7 @@ pub mod baseline;
 pub mod db4;
 pub mod denoise;
 pub mod drift_filter;
+pub mod drift_image;
 pub mod driver;
 pub mod features;
 pub mod frame;

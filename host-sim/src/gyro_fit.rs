@@ -152,11 +152,24 @@ fn solve<const K: usize>(a: [[f64; K]; K], b: [f64; K]) -> Option<[f64; K]> {
     x.try_into().ok()
 }
 
-/// Sampling variances of the two link coefficients of a 4-column fit with residual `sse`
-/// (white residuals assumed: a lower bound where they are correlated).
-fn sampling_var(rows: &[[f64; 4]], sse: f64) -> [f64; 2] {
+/// Sampling variances of the two link coefficients of a 4-column fit of `y`: the
+/// least-squares variance with the residual's lag-1 autocorrelation `rho` taken in as
+/// `(1 + rho) / (1 - rho)` (an AR(1) residual's variance inflation of a mean).
+fn sampling_var(rows: &[[f64; 4]], y: &[f64], x: &[f64; 4]) -> [f64; 2] {
     let n = rows.len() as f64;
-    let s2 = sse / (n - 4.0).max(1.0);
+    let resid: Vec<f64> = rows
+        .iter()
+        .zip(y)
+        .map(|(r, v)| v - r.iter().zip(x).map(|(a, b)| a * b).sum::<f64>())
+        .collect();
+    let sse: f64 = resid.iter().map(|e| e * e).sum();
+    let lag1: f64 = resid.windows(2).map(|w| w[0] * w[1]).sum();
+    let rho = if sse > 0.0 {
+        (lag1 / sse).clamp(0.0, 0.95)
+    } else {
+        0.0
+    };
+    let s2 = sse / (n - 4.0).max(1.0) * (1.0 + rho) / (1.0 - rho);
     let mut a = [[0.0; 4]; 4];
     for r in rows {
         for i in 0..4 {
@@ -398,10 +411,10 @@ pub fn fit(
     let mut own: Vec<([f64; 4], [f64; 2])> = Vec::new();
     for (s, b) in runs.iter().zip(&binned) {
         let x_rows = rows(b, tau_w, temperature);
-        let Some((x, sse)) = least_squares(&x_rows, &b.y) else {
+        let Some((x, _)) = least_squares(&x_rows, &b.y) else {
             bail!("{}: the deterministic part cannot be fitted", s.name);
         };
-        own.push((x, sampling_var(&x_rows, sse)));
+        own.push((x, sampling_var(&x_rows, &b.y, &x)));
     }
     let coefs: Vec<(String, [f64; 4])> = runs
         .iter()

@@ -198,6 +198,29 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
         model.temp_dps_per_c.sigma *= m;
         model.temp_rate_dps_per_c_per_s.sigma *= m;
     }
+    // Exploration: FOG_FAMILY_LINKS=1 puts the generator's family links (strong: shared
+    // value, 20 % unit spread) in place of the fit's.
+    if std::env::var("FOG_FAMILY_LINKS").is_ok() {
+        if let Some(fam_json) = std::fs::read_to_string(fam.join("family.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str::<Value>(&t).ok())
+        {
+            let dph = 1.0 / 3600.0;
+            let k1 = fam_json
+                .pointer("/family/k1_dph_per_c")
+                .and_then(Value::as_f64);
+            let sh = fam_json
+                .pointer("/family/shupe_dph_per_c_per_min")
+                .and_then(Value::as_f64);
+            eprintln!("family links {k1:?} {sh:?}");
+            if let (Some(k1), Some(sh)) = (k1, sh) {
+                model.temp_dps_per_c.mean = (k1 * dph) as f32;
+                model.temp_dps_per_c.sigma = (0.2 * k1.abs() * dph) as f32;
+                model.temp_rate_dps_per_c_per_s.mean = (sh * dph * 60.0) as f32;
+                model.temp_rate_dps_per_c_per_s.sigma = (0.2 * sh.abs() * dph * 60.0) as f32;
+            }
+        }
+    }
     // Tuning on the family's tune vehicles (as the product's identify --tune-on and the
     // baselines): the links' prior spread and the Gauss-Markov sigmas scaled, by the least
     // mean heading RMS with the filter's own test. Skipped when a scale is given.
@@ -299,7 +322,36 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
     let mut static_e_truth = Vec::new();
     for p in files(&fam.join("static-test"))?.0 {
         let r = NavRecord::try_from(&Record::read(&p, &ReadOptions::default())?)?;
-        let (d, _) = run(model, cfg, &r, false)?;
+        let (d, st) = run(model, cfg, &r, false)?;
+        if let Some(dir) = &args.dump {
+            let mut text = String::from("t_s,drift_dps,estimate_dps,moving,temp_c\n");
+            for k in (0..r.len()).step_by(100) {
+                let temp = r.temp_c.as_ref().map_or(f64::NAN, |t| t[k]);
+                text += &format!("{},{},{},0,{}\n", r.t_s[k], r.drift_dps[k], d[k], temp);
+            }
+            std::fs::write(dir.join(format!("{}.dump.csv", name(&p))), text)?;
+        }
+        if args.verbose {
+            let (dt, _) = run(model, cfg, &r, true)?;
+            let e = |d: &[f64]| {
+                let num: f64 = d
+                    .iter()
+                    .zip(&r.drift_dps)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum();
+                let den: f64 = r.drift_dps.iter().map(|b| b * b).sum();
+                (num / den).sqrt()
+            };
+            println!(
+                "    static {}: e_truth {:.4}, every window still {:.4}; still {}/{} undone {}",
+                name(&p),
+                e(&d),
+                e(&dt),
+                st.still_windows,
+                st.windows,
+                st.undone
+            );
+        }
         let num: f64 = d
             .iter()
             .zip(&r.drift_dps)
@@ -350,6 +402,24 @@ fn true_model(csv: &Path, fitted: &GyroModel) -> Option<GyroModel> {
     m.temp_dps_per_c.sigma = 0.0;
     m.temp_rate_dps_per_c_per_s.mean = (f("shupe_dph_per_c_per_min")? * dph * 60.0) as f32;
     m.temp_rate_dps_per_c_per_s.sigma = 0.0;
+    // Exploration: FOG_LIMIT_ABLATE=warmup|links|noise puts the fitted family's part back.
+    match std::env::var("FOG_LIMIT_ABLATE").as_deref() {
+        Ok("warmup") => {
+            m.warmup_dps = fitted.warmup_dps;
+            m.warmup_tau_s = fitted.warmup_tau_s;
+        }
+        Ok("warmup-tau") => m.warmup_tau_s = fitted.warmup_tau_s,
+        Ok("links") => {
+            m.temp_dps_per_c = fitted.temp_dps_per_c;
+            m.temp_rate_dps_per_c_per_s = fitted.temp_rate_dps_per_c_per_s;
+        }
+        Ok("noise") => {
+            m.markov = fitted.markov;
+            m.rrw_dps_per_s_rthz = fitted.rrw_dps_per_s_rthz;
+            m.turn_on_dps = fitted.turn_on_dps;
+        }
+        _ => {}
+    }
     m.is_valid().then_some(m)
 }
 
