@@ -11,7 +11,7 @@ the record, level 0 with the variance of a 30-deg/h bound at power-on, as `unit_
 q, then the pooled e_truth (sqrt(sum (e D)^2 / sum D^2), D the record's drift RMS) at the
 best common q and with each record's own best q (an oracle no causal filter has: it knows
 the truth). The second is a floor for the whole class of random-walk filters, whatever rule
-picks their q; `docs/unit-fit.md` compares the product's static e_truth with both.
+picks their q (the product's static e_truth is `fog-lab drift_filter_eval`'s, docs/drift-filter.md).
 
     python3 scripts/rw_kf_q_bound.py --family DIR
 """

@@ -2,9 +2,9 @@
 # Makes the identifier image the firmware embeds by default, fog-firmware/identifier/default.fogi:
 # 12 static records of the E-Core 2000 family (`host-sim simulate --preset ecore2000`, 1800 s at
 # 100 Hz, record seeds 101..112, units 1..12 with a 20 % per-unit spread of the thermal and
-# warm-up coefficients), then `host-sim identify --preset motion --save-identifier` (3 DRLS
-# epochs, kept because least squares with leave-one-record-out finds a shape the 12 records
-# share: fog_core::motion_fit; sensor ecore2000). Deterministic: the same code gives the same bytes.
+# warm-up coefficients), then `host-sim identify --preset motion --save-identifier` (the gyro
+# model fitted on them: host_sim::gyro_fit; sensor ecore2000; no vehicle to tune on, so the
+# fitted scales as they are). Deterministic: the same code gives the same bytes.
 #   bash scripts/train-default-identifier.sh [OUT.fogi]     (default: the committed file)
 # Takes about a minute once host-sim is built (the debug build: the tests use it too; debug and
 # release give the same bits, no fast-math).
@@ -20,7 +20,7 @@ for i in $(seq 1 12); do
   "$bin" simulate --preset ecore2000 --duration-s 1800 --seed $((100 + i)) \
     --unit-seed "$i" --unit-spread 0.2 --output "$work/train/static-$i.csv"
 done
-"$bin" identify --preset motion --sensor ecore2000 --motion-trainer drls-checked --epochs 3 --input "$work/train" \
+"$bin" identify --preset motion --sensor ecore2000 --input "$work/train" \
   --save-identifier "$work/default.fogi" --json "$work/identify.json"
 mkdir -p "$(dirname "$out")"
 cp "$work/default.fogi" "$out"

@@ -1,5 +1,7 @@
 //! Causal drift estimators the identifier is compared with: cheap, and hard to beat.
 
+use crate::kalman::{DiagonalModel, Kalman};
+
 /// Scalar Kalman filter for a random-walk bias observed in white noise:
 /// `b(k) = b(k-1) + w`, `var w = q`; `z(k) = b(k) + v`, `var v = r` (both deg^2/s^2).
 ///
@@ -7,10 +9,9 @@
 /// small `q/r`, an exponential average with a memory of `sqrt(r/q)` samples.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RandomWalkKalman {
-    q: f32,
+    model: DiagonalModel<1>,
     r: f32,
-    b: f32,
-    p: f32,
+    kf: Kalman<1>,
     started: bool,
 }
 
@@ -19,17 +20,19 @@ impl RandomWalkKalman {
     pub fn new(q: f32, r: f32) -> Self {
         let ok = |v: f32, d: f32| if v > 0.0 && v.is_finite() { v } else { d };
         Self {
-            q: ok(q, 1e-6),
+            model: DiagonalModel {
+                phi: [1.0],
+                q: [ok(q, 1e-6)],
+            },
             r: ok(r, 1.0),
-            b: 0.0,
-            p: 0.0,
+            kf: Kalman::new([0.0], [0.0]),
             started: false,
         }
     }
 
     /// Process noise variance per sample.
     pub fn q(&self) -> f32 {
-        self.q
+        self.model.q[0]
     }
 
     /// Measurement noise variance.
@@ -39,21 +42,18 @@ impl RandomWalkKalman {
 
     /// Estimate of the bias *before* this measurement (the causal prediction), then updates.
     pub fn push(&mut self, z: f32) -> f32 {
+        let prediction = self.kf.x()[0];
         if !z.is_finite() {
-            return self.b;
+            return prediction;
         }
         if !self.started {
             // First measurement: the estimate starts there with the measurement's variance.
             self.started = true;
-            self.b = z;
-            self.p = self.r;
+            self.kf = Kalman::new([z], [self.r]);
             return z;
         }
-        let prediction = self.b;
-        let p = self.p + self.q;
-        let k = p / (p + self.r);
-        self.b += k * (z - self.b);
-        self.p = (1.0 - k) * p;
+        self.kf.predict(&self.model);
+        self.kf.update(&[1.0], z, self.r);
         prediction
     }
 }

@@ -6,7 +6,8 @@
 //! the warm-up amplitude `a` and the temperature and temperature-rate links `c`, `c'`
 //! (constants). Prior: the model's family means and spreads. Process noise: the model's,
 //! never chosen on line. The observation of one window is its mean rate `ybar` with the row
-//! `hbar = [1, 1, 1, 1, mean e^(-t/tau_w), mean (T - T0), dT/dt]`.
+//! `hbar = [1, 1, 1, 1, mean e^(-t/tau_w), mean (T - T0), dT/dt]`, `T0` the model's
+//! reference temperature.
 //!
 //! Per window of `W` samples ([`DriftFilterConfig::window_s`]):
 //! 1. predict `W` steps of the model;
@@ -22,10 +23,14 @@
 //!    between the model's white-noise floor and a cap set by the rate the test must resolve
 //!    ([`DriftFilterConfig::resolve_dps`]). The first [`DriftFilterConfig::learn_windows`]
 //!    windows after power-on (the unit is presumed still when switched on) learn `R_W`
-//!    without the half-difference test; the mean test applies from the first window;
-//! 3. a still window updates the filter; the update is held back one window: when the next
-//!    window fails, the filter returns to its state before that update (one checkpoint,
-//!    written once per window). Nothing is learned from a window that failed.
+//!    without the half-difference test; the first window is presumed still (power-on: a
+//!    turn-on bias beyond the model's spread is learned there), the mean test applies
+//!    from the second;
+//! 3. a still window updates the filter; the update is held back one window: the output
+//!    uses the state before it until the next window passes, and when the next window fails
+//!    the filter returns to that state (one checkpoint, written once per window). Nothing is
+//!    learned from a window that failed. A window an external flag calls still is trusted:
+//!    its update is not held back.
 //!
 //! Output per sample: `drift = h(t, T) x`, clamped to the model's drift bound, and the
 //! compensated rate `rate - drift`. Cost per sample: a few additions and multiplications;
@@ -108,7 +113,8 @@ pub struct DriftOutput {
     pub drift_dps: f32,
     /// `rate - drift`, deg/s.
     pub compensated_dps: f32,
-    /// The last window the test decided was still (at power-on: presumed still).
+    /// The sample's external flag when it has one, else the last window the test decided
+    /// was still (at power-on: presumed still).
     pub still: bool,
 }
 
@@ -149,6 +155,8 @@ pub struct DriftFilter {
     /// The state before the last still window's update (module docs, step 3).
     checkpoint: Kalman<STATES>,
     pending: bool,
+    /// The state the output uses: the filter's without the pending update.
+    out_x: [f32; STATES],
     /// `R_W` estimate: sum of half-difference variances and their count (capped: an
     /// exponential average over the last `R_MEMORY` windows once full).
     r_sum: f32,
@@ -222,6 +230,7 @@ impl DriftFilter {
             kf,
             checkpoint: kf,
             pending: false,
+            out_x: *kf.x(),
             r_sum: 0.0,
             r_count: 0.0,
             r_checkpoint: (0.0, 0.0),
@@ -293,7 +302,15 @@ impl DriftFilter {
         } else {
             self.built.r_floor
         };
-        r.clamp(self.built.r_floor, self.built.r_cap)
+        // Comparisons, not clamp (its panic path would be linked) nor max/min (calls to
+        // fmaxf/fminf on the target); r_floor <= r_cap by construction.
+        if r > self.built.r_cap {
+            self.built.r_cap
+        } else if r < self.built.r_floor {
+            self.built.r_floor
+        } else {
+            r
+        }
     }
 
     /// Counters.
@@ -303,7 +320,7 @@ impl DriftFilter {
 
     /// The drift at a sample with warm-up factor `warm` (deg/s, unclamped).
     fn drift_now(&self) -> f32 {
-        let x = self.kf.x();
+        let x = &self.out_x;
         let mut d = 0.0;
         for v in x.iter().take(WARMUP) {
             d += v;
@@ -351,7 +368,7 @@ impl DriftFilter {
         Ok(DriftOutput {
             drift_dps: drift,
             compensated_dps: rate_dps - drift,
-            still: self.still,
+            still: external_still.unwrap_or(self.still),
         })
     }
 
@@ -384,6 +401,10 @@ impl DriftFilter {
             false
         } else if self.ext_still {
             true
+        } else if self.stats.windows == 0 {
+            // Power-on: the unit is presumed still (a bias beyond the model's spread is
+            // learned here); the next window undoes it if it fails.
+            true
         } else {
             inn.nis() < self.cfg.nis_limit
                 && (learning || d * d / (d_scale * r) < self.cfg.nis_limit)
@@ -392,8 +413,16 @@ impl DriftFilter {
         if still {
             self.checkpoint = self.kf;
             self.r_checkpoint = (self.r_sum, self.r_count);
-            self.pending = true;
             self.kf.update(&h, mean, r);
+            // Held back one window: the output keeps the state before this update until
+            // the next window confirms it; a window the external flag calls still is the
+            // flag's (trusted: nothing to confirm or undo).
+            self.pending = !self.ext_still;
+            self.out_x = if self.pending {
+                *self.checkpoint.x()
+            } else {
+                *self.kf.x()
+            };
             // R_W from this window's half-difference (an average with a fast start).
             let sample = d * d / d_scale;
             if self.r_count >= R_MEMORY {
@@ -409,6 +438,9 @@ impl DriftFilter {
             (self.r_sum, self.r_count) = self.r_checkpoint;
             self.pending = false;
             self.stats.undone = self.stats.undone.saturating_add(1);
+            self.out_x = *self.kf.x();
+        } else {
+            self.out_x = *self.kf.x();
         }
         self.still = still;
         // The next window.

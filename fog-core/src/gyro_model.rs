@@ -11,9 +11,13 @@
 //! - `g_i`: Gauss-Markov terms (bias instability), each `sigma`, `tau`; `sigma = 0`: absent;
 //! - `a`: the warm-up amplitude at power-on (mean, spread), time constant `tau_w`;
 //! - `c`, `c'`: the temperature link and the temperature-rate (Shupe) link (mean, spread).
+//!   `T0` is the model's reference temperature (absolute: on the generator's families a link
+//!   of the change since power-on scored worse, docs/drift-filter.md).
 //!
 //! [`crate::drift_filter::DriftFilter`] is this model's Kalman filter; `host-sim identify`
 //! fits it to calibration runs and writes it into the image.
+
+use crate::still::SensorConfig;
 
 /// Largest number of Gauss-Markov terms a model holds.
 pub const MAX_MARKOV: usize = 3;
@@ -70,6 +74,43 @@ pub struct GyroModel {
 }
 
 impl GyroModel {
+    /// The model a sensor's specification alone gives (no calibration run): its rate,
+    /// white noise, quantum and drift bound; ASSUMED for the rest (a unit never
+    /// calibrated): turn-on and warm-up spreads of a third of the bound each (mean 0),
+    /// warm-up time constant 600 s, no temperature link (mean and spread 0: a link is only
+    /// learned from calibration runs), one Gauss-Markov term of a tenth of the bound at
+    /// 300 s, rate random walk 1 deg/h/sqrt(h). Temperature reference 25 deg C.
+    pub fn for_sensor(s: &SensorConfig) -> Self {
+        let third = s.drift_bound_dps / 3.0;
+        Self {
+            sample_rate_hz: s.sample_rate_hz,
+            white_dps_rthz: s.noise_density_dps_rthz,
+            quantum_dps: s.quantum_dps,
+            markov: [
+                MarkovTerm {
+                    sigma_dps: s.drift_bound_dps / 10.0,
+                    tau_s: 300.0,
+                },
+                MarkovTerm::default(),
+                MarkovTerm::default(),
+            ],
+            rrw_dps_per_s_rthz: 1.0 / 3600.0 / 60.0,
+            turn_on_dps: Spread {
+                mean: 0.0,
+                sigma: third,
+            },
+            warmup_dps: Spread {
+                mean: 0.0,
+                sigma: third,
+            },
+            warmup_tau_s: 600.0,
+            temp_ref_c: 25.0,
+            temp_dps_per_c: Spread::default(),
+            temp_rate_dps_per_c_per_s: Spread::default(),
+            drift_bound_dps: s.drift_bound_dps,
+        }
+    }
+
     /// Every field finite, rates, white noise, warm-up time and bound > 0, the rest >= 0;
     /// every present Gauss-Markov term with `tau > 0`.
     pub fn is_valid(&self) -> bool {
@@ -110,7 +151,16 @@ impl GyroModel {
         if drift_dps.is_nan() {
             0.0
         } else {
-            drift_dps.clamp(-self.drift_bound_dps, self.drift_bound_dps)
+            // Comparisons, not clamp (its panic path would be linked) nor max/min (calls
+            // to fmaxf/fminf on the target).
+            let b = self.drift_bound_dps;
+            if drift_dps > b {
+                b
+            } else if drift_dps < -b {
+                -b
+            } else {
+                drift_dps
+            }
         }
     }
 }
@@ -172,5 +222,7 @@ pub(crate) mod tests {
         assert!(!bad.is_valid());
         assert_eq!(m.clamp_drift(1.0), m.drift_bound_dps);
         assert_eq!(m.clamp_drift(f32::NAN), 0.0);
+        assert!(GyroModel::for_sensor(&SensorConfig::ECORE_2000).is_valid());
+        assert!(GyroModel::for_sensor(&SensorConfig::KVH_DSP_1750).is_valid());
     }
 }

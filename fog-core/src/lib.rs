@@ -8,17 +8,12 @@
 //! - [`wnn`]: the wavelet neural network (paper section 4.1);
 //! - [`train`]: DRLS (paper section 4.2) and the RLS / NLMS baselines;
 //! - [`features`]: causal network inputs; [`identify`]: the on-line identifier;
-//! - [`still`]: sensor configuration and the causal stillness detector;
-//! - [`bank`]: the level as the sensor's Allan noise model (random walk + flicker bank);
-//! - [`motion`]: the motion-safe identifier (learn at rest, compensate in motion);
-//! - [`level`]: its model-free core (detector, level, safety net), fed the model's term;
-//! - [`rest_q`]: the unit's own level wander at rest, chosen on line;
-//! - [`image`]: the trained identifier as a versioned, checksummed binary image;
+//! - [`still`]: sensor configuration and the baselines' stillness detector;
+//! - [`image`]: the fitted gyro model and its filter's settings as a versioned, checksummed
+//!   binary image (what the firmware runs);
 //! - [`baseline`]: causal estimators to compare with;
 //! - [`gyro_model`]: the gyro model as data; [`kalman`]: the Kalman primitive;
 //!   [`drift_filter`]: the model's Kalman filter with its stillness test;
-//! - [`drift_image`]: the gyro model and its filter's settings as a versioned, checksummed
-//!   binary image;
 //! - [`frame`], [`driver`]: gyro serial frames and the serial reader;
 //! - [`tmp117`], [`tmp105`]: drivers for the TI TMP117 and TMP105 I2C temperature sensors,
 //!   both read through [`temp_sensor::TemperatureSensor`].
@@ -26,12 +21,10 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub mod bank;
 pub mod baseline;
 pub mod db4;
 pub mod denoise;
 pub mod drift_filter;
-pub mod drift_image;
 pub mod driver;
 pub mod features;
 pub mod frame;
@@ -39,11 +32,6 @@ pub mod gyro_model;
 pub mod identify;
 pub mod image;
 pub mod kalman;
-pub mod level;
-pub mod motion;
-pub mod motion_fit;
-pub mod preset;
-pub mod rest_q;
 pub mod still;
 pub mod temp_sensor;
 #[cfg(test)]

@@ -122,13 +122,14 @@ fn image_error_reason(e: &fog_core::image::ImageError) -> &'static str {
     match e {
         E::BadMagic => "bad magic",
         E::Truncated { .. } => "truncated",
+        E::RetiredFormat(_) => {
+            "retired format (the old estimators' image): retrain with host-sim identify"
+        }
         E::UnsupportedVersion(_) => "unsupported format version",
-        E::RetiredArrangement(_) => "retired arrangement: retrain the image",
         E::TrailingBytes(_) => "trailing bytes",
-        E::Checksum { .. } => "checksum mismatch",
-        E::UnknownPreset(_) => "unknown preset",
-        E::Layout { .. } => "network layout does not fit",
-        E::BadValue { .. } => "invalid value",
+        E::BadChecksum { .. } => "checksum mismatch",
+        E::WrongPreset(_) => "not a drift filter image (preset id)",
+        E::BadModel => "invalid gyro model or filter configuration",
         E::RateMismatch { .. } => "sample rate mismatch",
         E::BufferTooSmall => "buffer too small",
     }
@@ -201,7 +202,7 @@ where
         return Stop::Setup;
     };
     // The stage is used where `new_stage` wrote it (a borrow of the result, not a move out
-    // of it): moving it out would keep a second copy of it (about 8 KiB) on the stack.
+    // of it): moving it out would keep a second copy of it (about 7 KiB) on the stack.
     let mut built = pipeline::new_stage(image_bytes());
     let stage = match &mut built {
         Ok(s) => s,
@@ -215,7 +216,7 @@ where
             return Stop::Setup;
         }
         Err(pipeline::SetupError::Estimator(e)) => {
-            defmt::error!("identifier image: estimator refused: {}", e);
+            defmt::error!("identifier image: drift filter refused: {}", e);
             return Stop::Setup;
         }
         Err(pipeline::SetupError::Denoiser(e)) => {
@@ -233,11 +234,12 @@ where
     let mut totals = RunTotals::default();
     let mut period = Period::default();
     defmt::info!(
-        "fog-firmware: E-Core {=f32} deg/s full scale, {=f32} Hz, motion-safe identifier image ({=usize} bytes) loaded, drift bound {=f32} deg/s, denoise block {=usize} (resumable), denoised field {=usize} samples late",
+        "fog-firmware: E-Core {=f32} deg/s full scale, {=f32} Hz, drift filter image ({=usize} bytes) loaded, drift bound {=f32} deg/s, window {=u32} samples, denoise block {=usize} (resumable), denoised field {=usize} samples late",
         pipeline::FULL_SCALE_DPS,
         stage.sample_rate_hz(),
         IDENTIFIER_IMAGE.len(),
-        stage.estimator().config().sensor.drift_bound_dps,
+        stage.filter().model().drift_bound_dps,
+        stage.filter().window_samples(),
         pipeline::BLOCK,
         pipeline::DENOISED_DELAY_SAMPLES
     );
@@ -289,12 +291,13 @@ where
         totals.rx_queue_full,
         stats.is_consistent()
     );
-    let m = stage.estimator().stats();
+    let m = stage.filter().stats();
     defmt::info!(
-        "estimator: {=u32} samples, {=u32} still, {=u32} level updates, {=u32} refused; still-flag commands {=u32}",
+        "drift filter: {=u32} samples, {=u32} windows, {=u32} still (updates), {=u32} undone, {=u32} refused; still-flag commands {=u32}",
         m.samples,
-        m.still_samples,
-        m.level_updates,
+        m.windows,
+        m.still_windows,
+        m.undone,
         m.rejected,
         totals.still_commands
     );

@@ -13,7 +13,6 @@ use embedded_hal_nb::serial::Write;
 use fog_core::denoise::{DenoiseConfig, ResumableDenoiser};
 use fog_core::frame::{ecore, Decoder, EcoreDecoder};
 use fog_core::image::Image;
-use fog_core::still::Stillness;
 
 use crate::app::{image_bytes, TickCounter, IDENTIFIER_IMAGE};
 use crate::pipeline::{self, BLOCK};
@@ -26,7 +25,8 @@ use probe::Window;
 /// Samples measured: 8 blocks (41 s at 100 Hz).
 const SAMPLES: usize = 8 * BLOCK;
 /// A turn in the measured data: samples in this range get [`TURN_DPS`] added, so that the
-/// detector leaves and re-enters the still state during the run.
+/// filter's stillness test finds windows moving, undoes an update, and finds still windows
+/// again during the run.
 const TURN: core::ops::Range<usize> = 1800..2600;
 /// Rate of that turn, deg/s.
 const TURN_DPS: f32 = 12.0;
@@ -106,8 +106,8 @@ fn calibrate<C: TickCounter>(c: &C, spin: fn(u32)) -> Calibration {
 }
 
 /// Deterministic E-Core-like counts, in f32: turn-on bias 0.002 deg/s (7 deg/h), a slow drift
-/// of about 1 deg/h (warm-up + sine), white noise 0.0105 deg/s per sample (the E-Core noise
-/// model of the image: 4 deg/h/sqrt(Hz) at 100 Hz, so that the detector finds the still
+/// of about 1 deg/h (warm-up + sine), white noise 0.0105 deg/s per sample (about the image
+/// model's: 4 deg/h/sqrt(Hz) at 100 Hz, so that the stillness test finds the still
 /// periods), 60/32768 deg/s per count, and the turn of [`TURN`].
 struct Source {
     state: u32,
@@ -161,81 +161,25 @@ fn row<W: core::fmt::Write>(
     )
 }
 
-/// Inputs of the exp comparison: the hidden layer's domain, `-t^2 / 2` for `|t| < 13`.
-const EXP_POINTS: usize = 1024;
-const EXP_LO: f32 = -84.5;
-
-/// One `exp` implementation over [`EXP_POINTS`] inputs: instructions per call (x10, loop
-/// included) and the largest relative error against `libm::exp` in f64.
-fn exp_row<C: TickCounter>(c: &C, cal: &Calibration, f: fn(f32) -> f32) -> (u64, f64) {
-    let x = |i: usize| EXP_LO * (i as f32) / ((EXP_POINTS - 1) as f32);
-    let mut worst = 0.0f64;
-    for i in 0..EXP_POINTS {
-        let want = libm::exp(f64::from(x(i)));
-        let got = f64::from(f(x(i)));
-        worst = worst.max(libm::fabs(got - want) / want);
-    }
-    let inputs: [f32; EXP_POINTS] = core::array::from_fn(x);
-    let (sum, ticks) = time::<probe::Exp, _, _>(c, || {
-        let mut acc = 0.0f32;
-        for &v in &inputs {
-            acc += f(v);
-        }
-        acc
-    });
-    let per_call_x10 = cal.instr_x10(u64::from(ticks), 1) / EXP_POINTS as u64;
-    // Keeps the loop from being optimised away.
-    if sum.is_nan() {
-        return (0, f64::NAN);
-    }
-    (per_call_x10, worst)
-}
-
-/// An `exp` implementation under test, with its name.
-type ExpImpl = (&'static str, fn(f32) -> f32);
-
-/// Prints the exp comparison.
-fn exp_table<C: TickCounter, W: core::fmt::Write>(
-    c: &C,
-    cal: &Calibration,
-    out: &mut W,
-) -> core::fmt::Result {
-    writeln!(
-        out,
-        "exp on {EXP_POINTS} points of [{EXP_LO}, 0] (instructions per call incl. loop; max relative error vs libm::exp f64):"
-    )?;
-    let rows: [ExpImpl; 3] = [
-        ("fog_core::wnn::exp_anchor", fog_core::wnn::exp_anchor),
-        ("micromath F32Ext::exp", micromath::F32Ext::exp),
-        ("libm::expf", libm::expf),
-    ];
-    for (name, f) in rows {
-        let (instr_x10, err) = exp_row(c, cal, f);
-        writeln!(
-            out,
-            "| {name:<28} | {:>5}.{} instr | max rel err {:.2e} |",
-            instr_x10 / 10,
-            instr_x10 % 10,
-            err
-        )?;
-    }
-    Ok(())
-}
-
 /// Ticks per window kind over the [`SAMPLES`] samples, and what the run gave besides.
 #[derive(Default)]
 struct Measured {
     decode: Acc,
-    detect: Acc,
     estimate: Acc,
+    /// The drift filter's pushes that end a window (its predict, test and update).
+    estimate_window: Acc,
     denoise: Acc,
     /// The denoiser's pushes that do not complete a block.
     denoise_mid: Acc,
     stage: Acc,
     /// Whole pipeline: frame decode, stage and record.
     pipeline: Acc,
-    /// Samples the stage took as still.
+    /// Samples whose status says still (the last window ended was still).
     still_samples: u32,
+    /// The stage's filter's counters at the end.
+    windows: u32,
+    still_windows: u32,
+    undone: u32,
     /// Sum of results, printed so that no timed call is optimised away.
     sink: f32,
 }
@@ -273,10 +217,7 @@ fn measure<C: TickCounter>(c: &C, m: &mut Measured) -> Option<()> {
     let mut decoder = EcoreDecoder::new(pipeline::FULL_SCALE_DPS).ok()?;
     let mut stage = pipeline::new_stage(image_bytes()).ok()?;
     // Stand-alone copies of the stage's parts, timed one by one on the same samples.
-    let image = Image::parse(image_bytes()).ok()?;
-    let mut estimator = image.estimator().ok()?;
-    let cfg = *estimator.config();
-    let mut detector = Stillness::new(&cfg.sensor, &cfg.still)?;
+    let mut filter = Image::parse(image_bytes()).ok()?.filter().ok()?;
     let mut denoiser = ResumableDenoiser::<BLOCK>::new(DenoiseConfig::PAPER).ok()?;
 
     let mut source = Source {
@@ -284,13 +225,12 @@ fn measure<C: TickCounter>(c: &C, m: &mut Measured) -> Option<()> {
         k: 0,
     };
     let mut frames = 0u32;
-    let mut drift_dps = 0.0f32;
 
     for k in 0..SAMPLES {
         let counts = source.next_counts();
         let wire = ecore::encode(counts, [0x10, (k >> 8) as u8, k as u8, 0x5A]);
 
-        // Whole pipeline: decode the frame's 8 bytes, the stage (estimator + denoiser), the
+        // Whole pipeline: decode the frame's 8 bytes, the stage (drift filter + denoiser), the
         // record; the stage is also timed on its own, inside.
         let mut rate_dps = f32::NAN;
         let mut stage_ticks = 0;
@@ -327,20 +267,15 @@ fn measure<C: TickCounter>(c: &C, m: &mut Measured) -> Option<()> {
         });
         m.decode.add(t);
 
-        // The stillness detector alone, against the estimator copy's drift of the previous
-        // sample (what the estimator gives it).
-        let (s, t) = time::<probe::Detect, _, _>(c, || {
-            detector.push(rate_dps, drift_dps, cfg.sensor.sample_var_dps2(), None)
-        });
-        m.detect.add(t);
-        m.sink += f32::from(u8::from(s.still));
-
-        // The estimator alone (detector included): model once per window, level update on
-        // released still windows, clamp.
-        let (e, t) = time::<probe::Estimate, _, _>(c, || estimator.push(rate_dps, f32::NAN, None));
+        // The drift filter alone: per sample the drift and the window sums; per window the
+        // predict, the stillness test and, for a still window, the update (or the undo).
+        let windows = filter.stats().windows;
+        let (e, t) = time::<probe::Estimate, _, _>(c, || filter.push(rate_dps, f32::NAN, None));
         m.estimate.add(t);
+        if filter.stats().windows != windows {
+            m.estimate_window.add(t);
+        }
         if let Ok(e) = e {
-            drift_dps = e.drift_dps;
             m.sink += e.compensated_dps;
         }
 
@@ -355,14 +290,16 @@ fn measure<C: TickCounter>(c: &C, m: &mut Measured) -> Option<()> {
         }
         m.sink += d;
     }
+    let s = stage.filter().stats();
+    (m.windows, m.still_windows, m.undone) = (s.windows, s.still_windows, s.undone);
     Some(())
 }
 
 /// Instructions per sample available at [`CLOCK_HZ`] and [`SAMPLE_RATE_HZ`].
 const INSTR_PER_SAMPLE: u64 = CLOCK_HZ / SAMPLE_RATE_HZ;
 
-/// Prints the whole budget: the measured table, the goals, the exp and resumable-denoiser
-/// comparisons (measured here) and the worst sample against the sample period. Out of
+/// Prints the whole budget: the measured table, the goals, the resumable-denoiser
+/// comparison (measured here) and the worst sample against the sample period. Out of
 /// line: `m` and `cal` stay in memory during the measurement, as they did when this was a
 /// closure of [`run`].
 #[inline(never)]
@@ -375,11 +312,9 @@ fn report<C: TickCounter, W: core::fmt::Write>(
 ) -> core::fmt::Result {
     let pipe_mean_x10 = cal.instr_x10(m.pipeline.ticks, m.pipeline.n) / m.pipeline.n.max(1);
     let worst = cal.instr_x10(u64::from(m.pipeline.max), 1) / 10;
-    header(out, cal, m.still_samples)?;
+    header(out, cal, m)?;
     stage_table(out, cal, m)?;
     goals(out, pipe_mean_x10, worst)?;
-    writeln!(out)?;
-    exp_table(c, cal, out)?;
     writeln!(out)?;
     resumable::table(c, cal, out)?;
     writeln!(out)?;
@@ -404,11 +339,7 @@ fn report<C: TickCounter, W: core::fmt::Write>(
 }
 
 /// The title, the calibration and what was measured.
-fn header<W: core::fmt::Write>(
-    out: &mut W,
-    cal: &Calibration,
-    still_samples: u32,
-) -> core::fmt::Result {
+fn header<W: core::fmt::Write>(out: &mut W, cal: &Calibration, m: &Measured) -> core::fmt::Result {
     writeln!(
         out,
         "fog-firmware instruction budget (QEMU mps2-an386, -icount shift=6)"
@@ -425,7 +356,7 @@ fn header<W: core::fmt::Write>(
     )?;
     writeln!(
         out,
-        "{} samples ({} blocks of {}) at 100 Hz, a {} deg/s turn on samples {}..{}; motion-safe identifier from the embedded image ({} bytes); {} samples taken as still",
+        "{} samples ({} blocks of {}) at 100 Hz, a {} deg/s turn on samples {}..{}; drift filter from the embedded image ({} bytes); {} samples with status still; windows {}, still (updates) {}, undone {}",
         SAMPLES,
         SAMPLES / BLOCK,
         BLOCK,
@@ -433,7 +364,10 @@ fn header<W: core::fmt::Write>(
         TURN.start,
         TURN.end,
         IDENTIFIER_IMAGE.len(),
-        still_samples
+        m.still_samples,
+        m.windows,
+        m.still_windows,
+        m.undone
     )?;
     writeln!(out)
 }
@@ -452,15 +386,19 @@ fn stage_table<W: core::fmt::Write>(
     writeln!(out, "|{:-<42}|{:-<8}|{:->11}|{:->11}|", "", "", "", "")?;
     let rows: [(&str, &str, &Acc); 7] = [
         ("frame decode (8 bytes)", "frame", &m.decode),
-        ("stillness detector", "sample", &m.detect),
-        ("estimator push (detector included)", "sample", &m.estimate),
+        ("drift filter push + stillness test", "sample", &m.estimate),
+        (
+            "  of which pushes ending a window",
+            "window",
+            &m.estimate_window,
+        ),
         ("denoise db4 x3, B=512, resumable", "sample", &m.denoise),
         (
             "  of which pushes not completing a block",
             "sample",
             &m.denoise_mid,
         ),
-        ("stage (estimator + denoiser + status)", "sample", &m.stage),
+        ("stage (filter + denoiser + status)", "sample", &m.stage),
         (
             "whole pipeline (decode+stage+record)",
             "sample",

@@ -3,19 +3,20 @@
 //!
 //! This file depends on `fog-core` and `core` only. The hardware-in-the-loop test
 //! (`tests/tests/firmware_qemu.rs`) compiles this very file on the host (`#[path]`), runs it
-//! on the bytes it sends to QEMU with the same identifier image, and requires the firmware's
+//! on the bytes it sends to QEMU with the same drift image, and requires the firmware's
 //! records to be bit-identical.
 //!
 //! # The estimation stage
-//! [`Stage`] is the motion-safe estimator the identifier image names,
-//! `fog_core::preset::PresetEstimator` (drift = clamp(level + c (T - T0) + m(time since
-//! power-on, temperature, its rate)), the level a stillness-gated random-walk Kalman state,
-//! `c` the unit's own temperature coefficient; the default arrangement, dual-thermal, runs a
-//! per-sample and a per-window level side by side, the per-sample one's output while it
-//! flags the sample still, the window one's otherwise; the image may name one of the two
-//! bank arrangements instead; see `docs/motion.md`) loaded from an identifier image
-//! ([`new_stage`]: `fog_core::image::Image::parse`, the image's rate within
-//! [`MIN_RATE_HZ`] .. [`MAX_RATE_HZ`]), plus the paper's block
+//! [`Stage`] runs the image's drift filter, `fog_core::drift_filter::DriftFilter`: the
+//! Kalman filter of the image's gyro model (`fog_core::gyro_model::GyroModel`: level,
+//! Gauss-Markov terms, warm-up, temperature and temperature-rate links), run per window of
+//! the image's `window_s` (2 s in the default configuration). A window that the filter's
+//! stillness test (or the external still flag) finds still updates the filter; the update
+//! is undone when the next window fails. Per sample the drift is `h(t, T) x`, clamped to
+//! the model's drift bound, and the compensated rate is `rate - drift`. [`new_stage`] builds
+//! it from the drift image: `fog_core::image::Image::parse` (format 4; formats 1 to 3, the
+//! retired estimators' images, are refused by name), the model's rate within
+//! [`MIN_RATE_HZ`] .. [`MAX_RATE_HZ`], `Image::filter`. Beside it runs the paper's block
 //! denoiser (db4, 3 levels, `B` = 512) in its resumable form
 //! (`fog_core::denoise::ResumableDenoiser`: block `j`'s transform spread over the pushes of
 //! block `j + 1`, bit-identical to `BlockDenoiser`), its output reported per sample
@@ -28,15 +29,14 @@
 #![forbid(unsafe_code)]
 
 use fog_core::denoise::{DenoiseConfig, DenoiseError, ResumableDenoiser, MAX_ABS_INPUT};
+use fog_core::drift_filter::{DriftFilter, DriftFilterError};
 use fog_core::frame::ByteStats;
 use fog_core::image::{Image, ImageError};
-use fog_core::motion::MotionError;
-use fog_core::preset::PresetEstimator;
 
 /// Full scale of the E-Core 2000 unit the firmware decodes, deg/s.
 pub const FULL_SCALE_DPS: f32 = 60.0;
 
-/// Sample rate of the E-Core 2000 and of the committed default image, Hz. The firmware runs
+/// Sample rate of the E-Core 2000 and of the committed default image's model, Hz. The firmware runs
 /// at the image's rate ([`Stage::sample_rate_hz`], within [`MIN_RATE_HZ`] ..
 /// [`MAX_RATE_HZ`]); this one is the temperature refresh's basis
 /// (`temperature::REFRESH_SAMPLES`: 100 samples, 1 s at this rate).
@@ -71,25 +71,30 @@ pub const STATS_PAYLOAD_LEN: usize = 17 * 8 + 7 * 4;
 /// Bytes of the whole statistics record.
 pub const STATS_RECORD_LEN: usize = 3 + STATS_PAYLOAD_LEN + 2;
 
-/// Status bit: the sample was taken as still (the detector's state, or the external flag).
+/// Status bit: the sample was taken as still: its external still flag when it has one,
+/// else the decision of the last window the filter ended (its stillness test, or the
+/// external flag given in that window; before the first window ends: presumed still).
+/// `fog_core::drift_filter::DriftOutput::still`.
 pub const STATUS_STILL: u8 = 1 << 0;
 /// Status bit: this sample completed a denoising block (its transform runs during the next
 /// block; the denoised field carries it one block after that).
 pub const STATUS_BLOCK_DONE: u8 = 1 << 1;
-/// Status bit: an external still flag was given for this sample (it overrides the detector).
+/// Status bit: an external still flag was given for this sample ([`STATUS_STILL`] is then
+/// that flag; it overrides the stillness test for the window it is given in).
 pub const STATUS_EXTERNAL: u8 = 1 << 2;
-/// Status bit: the per-sample level learned at this sample (a still sample; the status
-/// follows the per-sample estimator's counters in every arrangement).
+/// Status bit: this sample ended a window found still, and the filter was updated with it
+/// (`fog_core::drift_filter::DriftStats::still_windows` went up; the update is undone if the
+/// next window fails).
 pub const STATUS_LEVEL_UPDATE: u8 = 1 << 3;
-/// Status bit: a temperature reading went into the estimator with this sample.
+/// Status bit: a temperature reading went into the drift filter with this sample.
 pub const STATUS_TEMPERATURE: u8 = 1 << 4;
-/// Status bit: this sample's drift is not verified (nothing verified at rest since power-on:
-/// the tentative drift of the samples since power-on, presumed still, or none after a
-/// failing first window; or no still sample for the image's `stale_s`: the drift verified at
-/// the last rest); `fog_core::motion::MotionOutput::verified` false.
+/// Status bit: this sample's drift is not verified: no window since power-on was found still
+/// (`DriftStats::still_windows` is 0), so the drift is still the image's prior (its family
+/// means) predicted forward, never updated on this unit. Clear from the sample that ends
+/// the first still window on (an update undone later does not set it again).
 pub const STATUS_UNVERIFIED: u8 = 1 << 5;
 /// Status bit: the sample was refused (non-finite or beyond `denoise::MAX_ABS_INPUT`); the
-/// three estimates are NaN, and neither the estimator nor the denoiser changed.
+/// three estimates are NaN, and neither the drift filter nor the denoiser changed.
 pub const STATUS_REJECTED: u8 = 1 << 7;
 
 /// End of input: these 8 bytes in a row (`b"FOG-END!"` with bit 7 set on each) end the run.
@@ -103,7 +108,7 @@ pub const END_MARKER: [u8; 8] = marker(*b"FOG-END!");
 pub const STILL_MARKER: [u8; 8] = marker(*b"FOG-STL!");
 /// External still flag command: "moving" from the next frame on (`b"FOG-MOV!"`, bit 7 set).
 pub const MOVING_MARKER: [u8; 8] = marker(*b"FOG-MOV!");
-/// External still flag command: no external flag, the detector decides (`b"FOG-AUT!"`).
+/// External still flag command: no external flag, the stillness test decides (`b"FOG-AUT!"`).
 pub const AUTO_MARKER: [u8; 8] = marker(*b"FOG-AUT!");
 
 /// `ascii` with bit 7 set on each byte.
@@ -120,43 +125,44 @@ const fn marker(ascii: [u8; 8]) -> [u8; 8] {
 /// Why the stage could not be built.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SetupError {
-    /// The identifier image was refused (corrupt, truncated, wrong version or rate).
+    /// The drift image was refused (corrupt, truncated, a retired or unknown version, an
+    /// invalid model, a rate out of range).
     Image(ImageError),
-    /// The image parsed but its configuration does not build an estimator.
-    Estimator(MotionError),
+    /// The image parsed but its model and configuration do not build a drift filter.
+    Estimator(DriftFilterError),
     /// The denoiser's configuration was refused.
     Denoiser(DenoiseError),
 }
 
-/// The per-sample stage: the estimator from the image, and the resumable block denoiser.
+/// The per-sample stage: the drift filter from the image, and the resumable block denoiser.
 pub struct Stage {
-    estimator: PresetEstimator,
+    filter: DriftFilter,
     denoiser: ResumableDenoiser<BLOCK>,
 }
 
 impl Stage {
-    /// The estimator (its counters, level and configuration).
-    pub fn estimator(&self) -> &PresetEstimator {
-        &self.estimator
+    /// The drift filter (its counters, state, model and configuration).
+    pub fn filter(&self) -> &DriftFilter {
+        &self.filter
     }
 
-    /// The rate the stage runs at: the image's, Hz.
+    /// The rate the stage runs at: the image's model's, Hz.
     pub fn sample_rate_hz(&self) -> f32 {
-        self.estimator.config().sensor.sample_rate_hz
+        self.filter.model().sample_rate_hz
     }
 }
 
-/// Builds the stage from an identifier image (`fog_core::image` format) for any rate from
+/// Builds the stage from a drift image (`fog_core::image` format 4) for any rate from
 /// [`MIN_RATE_HZ`] to [`MAX_RATE_HZ`] (another rate: `ImageError::RateMismatch` naming the
 /// nearer end of the range).
 ///
 /// Stack: the caller should use the result where it is (`match &mut result`), not move the
-/// stage out of it (a second copy of about 8 KiB).
+/// stage out of it (a second copy of about 7 KiB).
 pub fn new_stage(image: &[u8]) -> Result<Stage, SetupError> {
     // The parsed image only lives in this block (its stack slot is free after it).
-    let estimator = {
+    let filter = {
         let image = Image::parse(image).map_err(SetupError::Image)?;
-        let image_hz = image.config.sensor.sample_rate_hz;
+        let image_hz = image.model.sample_rate_hz;
         if !(MIN_RATE_HZ..=MAX_RATE_HZ).contains(&image_hz) {
             return Err(SetupError::Image(ImageError::RateMismatch {
                 image_hz,
@@ -167,19 +173,16 @@ pub fn new_stage(image: &[u8]) -> Result<Stage, SetupError> {
                 },
             }));
         }
-        image.estimator().map_err(SetupError::Estimator)?
+        image.filter().map_err(SetupError::Estimator)?
     };
     let denoiser = ResumableDenoiser::new(DenoiseConfig::PAPER).map_err(SetupError::Denoiser)?;
-    Ok(Stage {
-        estimator,
-        denoiser,
-    })
+    Ok(Stage { filter, denoiser })
 }
 
 /// What one sample gives, besides its status byte.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Output {
-    /// Drift estimate, deg/s (within the image's drift bound).
+    /// Drift estimate, deg/s (within the image's model's drift bound).
     pub drift_dps: f32,
     /// `rate - drift`, deg/s.
     pub compensated_dps: f32,
@@ -198,9 +201,9 @@ const REJECTED: Output = Output {
 /// One sample through the stage: its output and the record's status byte.
 ///
 /// `temp_c`: the board temperature, deg C (`None` without a sensor or while its reading is
-/// stale; the estimator then gets NaN, as its API asks). `external_still`: the external
-/// still flag (`Some(true)` still, `Some(false)` moving, `None` absent: the detector
-/// decides).
+/// stale; the filter then gets NaN, as its API asks: it keeps the last reading).
+/// `external_still`: the external still flag (`Some(true)` still, `Some(false)` moving,
+/// `None` absent: the filter's stillness test decides).
 pub fn process(
     stage: &mut Stage,
     rate_dps: f32,
@@ -211,13 +214,14 @@ pub fn process(
     if !rate_dps.is_finite() || rate_dps.abs() > MAX_ABS_INPUT {
         return (REJECTED, STATUS_REJECTED);
     }
-    let updates = stage.estimator.stats().level_updates;
+    let still_windows = stage.filter.stats().still_windows;
     let Ok(m) = stage
-        .estimator
+        .filter
         .push(rate_dps, temp_c.unwrap_or(f32::NAN), external_still)
     else {
         return (REJECTED, STATUS_REJECTED);
     };
+    let still_windows_now = stage.filter.stats().still_windows;
     let mut status = 0;
     if m.still {
         status |= STATUS_STILL;
@@ -225,13 +229,13 @@ pub fn process(
     if external_still.is_some() {
         status |= STATUS_EXTERNAL;
     }
-    if stage.estimator.stats().level_updates != updates {
+    if still_windows_now != still_windows {
         status |= STATUS_LEVEL_UPDATE;
     }
     if temp_c.is_some() {
         status |= STATUS_TEMPERATURE;
     }
-    if !m.verified {
+    if still_windows_now == 0 {
         status |= STATUS_UNVERIFIED;
     }
     // The range was checked above: the denoiser cannot refuse this sample.

@@ -18,18 +18,16 @@
 //!
 //! # Assumptions
 //! - A sample costs what it cost in the budget run at any rate, for any image: that run
-//!   used the committed default image (dual-thermal, 100 Hz, 1-s detector window). The work
-//!   done once per detector window (about 1,600 instructions at a window start: the model
-//!   `m(x)` and both window steps) is in the measured mean spread over 100 samples; at
-//!   10 Hz it is spread over 10, so there the mean is understated by about 145 instructions;
-//!   above 100 Hz it is overstated. The worst sample does not depend on the rate. The bank
-//!   arrangements were not measured in that run (a warning says so).
-//!   `FOG_IDENTIFIER=F.fogi bash scripts/fw-budget.sh` measures an image itself.
+//!   used the committed default image (100 Hz, 2-s filter window). The work done once per
+//!   window (the filter's predict, test and update) is in the measured mean spread over the
+//!   window's samples; at a lower rate it is spread over fewer, so there the mean is
+//!   understated; above 100 Hz it is overstated. The worst sample does not depend on the
+//!   rate. `FOG_IDENTIFIER=F.fogi bash scripts/fw-budget.sh` measures an image itself.
 //! - Cycles are the budget's estimate at [`CLOCK_HZ`] (instruction trace costed with the
 //!   Cortex-M4 timings, 5 flash wait states behind the ART accelerator:
 //!   `fog-firmware/README.md`, "Cycles"), not a measurement on a board.
 //! - RAM does not depend on the image: every buffer has a fixed size (const generics; the
-//!   estimator's slot is sized for the largest arrangement). The stack high-water marks were
+//!   filter's size is fixed). The stack high-water marks were
 //!   measured with the default image.
 //! - The UART runs 8N1 (10 bit times per byte) at [`UART_BAUD`] in both directions, one
 //!   E-Core frame ([`FRAME_LEN`] bytes) in and one record ([`RECORD_LEN`] bytes) out per
@@ -61,22 +59,22 @@ pub const RECORD_LEN: usize = pipeline::SAMPLE_RECORD_LEN;
 pub const CLOCK_HZ: f64 = 168e6;
 /// Whole pipeline (decode + stage + record), instructions per sample, mean (measured,
 /// `bash scripts/fw-budget.sh`, default image).
-pub const INSTRUCTIONS_MEAN: f64 = 1_327.8;
+pub const INSTRUCTIONS_MEAN: f64 = 866.2;
 /// The same, the worst sample.
-pub const INSTRUCTIONS_WORST: f64 = 3_265.0;
+pub const INSTRUCTIONS_WORST: f64 = 2_452.5;
 /// Whole pipeline, estimated cycles per sample at [`CLOCK_HZ`], mean (the budget's
 /// estimate from the instruction trace, default image).
-pub const CYCLES_MEAN: f64 = 2_768.5;
+pub const CYCLES_MEAN: f64 = 1_660.7;
 /// The same, the worst sample.
-pub const CYCLES_WORST: f64 = 6_312.0;
+pub const CYCLES_WORST: f64 = 4_935.0;
 /// RAM including the stack's high-water mark, `mps2-an386` build, bytes.
-pub const RAM_MPS2_BYTES: u32 = 14_396;
+pub const RAM_MPS2_BYTES: u32 = 11_740;
 /// RAM including the stack (measured on its QEMU variant), STM32F407 build, bytes.
-pub const RAM_STM32_BYTES: u32 = 14_524;
+pub const RAM_STM32_BYTES: u32 = 11_724;
 /// The RAM budget, bytes (16 KiB).
 pub const RAM_BUDGET_BYTES: u32 = 16_384;
 /// Flash, `mps2-an386` build (the image included), bytes.
-pub const FLASH_BYTES: u32 = 42_920;
+pub const FLASH_BYTES: u32 = 34_808;
 /// The command that measured the figures above.
 pub const MEASURED_BY: &str = "bash scripts/fw-budget.sh";
 /// The gyro UART's baud rate on both boards (`const BAUD`, `fog-firmware/src/board/`).
@@ -101,8 +99,6 @@ pub struct FirmwareFit {
     pub decoder_full_scale_dps: f32,
     /// The image's (the unit's) full scale, deg/s.
     pub image_full_scale_dps: f32,
-    /// The image's arrangement (`--level-update` name).
-    pub arrangement: String,
     /// What the per-sample figures were measured on, and by which command.
     pub measured_on: String,
     /// Instructions per sample (mean, worst), measured.
@@ -206,13 +202,7 @@ pub fn check(image: &Image, bytes: &[u8]) -> FirmwareFit {
         Ok(_) => None,
         Err(e) => Some(setup_reason(&e)),
     };
-    let s = &image.config.sensor;
-    assess(
-        s.sample_rate_hz,
-        s.full_scale_dps,
-        image.arrangement,
-        refusal,
-    )
+    assess(image.model.sample_rate_hz, image.full_scale_dps, refusal)
 }
 
 /// [`check`] on an image not yet in bytes (a command about to write it).
@@ -229,19 +219,14 @@ fn setup_reason(e: &pipeline::SetupError) -> String {
             "sample rate {image_hz} Hz outside the {MIN_RATE_HZ} to {MAX_RATE_HZ} Hz it runs"
         ),
         pipeline::SetupError::Image(e) => e.to_string(),
-        pipeline::SetupError::Estimator(e) => format!("estimator: {e}"),
+        pipeline::SetupError::Estimator(e) => format!("estimator: {e:?}"),
         pipeline::SetupError::Denoiser(e) => format!("denoiser: {e}"),
     }
 }
 
 /// The figures and warnings for an image at `sample_rate_hz` from a unit of
-/// `full_scale_dps`, with `arrangement`; `refusal`: the set-up's verdict.
-pub fn assess(
-    sample_rate_hz: f32,
-    full_scale_dps: f32,
-    arrangement: fog_core::preset::Arrangement,
-    refusal: Option<String>,
-) -> FirmwareFit {
+/// `full_scale_dps`; `refusal`: the set-up's verdict.
+pub fn assess(sample_rate_hz: f32, full_scale_dps: f32, refusal: Option<String>) -> FirmwareFit {
     let hz = f64::from(sample_rate_hz);
     let mut warnings = Vec::new();
     let fs = DECODER_FULL_SCALE_DPS;
@@ -254,12 +239,6 @@ pub fn assess(
         warnings.push(format!(
             "the unit's full scale {full_scale_dps} deg/s is not the decoder's {fs} deg/s: a unit whose E-Core counts mean {full_scale_dps} deg/s is read at {:.3}x its rate",
             fs / full_scale_dps
-        ));
-    }
-    let name = crate::motion::LevelUpdateArg::of(arrangement).cli_name();
-    if arrangement != fog_core::preset::Arrangement::DualThermal {
-        warnings.push(format!(
-            "the per-sample figures are the dual-thermal's; this image's {name} was not measured (`FOG_IDENTIFIER=IMAGE {MEASURED_BY}` measures it)"
         ));
     }
     let period_cycles = CLOCK_HZ / hz;
@@ -306,8 +285,7 @@ pub fn assess(
         decoder: "E-Core 2000 frames only",
         decoder_full_scale_dps: fs,
         image_full_scale_dps: full_scale_dps,
-        arrangement: name,
-        measured_on: format!("the default image (dual-thermal, 100 Hz) by `{MEASURED_BY}`"),
+        measured_on: format!("the default image (100 Hz) by `{MEASURED_BY}`"),
         instructions_per_sample: (INSTRUCTIONS_MEAN, INSTRUCTIONS_WORST),
         cycles_per_sample: (CYCLES_MEAN, CYCLES_WORST),
         instructions_per_s: (INSTRUCTIONS_MEAN * hz, INSTRUCTIONS_WORST * hz),
@@ -347,7 +325,6 @@ pub fn grouped(x: f64, decimals: usize) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fog_core::preset::Arrangement;
 
     fn repo_file(rel: &str) -> String {
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(rel);
@@ -407,23 +384,22 @@ mod tests {
     }
 
     /// Load and warnings follow the rate: 100 Hz fits quietly, 1 kHz overfills the UART's
-    /// records, a 100 deg/s unit is named, a bank arrangement is said to be unmeasured.
+    /// records, a 100 deg/s unit is named.
     #[test]
     fn warnings_follow_the_rate_and_unit() {
-        let at100 = assess(100.0, 60.0, Arrangement::DualThermal, None);
+        let at100 = assess(100.0, 60.0, None);
         assert!(at100.warnings.is_empty(), "{:?}", at100.warnings);
-        assert!((at100.core_share.0 - 2768.5 * 100.0 / 168e6).abs() < 1e-12);
+        assert!((at100.core_share.0 - CYCLES_MEAN * 100.0 / 168e6).abs() < 1e-12);
         assert!((at100.uart_share.1 - 26.0 * 10.0 * 100.0 / 115_200.0).abs() < 1e-12);
-        let at1k = assess(1000.0, 60.0, Arrangement::DualThermal, None);
+        let at1k = assess(1000.0, 60.0, None);
         assert_eq!(at1k.warnings.len(), 1, "{:?}", at1k.warnings);
         assert!(at1k.warnings[0].contains("at most 443 Hz fit"));
-        let fs100 = assess(200.0, 100.0, Arrangement::BankDual, None);
-        assert_eq!(fs100.warnings.len(), 2, "{:?}", fs100.warnings);
+        let fs100 = assess(200.0, 100.0, None);
+        assert_eq!(fs100.warnings.len(), 1, "{:?}", fs100.warnings);
         assert!(fs100.warnings[0].contains("beyond the decoder's 60 deg/s"));
-        assert!(fs100.warnings[1].contains("bank-dual was not measured"));
         // A core too slow for the rate (not reachable within the firmware's range at 168
         // MHz): named.
-        let fast = assess(100_000.0, 60.0, Arrangement::DualThermal, None);
+        let fast = assess(200_000.0, 60.0, None);
         assert!(fast.warnings.iter().any(|w| w.contains("the mean sample")));
     }
 }

@@ -15,7 +15,8 @@
 //!    (each run a unit's power-on); of `c` and `c'` the shared value and the scatter of each
 //!    run's own fit less what the fit's own error explains (white residuals assumed, so an
 //!    upper bound where they are correlated; `fog-lab drift_filter_eval` scales it on tune
-//!    vehicles).
+//!    vehicles), capped where the link alone would reach a third of the largest drift the
+//!    runs showed at their largest temperature offset (rate).
 //! 4. The stochastic part: the runs' Allan variance after their deterministic part, averaged
 //!    over the runs, fitted (relative least squares, every coefficient >= 0) by white noise,
 //!    rate random walk and Gauss-Markov terms at 30, 300 and 3000 s (a flicker floor is a
@@ -31,10 +32,10 @@ use anyhow::{bail, Result};
 use fog_core::gyro_model::{GyroModel, MarkovTerm, Spread, MAX_MARKOV};
 use serde::Serialize;
 
-/// Length of the means the deterministic part is fitted on, s.
-const BIN_S: f64 = 10.0;
 /// Temperature the links are taken from, deg C (ASSUMED).
 pub const TEMP_REF_C: f64 = 25.0;
+/// Length of the means the deterministic part is fitted on, s.
+const BIN_S: f64 = 10.0;
 /// Correlation times of the Gauss-Markov terms tried, s (ASSUMED: one per decade).
 const MARKOV_TAUS_S: [f64; MAX_MARKOV] = [30.0, 300.0, 3000.0];
 /// Time constant of the temperature-rate estimate, s (the drift filter's default).
@@ -102,9 +103,8 @@ fn bins(s: &Series) -> Bins {
                 .map(|&v| f64::from(v))
                 .sum::<f64>()
                 / n
-                - TEMP_REF_C
         });
-        let temp = temp.unwrap_or(0.0);
+        let temp = temp.map_or(0.0, |t| t - TEMP_REF_C);
         if let Some(p) = prev {
             let slope = (temp - p) / (n * dt);
             let a = (n * dt / TEMP_RATE_TAU_S).min(1.0);
@@ -404,9 +404,10 @@ pub fn fit(
     let Some((tau_w, _)) = best else {
         bail!("no warm-up time constant fits the calibration runs");
     };
-    let Some((per_run, shared, _)) = pooled(&binned, tau_w, temperature) else {
+    let Some((per_run, shared_fit, _)) = pooled(&binned, tau_w, temperature) else {
         bail!("the deterministic part cannot be fitted on the calibration runs");
     };
+    let shared = shared_fit;
     // Each run's own links (free), for their unit-to-unit spread around the shared ones.
     let mut own: Vec<([f64; 4], [f64; 2])> = Vec::new();
     for (s, b) in runs.iter().zip(&binned) {
@@ -426,9 +427,37 @@ pub fn fit(
     let (temp, temp_rate) = if temperature {
         let pick = |k: usize| own.iter().map(|o| o.0[k]).collect::<Vec<f64>>();
         let se = |k: usize| own.iter().map(|o| o.1[k]).collect::<Vec<f64>>();
+        // A link's spread is capped where its term alone, at the largest temperature offset
+        // (rate) the runs saw, would reach a third of the largest drift they showed: a
+        // spread beyond it is a term the runs never showed (ASSUMED cap; an ill-determined
+        // per-run link otherwise passes as unit-to-unit spread).
+        let drift_max = cal.drift_abs_max_dph / 3600.0;
+        let largest = |f: &dyn Fn(&Bins) -> &Vec<f64>| {
+            binned
+                .iter()
+                .flat_map(|b| f(b).iter().map(|v| v.abs()))
+                .fold(0.0f64, f64::max)
+        };
+        let cap = |sp: Spread, reach: f64| {
+            let limit = if reach > 0.0 {
+                drift_max / (3.0 * reach)
+            } else {
+                0.0
+            };
+            Spread {
+                sigma: sp.sigma.min(limit as f32),
+                ..sp
+            }
+        };
         (
-            unit_spread(shared[0], &pick(2), &se(0)),
-            unit_spread(shared[1], &pick(3), &se(1)),
+            cap(
+                unit_spread(shared[0], &pick(2), &se(0)),
+                largest(&|b| &b.temp_off),
+            ),
+            cap(
+                unit_spread(shared[1], &pick(3), &se(1)),
+                largest(&|b| &b.temp_rate),
+            ),
         )
     } else {
         (Spread::default(), Spread::default())
@@ -493,7 +522,8 @@ pub fn fit(
         q.sort_by(f64::total_cmp);
         q.get(q.len() / 2).copied().unwrap_or(0.0)
     };
-    let bound = (1.5 * cal.drift_abs_max_dph / 3600.0).max(file_bound_dps);
+    let bound = (crate::motion::calibration::DRIFT_MARGIN * cal.drift_abs_max_dph / 3600.0)
+        .max(file_bound_dps);
     let model = GyroModel {
         sample_rate_hz: cal.rate_hz as f32,
         white_dps_rthz: (cal.noise_median_deg_rth / 60.0) as f32,
@@ -503,9 +533,9 @@ pub fn fit(
         turn_on_dps: turn_on,
         warmup_dps: warmup,
         warmup_tau_s: tau_w as f32,
-        temp_ref_c: TEMP_REF_C as f32,
         temp_dps_per_c: temp,
         temp_rate_dps_per_c_per_s: temp_rate,
+        temp_ref_c: TEMP_REF_C as f32,
         drift_bound_dps: bound as f32,
     };
     if !model.is_valid() {
@@ -573,7 +603,7 @@ mod tests {
                     .map(|(t, tc)| {
                         (level
                             + warm * (-t / 400.0).exp()
-                            + c_dps_per_c * (tc - TEMP_REF_C)
+                            + c_dps_per_c * (tc - 25.0)
                             + 0.002 * normal()) as f32
                     })
                     .collect();

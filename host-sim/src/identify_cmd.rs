@@ -10,7 +10,6 @@ use crate::record_args::{HolesSummary, RecordArgs};
 use crate::sensor::SensorSpec;
 use anyhow::{Context, Result};
 use fog_core::image::Image;
-use fog_core::preset::{Arrangement, SecondState};
 use std::path::PathBuf;
 
 /// The identifier's options, shared by `identify` and `reproduce`.
@@ -110,57 +109,17 @@ pub struct Args {
     /// `kvh1750`: 490 deg/s, 1 kHz) or a sensor file (host_sim::sensor).
     #[arg(long, value_name = "NAME|FILE", value_parser = crate::sensor::parse_sensor_arg, default_value = "ecore2000")]
     pub sensor: SensorSpec,
-    /// `--preset motion`: passes over the training records (0: untrained model, the gated
-    /// Kalman filter alone).
-    #[arg(long, default_value_t = 3)]
-    pub epochs: u32,
-    /// `--preset motion`: random-walk density of the level, (deg/h)^2 per hour (default
-    /// host_sim::motion::DEFAULT_LEVEL_Q_DPH2_PER_H = 85.7, measured in motion).
-    #[arg(long)]
-    pub level_q_dph2_per_h: Option<f32>,
-    /// `--preset motion`: the safety net's time, s: after this long without a still sample
-    /// the output holds the drift verified at the last rest (fog_core::motion::MotionConfig::stale_s;
-    /// default 600).
-    #[arg(long)]
-    pub stale_s: Option<f32>,
-    /// `--preset motion`: the bench trainer of the model's output weights: the paper's DRLS
-    /// (`--epochs` passes) kept only when least squares with leave-one-record-out finds a
-    /// shape the records share (`drls-checked`, the default), DRLS alone, or least squares
-    /// (host_sim::motion::TrainerArg).
-    #[arg(long, value_enum, default_value_t = motion::TrainerArg::DrlsChecked)]
-    pub motion_trainer: motion::TrainerArg,
-    /// `--preset motion`: how the saved image's level learns (default dual-thermal:
-    /// per-sample level at rest, window level in motion, each with the unit's own
-    /// temperature link; fog_core::preset). Several values (e.g.
-    /// `dual-thermal bank-guarded`) need `--tune-on`: each is tuned there and the best is
-    /// saved.
-    #[arg(long, value_enum, num_args = 1.., default_values_t = [motion::LevelUpdateArg::DualThermal])]
-    pub level_update: Vec<motion::LevelUpdateArg>,
     /// `--preset motion`: vehicle records with truth (`true_rate_dps`, `drift_dps`; CSV
-    /// files or folders; other units than the training records') on which the level noise,
-    /// a bank's B and longest tau and, with several `--level-update` values, the arrangement
-    /// are picked by the least mean heading-error RMS with the identifier's own detector
-    /// (host_sim::motion::tune); the picks overrule `--level-q-dph2-per-h` (the whole q
-    /// grid is scanned) and `--bank-*` (the start, kept when no grid point scores lower).
-    /// The dual-thermal's prior is not tuned (docs/unit-fit.md).
-    /// Score the result on other records (`--validate`).
+    /// files or folders; other units than the training records') on which the fitted
+    /// model's two least certain numbers (the temperature links' unit spread and the
+    /// Gauss-Markov sigmas) are scaled by the least mean heading-error RMS with the filter's
+    /// own stillness test (host_sim::motion::tune). Score the result on other records
+    /// (`--validate`).
     #[arg(long, num_args = 1..)]
     pub tune_on: Vec<PathBuf>,
-    /// `--level-update dual-thermal` (the default): the prior standard deviation of the
-    /// unit's temperature coefficient, deg/h per deg C, > 0 (default
-    /// fog_core::preset::SecondState::THERMAL_SIGMA_DPH_PER_C = 1, ASSUMED; not tuned by
-    /// `--tune-on`: six vehicles pick it badly, docs/unit-fit.md).
+    /// `--preset motion`: the filter's window, s (default 2; fog_core::drift_filter).
     #[arg(long)]
-    pub thermal_prior_dph_per_c: Option<f32>,
-    /// `--level-update bank-dual|bank-guarded`: the bank's bias instability B, deg/h (default
-    /// host_sim::motion::BANK_B_DPH = 1.5, the E-Core class's, ASSUMED).
-    #[arg(long)]
-    pub bank_b_dph: Option<f32>,
-    /// `--level-update bank-dual|bank-guarded`: the bank's longest correlation time, s, 1 to
-    /// 10000 (default
-    /// host_sim::motion::BANK_TAU_MAX_S = 10000).
-    #[arg(long)]
-    pub bank_tau_max_s: Option<f32>,
+    pub window_s: Option<f32>,
     /// `--preset motion --validate`: the baselines' gated Kalman q, (deg/s)^2 per sample
     /// (default: tuned on the validation records).
     #[arg(long)]
@@ -320,41 +279,6 @@ pub fn run(a: &Args) -> Result<()> {
     )
 }
 
-/// The image's second-state fields for `arrangement` from the arguments: the bank's B and
-/// longest tau for a bank arrangement, else the thermal prior (defaults
-/// [`motion::DEFAULT_BANK`], [`SecondState::THERMAL`]).
-fn second_state(
-    a: &Args,
-    arrangement: Arrangement,
-    level_q_dps2_per_s: f32,
-) -> Result<SecondState> {
-    if arrangement.is_bank() {
-        let g = SecondState {
-            sigma: a.bank_b_dph.unwrap_or(motion::BANK_B_DPH) / 3600.0,
-            tau_s: a.bank_tau_max_s.unwrap_or(motion::BANK_TAU_MAX_S),
-        };
-        if !g.bank(level_q_dps2_per_s).is_valid() {
-            anyhow::bail!(
-                "--bank-b-dph {} --bank-tau-max-s {}: B must be > 0 and the longest tau 1 to 10000 s",
-                g.sigma * 3600.0,
-                g.tau_s
-            );
-        }
-        return Ok(g);
-    }
-    // The prior of the unit's temperature coefficient (as given; the tuning keeps it).
-    match a.thermal_prior_dph_per_c {
-        None => Ok(SecondState::THERMAL),
-        Some(s) if s.is_finite() && s > 0.0 && s < 3.6e6 => Ok(SecondState {
-            sigma: s / 3600.0,
-            tau_s: 0.0,
-        }),
-        Some(s) => {
-            anyhow::bail!("--thermal-prior-dph-per-c {s}: must be finite and > 0 (deg/h per deg C)")
-        }
-    }
-}
-
 /// `--tune-on`: the vehicle records with truth, each at `image`'s sample rate.
 fn read_vehicles(image: &Image, paths: &[PathBuf]) -> Result<Vec<NavRecord>> {
     CsvFiles::from_args(paths, &ReadOptions::default())?
@@ -362,30 +286,6 @@ fn read_vehicles(image: &Image, paths: &[PathBuf]) -> Result<Vec<NavRecord>> {
         .iter()
         .map(|p| Ok(crate::replay::motion::read_truth_csv(image, p)?.truth))
         .collect()
-}
-
-/// The `--level-update` candidates and each one's second state from the arguments; refuses
-/// flags that fit none of them, and several candidates without `--tune-on`.
-fn candidates(a: &Args, level_q_dps2_per_s: f32) -> Result<(Vec<Arrangement>, Vec<SecondState>)> {
-    let arrangements: Vec<Arrangement> = a.level_update.iter().map(|l| l.arrangement()).collect();
-    if arrangements.len() > 1 && a.tune_on.is_empty() {
-        anyhow::bail!("several --level-update values need --tune-on VEHICLE_RECORDS to pick one");
-    }
-    let banks = arrangements.iter().filter(|x| x.is_bank()).count();
-    let thermal = arrangements.len() - banks;
-    if thermal == 0 && a.thermal_prior_dph_per_c.is_some() {
-        anyhow::bail!("--thermal-prior-dph-per-c needs --level-update dual-thermal (the default)");
-    }
-    if banks == 0 && (a.bank_b_dph.is_some() || a.bank_tau_max_s.is_some()) {
-        anyhow::bail!(
-            "--bank-b-dph / --bank-tau-max-s need --level-update bank-dual or bank-guarded"
-        );
-    }
-    let seconds = arrangements
-        .iter()
-        .map(|&arr| second_state(a, arr, level_q_dps2_per_s))
-        .collect::<Result<_>>()?;
-    Ok((arrangements, seconds))
 }
 
 /// `--preset motion`: trains on the static records and writes the identifier image.
@@ -419,22 +319,14 @@ fn run_motion(a: &Args) -> Result<()> {
     holes.extend(scan_holes(&validate, &truth_opts)?);
     holes.extend(scan_holes(&tune_on, &truth_opts)?);
     let mut o = motion::TrainOptions::new(a.sensor.config);
-    if let Some(t) = a.stale_s {
-        if !(t > 0.0 && t.is_finite()) {
-            anyhow::bail!("--stale-s {t}: must be finite and > 0");
+    if let Some(w) = a.window_s {
+        o.config.window_s = w;
+        if !o.config.is_valid() {
+            anyhow::bail!("--window-s {w}: must be finite and > 0");
         }
-        o.config.stale_s = t;
     }
-    o.epochs = a.epochs;
-    o.trainer = a.motion_trainer;
-    if let Some(q) = a.level_q_dph2_per_h {
-        o.config.level_q_dps2_per_s = q / (3600.0 * 3600.0 * 3600.0);
-    }
-    let (arrangements, seconds) = candidates(a, o.config.level_q_dps2_per_s)?;
-    o.arrangement = arrangements[0];
-    o.second_state = seconds[0];
     let trained = motion::train(&train, &o)?;
-    // What the calibration runs showed, beside the sensor file; the image carries it.
+    // What the calibration runs showed, beside the sensor file; the image carries the fit.
     eprintln!(
         "{}",
         motion::calibration::table(&trained.calibration, &a.sensor.config)
@@ -442,42 +334,21 @@ fn run_motion(a: &Args) -> Result<()> {
     for w in &trained.calibration_warnings {
         eprintln!("WARNING: {w}");
     }
-    let (sensor, still) = (trained.image.config.sensor, trained.image.config.still);
-    eprintln!(
-        "image sensor: noise {:.4} deg/sqrt(h) (family range x{:.2} .. x{:.2}), drift bound {:.1} deg/h",
-        f64::from(sensor.noise_density_dps_rthz) * 60.0,
-        still.noise_lo,
-        still.noise_hi,
-        f64::from(sensor.drift_bound_dps) * 3600.0
-    );
-    let (mut image, rows) = (trained.image, trained.records);
+    let mut image = trained.image;
     let tuning = if a.tune_on.is_empty() {
         None
     } else {
-        let candidates: Vec<Image> = arrangements
-            .iter()
-            .zip(&seconds)
-            .map(|(&arr, &g)| image.clone().with_arrangement(arr, g))
-            .collect();
         let vehicles = read_vehicles(&image, &a.tune_on)?;
-        let (picked, tuning) = motion::tune::pick_arrangement(&candidates, &vehicles)?;
-        for line in tuning.lines() {
-            eprintln!("tuned {line}");
-        }
-        if tuning.any_at_grid_end() {
-            eprintln!("WARNING: a tuned parameter is at an end of its grid: the grid does not bracket the optimum");
-        }
-        image = picked;
+        let (tuned, tuning) = motion::tune::tune(&image, &vehicles)?;
+        eprintln!("{}", motion::tune::describe(&tuning));
+        image = tuned;
         Some(tuning)
     };
-    let trained_empty = image.model.weights.iter().all(|w| *w == 0.0);
-    if let Some(ls) = &trained.least_squares {
-        eprintln!(
-            "motion trainer {:?}: {}",
-            o.trainer,
-            motion::describe_least_squares(ls)
-        );
-    }
+    let bytes = motion::image_bytes(&image)?;
+    eprint!(
+        "{}",
+        motion::show::text("model", &motion::show::describe(&image, &bytes))
+    );
     let validation = if a.validate.is_empty() {
         None
     } else {
@@ -493,15 +364,13 @@ fn run_motion(a: &Args) -> Result<()> {
     if let Some(j) = &a.json {
         let text = serde_json::to_string_pretty(&serde_json::json!({
             "preset": "motion",
+            "estimator": "drift filter (fog_core::drift_filter)",
             "sensor": a.sensor.name,
             "sensor_source": a.sensor.source,
             "calibration": trained.calibration,
             "calibration_warnings": trained.calibration_warnings,
-            "epochs": a.epochs,
-            "trainer": a.motion_trainer,
-            "least_squares": trained.least_squares,
-            "records": rows,
-            "weights_dps": image.model.weights,
+            "fit": trained.fit,
+            "model": motion::show::describe(&image, &bytes),
             "validation": validation,
             "tuning": tuning,
             "holes": holes,
@@ -516,23 +385,12 @@ fn run_motion(a: &Args) -> Result<()> {
     }
     motion::write_image(out, &image)?;
     eprintln!(
-        "motion identifier: {} records, {} -> {}",
+        "drift filter: model fitted on {} calibration runs{} -> {}",
         train.0.len(),
-        match (a.motion_trainer, a.epochs) {
-            (_, 0) => "untrained (0 epochs)".to_string(),
-            (motion::TrainerArg::LeastSquares, _) => "least squares".to_string(),
-            (motion::TrainerArg::Drls, e) => format!("DRLS x {e} passes"),
-            (motion::TrainerArg::DrlsChecked, _) if trained_empty => {
-                "EMPTY MODEL (the family shares no shape)".to_string()
-            }
-            (motion::TrainerArg::DrlsChecked, _)
-                if trained.least_squares.as_ref().is_some_and(|l| l.links_only) =>
-            {
-                "the least-squares temperature links (held out, better than DRLS's whole model's shape)".to_string()
-            }
-            (motion::TrainerArg::DrlsChecked, e) => {
-                format!("DRLS x {e} passes, shape shared by the family")
-            }
+        if tuning.is_some() {
+            ", tuned on the vehicles"
+        } else {
+            ""
         },
         out.display()
     );

@@ -31,8 +31,8 @@ enum Cmd {
     /// Train the on-line drift identifier on training records and score it, still on line,
     /// on validation records beside causal baselines; JSON report.
     Identify(identify_cmd::Args),
-    /// What an identifier image (`.fogi`) holds: format, checksum, arrangement, the sensor
-    /// and detector learned from the calibration runs, level noise, safety net, model.
+    /// What an image (`.fogi`) holds: format, checksum, the gyro model fitted on the
+    /// calibration runs, the drift filter's settings, and what the firmware does with it.
     Image(image_cmd::Args),
     /// The paper's section 5 on simulated records: 265 records of 1800 s (180 train, 85
     /// validate) at different seeds, sample periods and conditions; JSON report.
@@ -40,8 +40,8 @@ enum Cmd {
     /// Replay a recording (interchange CSV, E-Core binary capture or DSP-3000 lines) through
     /// the firmware's pipeline, streamed: per-sample CSV and an optional report folder.
     Replay(replay_cmd::Args),
-    /// The main job with no configuration: train the motion identifier on 12 simulated
-    /// static E-Core records, tune it on 32 simulated vehicles, replay another vehicle
+    /// The main job with no configuration: fit the gyro model on 12 simulated static E-Core
+    /// records, tune it on 32 simulated vehicles, replay another vehicle
     /// record (CSV) and score it and 32 test vehicles beside the causal baselines; report
     /// folder (index.html, SVG figures, summary.json).
     Demo(demo_cmd::Args),

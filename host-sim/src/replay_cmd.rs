@@ -29,9 +29,9 @@ pub struct Args {
     /// Full scale of E-Core binary frames, deg/s (32768 counts); default: the sensor's.
     #[arg(long)]
     pub full_scale_dps: Option<f32>,
-    /// Identifier: `motion` (default: motion-safe, `--identifier` image or the built-in
-    /// untrained one); `level-trend` and `paper` are the references (low-passes of the rate:
-    /// they take rotation for drift).
+    /// Estimator: `motion` (default: the drift filter of an `--identifier` image or of the
+    /// sensor's specification alone); `level-trend` and `paper` are the references
+    /// (low-passes of the rate: they take rotation for drift).
     #[arg(long, value_enum, default_value_t = PresetArg::Motion)]
     pub preset: PresetArg,
     /// Per-sample CSV to write.
@@ -43,8 +43,8 @@ pub struct Args {
     /// JSON summary to write (motion preset: with the scores when the record has truth).
     #[arg(long)]
     pub json: Option<PathBuf>,
-    /// Motion preset: trained identifier image (`identify --preset motion
-    /// --save-identifier`); default: the built-in untrained one for `--sensor`.
+    /// Motion preset: an image (`identify --preset motion --save-identifier`: the gyro model
+    /// fitted on calibration runs); default: the model of `--sensor`'s specification alone.
     #[arg(long)]
     pub identifier: Option<PathBuf>,
     /// Motion preset: column holding an external still flag (1/0, true/false; empty cells
@@ -68,7 +68,7 @@ pub struct Args {
 /// `--preset`.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PresetArg {
-    /// Motion-safe estimator ([`crate::replay::motion`]).
+    /// The drift filter ([`crate::replay::motion`]).
     Motion,
     /// `presets::level_trend` (a low-pass of the rate: reference).
     LevelTrend,

@@ -78,13 +78,17 @@ fn replay_checked(img: &Path, rec: &Path, out: &Path, json: Option<&Path>) -> (u
     assert_eq!(r[0].join(","), host_sim::motion::OUTPUT_HEADER);
     let input = fs::read_to_string(rec).expect("test");
     assert_eq!(r.len(), input.lines().count(), "one row per input row");
+    let bound = fog_core::image::Image::parse(&fs::read(img).expect("image"))
+        .expect("image parses")
+        .model
+        .drift_bound_dps;
     let mut still = 0;
     for row in &r[1..] {
         let rate: f32 = row[2].parse().expect("test");
         let drift: f32 = row[4].parse().expect("test");
         let comp: f32 = row[5].parse().expect("test");
         assert_eq!(comp, rate - drift);
-        assert!(drift.abs() <= fog_core::still::SensorConfig::ECORE_2000.drift_bound_dps);
+        assert!(drift.abs() <= bound);
         still += usize::from(row[6] == "1");
     }
     (r.len() - 1, still)
@@ -111,125 +115,38 @@ fn train_save_and_replay() {
     assert!(still > n * 8 / 10, "{still}");
 }
 
-/// `--level-update bank-dual` and `bank-guarded` save an image whose level is the Allan noise
-/// model; `replay` runs it (one row per input row, compensated = rate - drift, still at
-/// rest), and its summary names it as `identify` does; bad bank settings are one-line
-/// errors with nothing written.
+/// The retired estimator's flags (its arrangements, level noise, priors, trainer) are
+/// refused with one line naming the flag, and no image is written; the image holds the
+/// fitted model (the calibration runs' white noise, a drift bound, the runs counted).
 #[test]
-fn bank_level_is_saved_and_replayed() {
+fn the_image_holds_the_fitted_model_and_retired_flags_are_refused() {
     let dir = tempfile::tempdir().expect("test");
     let d = dir.path();
     let train = train_dir(d);
-    let rec = d.join("rec.csv");
-    simulate(3, "60", None, &rec);
-    use fog_core::preset::Arrangement;
-    for (name, arrangement) in [
-        ("bank-dual", Arrangement::BankDual),
-        ("bank-guarded", Arrangement::BankGuarded),
-    ] {
-        let img = d.join(format!("{name}.fogi"));
-        identify(
-            &train,
-            &[
-                "--level-update",
-                name,
-                "--bank-b-dph",
-                "1.0",
-                "--bank-tau-max-s",
-                "1000",
-            ],
-            &img,
-        )
-        .success();
-        let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("test");
-        assert_eq!(image.arrangement, arrangement);
-        assert!((image.second_state.sigma * 3600.0 - 1.0).abs() < 1e-5);
-        assert_eq!(image.second_state.tau_s, 1000.0);
-        let json = d.join("out.json");
-        let (n, still) = replay_checked(&img, &rec, &d.join("out.csv"), Some(&json));
-        assert!(still > n * 8 / 10, "{still}");
-        let summary = fs::read_to_string(&json).expect("test");
-        assert!(
-            summary.contains(&format!("\"level_update\": \"{name}\"")),
-            "{summary}"
-        );
-    }
-    let bank = |extra: &[&str], out: &Path| {
-        let mut args = vec!["--level-update", "bank-dual"];
-        args.extend_from_slice(extra);
-        identify(&train, &args, out)
-    };
-    // Bad settings: one line naming the flag, no file.
-    for (extra, says) in [
-        (&["--bank-tau-max-s", "0.5"][..], "--bank-tau-max-s"),
-        (&["--bank-b-dph", "0"][..], "--bank-b-dph"),
-        (
-            &["--thermal-prior-dph-per-c", "2"][..],
-            "--thermal-prior-dph-per-c needs --level-update dual-thermal",
-        ),
+    let img = d.join("m.fogi");
+    identify(&train, &[], &img).success();
+    let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("test");
+    assert_eq!(image.trained_runs, 2);
+    // The simulator's E-Core preset: 0.0667 deg/sqrt(h) white noise.
+    let white = image.model.white_dps_rthz * 60.0;
+    assert!((white / 0.0667 - 1.0).abs() < 0.05, "{white}");
+    assert!(image.model.is_valid());
+    for flag in [
+        "--level-update",
+        "--thermal-prior-dph-per-c",
+        "--bank-b-dph",
+        "--level-q-dph2-per-h",
+        "--epochs",
+        "--motion-trainer",
+        "--stale-s",
+        "--gm-sigma-dph",
     ] {
         let bad = d.join("bad.fogi");
-        bank(extra, &bad)
+        identify(&train, &[flag, "1"], &bad)
             .failure()
-            .stderr(predicates::str::contains(says));
-        assert!(!bad.exists());
-    }
-}
-
-/// The default arrangement's second state is set by `--thermal-prior-dph-per-c` (it reaches
-/// the image: replay names it); a prior <= 0, the prior with another arrangement, the bank's
-/// flags with it, and the retired arrangements and Gauss-Markov flags are refused with one
-/// line naming the flag, and no image is written.
-#[test]
-fn thermal_prior_reaches_the_image_and_retired_flags_are_refused() {
-    let dir = tempfile::tempdir().expect("test");
-    let d = dir.path();
-    let train = train_dir(d);
-    let img = d.join("th.fogi");
-    identify(&train, &["--thermal-prior-dph-per-c", "4"], &img).success();
-    let rec = d.join("rec.csv");
-    simulate(3, "60", None, &rec);
-    host_sim()
-        .args(["replay", "--input"])
-        .arg(&rec)
-        .arg("--identifier")
-        .arg(&img)
-        .arg("--output")
-        .arg(d.join("out.csv"))
-        .assert()
-        .success()
-        .stderr(predicates::str::contains(
-            "temperature coefficient prior 4 deg/h per deg C",
-        ));
-    for (extra, says) in [
-        (
-            &["--gm-sigma-dph", "4"][..],
-            "unexpected argument '--gm-sigma-dph'",
-        ),
-        (&["--level-update", "dual"][..], "invalid value 'dual'"),
-        (&["--level-update", "window"][..], "invalid value 'window'"),
-        (
-            &["--bank-b-dph", "1"][..],
-            "--bank-b-dph / --bank-tau-max-s need --level-update bank-dual or bank-guarded",
-        ),
-        (
-            &["--thermal-prior-dph-per-c", "0"][..],
-            "--thermal-prior-dph-per-c 0: must be",
-        ),
-        (
-            &[
-                "--level-update",
-                "bank-dual",
-                "--thermal-prior-dph-per-c",
-                "4",
-            ][..],
-            "--thermal-prior-dph-per-c needs --level-update dual-thermal",
-        ),
-    ] {
-        let bad = d.join("bad.fogi");
-        identify(&train, extra, &bad)
-            .failure()
-            .stderr(predicates::str::contains(says));
+            .stderr(predicates::str::contains(format!(
+                "unexpected argument '{flag}'"
+            )));
         assert!(!bad.exists());
     }
 }
@@ -422,7 +339,7 @@ fn a_glitch_or_a_wrong_column_in_a_calibration_run_is_named() {
 }
 
 /// `host-sim image` says what an image holds: its format, the CRC stored in its last 4
-/// bytes, the arrangement and prior it was saved with, the sensor's rate; JSON beside; a
+/// bytes, the runs it was fitted on, its noise, the sensor's rate; JSON beside; a
 /// damaged image is refused naming it, and `--json` never overwrites the image.
 #[test]
 fn image_command_describes_an_image() {
@@ -430,7 +347,7 @@ fn image_command_describes_an_image() {
     let d = dir.path();
     let train = train_dir(d);
     let img = d.join("th.fogi");
-    identify(&train, &["--thermal-prior-dph-per-c", "4"], &img).success();
+    identify(&train, &[], &img).success();
     let bytes = fs::read(&img).expect("test");
     let crc = u32::from_le_bytes(bytes[bytes.len() - 4..].try_into().expect("test"));
     let json = d.join("i.json");
@@ -442,20 +359,18 @@ fn image_command_describes_an_image() {
         .assert()
         .success()
         .stdout(predicates::str::contains(format!(
-            "th.fogi: identifier image, format 3, 584 bytes, CRC-32 0x{crc:08x}"
+            "th.fogi: drift-filter image, format 4, 124 bytes, CRC-32 0x{crc:08x}; fitted on 2 calibration runs"
         )))
-        .stdout(predicates::str::contains(
-            "arrangement: dual-thermal (temperature coefficient prior 4 deg/h per deg C)",
-        ))
+        .stdout(predicates::str::contains("noise: white 0.06"))
         .stdout(predicates::str::contains(
             "sensor: 100 Hz, full scale 60 deg/s",
         ));
     let v: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(&json).expect("test")).expect("test");
     assert_eq!(v["crc32"].as_u64(), Some(u64::from(crc)));
-    assert_eq!(v["arrangement"], "dual-thermal");
+    assert_eq!(v["trained_runs"], 2);
     let mut bad = bytes.clone();
-    bad[300] ^= 1;
+    bad[60] ^= 1;
     let bad_path = d.join("bad.fogi");
     fs::write(&bad_path, &bad).expect("test");
     host_sim()
@@ -507,7 +422,10 @@ fn external_still_flag_column() {
     let r = rows(&out);
     assert!(r[1..1501].iter().all(|row| row[6] == "0"));
     assert!(r[1501..].iter().all(|row| row[6] == "1"));
-    let bound = fog_core::still::SensorConfig::ECORE_2000.drift_bound_dps;
+    let bound = fog_core::image::Image::parse(&fs::read(&img).expect("image"))
+        .expect("image parses")
+        .model
+        .drift_bound_dps;
     assert!(r[1..]
         .iter()
         .all(|row| row[4].parse::<f32>().expect("test").abs() <= bound));
@@ -589,12 +507,16 @@ fn bad_identifiers_are_refused() {
     let (img, rec) = setup(d);
     let good = fs::read(&img).expect("test");
     let mut flipped = good.clone();
-    flipped[300] ^= 0x10;
+    flipped[60] ^= 0x10;
     refused(&flipped, &rec, d, "checksum mismatch");
-    refused(&good[..200], &rec, d, "truncated at byte offset 200");
-    let mut v4 = good.clone();
-    v4[4] = 4;
-    refused(&v4, &rec, d, "format version 4 unsupported");
+    refused(&good[..100], &rec, d, "truncated at byte offset 100");
+    let mut v5 = good.clone();
+    v5[4] = 5;
+    refused(&v5, &rec, d, "format version 5 unsupported");
+    // An image of the retired estimator (format 3) is named as such.
+    let mut v3 = good.clone();
+    v3[4] = 3;
+    refused(&v3, &rec, d, "retired dual-thermal/bank estimators");
     refused(b"hello, world", &rec, d, "bad magic");
     // The right image, a record at another rate.
     let slow = d.join("slow.csv");
@@ -725,10 +647,11 @@ fn kvh_log_rotation_is_not_drift() {
     }
 }
 
-/// `identify --tune-on`: each `--level-update` value tuned on vehicle records with truth,
-/// the one with the least mean heading RMS saved; the picks in the JSON and the image.
+/// `identify --tune-on`: the model's two scales tuned on vehicle records with truth, the
+/// grid point with the least mean heading RMS saved; the grid in the JSON, the pick in the
+/// image.
 #[test]
-fn tune_on_vehicles_picks_the_arrangement_and_its_level() {
+fn tune_on_vehicles_scales_the_model() {
     let dir = tempfile::tempdir().expect("test");
     let d = dir.path();
     let train = train_dir(d);
@@ -762,52 +685,31 @@ fn tune_on_vehicles_picks_the_arrangement_and_its_level() {
     let json = d.join("tuned.json");
     let json_s = json.to_str().expect("utf-8 path");
     let veh_s = veh.to_str().expect("utf-8 path");
-    identify(
-        &train,
-        &[
-            "--level-update",
-            "dual-thermal",
-            "bank-guarded",
-            "--tune-on",
-            veh_s,
-            "--json",
-            json_s,
-        ],
-        &img,
-    )
-    .success()
-    .stderr(predicates::str::contains(
-        "tuned on 2 validation vehicles: identifier dual-thermal:",
-    ))
-    .stderr(predicates::str::contains(
-        "tuned on 2 validation vehicles: identifier bank-guarded:",
-    ));
+    let plain = d.join("plain.fogi");
+    identify(&train, &[], &plain).success();
+    identify(&train, &["--tune-on", veh_s, "--json", json_s], &img)
+        .success()
+        .stderr(predicates::str::contains("tuned on 2 vehicle records:"));
     let v: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(&json).expect("test")).expect("json");
-    let c = v["tuning"]["candidates"].as_array().expect("candidates");
-    assert_eq!(c.len(), 2);
-    let rms = |i: usize| c[i]["mean_heading_rms_deg"].as_f64().expect("rms");
-    let best = if rms(0) <= rms(1) { 0 } else { 1 };
-    assert_eq!(v["tuning"]["picked"], c[best]["level_update"]);
+    let grid = v["tuning"]["grid"].as_array().expect("grid");
+    assert_eq!(grid.len(), 16);
+    let rms = |c: &serde_json::Value| c["heading_rms_deg"].as_f64().expect("rms");
+    let least = grid.iter().map(rms).fold(f64::INFINITY, f64::min);
+    assert_eq!(rms(&v["tuning"]["picked"]), least);
+    let scale = |k: &str| v["tuning"]["picked"][k].as_f64().expect("scale") as f32;
     let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("image");
-    use fog_core::preset::Arrangement;
-    let arr = [Arrangement::DualThermal, Arrangement::BankGuarded][best];
-    assert_eq!(image.arrangement, arr);
-    let q = c[best]["level_q_dph2_per_h"].as_f64().expect("q");
-    let q_image = f64::from(image.config.level_q_dps2_per_s) * 3600f64.powi(3);
-    assert!((q_image / q - 1.0).abs() < 1e-5, "{q_image} vs {q}");
-    let s = c[best]["second_sigma_per_h"].as_f64().expect("sigma");
-    assert!((f64::from(image.second_state.sigma) * 3600.0 - s).abs() < 1e-4);
-    // Several arrangements without vehicles to tune on, or vehicles without truth: one
-    // line, no file.
+    let plain = fog_core::image::Image::parse(&fs::read(&plain).expect("test")).expect("image");
+    assert_eq!(
+        image.model.markov[0].sigma_dps,
+        plain.model.markov[0].sigma_dps * scale("markov_scale")
+    );
+    assert_eq!(
+        image.model.temp_dps_per_c.sigma,
+        plain.model.temp_dps_per_c.sigma * scale("link_scale")
+    );
+    // Vehicles without truth: one line, no file.
     let bad = d.join("bad.fogi");
-    identify(
-        &train,
-        &["--level-update", "dual-thermal", "bank-guarded"],
-        &bad,
-    )
-    .failure()
-    .stderr(predicates::str::contains("need --tune-on"));
     let bare = d.join("bare.csv");
     let mut text = String::from("t_s,rate_dps\n");
     for k in 0..1000 {

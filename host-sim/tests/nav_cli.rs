@@ -119,7 +119,7 @@ fn scores_beside_the_baselines_with_a_hand_checkable_heading_error() {
     assert!(det["missed_still_rate"].as_f64().expect("rate") < 0.2);
     assert_eq!(
         s["scores"]["baselines"]["q_source"],
-        "the identifier's level noise"
+        "the image's model (rate random walk and Gauss-Markov terms)"
     );
 }
 

@@ -50,8 +50,9 @@ fn identify_and_replay_use_the_files_rate() {
     let d = dir.path();
     let sensor = d.join("test50.toml");
     fs::write(&sensor, SENSOR_50HZ).expect("test");
-    let (r50, r100) = (d.join("r50.csv"), d.join("r100.csv"));
+    let (r50, r50b, r100) = (d.join("r50.csv"), d.join("r50b.csv"), d.join("r100.csv"));
     simulate(1, "50", &r50);
+    simulate(3, "50", &r50b);
     simulate(2, "100", &r100);
 
     // A 100-Hz record against the file's 50 Hz: refused by the rate check, nothing written.
@@ -70,13 +71,15 @@ fn identify_and_replay_use_the_files_rate() {
         ));
     assert!(!img.exists());
 
-    // The 50-Hz record: trained; the image and the report carry the file's sensor.
+    // The 50-Hz records (two: the model's unit spread needs two): fitted; the image and the
+    // report carry the file's sensor.
     let j = d.join("id.json");
     host_sim()
         .args(["identify", "--preset", "motion", "--sensor"])
         .arg(&sensor)
         .arg("--input")
         .arg(&r50)
+        .arg(&r50b)
         .arg("--save-identifier")
         .arg(&img)
         .arg("--json")
@@ -87,12 +90,9 @@ fn identify_and_replay_use_the_files_rate() {
     assert_eq!(report["sensor"], "test50");
     assert_eq!(report["sensor_source"], sensor.display().to_string());
     let image = host_sim::motion::read_image(&img).expect("image");
-    assert_eq!(image.config.sensor.sample_rate_hz, 50.0);
-    assert_eq!(image.config.sensor.full_scale_dps, 100.0);
-    assert_eq!(
-        image.config.sensor.drift_bound_dps,
-        (30.0f64 / 3600.0) as f32
-    );
+    assert_eq!(image.model.sample_rate_hz, 50.0);
+    assert_eq!(image.full_scale_dps, 100.0);
+    assert_eq!(image.model.drift_bound_dps, (30.0f64 / 3600.0) as f32);
 
     // replay with the file and no identifier: the built-in untrained model at 50 Hz.
     let out = d.join("o.csv");

@@ -1216,12 +1216,11 @@ impl Analysis {
 }
 
 /// The firmware's table rows and the window kind each one times.
-pub const ROWS: [(&str, &str); 6] = [
+pub const ROWS: [(&str, &str); 5] = [
     ("frame decode (8 bytes)", "Decode"),
-    ("stillness detector", "Detect"),
-    ("estimator push (detector included)", "Estimate"),
+    ("drift filter push + stillness test", "Estimate"),
     ("denoise db4 x3, B=512, resumable", "Denoise"),
-    ("stage (estimator + denoiser + status)", "Stage"),
+    ("stage (filter + denoiser + status)", "Stage"),
     ("whole pipeline (decode+stage+record)", "Pipeline"),
 ];
 

@@ -129,7 +129,7 @@ fn trace_counts_equal_icount_and_every_address_maps_to_a_function() {
     assert_eq!(undisassembled, 0, "executed addresses with no instruction");
 
     let rows = check_rows(&text);
-    assert_eq!(rows.len(), 6, "{rows:?}");
+    assert_eq!(rows.len(), 5, "{rows:?}");
     let samples = samples_in_table(&text);
     for (row, windows, equal) in &rows {
         assert!(equal, "{row}: trace and -icount differ");

@@ -4,9 +4,9 @@
 //! vehicle profile> --format ecore-bin` (E-Core 2000 frames: a still alignment period, then
 //! drives with road curvature and turns, and stops), damaged in known ways (noise bytes, a cut
 //! frame, a checksum error, a random burst), with in-band still-flag commands (still, moving,
-//! back to the detector) at known places, followed by the end marker, sent to the firmware's
-//! UART0. The firmware runs the motion-safe identifier **loaded from the image it embeds**
-//! (`fog-firmware/identifier/default.fogi`). The host decodes the same bytes with the same
+//! back to the stillness test) at known places, followed by the end marker, sent to the
+//! firmware's UART0. The firmware runs the drift filter **loaded from the drift image it
+//! embeds** (`fog-firmware/identifier/default.fogi`, format 4). The host decodes the same bytes with the same
 //! fog-core decoder and runs the same per-sample code (`fog-firmware/src/pipeline.rs`,
 //! compiled here) with the same image. Every per-sample record must match bit for bit, and
 //! the final statistics record must match the host's byte counters exactly. The record
@@ -152,9 +152,9 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
     let stats = stats.expect("final statistics record");
     expected.assert_records_match(&records);
 
-    // A second reference, fog-core called directly (not through pipeline.rs): the estimator
-    // from the parsed image, and the paper's denoiser on the first block.
-    matches_preset_estimator(&records, &expected, &default_image());
+    // A second reference, fog-core called directly (not through pipeline.rs): the drift
+    // filter from the parsed image, and the paper's denoiser on the first block.
+    matches_drift_filter(&records, &expected, &default_image());
     let mut block: Vec<f32> = records[..pipeline::BLOCK]
         .iter()
         .map(|r| f32::from_bits(r.bits[0]))
@@ -204,8 +204,10 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
     );
     assert!(s.frames_good >= samples as u64 - 3);
 
-    // What the records say: the still flag, the external flag's span, level updates, the
+    // What the records say: the still flag, the external flag's span, filter updates, the
     // denoised field one block late, the drift within the image's bound.
+    let image = fog_core::image::Image::parse(&default_image()).expect("default.fogi parses");
+    let window = image.filter().expect("filter").window_samples() as usize;
     let status = |k: usize| expected.samples[k].2;
     let external: Vec<usize> = (0..expected.samples.len())
         .filter(|&k| status(k) & pipeline::STATUS_EXTERNAL != 0)
@@ -218,6 +220,8 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
             && external.len() == last - first + 1,
         "external flag on frames {first}..={last}"
     );
+    // Bit 0 is the sample's external flag where it has one (the flag also decides the
+    // stillness of the filter's window it falls in).
     for k in first..=last {
         let still = status(k) & pipeline::STATUS_STILL != 0;
         assert_eq!(
@@ -239,7 +243,10 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
         detector_still > 500,
         "the detector found the stops: {detector_still}"
     );
-    assert!(level_updates > 5, "level updates: {level_updates}");
+    assert!(
+        level_updates > 5,
+        "filter updates (still windows): {level_updates}"
+    );
     let truly_moving_called_still = (0..expected.samples.len())
         .filter(|&k| {
             status(k) & (pipeline::STATUS_STILL | pipeline::STATUS_EXTERNAL) == pipeline::STATUS_STILL
@@ -248,15 +255,12 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
         })
         .count();
     eprintln!(
-        "HIL vehicle: {detector_still} samples still by the detector ({truly_moving_called_still} of \
-         them turning faster than 0.5 deg/s: the one-window lag at a drive's start), {level_updates} level updates"
+        "HIL vehicle: {detector_still} samples still by the stillness test ({truly_moving_called_still} of \
+         them turning faster than 0.5 deg/s: the one-window lag at a drive's start), {level_updates} filter updates \
+         (still windows of {window} samples)"
     );
-    // The image's drift bound (learned from its calibration runs: 31.4 deg/h).
-    let bound_dps = fog_core::image::Image::parse(&default_image())
-        .expect("default.fogi parses")
-        .config
-        .sensor
-        .drift_bound_dps;
+    // The image's model's drift bound.
+    let bound_dps = image.model.drift_bound_dps;
     for (k, (_, o, _)) in expected.samples.iter().enumerate() {
         assert!(o.drift_dps.abs() <= bound_dps, "drift bound at {k}");
         assert_eq!(
@@ -280,27 +284,26 @@ fn firmware_under_qemu_matches_host_bit_for_bit() {
     );
 }
 
-/// A second reference, fog-core called directly (not through pipeline.rs): the estimator
-/// from the parsed `image` gives each record's drift and compensated rate (same bits) and
-/// still flag. Returns the still records.
-fn matches_preset_estimator(
+/// A second reference, fog-core called directly (not through pipeline.rs): the drift
+/// filter from the parsed `image` gives each record's drift and compensated rate (same bits)
+/// and still flag. Returns the still records.
+fn matches_drift_filter(
     records: &[hil::SampleRecord],
     expected: &hil::Expected,
     image: &[u8],
 ) -> usize {
     let image = fog_core::image::Image::parse(image).expect("image");
-    let mut estimator = image.estimator().expect("estimator");
+    let mut filter = image.filter().expect("drift filter");
     let mut still = 0;
     for (k, r) in records.iter().enumerate() {
         let rate_dps = f32::from_bits(r.bits[0]);
-        let m = estimator
+        let m = filter
             .push(rate_dps, f32::NAN, expected.external[k])
             .expect("finite rate");
         assert_eq!(
             [r.bits[1], r.bits[2]],
             [m.drift_dps.to_bits(), m.compensated_dps.to_bits()],
-            "record {k}: drift, compensated vs PresetEstimator ({:?})",
-            image.arrangement
+            "record {k}: drift, compensated vs DriftFilter"
         );
         assert_eq!(
             r.status & pipeline::STATUS_STILL != 0,
@@ -348,16 +351,24 @@ fn a_corrupt_or_wrong_rate_image_stops_the_firmware_at_setup() {
     corrupt[good.len() / 2] ^= 0x10;
     // A valid image (checksum and all) for 5 kHz: the firmware runs 10 Hz to 2 kHz.
     let mut image = fog_core::image::Image::parse(&good).expect("the default image parses");
-    image.config.sensor.sample_rate_hz = 5000.0;
+    image.model.sample_rate_hz = 5000.0;
     let mut wrong_rate = vec![0u8; fog_core::image::IMAGE_LEN];
     let n = image.to_bytes(&mut wrong_rate).expect("image written");
     wrong_rate.truncate(n);
     assert!(fog_core::image::Image::parse(&wrong_rate).is_ok());
+    // A format-3 header (the retired estimators' image): refused by name.
+    let mut retired = good.clone();
+    retired[4..6].copy_from_slice(&3u16.to_le_bytes());
+    assert_eq!(
+        fog_core::image::Image::parse(&retired),
+        Err(fog_core::image::ImageError::RetiredFormat(3))
+    );
 
     for (name, bytes, reason) in [
         ("corrupt", corrupt, &b"checksum mismatch"[..]),
         ("wrong-rate", wrong_rate, &b"sample rate mismatch"[..]),
         ("truncated", good[..100].to_vec(), &b"truncated"[..]),
+        ("retired", retired, &b"retired format"[..]),
     ] {
         let (out, log, code) = run_with_image(&qemu, name, &bytes);
         assert!(
@@ -406,22 +417,20 @@ fn the_default_image_parses_and_says_how_it_was_made() {
     image
         .check_rate(pipeline::SAMPLE_RATE_HZ)
         .expect("default.fogi is for the firmware's rate");
+    assert_eq!(bytes.len(), fog_core::image::IMAGE_LEN, "format 4");
+    assert_eq!(image.full_scale_dps, pipeline::FULL_SCALE_DPS);
+    assert!(image.filter().is_ok(), "builds its drift filter");
+    // A model fitted on calibration runs, not the sensor specification's alone.
     assert!(
-        image.records_trained >= 12,
-        "trained on >= 12 records: {}",
-        image.records_trained
+        image.trained_runs >= 12,
+        "fitted on >= 12 calibration runs: {}",
+        image.trained_runs
     );
-    assert!(
-        image.model.weights.iter().any(|w| *w != 0.0),
-        "trained weights"
+    assert_ne!(
+        image.model,
+        fog_core::gyro_model::GyroModel::for_sensor(&fog_core::still::SensorConfig::ECORE_2000),
+        "a fitted model, not the specification's"
     );
-    // The product's arrangement: the dual-thermal (its temperature coefficient's prior
-    // sigma > 0, tau 0).
-    assert_eq!(
-        image.arrangement,
-        fog_core::preset::Arrangement::DualThermal
-    );
-    assert!(image.second_state.sigma > 0.0 && image.second_state.tau_s == 0.0);
     let readme =
         std::fs::read_to_string(fog_system_tests::firmware_dir().join("identifier/README.md"))
             .expect("identifier/README.md");
@@ -436,36 +445,56 @@ fn the_default_image_parses_and_says_how_it_was_made() {
     );
 }
 
-/// The same damaged vehicle capture through a firmware built with each bank image:
-/// `bank-dual` (arrangement byte 4) and `bank-guarded` (byte 5, its rollback runs at the
-/// capture's turns); the default image's model and configuration,
-/// B 1.5 deg/h, states up to 10^4 s. Every record bit-identical with the host's pipeline
-/// given the same image and with `PresetEstimator` from the parsed image; prints the stack
-/// high-water mark with each image.
+/// The same damaged vehicle capture through a firmware built with another model and
+/// configuration than the default image's: all three Gauss-Markov terms present, a
+/// temperature link and a temperature-rate link in the prior, a warm-up of nonzero mean, a
+/// 1-s window and 4 learning windows. Every record bit-identical with the host's pipeline
+/// given the same image and with `DriftFilter` from the parsed image; prints the stack
+/// high-water mark with that image.
 #[test]
-fn a_bank_image_runs_bit_for_bit() {
+fn another_model_runs_bit_for_bit() {
+    use fog_core::gyro_model::{MarkovTerm, Spread};
     use fog_core::image::Image;
-    use fog_core::preset::{Arrangement, SecondState};
     let Some(qemu) = qemu_system_arm() else {
         return;
     };
-    let bank = SecondState {
-        sigma: 1.5 / 3600.0,
-        tau_s: 10_000.0,
+    let dph = 1.0 / 3600.0;
+    let mut image = Image::parse(&default_image()).expect("default image");
+    image.model.markov = [
+        MarkovTerm {
+            sigma_dps: 1.0 * dph,
+            tau_s: 30.0,
+        },
+        MarkovTerm {
+            sigma_dps: 2.0 * dph,
+            tau_s: 300.0,
+        },
+        MarkovTerm {
+            sigma_dps: 1.5 * dph,
+            tau_s: 3000.0,
+        },
+    ];
+    image.model.warmup_dps.mean = 3.0 * dph;
+    image.model.temp_dps_per_c = Spread {
+        mean: 0.2 * dph,
+        sigma: 1.0 * dph,
     };
-    for arrangement in [Arrangement::BankDual, Arrangement::BankGuarded] {
-        let name = format!("{arrangement:?}").to_lowercase();
-        let image = Image::parse(&default_image())
-            .expect("default image")
-            .with_arrangement(arrangement, bank);
-        let (still, _) = image_runs_bit_for_bit(&qemu, &name, &image);
-        assert!(still > 500, "{name}: still samples: {still}");
-    }
+    image.model.temp_rate_dps_per_c_per_s = Spread {
+        mean: 0.0,
+        sigma: 10.0 * dph,
+    };
+    image.config.window_s = 1.0;
+    image.config.learn_windows = 4;
+    let (still, verified) = image_runs_bit_for_bit(&qemu, "other-model", &image);
+    assert!(still > 500, "still samples: {still}");
+    assert!(verified > 0, "a verified sample");
 }
 
 /// The firmware runs at its image's rate: the default image made for 20 Hz and for 2 kHz
-/// (the sensor file's range; its windows, clocks and safety net follow the rate), fed the
-/// vehicle capture's frames as that rate's samples, bit-identical with the host.
+/// (the sensor file's range; its model's steps, warm-up clock and windows follow the rate),
+/// fed the vehicle capture's frames as that rate's samples, bit-identical with the host.
+/// The window is set to 200 samples at each rate (10 s at 20 Hz, 0.1 s at 2 kHz; the
+/// default's 2 s at 100 Hz), so that the capture's stops span whole windows there too.
 #[test]
 fn an_image_at_another_rate_runs_bit_for_bit() {
     let Some(qemu) = qemu_system_arm() else {
@@ -473,7 +502,8 @@ fn an_image_at_another_rate_runs_bit_for_bit() {
     };
     for rate_hz in [20.0f32, 2000.0] {
         let mut image = fog_core::image::Image::parse(&default_image()).expect("default image");
-        image.config.sensor.sample_rate_hz = rate_hz;
+        image.model.sample_rate_hz = rate_hz;
+        image.config.window_s = 200.0 / rate_hz;
         let name = format!("rate{rate_hz}");
         let (still, verified) = image_runs_bit_for_bit(&qemu, &name, &image);
         assert!(verified > 0, "{name}: a verified sample");
@@ -483,8 +513,8 @@ fn an_image_at_another_rate_runs_bit_for_bit() {
 
 /// Builds the firmware with `image`, feeds it the damaged vehicle capture under QEMU and
 /// checks every record bit for bit, its status and the counters against the host's pipeline
-/// with the same image, and the records against `PresetEstimator`. Returns the samples still
-/// and the samples the safety net did not hold.
+/// with the same image, and the records against `DriftFilter`. Returns the samples still and
+/// the samples verified (status bit 5 clear: a window found still since power-on).
 fn image_runs_bit_for_bit(
     qemu: &std::path::Path,
     name: &str,
@@ -495,7 +525,7 @@ fn image_runs_bit_for_bit(
     bytes.truncate(n);
     let fw = firmware(
         &FirmwareBuild {
-            target_subdir: "target/bankimg",
+            target_subdir: "target/otherimg",
             input_files: &[("FOG_IDENTIFIER", &bytes)],
             ..FirmwareBuild::DEFAULT
         },
@@ -514,11 +544,11 @@ fn image_runs_bit_for_bit(
         expected.samples.len(),
         "{name}: one record per good frame"
     );
-    let estimator = fog_core::image::Image::parse(&bytes)
-        .expect("image")
-        .estimator()
-        .expect("estimator");
-    assert_eq!(estimator.arrangement(), image.arrangement);
+    assert_eq!(
+        fog_core::image::Image::parse(&bytes).as_ref(),
+        Ok(image),
+        "{name}: the image as written"
+    );
     let mut verified = 0;
     for (k, (r, (_, _, status))) in records.iter().zip(&expected.samples).enumerate() {
         assert_eq!(r.index as usize, k);
@@ -530,7 +560,7 @@ fn image_runs_bit_for_bit(
         assert_eq!(r.status, *status, "{name}: record {k}: status");
         verified += usize::from(r.status & pipeline::STATUS_UNVERIFIED == 0);
     }
-    let still = matches_preset_estimator(&records, &expected, &bytes);
+    let still = matches_drift_filter(&records, &expected, &bytes);
     assert_eq!(stats.counters, expected.stats.counters());
     eprintln!(
         "HIL {name} image: {} records bit-identical, {still} still; stack high-water {} bytes",

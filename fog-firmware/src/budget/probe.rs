@@ -49,18 +49,14 @@ windows! {
     Spin = 2,
     /// Decode of one frame's 8 bytes + the stage + the record.
     Pipeline = 3,
-    /// `pipeline::process`: estimator + denoiser + status.
+    /// `pipeline::process`: drift filter + denoiser + status.
     Stage = 4,
     /// Frame decode alone (8 bytes).
     Decode = 5,
-    /// `Stillness::push` alone.
-    Detect = 6,
-    /// `PresetEstimator::push` alone (its detector included).
+    /// `DriftFilter::push` alone (its stillness test included).
     Estimate = 7,
     /// `ResumableDenoiser::push` alone.
     Denoise = 8,
-    /// The exp comparison's loops.
-    Exp = 9,
     /// The resumable-denoiser table (`budget/resumable.rs`).
     Resumable = 10,
 }

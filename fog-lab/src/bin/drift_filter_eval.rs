@@ -3,7 +3,8 @@
 //! measured on the same records.
 //!
 //! Per family folder (as `scripts/gen_unit_family.py` lays it out):
-//! 1. `train/`: the model fitted by `host_sim::gyro_fit` (printed);
+//! 1. `train/`: the model fitted by `host_sim::gyro_fit` (printed), its two scales tuned on
+//!    `vehicles-tune/` by `host_sim::motion::tune` (as `identify --tune-on`);
 //! 2. `vehicles-test/`: heading RMS of the drift filter with its own stillness test and,
 //!    as the detector's limit, with the truth's still flags; of no compensation;
 //! 3. `static-test/`: e_truth = RMS(estimate - drift) / RMS(drift);
@@ -21,6 +22,8 @@ use fog_core::drift_filter::{DriftFilter, DriftFilterConfig};
 use fog_core::gyro_model::GyroModel;
 use host_sim::identify::series::{CsvFiles, Records, Series};
 use host_sim::motion::calibration;
+#[allow(unused_imports)]
+use host_sim::nav::DriftEstimator;
 use host_sim::nav::{self, NavRecord};
 use host_sim::record::{ReadOptions, Record};
 use serde::Serialize;
@@ -31,7 +34,7 @@ use std::path::{Path, PathBuf};
 #[derive(Parser, Debug)]
 struct Args {
     /// Family folders (train/, static-test/, vehicles-test/ [, today.json]).
-    #[arg(long, required = true, num_args = 1..)]
+    #[arg(long, num_args = 1..)]
     family: Vec<PathBuf>,
     /// Write every figure here.
     #[arg(long)]
@@ -60,6 +63,13 @@ struct Args {
     /// Exploration: multiply the warm-up's spread.
     #[arg(long)]
     warmup_scale: Option<f32>,
+    /// Also the demo's family (host-sim's own simulator: `host_sim::demo`), its 12 training
+    /// records, 32 tune and 32 test vehicles, scored in memory.
+    #[arg(long)]
+    demo_family: bool,
+    /// Exploration: zero the links (mean and spread).
+    #[arg(long)]
+    no_links: bool,
     /// Print every vehicle.
     #[arg(long)]
     verbose: bool,
@@ -92,11 +102,6 @@ struct Family {
     static_e_truth: Vec<(String, f64)>,
 }
 
-/// Scales of the links' prior spread tried on the tune vehicles.
-const LINK_SCALES: [f32; 4] = [0.1, 0.3, 0.6, 1.0];
-/// Scales of the Gauss-Markov sigmas tried.
-const MARKOV_SCALES: [f32; 4] = [1.0, 2.0, 3.0, 5.0];
-
 fn main() -> Result<()> {
     let args = Args::parse();
     let mut cfg = DriftFilterConfig::default();
@@ -110,6 +115,9 @@ fn main() -> Result<()> {
         cfg.resolve_dps = r / 3600.0;
     }
     let mut out = Vec::new();
+    if args.demo_family {
+        demo_family(cfg, &args)?;
+    }
     for fam in &args.family {
         let f = family(fam, cfg, &args).with_context(|| format!("family {}", fam.display()))?;
         print_family(&f);
@@ -191,6 +199,10 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             t.sigma_dps *= m;
         }
     }
+    if args.no_links {
+        model.temp_dps_per_c = Default::default();
+        model.temp_rate_dps_per_c_per_s = Default::default();
+    }
     if let Some(m) = args.warmup_scale {
         model.warmup_dps.sigma *= m;
     }
@@ -231,27 +243,19 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             .iter()
             .map(|p| NavRecord::try_from(&Record::read(p, &ReadOptions::default())?))
             .collect::<Result<_>>()?;
-        let mut best = (f64::INFINITY, model);
-        for link in LINK_SCALES {
-            for markov in MARKOV_SCALES {
-                let mut m = model;
-                m.temp_dps_per_c.sigma *= link;
-                m.temp_rate_dps_per_c_per_s.sigma *= link;
-                for t in &mut m.markov {
-                    t.sigma_dps *= markov;
-                }
-                let mut sum = 0.0;
-                for r in &tune {
-                    sum += nav::score_drift(r, &run(m, cfg, r, false)?.0).heading_rms_deg;
-                }
-                let score = sum / tune.len() as f64;
-                tuning.push((link, markov, score));
-                if score < best.0 {
-                    best = (score, m);
-                }
-            }
-        }
-        model = best.1;
+        let image = fog_core::image::Image {
+            model,
+            config: cfg,
+            full_scale_dps: 60.0,
+            trained_runs: runs.len() as u32,
+        };
+        let (tuned, t) = host_sim::motion::tune::tune(&image, &tune)?;
+        tuning = t
+            .grid
+            .iter()
+            .map(|c| (c.link_scale, c.markov_scale, c.heading_rms_deg))
+            .collect();
+        model = tuned.model;
     }
     let today: Option<Value> = std::fs::read_to_string(fam.join("today.json"))
         .ok()
@@ -331,17 +335,17 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             }
             std::fs::write(dir.join(format!("{}.dump.csv", name(&p))), text)?;
         }
+        let e = |d: &[f64]| {
+            let num: f64 = d
+                .iter()
+                .zip(&r.drift_dps)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum();
+            let den: f64 = r.drift_dps.iter().map(|b| b * b).sum();
+            (num / den).sqrt()
+        };
         if args.verbose {
             let (dt, _) = run(model, cfg, &r, true)?;
-            let e = |d: &[f64]| {
-                let num: f64 = d
-                    .iter()
-                    .zip(&r.drift_dps)
-                    .map(|(a, b)| (a - b) * (a - b))
-                    .sum();
-                let den: f64 = r.drift_dps.iter().map(|b| b * b).sum();
-                (num / den).sqrt()
-            };
             println!(
                 "    static {}: e_truth {:.4}, every window still {:.4}; still {}/{} undone {}",
                 name(&p),
@@ -352,13 +356,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
                 st.undone
             );
         }
-        let num: f64 = d
-            .iter()
-            .zip(&r.drift_dps)
-            .map(|(a, b)| (a - b) * (a - b))
-            .sum();
-        let den: f64 = r.drift_dps.iter().map(|b| b * b).sum();
-        static_e_truth.push((name(&p), (num / den).sqrt()));
+        static_e_truth.push((name(&p), e(&d)));
     }
     Ok(Family {
         family: fam.display().to_string(),
@@ -392,12 +390,12 @@ fn true_model(csv: &Path, fitted: &GyroModel) -> Option<GyroModel> {
         t.tau_s = tau;
     }
     m.rrw_dps_per_s_rthz = (f("rrw_dph_rth")? * dph / 60.0) as f32;
+    m.temp_ref_c = v.pointer("/family/t_ref_c").and_then(Value::as_f64)? as f32;
     m.turn_on_dps.mean = (f("turn_on_centre_dph")? * dph) as f32;
     m.turn_on_dps.sigma = (f("turn_on_sigma_dph")? * dph) as f32;
     m.warmup_dps.mean = (f("warmup1_dph")? * dph) as f32;
     m.warmup_dps.sigma = 0.0;
     m.warmup_tau_s = f("warmup1_tau_s")? as f32;
-    m.temp_ref_c = v.pointer("/family/t_ref_c").and_then(Value::as_f64)? as f32;
     m.temp_dps_per_c.mean = (f("k1_dph_per_c")? * dph) as f32;
     m.temp_dps_per_c.sigma = 0.0;
     m.temp_rate_dps_per_c_per_s.mean = (f("shupe_dph_per_c_per_min")? * dph * 60.0) as f32;
@@ -547,4 +545,87 @@ fn print_pooled(fs: &[Family]) {
     if vs.iter().all(|v| v.today.len() == vs[0].today.len()) {
         report(&vs);
     }
+}
+
+/// The demo's family: the same fit and tuning as the product's `demo`, each test vehicle
+/// scored with the filter's own test and with the truth's flags, beside the gated Kalman
+/// filter with the truth's flags (its q tuned on the tune vehicles).
+fn demo_family(cfg: DriftFilterConfig, args: &Args) -> Result<()> {
+    use host_sim::demo::{family_model, samples, TrainingSet, VEHICLE_SEED, VEHICLE_UNIT};
+    let set = TrainingSet {
+        n: 12,
+        duration_s: 1800.0,
+    };
+    let mut runs = Vec::new();
+    for i in 0..set.len() {
+        runs.push(set.get(i)?);
+    }
+    let cal = calibration::measure(&runs)?;
+    let (mut model, fit) = host_sim::gyro_fit::fit(&runs, &cal, 30.0 / 3600.0)?;
+    if args.no_links {
+        model.temp_dps_per_c = Default::default();
+        model.temp_rate_dps_per_c_per_s = Default::default();
+    }
+    if let Some(m) = args.markov_scale {
+        for t in &mut model.markov {
+            t.sigma_dps *= m;
+        }
+    }
+    if let Some(m) = args.warmup_scale {
+        model.warmup_dps.sigma *= m;
+    }
+    println!("== demo family: model {model:?}");
+    println!(
+        "  warm-up tau {:.0} s; ADEV {:?}",
+        fit.warmup_tau_s, fit.adev_dph
+    );
+    let vehicles = |unit0: u64, seed0: u64| -> Result<Vec<NavRecord>> {
+        (0..32)
+            .map(|i| {
+                Ok(NavRecord::from_samples(&samples(
+                    &family_model(unit0 + i, true)?,
+                    seed0 + i,
+                    1800.0,
+                )?))
+            })
+            .collect()
+    };
+    let tune = vehicles(800, 201)?;
+    let test = vehicles(VEHICLE_UNIT, VEHICLE_SEED)?;
+    let image = fog_core::image::Image {
+        model,
+        config: cfg,
+        full_scale_dps: 60.0,
+        trained_runs: 12,
+    };
+    let image = if args.markov_scale.is_some() {
+        image
+    } else {
+        let (tuned, t) = host_sim::motion::tune::tune(&image, &tune)?;
+        println!("  {}", host_sim::motion::tune::describe(&t));
+        tuned
+    };
+    let r_dps2 = f64::from(image.model.sample_var_dps2());
+    let q = nav::tune_gated_q(&tune, r_dps2, &nav::log_grid(1e-16, 1e-8, 4))
+        .ok_or_else(|| anyhow::anyhow!("no tune vehicle"))?;
+    let (mut own, mut truth, mut zaru, mut raw) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for r in &test {
+        own.push(nav::score_drift(r, &run(image.model, cfg, r, false)?.0).heading_rms_deg);
+        truth.push(nav::score_drift(r, &run(image.model, cfg, r, true)?.0).heading_rms_deg);
+        let mut g = nav::GatedKalman::new(q.q_dps2, r_dps2);
+        zaru.push(nav::run(r, &mut g, &r.still_truth()).scores.heading_rms_deg);
+        raw.push(nav::score_drift(r, &[]).heading_rms_deg);
+    }
+    let m = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let d: Vec<f64> = own.iter().zip(&zaru).map(|(a, b)| a - b).collect();
+    let (md, h) = paired(&d);
+    println!(
+        "  32 test vehicles: filter {:.4} deg, filter with truth flags {:.4}, gated Kalman with truth flags (q {:.1e}) {:.4}, raw {:.4}; filter - gated {md:+.4} +- {h:.4}",
+        m(&own),
+        m(&truth),
+        q.q_dps2,
+        m(&zaru),
+        m(&raw)
+    );
+    Ok(())
 }

@@ -1,6 +1,8 @@
-//! Evaluation of the motion identifier on gyro families, apart from the product: it runs the
-//! BUILT `host-sim` binary as a subprocess (so it measures whatever the product is) and
-//! scores its output against the records' truth beside causal baselines.
+//! Evaluation of the product on gyro families, apart from it: it runs the BUILT `host-sim`
+//! binary as a subprocess (so it measures whatever the product is: today the drift filter,
+//! `fog_core::drift_filter`, of the image `identify --preset motion` fits) and scores its
+//! output against the records' truth beside causal baselines. The tables call the product's
+//! row "identifier".
 //!
 //! A family is a folder (as `scripts/gen_unit_family.py` lays it out):
 //! `train/*.csv` (static calibration runs), `static-test/*.csv` (other units, static),
@@ -13,15 +15,15 @@
 //!    --tune-on vehicles-tune --json identify.json [extra args after --]`, timed.
 //! 2. static-test: `host-sim replay` of each record with the image; e_truth =
 //!    RMS(drift estimate - drift_dps) / RMS(drift_dps) computed here from the replay's
-//!    `drift_dps` column (no compensation: 1), and the fraction of samples its detector
-//!    flagged still. Beside it the plain random-walk Kalman filter with EVERY sample still
-//!    ([`GatedKalman`], all flags true) whose `r` is the record's `var(first differences) / 2`
-//!    (a user does not know the unit's white noise; the differences of a static record give
-//!    it, from the whole record, so this `r` is not causal) and whose `q` is tuned ON THE
-//!    VERY static-test records (log grid, least mean e_truth): the issue's goal is "the
-//!    image's e_truth <= 0.10 and below the best random-walk Kalman filter tuned on the very
-//!    records". Also the self-calibrated gated Kalman ([`SelfCalKalman`], q from the tune
-//!    vehicles) with its own detector.
+//!    `drift_dps` column (no compensation: 1), and the fraction of samples its stillness
+//!    test flagged still. Beside it the plain random-walk Kalman filter with EVERY sample
+//!    still ([`GatedKalman`], all flags true) whose `r` is the record's `var(first
+//!    differences) / 2` (a user does not know the unit's white noise; the differences of a
+//!    static record give it, from the whole record, so this `r` is not causal) and whose `q`
+//!    is tuned ON THE VERY static-test records (log grid, least mean e_truth): the issue's
+//!    goal is "the image's e_truth <= 0.10 and below the best random-walk Kalman filter
+//!    tuned on the very records". Also the self-calibrated gated Kalman
+//!    ([`SelfCalKalman`], q from the tune vehicles) with its own detector.
 //! 3. vehicles-test: `host-sim replay ... --validate vehicles-tune` (the baselines' q tuned
 //!    there with the truth's still flags) gives the heading-error RMS of the identifier and
 //!    of every baseline row; beside them [`SelfCalKalman`] with its q tuned on the tune
@@ -33,7 +35,7 @@
 //! ```sh
 //! cargo build --release -p host-sim
 //! cargo run --release -p fog-lab --bin unit_family -- --family DIR [--family DIR2 ...] \
-//!     [--host-sim PATH] [--json OUT.json] [--work DIR] [-- extra identify args, e.g. --sensor kvh1750]
+//!     [--host-sim PATH] [--json OUT.json] [--work DIR] [-- extra identify args, e.g. --sensor FILE]
 //! ```
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -47,7 +49,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-/// Evaluate the motion identifier on gyro families (see the file's docs).
+/// Evaluate the product's estimator on gyro families (see the file's docs).
 #[derive(Parser, Debug)]
 struct Args {
     /// Family folders (train/, static-test/, vehicles-tune/, vehicles-test/).
@@ -596,10 +598,12 @@ fn family(fam: &Path, exe: &Path, extra: &[String], dir: &Path) -> Result<Family
         train_records: csvs(&train)?.len(),
         tune_vehicles: tune_recs.len(),
         identify_tuning: id["tuning"].clone(),
-        identify_tuning_text: id["tuning"]["picked_index"]
-            .as_u64()
-            .and_then(|i| id["tuning"]["candidates"][i as usize]["text"].as_str())
-            .map(String::from),
+        identify_tuning_text: id["tuning"]["picked"].as_object().map(|p| {
+            format!(
+                "links' spread x{}, Gauss-Markov sigmas x{} ({} deg on the tune vehicles)",
+                p["link_scale"], p["markov_scale"], p["heading_rms_deg"]
+            )
+        }),
         static_test,
         vehicles_test,
     })

@@ -4,15 +4,13 @@
 //!    [`UNIT_SPREAD`] and per-record temperature (ambient start uniform in
 //!    [`INITIAL_C_RANGE`], self-heating in [`WARMUP_RISE_C_RANGE`]): ASSUMED values of this
 //!    demo, not a measured family.
-//! 2. Trains the motion identifier on `train_records` static records of that family (units
-//!    1.., record seeds 101..), 3 passes, and writes `DIR/identifier.fogi`. The records are
-//!    simulated again at each pass (the simulator is deterministic), so memory holds one.
+//! 2. Fits the gyro model on `train_records` static records of that family (units 1..,
+//!    record seeds 101..; [`crate::gyro_fit`]).
 //! 3. Tunes the gated Kalman baseline's q on `validate_records` simulated `vehicle` records
 //!    of other units ([`nav::tune_gated_q`], truth still flags, [`BASELINE_Q_GRID`]), and
-//!    the identifier's level noise and second state (thermal prior or bank) on the
-//!    same records ([`motion::tune`], its own detector's flags), then writes the image. A pick at
-//!    an end of a grid is printed as a warning (and, for the baseline, written into its
-//!    label; never silent).
+//!    the model's two scales on the same records ([`motion::tune`], the filter's own test),
+//!    then writes the image `DIR/identifier.fogi`. A pick at an end of a grid is printed
+//!    (and, for the baseline, written into its label; never silent).
 //! 4. Simulates one `vehicle` record (unit [`VEHICLE_UNIT`], seed [`VEHICLE_SEED`]), writes
 //!    it as `DIR/vehicle.csv`, replays it with the identifier ([`crate::replay::motion`]),
 //!    `DIR/replay.csv`, and writes the report (`index.html`, heading-error figure with the
@@ -76,31 +74,22 @@ pub struct DemoConfig {
     pub validate_records: u64,
     /// Length of every record, s.
     pub duration_s: f64,
-    /// The bench trainer (default `drls-checked`, as `identify --preset motion`).
-    pub trainer: motion::TrainerArg,
     /// Test vehicle records (units [`VEHICLE_UNIT`].., seeds [`VEHICLE_SEED`]..; the first
     /// is the replayed record) scored beside the baselines.
     pub test_records: u64,
-    /// The identifier's candidate arrangements, each starting from its default second
-    /// state ([`motion::default_second_state`]) and tuned on the validation vehicles; the
-    /// best is kept ([`motion::tune::pick_arrangement`], as `identify --level-update A B
-    /// --tune-on`). Default: the dual-thermal alone ([`DEFAULT_ARRANGEMENTS`]).
-    pub arrangements: Vec<fog_core::preset::Arrangement>,
 }
 
 impl DemoConfig {
     /// The demo: 12 training records, 32 validation and 32 test vehicle records, 1800 s
-    /// each. Why 32: the level noise that minimises the mean heading RMS moved from 8 to 86
-    /// (deg/h)^2/h between two sets of 8 vehicles of the same family, and agreed (86) on
-    /// two sets of 32 (docs/motion.md, "How many vehicles a comparison needs").
+    /// each. Why 32: the mean heading RMS of one tuned model was 0.1963 and 0.1311 deg on
+    /// two sets of 8 vehicles of the same family, 0.1534 and 0.1540 on two sets of 32
+    /// (docs/motion.md, "How many vehicles a comparison needs").
     pub fn full() -> Self {
         Self {
             train_records: 12,
             validate_records: 32,
             duration_s: 1800.0,
-            trainer: motion::TrainerArg::DrlsChecked,
             test_records: 32,
-            arrangements: DEFAULT_ARRANGEMENTS.to_vec(),
         }
     }
 
@@ -116,10 +105,6 @@ impl DemoConfig {
     }
 }
 
-/// The demo's candidate arrangements ([`DemoConfig::arrangements`]).
-pub const DEFAULT_ARRANGEMENTS: [fog_core::preset::Arrangement; 1] =
-    [fog_core::preset::Arrangement::DualThermal];
-
 /// A unit of the demo's family; `vehicle`: the `vehicle` motion profile, else static.
 pub fn family_model(unit: u64, vehicle: bool) -> Result<Model> {
     let mut m = sim::preset(PRESET)?;
@@ -134,7 +119,8 @@ pub fn family_model(unit: u64, vehicle: bool) -> Result<Model> {
     Ok(m)
 }
 
-pub(crate) fn samples(model: &Model, seed: u64, duration_s: f64) -> Result<Vec<sim::Sample>> {
+/// `duration_s` of `model` at [`RATE_HZ`], seed `seed`.
+pub fn samples(model: &Model, seed: u64, duration_s: f64) -> Result<Vec<sim::Sample>> {
     let mut s = Simulator::new(model, seed, RATE_HZ)?;
     let mut out = Vec::with_capacity((duration_s * RATE_HZ) as usize);
     loop {
@@ -194,31 +180,18 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         n: cfg.train_records,
         duration_s: cfg.duration_s,
     };
-    let mut train_options = TrainOptions::new(sensor);
-    train_options.trainer = cfg.trainer;
-    let first = *cfg
-        .arrangements
-        .first()
-        .context("demo: no arrangement to run")?;
-    let train_options = train_options.with_arrangement(first);
+    let train_options = TrainOptions::new(sensor);
     let trained = motion::train(&set, &train_options)?;
     let image = trained.image;
     let fogi = dir.join("identifier.fogi");
     eprintln!(
-        "demo: trained the motion identifier on {} static {PRESET} records ({} s, unit spread {UNIT_SPREAD}, start {:?} C, self-heating {:?} C) -> {}",
+        "demo: fitted the gyro model on {} static {PRESET} records ({} s, unit spread {UNIT_SPREAD}, start {:?} C, self-heating {:?} C) -> {}",
         cfg.train_records,
         cfg.duration_s,
         INITIAL_C_RANGE,
         WARMUP_RISE_C_RANGE,
         fogi.display()
     );
-    if let Some(ls) = &trained.least_squares {
-        eprintln!(
-            "demo: trainer {:?}: {}",
-            cfg.trainer,
-            motion::describe_least_squares(ls)
-        );
-    }
     let mut val = Vec::new();
     for i in 0..cfg.validate_records {
         let x = samples(&family_model(800 + i, true)?, 201 + i, cfg.duration_s)?;
@@ -230,27 +203,13 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let tuned =
         nav::tune_gated_q(&val, r_dps2, &baseline_grid).context("demo: no validation record")?;
     let baseline_note = grid_end_note(&baseline_grid, tuned.q_dps2);
-    // The identifier's level noise and second state, tuned on the same records.
-    let candidates: Vec<Image> = cfg
-        .arrangements
-        .iter()
-        .map(|&a| {
-            image
-                .clone()
-                .with_arrangement(a, motion::default_second_state(a))
-        })
-        .collect();
-    let (image, tuning) = tune::pick_arrangement(&candidates, &val)?;
+    // The model's two least certain numbers, tuned on the same records.
+    let (image, tuning) = tune::tune(&image, &val)?;
     let firmware = motion::write_image(&fogi, &image)?;
     for line in firmware.text().lines() {
         eprintln!("demo: {line}");
     }
-    for line in tuning.lines() {
-        eprintln!("demo: {line}");
-    }
-    if tuning.any_at_grid_end() {
-        eprintln!("demo: WARNING: a tuned parameter is at an end of its grid: the grid does not bracket the optimum");
-    }
+    eprintln!("demo: {}", tune::describe(&tuning));
     eprintln!(
         "demo: gated Kalman q {:.3e} (deg/s)^2 per sample{baseline_note} ({:.4} deg on the validation vehicles, truth still flags)",
         tuned.q_dps2, tuned.heading_rms_deg

@@ -16,16 +16,15 @@
 //!   (the bias-instability floor, 0.664 B) and where it is.
 //!
 //! For the family: the median, least and largest noise density; the largest |drift|.
-//! Folded into the image ([`learned_sensor`]): the sensor's noise density := the family's
-//! median; the detector's noise range (`noise_lo`, `noise_hi` of
-//! [`fog_core::still::StillConfig`]) := least and largest over the median; the drift bound
-//! := the larger of the file's and [`DRIFT_MARGIN`] times the largest |drift| seen. Where a
-//! measured value and the file's disagree beyond [`DISAGREE_FACTOR`] (noise) or 1 % (rate),
-//! a warning says so (a rate in rad/s read as deg/s shows as noise 57x below the file's).
+//! The model the image carries is fitted on the runs ([`crate::gyro_fit`]: white noise :=
+//! the family's median; the drift bound := the larger of the file's and [`DRIFT_MARGIN`]
+//! times the largest |drift| seen). Where a measured value and the file's disagree beyond
+//! [`DISAGREE_FACTOR`] (noise) or 1 % (rate), a warning says so ([`warnings`]: a rate in
+//! rad/s read as deg/s shows as noise 57x below the file's).
 
 use crate::identify::series::Series;
 use anyhow::{bail, Result};
-use fog_core::still::{SensorConfig, StillConfig};
+use fog_core::still::SensorConfig;
 use serde::Serialize;
 
 /// The image's drift bound is at least this many times the largest |10-s mean drift| of
@@ -214,20 +213,16 @@ pub fn measure(records: &[Series]) -> Result<Calibration> {
     })
 }
 
-/// The sensor and detector range the image carries, from the file's `file` and the runs'
-/// `cal`, with the warnings where they disagree. Refuses a family without measurable
-/// noise (every run constant).
-pub fn learned_sensor(
-    file: &SensorConfig,
-    still: &StillConfig,
-    cal: &Calibration,
-) -> Result<(SensorConfig, StillConfig, Vec<String>)> {
+/// Where the runs and the sensor file `file` disagree (warnings: the image carries the
+/// runs' values, [`crate::gyro_fit`]). Refuses a family without measurable noise (every run
+/// constant).
+pub fn warnings(file: &SensorConfig, cal: &Calibration) -> Result<Vec<String>> {
     let mut warnings = Vec::new();
     let file_noise = f64::from(file.noise_density_dps_rthz) * 60.0;
     let med = cal.noise_median_deg_rth;
     if !(med > 0.0 && med.is_finite() && cal.noise_min_deg_rth > 0.0) {
         bail!(
-            "the calibration runs show no white noise (median {med} deg/sqrt(h)): a constant or saturated output cannot calibrate the detector"
+            "the calibration runs show no white noise (median {med} deg/sqrt(h)): a constant or saturated output cannot calibrate the filter"
         );
     }
     if med > DISAGREE_FACTOR * file_noise || med * DISAGREE_FACTOR < file_noise {
@@ -265,20 +260,7 @@ pub fn learned_sensor(
             f64::from(file.drift_bound_dps) * 3600.0
         ));
     }
-    let sensor = SensorConfig {
-        noise_density_dps_rthz: (med / 60.0) as f32,
-        drift_bound_dps: (bound_dph / 3600.0) as f32,
-        ..*file
-    };
-    let still = StillConfig {
-        noise_lo: (cal.noise_min_deg_rth / med) as f32,
-        noise_hi: (cal.noise_max_deg_rth / med) as f32,
-        ..*still
-    };
-    if !sensor.is_valid() || !still.is_valid() {
-        bail!("the calibration gives an invalid sensor ({sensor:?}) or detector ({still:?})");
-    }
-    Ok((sensor, still, warnings))
+    Ok(warnings)
 }
 
 /// The table printed by `identify`: each run, the family, and the file's values beside.
@@ -402,10 +384,9 @@ mod tests {
             rate_hz: 100.0,
             runs,
         };
-        let (s, d, w) = learned_sensor(&file, &StillConfig::DEFAULT, &cal).expect("test");
-        assert!((f64::from(s.noise_density_dps_rthz) * 60.0 / 0.1 - 1.0).abs() < 0.05);
-        assert!((d.noise_lo - 0.5).abs() < 0.05 && (d.noise_hi - 2.0).abs() < 0.1);
-        assert!((f64::from(s.drift_bound_dps) * 3600.0 - 105.0).abs() < 0.01);
+        let w = warnings(&file, &cal).expect("test");
+        assert!((cal.noise_median_deg_rth / 0.1 - 1.0).abs() < 0.05);
+        assert!(w.iter().any(|l| l.contains("105.0 deg/h")), "{w:?}");
         assert!(w.iter().any(|l| l.contains("drift reaches 70.0")), "{w:?}");
         assert!(!w.iter().any(|l| l.contains("white noise")), "{w:?}");
         // The same runs read in rad/s as deg/s: noise 57x below the file's.
@@ -413,7 +394,7 @@ mod tests {
         rad.noise_median_deg_rth /= 57.3;
         rad.noise_min_deg_rth /= 57.3;
         rad.noise_max_deg_rth /= 57.3;
-        let (_, _, w) = learned_sensor(&file, &StillConfig::DEFAULT, &rad).expect("test");
+        let w = warnings(&file, &rad).expect("test");
         assert!(w.iter().any(|l| l.contains("rad/s")), "{w:?}");
     }
 }

@@ -1,7 +1,7 @@
 //! `host-sim replay`'s pipelines (the command file `replay_cmd.rs` parses arguments and
 //! calls them):
-//! - [`motion`]: the default, the motion-safe estimator (an identifier image or the
-//!   built-in untrained one) with the navigator's scores when the record has truth;
+//! - [`motion`]: the default, the drift filter (of an image, or of the sensor's
+//!   specification alone) with the navigator's scores when the record has truth;
 //! - [`stream`]: the level-trend and paper presets, streamed, with the paper's report;
 //! - [`input`]: the record the motion pipeline reads, sample by sample (CSV with any rate
 //!   column, or a decoded capture); [`tally`]: the summary's counts on line.

@@ -1,16 +1,17 @@
-//! `host-sim replay` with the motion preset (the default): a record through the motion-safe
-//! estimator ([`fog_core::motion`]), per-sample CSV, and when the record carries truth the
+//! `host-sim replay` with the motion preset (the default): a record through the drift
+//! filter ([`fog_core::drift_filter`]), per-sample CSV, and when the record carries truth the
 //! navigator's scores beside the causal baselines ([`crate::nav::compare`]).
 //!
-//! The identifier is an image file (`--identifier`, from `identify --preset motion
-//! --save-identifier`) or, without one, the BUILT-IN default: an UNTRAINED model for the
-//! sensor (`--sensor`, default `ecore2000`), i.e. the stillness-gated level alone (the
-//! gated random-walk Kalman filter with the detector). It never subtracts more than the
-//! sensor's drift bound, so it cannot erase rotation; a trained image adds the drift shape
-//! learned on static records.
+//! The image is a file (`--identifier`, from `identify --preset motion --save-identifier`:
+//! the gyro model fitted on the unit family's calibration runs) or, without one, the
+//! BUILT-IN default: the model of the sensor's specification alone (`--sensor`, default
+//! `ecore2000`; [`fog_core::gyro_model::GyroModel::for_sensor`]). It never subtracts more
+//! than the model's drift bound, and learns only from windows its stillness test finds
+//! still, so it cannot erase rotation.
 //!
-//! The record is read whole (one f32 rate, f64 time and a few flags per sample: 24 B per
-//! sample, 43 MB for the 1.8-M-sample KVH log); the level-trend / paper presets stream.
+//! The replayed record streams ([`replay`]: memory bounded by the rate's look-ahead and the
+//! report's decimations, whatever its length); records with truth scored as a set
+//! (`identify --preset motion --validate`, [`score_records`]) are read whole.
 
 use super::input::{self, Input};
 use super::stream::{self, InputFormat};
@@ -25,9 +26,7 @@ use crate::report::motion::MotionFigures;
 use crate::report::BytesSummary;
 use anyhow::{anyhow, bail, Result};
 use fog_core::image::Image;
-use fog_core::preset::Arrangement;
 use fog_core::still::SensorConfig;
-use fog_core::wnn::Neuron;
 use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -35,7 +34,8 @@ use std::path::{Path, PathBuf};
 /// What a motion replay is asked to do.
 #[derive(Debug, Clone)]
 pub struct MotionOptions {
-    /// Identifier image; None: the built-in untrained default for `sensor`.
+    /// The drift image; None: the built-in default for `sensor` (the model of its
+    /// specification alone).
     pub identifier: Option<PathBuf>,
     /// `--sensor`: the sensor without an image (with an image, it must agree).
     pub sensor: Option<SensorConfig>,
@@ -91,18 +91,8 @@ pub struct MotionSummary {
     pub output: String,
     /// The identifier image, or the built-in default.
     pub identifier: String,
-    /// The image's level arrangement as `identify --level-update` names it:
-    /// `dual-thermal`, `bank-dual` or `bank-guarded` (fog_core::preset).
-    pub level_update: String,
-    /// The image's second state: the thermal prior, deg/h per deg C, or the bank's bias
-    /// instability B, deg/h.
-    pub second_sigma_per_h: f32,
-    /// The bank's longest correlation time, s (0 for the thermal prior).
-    pub second_tau_s: f32,
-    /// Record passes trained into the image (least squares: the records, e.g. 12; DRLS:
-    /// records x passes, e.g. 36 for 12 records and 3 passes; 0: untrained, the gated level
-    /// alone). Not the number of records: the image stores the passes.
-    pub record_passes_trained: u32,
+    /// Calibration runs the image's model was fitted on (0: the sensor's specification).
+    pub trained_runs: u32,
     /// The sensor configuration used.
     pub sensor: SensorSummary,
     /// Where `t_s` came from.
@@ -126,16 +116,16 @@ pub struct MotionSummary {
     pub max_abs_rate_dps: f32,
     /// Rows flagged still.
     pub still_rows: usize,
-    /// Rows not verified (nothing verified at rest yet: tentative or no compensation; or no
-    /// rest for the image's `stale_s`: column `verified` = 0).
-    pub unverified_rows: usize,
-    /// The detector's noise reference at the end of the record (learned on line, white
-    /// noise and quantization and any vibration at rest) as a density, deg/sqrt(h).
+    /// The variance of a window mean at rest the filter learned by the end of the record
+    /// (white noise, quantization and any vibration at rest), as a white-noise density,
+    /// deg/sqrt(h).
     pub noise_learned_deg_rth: f64,
-    /// The image's (the sensor's) white-noise density, deg/sqrt(h).
+    /// The image's white-noise density, deg/sqrt(h).
     pub noise_image_deg_rth: f64,
-    /// Level updates.
+    /// Windows the filter's test found still (updates made).
     pub level_updates: u32,
+    /// Updates undone because the next window failed.
+    pub updates_undone: u32,
     /// Largest |drift estimate|, deg/h.
     pub max_abs_drift_dph: f64,
     /// Raw angle (integral of the rate) at the end, deg.
@@ -155,8 +145,7 @@ pub struct MotionSummary {
     pub scores: Option<nav::Comparison>,
     /// Scores over a set of test records beside this one (`host-sim demo`), when given.
     pub test_set: Option<TestSet>,
-    /// How the identifier's level and arrangement were tuned (`host-sim demo`), when they
-    /// were.
+    /// How the image's two scales were tuned (`host-sim demo`), when they were.
     pub level_tuning: Option<crate::motion::tune::Tuning>,
     /// What the firmware does with the image (`host-sim demo`, which wrote it); absent from
     /// the JSON otherwise.
@@ -242,11 +231,9 @@ pub struct MotionOutcome {
     pub figures: Option<MotionFigures>,
 }
 
-/// The built-in identifier for `sensor`: an untrained model (the gated level alone).
-pub fn builtin_image(sensor: SensorConfig) -> Result<Image> {
-    let mut o = motion::TrainOptions::new(sensor);
-    o.epochs = 0;
-    motion::untrained(&o)
+/// The built-in image for `sensor`: the model of its specification alone.
+pub fn builtin_image(sensor: SensorConfig) -> Image {
+    motion::untrained(&sensor)
 }
 
 /// The built-in sensor whose rate is `hz` (within [`fog_core::image::RATE_TOLERANCE`]):
@@ -261,19 +248,17 @@ pub fn sensor_for_rate(hz: f32) -> SensorConfig {
         .unwrap_or(SensorConfig::ECORE_2000)
 }
 
-/// The identifier's release delay: its detector window, samples.
+/// The filter's release delay: its window, samples.
 pub fn release_samples(image: &Image) -> usize {
-    let c = &image.config;
-    (c.still.window_s * c.sensor.sample_rate_hz)
+    (image.config.window_s * image.model.sample_rate_hz)
         .round()
         .max(0.0) as usize
 }
 
-/// The baselines' q: `--baseline-q`, else tuned on `--validate`, else the identifier's level
-/// noise per sample.
+/// The baselines' q: `--baseline-q`, else tuned on `--validate`, else the model's level
+/// noise per sample ([`motion::level_q_dps2_per_sample`]).
 fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
-    let s = image.config.sensor;
-    let r_dps2 = f64::from(s.sample_var_dps2());
+    let r_dps2 = f64::from(image.model.sample_var_dps2());
     if let Some((q, from)) = &o.baseline_q {
         if !(q.is_finite() && *q >= 0.0) {
             bail!("{from} {q}: must be finite and >= 0");
@@ -308,8 +293,8 @@ fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
         });
     }
     Ok(BaselineConfig {
-        q_dps2: f64::from(image.config.level_q_dps2_per_s) / f64::from(s.sample_rate_hz),
-        q_source: "the identifier's level noise".into(),
+        q_dps2: motion::level_q_dps2_per_sample(&image.model),
+        q_source: "the image's model (rate random walk and Gauss-Markov terms)".into(),
         r_dps2,
         release_samples: release_samples(image),
     })
@@ -319,24 +304,7 @@ fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
 /// 10; a family spreads 0.5x to 3x, vibration at stops adds up to about 3x more).
 pub const NOISE_WARN: f64 = 10.0;
 
-/// Whether `image` reads the temperature: the unit's own temperature link
-/// ([`Arrangement::DualThermal`]) or a model term on the temperature or its rate (inputs 1
-/// and 2) with a nonzero weight.
-pub fn uses_temperature(image: &Image) -> bool {
-    let m = &image.model;
-    image.arrangement == Arrangement::DualThermal
-        || m.weights
-            .iter()
-            .zip(m.shape.kind.iter().zip(m.shape.a.iter()))
-            .any(|(w, (k, a))| {
-                *w != 0.0
-                    && match k {
-                        Neuron::Linear(j) => *j >= 1,
-                        Neuron::Wavelet => a[1] != 0.0 || a[2] != 0.0,
-                        Neuron::Bias => false,
-                    }
-            })
-}
+pub use crate::motion::show::uses_temperature;
 
 /// The image `o` names (checked against `--sensor`), with its name for messages.
 fn file_image(o: &MotionOptions) -> Result<Option<(Image, String)>> {
@@ -347,7 +315,7 @@ fn file_image(o: &MotionOptions) -> Result<Option<(Image, String)>> {
     // The file fixes what the stream is (rate, full scale, quantum); the image's noise and
     // drift bound were learned from the calibration runs.
     let differs = |s: SensorConfig| {
-        let i = im.config.sensor;
+        let i = motion::sensor_of(&im);
         (s.sample_rate_hz, s.full_scale_dps, s.quantum_dps)
             != (i.sample_rate_hz, i.full_scale_dps, i.quantum_dps)
     };
@@ -376,9 +344,9 @@ fn image_for(
                 None => (sensor_for_rate(hz), "picked by the record's rate"),
             };
             (
-                builtin_image(sensor)?,
+                builtin_image(sensor),
                 format!(
-                    "built-in: untrained model (gated random-walk level with the stillness detector), sensor {} Hz / {} deg/s ({how})",
+                    "built-in: the sensor's specification alone (no calibration run), sensor {} Hz / {} deg/s ({how})",
                     sensor.sample_rate_hz, sensor.full_scale_dps
                 ),
             )
@@ -406,7 +374,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
     let file_image = file_image(o)?;
     let decode_sensor = file_image
         .as_ref()
-        .map(|f| f.0.config.sensor)
+        .map(|f| motion::sensor_of(&f.0))
         .or(o.sensor)
         .unwrap_or(SensorConfig::ECORE_2000);
     // 0 = "the sensor's" (the command line left them out).
@@ -437,11 +405,8 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
     }
     let hz_ahead = (1.0 / rec.lookahead_period_s()?) as f32;
     let (image, identifier) = image_for(file_image, o, input, hz_ahead)?;
-    let sensor = image.config.sensor;
-    let mut est = image
-        .estimator()
-        .map_err(|e| anyhow!("{identifier}: {e}"))?;
-    est.restart();
+    let sensor = motion::sensor_of(&image);
+    let mut est = motion::filter(&image, &identifier)?;
     let cols = rec.columns;
     let mut cmp = if cols.truth() {
         Some(Comparer::new(
@@ -465,16 +430,13 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
             let m = motion::push_row(&mut est, rate, temp, x.still);
             writeln!(
                 w,
-                "{},{},{},,{},{},{},{},{},{}",
+                "{},{},{},,{},{},{}",
                 tally.rows,
                 x.t_s,
                 rate,
                 m.drift_dps,
                 m.compensated_dps,
                 u8::from(m.still),
-                m.level_dps,
-                m.model_dps,
-                u8::from(m.verified)
             )?;
             tally.push(x.t_s, rate, &m);
             let drift = f64::from(m.drift_dps);
@@ -512,10 +474,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         format: rec.format.name(),
         output: output.display().to_string(),
         identifier,
-        level_update: motion::LevelUpdateArg::of(image.arrangement).cli_name(),
-        second_sigma_per_h: image.second_state.sigma * 3600.0,
-        second_tau_s: image.second_state.tau_s,
-        record_passes_trained: image.records_trained,
+        trained_runs: image.trained_runs,
         sensor: sensor.into(),
         t_s_source: rec.t_s_source,
         rate_column: (rec.format == InputFormat::Csv).then(|| o.csv.rate_column.clone()),
@@ -523,14 +482,16 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         rows: tally.rows,
         at_full_scale: tally.at_full_scale,
         temperature_missing: !cols.temp_c && uses_temperature(&image),
-        noise_x_image: tally.noise.noise_ratio(&sensor),
+        noise_x_image: tally.noise.noise_ratio(image.model.sample_var_dps2()),
         max_abs_rate_dps: tally.max_abs_rate_dps,
         still_rows: tally.still_rows,
-        unverified_rows: tally.unverified_rows,
-        noise_learned_deg_rth: (f64::from(est.rest().noise_var_dps2()) / f64::from(hz)).sqrt()
+        noise_learned_deg_rth: (f64::from(est.window_var_dps2()) * f64::from(est.window_samples())
+            / f64::from(hz))
+        .sqrt()
             * 60.0,
-        noise_image_deg_rth: f64::from(sensor.noise_density_dps_rthz) * 60.0,
-        level_updates: est.stats().level_updates,
+        noise_image_deg_rth: f64::from(image.model.white_dps_rthz) * 60.0,
+        level_updates: est.stats().still_windows,
+        updates_undone: est.stats().undone,
         max_abs_drift_dph: tally.max_abs_drift_dps * 3600.0,
         raw_angle_end_deg: tally.raw.deg(),
         compensated_angle_end_deg: tally.compensated.deg(),
@@ -573,31 +534,20 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
     let mut err = std::io::stderr().lock();
     writeln!(
         err,
-        "{}: {} rows ({}) through the motion identifier ({}; level {}, {}); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still, {} not verified (safety net); noise at rest learned {:.4} deg/sqrt(h) (image {:.4}); {} level updates; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
+        "{}: {} rows ({}) through the drift filter ({}; fitted on {} calibration runs); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still; noise at rest learned {:.4} deg/sqrt(h) (image {:.4}); {} still windows, {} updates undone; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
         s.input,
         s.rows,
         s.format,
         s.identifier,
-        s.level_update,
-        if s.level_update == "dual-thermal" {
-            format!(
-                "temperature coefficient prior {} deg/h per deg C",
-                s.second_sigma_per_h
-            )
-        } else {
-            format!(
-                "bank B {} deg/h, longest tau {} s",
-                s.second_sigma_per_h, s.second_tau_s
-            )
-        },
+        s.trained_runs,
         s.sensor.full_scale_dps,
         s.sensor.sample_rate_hz,
         s.sensor.drift_bound_dph,
         s.still_rows,
-        s.unverified_rows,
         s.noise_learned_deg_rth,
         s.noise_image_deg_rth,
         s.level_updates,
+        s.updates_undone,
         s.max_abs_drift_dph,
         s.raw_angle_end_deg,
         s.compensated_angle_end_deg,
@@ -630,7 +580,7 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
     if s.temperature_missing {
         writeln!(
             err,
-            "{}: warning: no temp_c column, but the identifier reads the temperature (the unit's temperature link or the model's temperature terms): they ran at the reference temperature, i.e. off; the drift follows time since power-on and the level alone",
+            "{}: warning: no temp_c column, but the image's model reads the temperature (its temperature links): they ran at the last temperature known (none: the reference), i.e. off; the drift follows the level and the warm-up alone",
             s.input
         )?;
     }
@@ -681,7 +631,7 @@ pub struct TruthRecord {
 /// The CSV record `p` at `image`'s sample rate, with its truth; refused, naming the file,
 /// without truth (`true_rate_dps` and `drift_dps`) or at another rate.
 pub fn read_truth_csv(image: &Image, p: &Path) -> Result<TruthRecord> {
-    let rate_hz = f64::from(image.config.sensor.sample_rate_hz);
+    let rate_hz = f64::from(image.model.sample_rate_hz);
     let r = Record::read(
         p,
         &ReadOptions {
@@ -720,7 +670,7 @@ pub fn score_records(
     for p in &files.0 {
         recs.push((p.display().to_string(), read_truth_csv(image, p)?));
     }
-    let r_dps2 = f64::from(image.config.sensor.sample_var_dps2());
+    let r_dps2 = f64::from(image.model.sample_var_dps2());
     let cfg = match baseline_q {
         Some((q, from)) => BaselineConfig {
             q_dps2: q,
@@ -745,7 +695,7 @@ pub fn score_records(
     };
     let mut out = Vec::new();
     for (name, r) in &recs {
-        let mut est = image.estimator().map_err(|e| anyhow!("{name}: {e}"))?;
+        let mut est = motion::filter(image, name)?;
         let o = motion::run(&mut est, &r.series);
         let drift: Vec<f64> = o.iter().map(|m| f64::from(m.drift_dps)).collect();
         let still: Vec<bool> = o.iter().map(|m| m.still).collect();

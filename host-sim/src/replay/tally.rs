@@ -2,8 +2,7 @@
 //! in constant memory.
 
 use crate::report::motion::Angle;
-use fog_core::motion::MotionOutput;
-use fog_core::still::SensorConfig;
+use fog_core::drift_filter::DriftOutput;
 
 /// Bins per decade of [`DiffMedian`]: 100, so the median is read within 1.2 %.
 const BINS_PER_DECADE: f64 = 100.0;
@@ -87,12 +86,12 @@ impl DiffMedian {
     /// (robust to the few large steps of a turn's onset) over `0.6745 sqrt(2)`, against the
     /// sensor's noise plus quantization. `None` when the median is 0 (a coarse quantum or a
     /// stuck output: not measurable this way) or there are fewer than 15 differences.
-    pub fn noise_ratio(&self, sensor: &SensorConfig) -> Option<f64> {
+    pub fn noise_ratio(&self, sample_var_dps2: f32) -> Option<f64> {
         if self.n < 15 {
             return None;
         }
         let sigma = self.median()? / (0.674_49 * std::f64::consts::SQRT_2);
-        let image = f64::from(sensor.sample_var_dps2()).sqrt();
+        let image = f64::from(sample_var_dps2).sqrt();
         (sigma > 0.0 && image > 0.0).then(|| sigma / image)
     }
 }
@@ -110,8 +109,6 @@ pub struct Tally {
     pub max_abs_rate_dps: f32,
     /// Rows flagged still.
     pub still_rows: usize,
-    /// Rows not verified (the safety net).
-    pub unverified_rows: usize,
     /// Largest |drift estimate|, deg/s.
     pub max_abs_drift_dps: f64,
     /// Raw angle (integral of the rate).
@@ -132,12 +129,11 @@ impl Tally {
     }
 
     /// One row: time, the rate the estimator read and its output.
-    pub fn push(&mut self, t_s: f64, rate_dps: f32, m: &MotionOutput) {
+    pub fn push(&mut self, t_s: f64, rate_dps: f32, m: &DriftOutput) {
         self.rows += 1;
         self.at_full_scale += usize::from(rate_dps.abs() >= self.full_scale_dps);
         self.max_abs_rate_dps = self.max_abs_rate_dps.max(rate_dps.abs());
         self.still_rows += usize::from(m.still);
-        self.unverified_rows += usize::from(!m.verified);
         self.max_abs_drift_dps = self.max_abs_drift_dps.max(f64::from(m.drift_dps).abs());
         self.raw.push(t_s, f64::from(rate_dps));
         self.compensated.push(t_s, f64::from(m.compensated_dps));
@@ -179,7 +175,10 @@ mod tests {
             h.push(if k % 10 == 0 { 1.0 } else { 0.0 });
         }
         assert_eq!(h.median(), Some(0.0));
-        assert_eq!(h.noise_ratio(&SensorConfig::ECORE_2000), None);
+        assert_eq!(
+            h.noise_ratio(fog_core::still::SensorConfig::ECORE_2000.sample_var_dps2()),
+            None
+        );
         assert_eq!(DiffMedian::default().median(), None);
     }
 }

@@ -1,8 +1,8 @@
 //! The report of a motion replay (`host-sim replay --report DIR` with the motion preset,
 //! `host-sim demo`): in `DIR`, written atomically,
-//! - `heading_error.svg` (records with truth): heading error over time of the identifier
+//! - `heading_error.svg` (records with truth): heading error over time of the drift filter
 //!   and the five causal baselines, still periods shaded (the truth's `moving` when the
-//!   record has it, else the detector's calls);
+//!   record has it, else the filter's still flags);
 //! - `drift.svg`: the drift estimate (and the true drift), deg/h;
 //! - `heading_correction.svg`: the heading the compensation removes (the integral of the
 //!   drift estimate, and of the true drift when the record has it), deg: the heading in
@@ -58,7 +58,7 @@ impl Angle {
 pub struct MotionFigures {
     /// Heading error per scored row (no compensation left out), deg: label and series.
     heading: Vec<(String, MinMax)>,
-    /// Still spans: the truth's `!moving` when known, else the detector's calls.
+    /// Still spans: the truth's `!moving` when known, else the filter's still flags.
     spans: Spans,
     spans_from_truth: bool,
     drift: MinMax,
@@ -85,7 +85,7 @@ impl MotionFigures {
         }
     }
 
-    /// One sample of the record, the identifier's drift estimate (deg/s) and still call for
+    /// One sample of the record, the drift filter's estimate (deg/s) and still flag for
     /// it, and each scored row's heading error (deg, in the labels' order; empty without
     /// truth).
     pub fn push(&mut self, x: &Sample, drift_dps: f64, still: bool, heading_deg: &[f64]) {
@@ -334,22 +334,22 @@ fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
     if let Some(t) = &s.level_tuning {
         writeln!(
             o,
-            "<h2>The identifier's level, tuned on validation vehicles</h2>\n<pre>{}</pre>",
-            esc(&t.lines().join("\n"))
+            "<h2>The gyro model's two scales, tuned on validation vehicles</h2>\n<pre>{}</pre>",
+            esc(&crate::motion::tune::describe(t))
         )?;
     }
     writeln!(
         o,
         "<h2>Record and identifier</h2>\n<pre>{}</pre>",
         esc(&format!(
-            "input      {} ({}, t_s from {})\nrate       column {:?} x {}\nidentifier {} ({} record passes trained)\nsensor     full scale {} deg/s, quantum {} deg/s, {} Hz, drift bound {:.1} deg/h\nrows       {} ({} still, {} level updates, {} at full scale)\nangle end  raw {:.4} deg, compensated {:.4} deg\noutput     {}",
+            "input      {} ({}, t_s from {})\nrate       column {:?} x {}\nimage      {} (fitted on {} calibration runs)\nsensor     full scale {} deg/s, quantum {} deg/s, {} Hz, drift bound {:.1} deg/h\nrows       {} ({} still, {} still windows, {} at full scale)\nangle end  raw {:.4} deg, compensated {:.4} deg\noutput     {}",
             s.input,
             s.format,
             s.t_s_source,
             s.rate_column.as_deref().unwrap_or("-"),
             s.rate_scale,
             s.identifier,
-            s.record_passes_trained,
+            s.trained_runs,
             s.sensor.full_scale_dps,
             s.sensor.quantum_dps,
             s.sensor.sample_rate_hz,

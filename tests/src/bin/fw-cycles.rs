@@ -27,12 +27,11 @@ const SAMPLE_RATE_HZ: u64 = 1_000;
 const GOAL_FRACTION_PERCENT: u64 = 10;
 
 /// The window kinds of the report, with the firmware's row names and what each is per.
-const REPORT_ROWS: [(&str, &str, &str); 6] = [
+const REPORT_ROWS: [(&str, &str, &str); 5] = [
     ("Decode", "frame decode (8 bytes)", "frame"),
-    ("Detect", "stillness detector", "sample"),
-    ("Estimate", "estimator push (detector included)", "sample"),
+    ("Estimate", "drift filter push + stillness test", "sample"),
     ("Denoise", "denoise db4 x3, B=512, resumable", "sample"),
-    ("Stage", "stage (estimator + denoiser + status)", "sample"),
+    ("Stage", "stage (filter + denoiser + status)", "sample"),
     ("Pipeline", "whole pipeline (decode+stage+record)", "sample"),
 ];
 
