@@ -406,7 +406,7 @@ impl DriftFilter {
             // learned here); the next window undoes it if it fails.
             true
         } else {
-            inn.nis() < self.cfg.nis_limit
+            inn.nis().is_some_and(|v| v < self.cfg.nis_limit)
                 && (learning || d * d / (d_scale * r) < self.cfg.nis_limit)
         };
         self.stats.windows = self.stats.windows.saturating_add(1);

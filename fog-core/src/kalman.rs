@@ -1,4 +1,5 @@
-//! One small Kalman filter: `N` states, f32, no heap, scalar observations.
+//! One small Kalman filter: `N` states, f32 (or f64 on the host: [`Scalar`]), no heap,
+//! scalar observations.
 //!
 //! The model is apart from the filter that runs it (as `adskalman`): a [`DiagonalModel`]
 //! holds the transition and the process noise of one step,
@@ -19,18 +20,70 @@
 //! `P` stays symmetric by construction (only its upper triangle is computed, then mirrored)
 //! and its diagonal is clamped at 0 after each update (f32 cancellation).
 
+/// The number type a filter runs in: `f32` (the firmware) or `f64` (the host's baselines).
+pub trait Scalar:
+    Copy
+    + PartialOrd
+    + core::ops::Add<Output = Self>
+    + core::ops::Sub<Output = Self>
+    + core::ops::Mul<Output = Self>
+    + core::ops::Div<Output = Self>
+    + core::ops::AddAssign
+    + core::ops::SubAssign
+    + core::ops::MulAssign
+{
+    /// 0.
+    const ZERO: Self;
+    /// 1.
+    const ONE: Self;
+    /// Neither infinite nor NaN.
+    fn finite(self) -> bool;
+    /// From f64 (rounded to the type).
+    fn from_f64(v: f64) -> Self;
+    /// To f64 (exact).
+    fn to_f64(self) -> f64;
+}
+
+impl Scalar for f32 {
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+    fn from_f64(v: f64) -> Self {
+        v as f32
+    }
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+impl Scalar for f64 {
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+    fn from_f64(v: f64) -> Self {
+        v
+    }
+    fn to_f64(self) -> f64 {
+        self
+    }
+}
+
 /// One step of a model with a diagonal transition and diagonal process noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct DiagonalModel<const N: usize> {
+pub struct DiagonalModel<const N: usize, T: Scalar = f32> {
     /// Transition: `x_i <- phi_i x_i` (1 for a random walk or a constant, `e^(-dt/tau)`
     /// for a Gauss-Markov term).
-    pub phi: [f32; N],
+    pub phi: [T; N],
     /// Process noise variance added to `P_ii` per step, in the state's unit squared.
-    pub q: [f32; N],
+    pub q: [T; N],
 }
 
-impl<const N: usize> DiagonalModel<N> {
+impl<const N: usize, T: Scalar> DiagonalModel<N, T> {
     /// The model of `steps` steps of `self` at once: `phi^steps`, and the noise the steps
     /// add up to (`q * sum phi^(2j)`, `j < steps`; `q * steps` where `phi` is 1).
     pub fn repeated(&self, steps: u32) -> Self {
@@ -42,15 +95,15 @@ impl<const N: usize> DiagonalModel<N> {
             .zip(self.phi.iter().zip(self.q.iter()))
         {
             // In f64: phi near 1 raised to thousands loses f32 digits.
-            let phi64 = phi as f64;
+            let phi64 = phi.to_f64();
             let phin = libm::pow(phi64, steps as f64);
-            *phi_out = phin as f32;
+            *phi_out = T::from_f64(phin);
             let gain = if (1.0 - phi64 * phi64).abs() < 1e-12 {
                 steps as f64
             } else {
                 (1.0 - phin * phin) / (1.0 - phi64 * phi64)
             };
-            *q_out = (q as f64 * gain) as f32;
+            *q_out = T::from_f64(q.to_f64() * gain);
         }
         out
     }
@@ -59,36 +112,32 @@ impl<const N: usize> DiagonalModel<N> {
 /// The innovation of a scalar observation: `e = z - h x`, its variance `s = h P h' + r`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Innovation {
+pub struct Innovation<T: Scalar = f32> {
     /// `z - h x`, the observation's unit.
-    pub e: f32,
+    pub e: T,
     /// `h P h' + r`, the observation's unit squared (> 0 whenever `r > 0`).
-    pub s: f32,
+    pub s: T,
 }
 
-impl Innovation {
+impl<T: Scalar> Innovation<T> {
     /// The normalized innovation squared `e^2 / s` (chi-square with one degree of freedom
-    /// when the model is right); infinite when `s` is not > 0.
-    pub fn nis(&self) -> f32 {
-        if self.s > 0.0 {
-            self.e * self.e / self.s
-        } else {
-            f32::INFINITY
-        }
+    /// when the model is right); `None` when `s` is not > 0.
+    pub fn nis(&self) -> Option<T> {
+        (self.s > T::ZERO).then(|| self.e * self.e / self.s)
     }
 }
 
 /// State `x` and covariance `P` of an `N`-state Kalman filter.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Kalman<const N: usize> {
-    x: [f32; N],
-    p: [[f32; N]; N],
+pub struct Kalman<const N: usize, T: Scalar = f32> {
+    x: [T; N],
+    p: [[T; N]; N],
 }
 
-impl<const N: usize> Kalman<N> {
+impl<const N: usize, T: Scalar> Kalman<N, T> {
     /// A filter at its prior: mean `x0`, covariance `diag(p0)`.
-    pub fn new(x0: [f32; N], p0: [f32; N]) -> Self {
-        let mut p = [[0.0; N]; N];
+    pub fn new(x0: [T; N], p0: [T; N]) -> Self {
+        let mut p = [[T::ZERO; N]; N];
         for (i, row) in p.iter_mut().enumerate() {
             if let (Some(v), Some(d)) = (row.get_mut(i), p0.get(i)) {
                 *v = *d;
@@ -98,39 +147,39 @@ impl<const N: usize> Kalman<N> {
     }
 
     /// The state.
-    pub fn x(&self) -> &[f32; N] {
+    pub fn x(&self) -> &[T; N] {
         &self.x
     }
 
     /// The covariance.
-    pub fn p(&self) -> &[[f32; N]; N] {
+    pub fn p(&self) -> &[[T; N]; N] {
         &self.p
     }
 
     /// `h x`.
-    pub fn observe(&self, h: &[f32; N]) -> f32 {
+    pub fn observe(&self, h: &[T; N]) -> T {
         dot(h, &self.x)
     }
 
     /// `h P h'`: the variance of `h x`.
-    pub fn observe_var(&self, h: &[f32; N]) -> f32 {
-        let mut s = 0.0;
-        for (row, hi) in self.p.iter().zip(h.iter()) {
+    pub fn observe_var(&self, h: &[T; N]) -> T {
+        let mut s = T::ZERO;
+        for (row, &hi) in self.p.iter().zip(h.iter()) {
             s += hi * dot(row, h);
         }
         s
     }
 
     /// Predict one step of `model`: `x <- F x`, `P <- F P F' + Q`.
-    pub fn predict(&mut self, model: &DiagonalModel<N>) {
-        for (x, phi) in self.x.iter_mut().zip(model.phi.iter()) {
+    pub fn predict(&mut self, model: &DiagonalModel<N, T>) {
+        for (x, &phi) in self.x.iter_mut().zip(model.phi.iter()) {
             *x *= phi;
         }
-        for (i, (row, phi_i)) in self.p.iter_mut().zip(model.phi.iter()).enumerate() {
-            for (j, (v, phi_j)) in row.iter_mut().zip(model.phi.iter()).enumerate() {
+        for (i, (row, &phi_i)) in self.p.iter_mut().zip(model.phi.iter()).enumerate() {
+            for (j, (v, &phi_j)) in row.iter_mut().zip(model.phi.iter()).enumerate() {
                 *v *= phi_i * phi_j;
                 if i == j {
-                    if let Some(q) = model.q.get(i) {
+                    if let Some(&q) = model.q.get(i) {
                         *v += q;
                     }
                 }
@@ -139,7 +188,7 @@ impl<const N: usize> Kalman<N> {
     }
 
     /// The innovation of observing `z = h x + v`, `var v = r`, without updating.
-    pub fn innovation(&self, h: &[f32; N], z: f32, r: f32) -> Innovation {
+    pub fn innovation(&self, h: &[T; N], z: T, r: T) -> Innovation<T> {
         Innovation {
             e: z - self.observe(h),
             s: self.observe_var(h) + r,
@@ -149,18 +198,18 @@ impl<const N: usize> Kalman<N> {
     /// Update with the observation `z = h x + v`, `var v = r`; returns the innovation it
     /// used. Nothing changes (and `None` is returned) when `z` or `r` is not finite or the
     /// innovation variance is not > 0.
-    pub fn update(&mut self, h: &[f32; N], z: f32, r: f32) -> Option<Innovation> {
+    pub fn update(&mut self, h: &[T; N], z: T, r: T) -> Option<Innovation<T>> {
         let inn = self.innovation(h, z, r);
-        if !(z.is_finite() && r.is_finite() && inn.s > 0.0 && inn.s.is_finite()) {
+        if !(z.finite() && r.finite() && inn.s > T::ZERO && inn.s.finite()) {
             return None;
         }
         // u = P h'; K = u / s; x += K e; P -= u u' / s (upper triangle, mirrored).
-        let mut u = [0.0f32; N];
+        let mut u = [T::ZERO; N];
         for (ui, row) in u.iter_mut().zip(self.p.iter()) {
             *ui = dot(row, h);
         }
-        let inv_s = 1.0 / inn.s;
-        for (x, ui) in self.x.iter_mut().zip(u.iter()) {
+        let inv_s = T::ONE / inn.s;
+        for (x, &ui) in self.x.iter_mut().zip(u.iter()) {
             *x += ui * inv_s * inn.e;
         }
         for i in 0..N {
@@ -172,8 +221,8 @@ impl<const N: usize> Kalman<N> {
                     continue;
                 };
                 *v -= ui * uj * inv_s;
-                if i == j && *v < 0.0 {
-                    *v = 0.0;
+                if i == j && *v < T::ZERO {
+                    *v = T::ZERO;
                 }
                 let v = *v;
                 if let Some(m) = self.p.get_mut(j).and_then(|r| r.get_mut(i)) {
@@ -185,8 +234,12 @@ impl<const N: usize> Kalman<N> {
     }
 }
 
-fn dot<const N: usize>(a: &[f32; N], b: &[f32; N]) -> f32 {
-    a.iter().zip(b.iter()).map(|(x, y)| x * y).sum()
+fn dot<const N: usize, T: Scalar>(a: &[T; N], b: &[T; N]) -> T {
+    let mut s = T::ZERO;
+    for (&x, &y) in a.iter().zip(b.iter()) {
+        s += x * y;
+    }
+    s
 }
 
 #[cfg(test)]
@@ -328,7 +381,7 @@ mod tests {
 
     #[test]
     fn repeated_steps_equal_the_steps() {
-        let m = DiagonalModel {
+        let m = DiagonalModel::<3, f32> {
             phi: [1.0, 0.99, 0.5],
             q: [1e-3, 2e-3, 0.1],
         };
@@ -346,7 +399,7 @@ mod tests {
 
     #[test]
     fn a_bad_observation_changes_nothing() {
-        let mut f = Kalman::new([1.0, 0.0], [1.0, 1.0]);
+        let mut f = Kalman::<2, f32>::new([1.0, 0.0], [1.0, 1.0]);
         let before = f;
         assert!(f.update(&[1.0, 1.0], f32::NAN, 1.0).is_none());
         assert!(f.update(&[1.0, 1.0], 1.0, f32::INFINITY).is_none());
@@ -357,7 +410,7 @@ mod tests {
     #[test]
     fn a_scalar_random_walk_is_the_textbook_one() {
         // q = 0.01, r = 1: steady-state P+ solves P = (P + q) r / (P + q + r).
-        let m = DiagonalModel {
+        let m = DiagonalModel::<1, f32> {
             phi: [1.0],
             q: [0.01],
         };
@@ -366,11 +419,22 @@ mod tests {
             f.predict(&m);
             f.update(&[1.0], 0.0, 1.0);
         }
-        let p = f.p()[0][0] as f64;
+        let p = f64::from(f.p()[0][0]);
         let steady = {
             let q = 0.01f64;
             (-q + (q * q + 4.0 * q).sqrt()) / 2.0
         };
         assert!((p - steady).abs() < 1e-5, "{p} vs {steady}");
+        // The same in f64 (the host's baselines): to 1e-12.
+        let m64 = DiagonalModel::<1, f64> {
+            phi: [1.0],
+            q: [0.01],
+        };
+        let mut g = Kalman::new([0.0], [10.0]);
+        for _ in 0..2000 {
+            g.predict(&m64);
+            g.update(&[1.0], 0.0, 1.0);
+        }
+        assert!((g.p()[0][0] - steady).abs() < 1e-12, "{}", g.p()[0][0]);
     }
 }

@@ -3,7 +3,10 @@
 //! samples BEFORE it only (a prediction; the first sample gets 0 or the prior).
 //!
 //! None of them learns from a sample whose still flag is false, so none can take rotation
-//! for drift unless the flag lies (a false-still call).
+//! for drift unless the flag lies (a false-still call). The Kalman ones run on
+//! [`fog_core::kalman`].
+
+use fog_core::kalman::{DiagonalModel, Kalman};
 
 /// A causal drift estimator.
 pub trait DriftEstimator {
@@ -65,9 +68,8 @@ impl DriftEstimator for AlignmentBias {
 pub struct GatedKalman {
     q_dps2: f64,
     r_dps2: f64,
-    b_dps: f64,
-    p_dps2: f64,
-    started: bool,
+    /// The bias and its variance (a one-state [`Kalman`]; None before the first still sample).
+    level: Option<Kalman<1, f64>>,
 }
 
 impl GatedKalman {
@@ -77,9 +79,7 @@ impl GatedKalman {
         Self {
             q_dps2: q_dps2.max(0.0),
             r_dps2: if r_dps2 > 0.0 { r_dps2 } else { 1.0 },
-            b_dps: 0.0,
-            p_dps2: 0.0,
-            started: false,
+            level: None,
         }
     }
 
@@ -90,7 +90,7 @@ impl GatedKalman {
 
     /// Current variance of the bias, (deg/s)^2.
     pub fn variance_dps2(&self) -> f64 {
-        self.p_dps2
+        self.level.as_ref().map_or(0.0, |k| k.p()[0][0])
     }
 }
 
@@ -99,19 +99,20 @@ impl DriftEstimator for GatedKalman {
         format!("gated-kalman q={:.3e}", self.q_dps2)
     }
     fn push(&mut self, _: f64, rate_dps: f64, _: Option<f64>, still: bool) -> f64 {
-        let est = self.b_dps;
-        if self.started {
-            self.p_dps2 += self.q_dps2;
+        let walk = DiagonalModel {
+            phi: [1.0],
+            q: [self.q_dps2],
+        };
+        let est = self.level.as_ref().map_or(0.0, |k| k.x()[0]);
+        if let Some(k) = self.level.as_mut() {
+            k.predict(&walk);
         }
         if still && rate_dps.is_finite() {
-            if self.started {
-                let k = self.p_dps2 / (self.p_dps2 + self.r_dps2);
-                self.b_dps += k * (rate_dps - self.b_dps);
-                self.p_dps2 *= 1.0 - k;
-            } else {
-                self.started = true;
-                self.b_dps = rate_dps;
-                self.p_dps2 = self.r_dps2;
+            match self.level.as_mut() {
+                Some(k) => {
+                    k.update(&[1.0], rate_dps, self.r_dps2);
+                }
+                None => self.level = Some(Kalman::new([rate_dps], [self.r_dps2])),
             }
         }
         est
@@ -203,8 +204,8 @@ const DPH: f64 = 3600.0;
 pub struct ThermalKalman {
     cfg: ThermalKalmanConfig,
     fitted: bool,
-    x: [f64; 3],
-    p: [[f64; 3]; 3],
+    /// `[b, c1, c2]` and their covariance ([`Kalman`]).
+    kf: Kalman<3, f64>,
     t0_c: Option<f64>,
     rate: TempRate,
     started: bool,
@@ -213,14 +214,17 @@ pub struct ThermalKalman {
 impl ThermalKalman {
     /// Coefficients learned on line (from 0, with the config's prior sigmas).
     pub fn new(cfg: ThermalKalmanConfig) -> Self {
-        let mut p = [[0.0; 3]; 3];
-        p[1][1] = cfg.c1_sigma_dps_per_c.powi(2);
-        p[2][2] = cfg.c2_sigma_dps_per_c_per_s.powi(2);
         Self {
             cfg,
             fitted: false,
-            x: [0.0; 3],
-            p,
+            kf: Kalman::new(
+                [0.0; 3],
+                [
+                    0.0,
+                    cfg.c1_sigma_dps_per_c.powi(2),
+                    cfg.c2_sigma_dps_per_c_per_s.powi(2),
+                ],
+            ),
             t0_c: None,
             rate: TempRate::new(cfg.dtemp_tau_s),
             started: false,
@@ -231,16 +235,15 @@ impl ThermalKalman {
     pub fn with_fit(cfg: ThermalKalmanConfig, fit: ThermalFit) -> Self {
         let mut s = Self::new(cfg);
         s.fitted = true;
-        s.x = [0.0, fit.c1_dps_per_c, fit.c2_dps_per_c_per_s];
-        s.p = [[0.0; 3]; 3];
+        s.kf = Kalman::new([0.0, fit.c1_dps_per_c, fit.c2_dps_per_c_per_s], [0.0; 3]);
         s
     }
 
     /// Current coefficients.
     pub fn coefficients(&self) -> ThermalFit {
         ThermalFit {
-            c1_dps_per_c: self.x[1],
-            c2_dps_per_c_per_s: self.x[2],
+            c1_dps_per_c: self.kf.x()[1],
+            c2_dps_per_c_per_s: self.kf.x()[2],
         }
     }
 }
@@ -259,31 +262,29 @@ impl DriftEstimator for ThermalKalman {
             }
             None => [1.0, 0.0, 0.0],
         };
-        let est = (0..3).map(|i| h[i] * self.x[i]).sum::<f64>();
+        let est = self.kf.observe(&h);
         if self.started {
-            self.p[0][0] += self.cfg.q_dps2;
+            self.kf.predict(&DiagonalModel {
+                phi: [1.0; 3],
+                q: [self.cfg.q_dps2, 0.0, 0.0],
+            });
         }
         if !(still && rate_dps.is_finite()) {
             return est;
         }
         if !self.started {
-            // First still sample: b takes the residual with the noise variance.
+            // First still sample: b takes the residual with the noise variance (P is
+            // diagonal until the first update).
             self.started = true;
-            self.x[0] = rate_dps - (est - self.x[0]);
-            self.p[0][0] = self.cfg.r_dps2;
+            let x = *self.kf.x();
+            let p = self.kf.p();
+            self.kf = Kalman::new(
+                [rate_dps - (est - x[0]), x[1], x[2]],
+                [self.cfg.r_dps2, p[1][1], p[2][2]],
+            );
             return est;
         }
-        let ph: [f64; 3] = std::array::from_fn(|i| (0..3).map(|j| self.p[i][j] * h[j]).sum());
-        let s = (0..3).map(|i| h[i] * ph[i]).sum::<f64>() + self.cfg.r_dps2;
-        let innov = rate_dps - est;
-        for (x, g) in self.x.iter_mut().zip(ph) {
-            *x += g / s * innov;
-        }
-        for (row, gi) in self.p.iter_mut().zip(ph) {
-            for (p, gj) in row.iter_mut().zip(ph) {
-                *p -= gi * gj / s;
-            }
-        }
+        self.kf.update(&h, rate_dps, self.cfg.r_dps2);
         est
     }
 }

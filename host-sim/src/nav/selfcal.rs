@@ -32,6 +32,7 @@
 //! before `k`. The still flag passed to [`DriftEstimator::push`] is ignored.
 
 use super::{run, DriftEstimator, NavRecord, Tuning};
+use fog_core::kalman::{DiagonalModel, Kalman};
 
 /// Length of the alignment at power-on, s. ASSUMED: a vehicle's 120-s alignment, still.
 pub const ALIGN_S: f64 = 120.0;
@@ -100,9 +101,9 @@ pub struct SelfCalKalman {
     still: bool,
     /// The previous window's mean, deg/s, and whether it may be released.
     prev: Option<(f64, bool)>,
-    b_dps: f64,
-    /// Variance of `b`, (deg/s)^2 (None before the first update).
-    p_dps2: Option<f64>,
+    /// The bias `b`, deg/s, and its variance, (deg/s)^2: a one-state filter on
+    /// [`fog_core::kalman`] (None before the first update).
+    level: Option<Kalman<1, f64>>,
     samples: u64,
     still_samples: u64,
     updates: u64,
@@ -133,8 +134,7 @@ impl SelfCalKalman {
             passing: cfg.min_still_windows,
             still: true,
             prev: None,
-            b_dps: 0.0,
-            p_dps2: None,
+            level: None,
             samples: 0,
             still_samples: 0,
             updates: 0,
@@ -174,7 +174,10 @@ impl SelfCalKalman {
 
     /// The bias estimate, deg/s, and its variance, (deg/s)^2 (None before the first update).
     pub fn state(&self) -> (f64, Option<f64>) {
-        (self.b_dps, self.p_dps2)
+        match &self.level {
+            Some(k) => (k.x()[0], Some(k.p()[0][0])),
+            None => (0.0, None),
+        }
     }
 
     fn window_ends(&self, t_s: f64) -> bool {
@@ -227,11 +230,11 @@ impl SelfCalKalman {
             Some(s2) if ok => {
                 let dof = (w.max(2) - 1) as f64;
                 let var_ok = var_dps2 <= s2 * (1.0 + self.cfg.var_z * (2.0 / dof).sqrt());
-                let mean_ok = match self.p_dps2 {
+                let mean_ok = match &self.level {
                     None => true,
-                    Some(p) => {
-                        let dm = mean_dps - self.b_dps;
-                        dm * dm <= self.cfg.mean_k * self.cfg.mean_k * (s2 / w as f64 + p)
+                    Some(k) => {
+                        let dm = mean_dps - k.x()[0];
+                        dm * dm <= self.cfg.mean_k * self.cfg.mean_k * (s2 / w as f64 + k.p()[0][0])
                     }
                 };
                 var_ok && mean_ok
@@ -262,15 +265,10 @@ impl SelfCalKalman {
 
     fn update(&mut self, mean_dps: f64, r_mean_dps2: f64) {
         self.updates += 1;
-        match self.p_dps2 {
-            None => {
-                self.b_dps = mean_dps;
-                self.p_dps2 = Some(r_mean_dps2);
-            }
-            Some(p) => {
-                let k = p / (p + r_mean_dps2);
-                self.b_dps += k * (mean_dps - self.b_dps);
-                self.p_dps2 = Some(p * (1.0 - k));
+        match self.level.as_mut() {
+            None => self.level = Some(Kalman::new([mean_dps], [r_mean_dps2])),
+            Some(k) => {
+                k.update(&[1.0], mean_dps, r_mean_dps2);
             }
         }
     }
@@ -282,9 +280,13 @@ impl DriftEstimator for SelfCalKalman {
     }
 
     fn push(&mut self, t_s: f64, rate_dps: f64, _: Option<f64>, _: bool) -> f64 {
-        let est = self.b_dps;
-        if let Some(p) = self.p_dps2.as_mut() {
-            *p += self.cfg.q_dps2.max(0.0);
+        let est = self.level.as_ref().map_or(0.0, |k| k.x()[0]);
+        let walk = DiagonalModel {
+            phi: [1.0],
+            q: [self.cfg.q_dps2.max(0.0)],
+        };
+        if let Some(k) = self.level.as_mut() {
+            k.predict(&walk);
         }
         self.samples += 1;
         self.still_samples += u64::from(self.still);
