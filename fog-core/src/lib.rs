@@ -8,7 +8,7 @@
 //! - [`wnn`]: the wavelet neural network (paper section 4.1);
 //! - [`train`]: DRLS (paper section 4.2) and the RLS / NLMS baselines;
 //! - [`features`]: causal network inputs; [`identify`]: the on-line identifier;
-//! - [`still`]: sensor configuration and the baselines' stillness detector;
+//! - [`still`]: sensor configuration, and a rate-only stillness detector no estimator uses;
 //! - [`image`]: the fitted gyro model and its filter's settings as a versioned, checksummed
 //!   binary image (what the firmware runs);
 //! - [`baseline`]: causal estimators to compare with;

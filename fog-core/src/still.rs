@@ -21,9 +21,10 @@
 //! The presumption is a hypothesis the first window tests, not an assumption kept: a
 //! failing first window makes the state moving, and then `min_still_s` of passing windows
 //! are needed as always. What it costs when wrong is bounded by the caller: a level
-//! estimator that learned from the presumed samples rolls them back when the window fails
-//! (`crate::motion`: the per-sample level restores its power-on state; no window mean is
-//! released from a failed window), and its output is clamped to the drift bound meanwhile.
+//! estimator that learned from the presumed samples must roll them back when the window fails
+//! (no window mean is released from a failed window), and clamp its output to the drift
+//! bound meanwhile. No estimator of the product uses this detector ([`crate::drift_filter`]
+//! has its own test); a host-sim test compares with it.
 //! What it buys: on a unit switched on at rest, the drift is estimated from the first
 //! sample instead of after `min_still_s` (with the E-Core's 1-s windows, 3 s without
 //! compensation at the largest drift of the run, its warm-up).
@@ -124,20 +125,6 @@ impl SensorConfig {
     pub fn sample_var_dps2(&self) -> f32 {
         self.noise_density_dps_rthz * self.noise_density_dps_rthz * self.sample_rate_hz
             + self.quantum_dps * self.quantum_dps / 12.0
-    }
-
-    /// `drift` limited to `+-drift_bound_dps` (NaN gives 0).
-    pub fn clamp_drift(&self, drift_dps: f32) -> f32 {
-        if drift_dps.is_nan() {
-            0.0
-        } else {
-            // max/min, not `f32::clamp`: clamp panics when its bounds are NaN or crossed, a
-            // panic path in the firmware (tests/tests/firmware_no_panic.rs); same result for
-            // a valid (positive, finite) bound.
-            drift_dps
-                .max(-self.drift_bound_dps)
-                .min(self.drift_bound_dps)
-        }
     }
 }
 
@@ -752,9 +739,7 @@ mod tests {
     }
 
     #[test]
-    fn clamp_and_noise_model() {
-        assert_eq!(S.clamp_drift(1.0), S.drift_bound_dps);
-        assert_eq!(S.clamp_drift(f32::NAN), 0.0);
+    fn noise_model() {
         // 4 deg/h/sqrt(Hz) at 100 Hz: 40 deg/h per sample, plus the count's 1/sqrt(12).
         let expect = (0.001_111_11f32 * 10.0).powi(2) + (60.0f32 / 32768.0).powi(2) / 12.0;
         assert!((S.sample_var_dps2() - expect).abs() < 1e-9);

@@ -22,8 +22,6 @@ use fog_core::drift_filter::{DriftFilter, DriftFilterConfig};
 use fog_core::gyro_model::GyroModel;
 use host_sim::identify::series::{CsvFiles, Records, Series};
 use host_sim::motion::calibration;
-#[allow(unused_imports)]
-use host_sim::nav::DriftEstimator;
 use host_sim::nav::{self, NavRecord};
 use host_sim::record::{ReadOptions, Record};
 use serde::Serialize;
