@@ -122,9 +122,10 @@ fn main() -> Result<()> {
         if args.verbose {
             for v in &f.vehicles {
                 println!(
-                    "    {} raw {:.3} filter {:.3} truth-flags {:.3} product {:.3} still {}/{} undone {}",
+                    "    {} raw {:.3} limit {:.3} filter {:.3} truth-flags {:.3} product {:.3} still {}/{} undone {}",
                     v.record,
                     v.raw_deg,
+                    v.limit_deg.unwrap_or(f64::NAN),
                     v.filter_deg,
                     v.filter_truth_flags_deg,
                     v.today.first().map_or(f64::NAN, |t| t.1),
@@ -496,6 +497,16 @@ fn report(vs: &[&Vehicle]) {
         "  filter worse than raw + 0.3 deg: {} {:?}",
         worse.len(),
         worse
+    );
+    let limit_worse: Vec<&str> = vs
+        .iter()
+        .filter(|v| v.limit_deg.is_some_and(|l| l > v.raw_deg + 0.3))
+        .map(|v| v.record.as_str())
+        .collect();
+    println!(
+        "  limit (true model) worse than raw + 0.3 deg: {} {:?}",
+        limit_worse.len(),
+        limit_worse
     );
     println!(
         "  drift bound reached where the true drift stays inside: {} {:?}",
