@@ -3,11 +3,13 @@
 //!
 //! States (`x`, [`STATES`] of them): the level `b` (a random walk of the model's rate random
 //! walk), the Gauss-Markov terms `g_1..g_3` (absent terms have zero variance and stay 0),
-//! the warm-up amplitude `a` and the temperature and temperature-rate links `c`, `c'`
-//! (constants). Prior: the model's family means and spreads. Process noise: the model's,
-//! never chosen on line. The observation of one window is its mean rate `ybar` with the row
-//! `hbar = [1, 1, 1, 1, mean e^(-t/tau_w), mean (T - T0), dT/dt]`, `T0` the model's
-//! reference temperature.
+//! the warm-up's coefficients `a_1..a_3` on its basis of exponentials
+//! ([`crate::warmup_basis`]: the warm-up of a time constant known only within a range;
+//! absent terms stay 0) and the temperature and temperature-rate links `c`, `c'`
+//! (constants). Prior: the model's family means and spreads (the warm-up's a joint one). Process noise: the model's, never chosen on line. The observation of one window
+//! is its mean rate `ybar` with the row
+//! `hbar = [1, 1, 1, 1, mean e^(-t/tau_1), .., mean e^(-t/tau_3), mean (T - T0), dT/dt]`,
+//! `T0` the model's reference temperature.
 //!
 //! Per window of `W` samples ([`DriftFilterConfig::window_s`]):
 //! 1. predict `W` steps of the model;
@@ -34,7 +36,11 @@
 //!
 //! Output per sample: `drift = h(t, T) x`, clamped to the model's drift bound, and the
 //! compensated rate `rate - drift`. Cost per sample: a few additions and multiplications;
-//! per window one predict and one update of a 7-state filter (`O(49)` each).
+//! per window one predict and one update of a 9-state filter (`O(81)` each), split over
+//! two samples: the push that ends a window predicts and tests, the next push applies the
+//! decision (the update, or the return to the checkpoint) before it computes its own
+//! output, so every output is the same as if both happened at once ([`DriftFilter::kalman`]
+//! between the two shows the state before the decision).
 //!
 //! An external still flag (a vehicle's zero-speed signal) overrides the test for the
 //! window it is given in (the window is still when every sample with a flag says still, and
@@ -42,13 +48,15 @@
 
 use crate::gyro_model::{GyroModel, MAX_MARKOV};
 use crate::kalman::{DiagonalModel, Innovation, Kalman};
+use crate::warmup_basis::{WarmupBasis, TERMS as MAX_WARMUP};
 
-/// Number of states: level, three Gauss-Markov terms, warm-up, temperature, temperature rate.
-pub const STATES: usize = 3 + MAX_MARKOV + 1;
+/// Number of states: level, three Gauss-Markov terms, three warm-up terms, temperature,
+/// temperature rate.
+pub const STATES: usize = 3 + MAX_MARKOV + MAX_WARMUP;
 
 const LEVEL: usize = 0;
 const WARMUP: usize = 1 + MAX_MARKOV;
-const TEMP: usize = WARMUP + 1;
+const TEMP: usize = WARMUP + MAX_WARMUP;
 const TEMP_RATE: usize = TEMP + 1;
 
 /// How the filter runs (apart from the model it runs).
@@ -139,8 +147,12 @@ pub struct DriftStats {
 struct Built {
     window: DiagonalModel<STATES>,
     samples_per_window: u32,
-    /// `e^(-dt / tau_w)`.
-    warmup_step: f32,
+    /// The warm-up basis' time constants, s (0: absent).
+    warmup_tau_s: [f32; MAX_WARMUP],
+    /// `e^(-dt / tau_j)` per warm-up term.
+    warmup_step: [f32; MAX_WARMUP],
+    /// `e^(-W dt / tau_j)` per warm-up term: one window.
+    warmup_window_step: [f32; MAX_WARMUP],
     r_floor: f32,
     r_cap: f32,
 }
@@ -157,22 +169,28 @@ pub struct DriftFilter {
     pending: bool,
     /// The state the output uses: the filter's without the pending update.
     out_x: [f32; STATES],
+    /// `sum` of `out_x`'s level and Gauss-Markov terms (the drift's window-constant part).
+    out_const: f32,
+    /// The decision of the window that ended on the last push, applied on the next one.
+    deferred: Deferred,
     /// `R_W` estimate: sum of half-difference variances and their count (capped: an
     /// exponential average over the last `R_MEMORY` windows once full).
     r_sum: f32,
     r_count: f32,
     r_checkpoint: (f32, f32),
-    /// Window sums: rate (two halves), warm-up factor, temperature offset.
+    /// Window sums: rate (two halves), warm-up factors, temperature offset.
     sum_first: f32,
     sum_second: f32,
-    sum_warm: f32,
+    sum_warm: [f32; MAX_WARMUP],
     sum_temp: f32,
     in_window: u32,
     /// External flags seen in this window: any still, any moving.
     ext_still: bool,
     ext_moving: bool,
-    /// The warm-up factor `e^(-t/tau_w)` of the next sample.
-    warm: f32,
+    /// The warm-up factors `e^(-t/tau_j)` of the next sample (0 for an absent term).
+    warm: [f32; MAX_WARMUP],
+    /// The warm-up factors at the start of this window.
+    warm_start: [f32; MAX_WARMUP],
     /// Last valid temperature minus `T0` (0 before any).
     temp_off: f32,
     /// Previous window's mean temperature offset, and the temperature-rate estimate, C/s.
@@ -186,20 +204,29 @@ pub struct DriftFilter {
 /// Memory of the `R_W` average, windows.
 const R_MEMORY: f32 = 64.0;
 
+/// What the window that ended on the last push decided (applied on the next push).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Deferred {
+    /// Nothing left to do.
+    Nothing,
+    /// A still window: the update with this row, mean and `R_W`; its half-difference
+    /// sample for `R_W`; trusted (an external flag: not held back).
+    Update {
+        h: [f32; STATES],
+        mean: f32,
+        r: f32,
+        r_sample: f32,
+        trusted: bool,
+    },
+    /// The next window failed: back to the checkpoint, predicted one window.
+    Undo,
+}
+
 impl DriftFilter {
     /// The filter of `model` at power-on.
     pub fn new(model: GyroModel, cfg: DriftFilterConfig) -> Result<Self, DriftFilterError> {
-        if !model.is_valid() {
-            return Err(DriftFilterError::BadModel);
-        }
-        if !cfg.is_valid() {
-            return Err(DriftFilterError::BadConfig);
-        }
-        let w = libm::roundf(cfg.window_s * model.sample_rate_hz);
-        if !(2.0..=1.0e6).contains(&w) {
-            return Err(DriftFilterError::BadConfig);
-        }
-        let samples_per_window = w as u32;
+        let samples_per_window = Self::check(&model, &cfg)?;
+        let w = samples_per_window as f32;
         let dt = model.sample_period_s();
         let mut step = DiagonalModel {
             phi: [1.0; STATES],
@@ -213,16 +240,26 @@ impl DriftFilter {
                 step.q[1 + i] = m.sigma_dps * m.sigma_dps * (1.0 - phi * phi);
             }
         }
+        let basis = Self::warmup_basis(&model)?;
+        let warmup_tau_s = basis.tau_s;
         let r_floor = model.sample_var_dps2() / w;
         let r_cap = (cfg.resolve_dps * cfg.resolve_dps / cfg.nis_limit).max(r_floor);
         let built = Built {
             window: step.repeated(samples_per_window),
             samples_per_window,
-            warmup_step: libm::expf(-dt / model.warmup_tau_s),
+            warmup_tau_s,
+            warmup_step: warmup_tau_s.map(|t| if t > 0.0 { libm::expf(-dt / t) } else { 0.0 }),
+            warmup_window_step: warmup_tau_s.map(|t| {
+                if t > 0.0 {
+                    libm::expf(-(samples_per_window as f32) * dt / t)
+                } else {
+                    0.0
+                }
+            }),
             r_floor,
             r_cap,
         };
-        let kf = Self::prior(&model);
+        let kf = Self::prior(&model, &basis);
         Ok(Self {
             model,
             cfg,
@@ -231,17 +268,20 @@ impl DriftFilter {
             checkpoint: kf,
             pending: false,
             out_x: *kf.x(),
+            out_const: Self::const_part(kf.x()),
+            deferred: Deferred::Nothing,
             r_sum: 0.0,
             r_count: 0.0,
             r_checkpoint: (0.0, 0.0),
             sum_first: 0.0,
             sum_second: 0.0,
-            sum_warm: 0.0,
+            sum_warm: [0.0; MAX_WARMUP],
             sum_temp: 0.0,
             in_window: 0,
             ext_still: false,
             ext_moving: false,
-            warm: 1.0,
+            warm: Self::warm_at(&warmup_tau_s, 0.0),
+            warm_start: Self::warm_at(&warmup_tau_s, 0.0),
             temp_off: 0.0,
             temp_prev: None,
             temp_rate: 0.0,
@@ -250,7 +290,35 @@ impl DriftFilter {
         })
     }
 
-    fn prior(model: &GyroModel) -> Kalman<STATES> {
+    /// Whether [`DriftFilter::new`] builds a filter of `model` and `cfg`, without building
+    /// it (a filter is about 1 KiB: on the MCU an image is checked with this). Returns the
+    /// samples per window.
+    pub fn check(model: &GyroModel, cfg: &DriftFilterConfig) -> Result<u32, DriftFilterError> {
+        if !model.is_valid() {
+            return Err(DriftFilterError::BadModel);
+        }
+        if !cfg.is_valid() {
+            return Err(DriftFilterError::BadConfig);
+        }
+        let w = libm::roundf(cfg.window_s * model.sample_rate_hz);
+        if !(2.0..=1.0e6).contains(&w) {
+            return Err(DriftFilterError::BadConfig);
+        }
+        Self::warmup_basis(model)?;
+        Ok(w as u32)
+    }
+
+    fn warmup_basis(model: &GyroModel) -> Result<WarmupBasis, DriftFilterError> {
+        WarmupBasis::new(
+            model.warmup_dps.mean,
+            model.warmup_dps.sigma,
+            model.warmup_tau_min_s,
+            model.warmup_tau_max_s,
+        )
+        .ok_or(DriftFilterError::BadModel)
+    }
+
+    fn prior(model: &GyroModel, basis: &WarmupBasis) -> Kalman<STATES> {
         let mut x0 = [0.0; STATES];
         let mut p0 = [0.0; STATES];
         x0[LEVEL] = model.turn_on_dps.mean;
@@ -258,14 +326,24 @@ impl DriftFilter {
         for (i, m) in model.markov.iter().enumerate() {
             p0[1 + i] = m.sigma_dps * m.sigma_dps;
         }
-        x0[WARMUP] = model.warmup_dps.mean;
-        p0[WARMUP] = model.warmup_dps.sigma * model.warmup_dps.sigma;
+        for (x, m) in x0[WARMUP..TEMP].iter_mut().zip(&basis.mean_dps) {
+            *x = *m;
+        }
         x0[TEMP] = model.temp_dps_per_c.mean;
         p0[TEMP] = model.temp_dps_per_c.sigma * model.temp_dps_per_c.sigma;
         x0[TEMP_RATE] = model.temp_rate_dps_per_c_per_s.mean;
         p0[TEMP_RATE] =
             model.temp_rate_dps_per_c_per_s.sigma * model.temp_rate_dps_per_c_per_s.sigma;
-        Kalman::new(x0, p0)
+        let mut p = [[0.0; STATES]; STATES];
+        for (i, row) in p.iter_mut().enumerate() {
+            row[i] = p0[i];
+        }
+        for (i, row) in basis.cov_dps2.iter().enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                p[WARMUP + i][WARMUP + j] = *v;
+            }
+        }
+        Kalman::with_covariance(x0, p)
     }
 
     /// Back to power-on; keeps the model and the configuration.
@@ -318,14 +396,78 @@ impl DriftFilter {
         &self.stats
     }
 
-    /// The drift at a sample with warm-up factor `warm` (deg/s, unclamped).
-    fn drift_now(&self) -> f32 {
-        let x = &self.out_x;
+    /// The warm-up factors at `t_s` after power-on (0 for an absent term).
+    fn warm_at(tau_s: &[f32; MAX_WARMUP], t_s: f32) -> [f32; MAX_WARMUP] {
+        tau_s.map(|tau| {
+            if tau > 0.0 {
+                libm::expf(-t_s / tau)
+            } else {
+                0.0
+            }
+        })
+    }
+
+    /// The level and Gauss-Markov terms of `x` summed (constant over a window).
+    fn const_part(x: &[f32; STATES]) -> f32 {
         let mut d = 0.0;
         for v in x.iter().take(WARMUP) {
             d += v;
         }
-        d + x[WARMUP] * self.warm + x[TEMP] * self.temp_off + x[TEMP_RATE] * self.temp_rate
+        d
+    }
+
+    /// Sets the state the output uses.
+    fn set_out(&mut self, x: [f32; STATES]) {
+        self.out_const = Self::const_part(&x);
+        self.out_x = x;
+    }
+
+    /// The drift at the next sample (deg/s, unclamped).
+    fn drift_now(&self) -> f32 {
+        let x = &self.out_x;
+        let mut d = self.out_const;
+        for (a, w) in x[WARMUP..TEMP].iter().zip(&self.warm) {
+            d += a * w;
+        }
+        d + x[TEMP] * self.temp_off + x[TEMP_RATE] * self.temp_rate
+    }
+
+    /// Applies the last window's decision (module docs: the second half of its work).
+    fn apply_deferred(&mut self) {
+        match core::mem::replace(&mut self.deferred, Deferred::Nothing) {
+            Deferred::Nothing => {}
+            Deferred::Update {
+                h,
+                mean,
+                r,
+                r_sample,
+                trusted,
+            } => {
+                self.checkpoint = self.kf;
+                self.r_checkpoint = (self.r_sum, self.r_count);
+                self.kf.update(&h, mean, r);
+                // Held back one window: the output keeps the state before this update
+                // until the next window confirms it; a window the external flag calls
+                // still is the flag's (trusted: nothing to confirm or undo).
+                self.pending = !trusted;
+                if !self.pending {
+                    self.set_out(*self.kf.x());
+                }
+                // R_W from the window's half-difference (an average with a fast start).
+                if self.r_count >= R_MEMORY {
+                    self.r_sum *= (R_MEMORY - 1.0) / R_MEMORY;
+                } else {
+                    self.r_count += 1.0;
+                }
+                self.r_sum += r_sample;
+            }
+            Deferred::Undo => {
+                self.kf = self.checkpoint;
+                self.kf.predict(&self.built.window);
+                (self.r_sum, self.r_count) = self.r_checkpoint;
+                self.set_out(*self.kf.x());
+            }
+        }
     }
 
     /// One sample: `rate_dps`, `temp_c` (NaN: no reading; the last one is kept),
@@ -341,6 +483,7 @@ impl DriftFilter {
             self.stats.rejected = self.stats.rejected.saturating_add(1);
             return Err(DriftFilterError::NonFiniteRate);
         }
+        self.apply_deferred();
         self.stats.samples = self.stats.samples.saturating_add(1);
         if temp_c.is_finite() {
             self.temp_off = temp_c - self.model.temp_ref_c;
@@ -353,7 +496,9 @@ impl DriftFilter {
         } else {
             self.sum_second += rate_dps;
         }
-        self.sum_warm += self.warm;
+        for (s, w) in self.sum_warm.iter_mut().zip(&self.warm) {
+            *s += w;
+        }
         self.sum_temp += self.temp_off;
         match external_still {
             Some(true) => self.ext_still = true,
@@ -361,7 +506,9 @@ impl DriftFilter {
             None => {}
         }
         self.in_window += 1;
-        self.warm *= self.built.warmup_step;
+        for (w, step) in self.warm.iter_mut().zip(&self.built.warmup_step) {
+            *w *= step;
+        }
         if self.in_window >= self.built.samples_per_window {
             self.end_window(half);
         }
@@ -387,7 +534,9 @@ impl DriftFilter {
         }
         self.temp_prev = Some(mean_temp);
         let mut h = [1.0; STATES];
-        h[WARMUP] = self.sum_warm / n;
+        for (hj, s) in h[WARMUP..TEMP].iter_mut().zip(&self.sum_warm) {
+            *hj = s / n;
+        }
         h[TEMP] = mean_temp;
         h[TEMP_RATE] = self.temp_rate;
         self.kf.predict(&self.built.window);
@@ -411,49 +560,46 @@ impl DriftFilter {
         };
         self.stats.windows = self.stats.windows.saturating_add(1);
         if still {
-            self.checkpoint = self.kf;
-            self.r_checkpoint = (self.r_sum, self.r_count);
-            self.kf.update(&h, mean, r);
-            // Held back one window: the output keeps the state before this update until
-            // the next window confirms it; a window the external flag calls still is the
-            // flag's (trusted: nothing to confirm or undo).
-            self.pending = !self.ext_still;
-            self.out_x = if self.pending {
-                *self.checkpoint.x()
-            } else {
-                *self.kf.x()
-            };
-            // R_W from this window's half-difference (an average with a fast start).
-            let sample = d * d / d_scale;
-            if self.r_count >= R_MEMORY {
-                self.r_sum *= (R_MEMORY - 1.0) / R_MEMORY;
-            } else {
-                self.r_count += 1.0;
+            // The output keeps the state before the update (= the predicted state now)
+            // unless the flag is trusted; the update itself on the next push.
+            if !self.ext_still {
+                self.set_out(*self.kf.x());
             }
-            self.r_sum += sample;
+            self.deferred = Deferred::Update {
+                h,
+                mean,
+                r,
+                r_sample: d * d / d_scale,
+                trusted: self.ext_still,
+            };
             self.stats.still_windows = self.stats.still_windows.saturating_add(1);
         } else if self.pending {
-            self.kf = self.checkpoint;
-            self.kf.predict(&self.built.window);
-            (self.r_sum, self.r_count) = self.r_checkpoint;
             self.pending = false;
+            self.deferred = Deferred::Undo;
             self.stats.undone = self.stats.undone.saturating_add(1);
-            self.out_x = *self.kf.x();
         } else {
-            self.out_x = *self.kf.x();
+            self.set_out(*self.kf.x());
         }
         self.still = still;
         // The next window.
         self.sum_first = 0.0;
         self.sum_second = 0.0;
-        self.sum_warm = 0.0;
+        self.sum_warm = [0.0; MAX_WARMUP];
         self.sum_temp = 0.0;
         self.in_window = 0;
         self.ext_still = false;
         self.ext_moving = false;
-        // The warm-up factor afresh from the time since power-on (no drift of the product).
-        let t_s = self.stats.samples as f32 * self.model.sample_period_s();
-        self.warm = libm::expf(-t_s / self.model.warmup_tau_s);
+        // The warm-up factors of the next window: the last window's start times one
+        // window's decay (not the product of every sample's step).
+        for ((w, s), step) in self
+            .warm
+            .iter_mut()
+            .zip(self.warm_start.iter_mut())
+            .zip(&self.built.warmup_window_step)
+        {
+            *s *= step;
+            *w = *s;
+        }
     }
 }
 

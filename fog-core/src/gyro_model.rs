@@ -9,7 +9,9 @@
 //! - `b`: the level, turn-on bias (mean and spread over power-ons and units) walking as a
 //!   random walk of density `rrw_dps_per_s_rthz` (rate random walk `K`);
 //! - `g_i`: Gauss-Markov terms (bias instability), each `sigma`, `tau`; `sigma = 0`: absent;
-//! - `a`: the warm-up amplitude at power-on (mean, spread), time constant `tau_w`;
+//! - `a`: the warm-up amplitude at power-on (mean, spread), time constant `tau_w`: a unit's
+//!   own, log-uniform between a least and a largest value (units differ in their warm-up's
+//!   time constant as in its amplitude; equal bounds: one known time constant);
 //! - `c`, `c'`: the temperature link and the temperature-rate (Shupe) link (mean, spread).
 //!   `T0` is the model's reference temperature (absolute: on the generator's families a link
 //!   of the change since power-on scored worse, docs/drift-filter.md).
@@ -61,8 +63,10 @@ pub struct GyroModel {
     pub turn_on_dps: Spread,
     /// Warm-up amplitude at power-on, deg/s.
     pub warmup_dps: Spread,
-    /// Warm-up time constant, s (> 0).
-    pub warmup_tau_s: f32,
+    /// Least warm-up time constant, s (> 0).
+    pub warmup_tau_min_s: f32,
+    /// Largest warm-up time constant, s (>= `warmup_tau_min_s`).
+    pub warmup_tau_max_s: f32,
     /// Temperature the link is taken from, deg C.
     pub temp_ref_c: f32,
     /// Temperature link, deg/s per deg C.
@@ -77,7 +81,7 @@ impl GyroModel {
     /// The model a sensor's specification alone gives (no calibration run): its rate,
     /// white noise, quantum and drift bound; ASSUMED for the rest (a unit never
     /// calibrated): turn-on and warm-up spreads of a third of the bound each (mean 0),
-    /// warm-up time constant 600 s, no temperature link (mean and spread 0: a link is only
+    /// warm-up time constant 200 to 1800 s, no temperature link (mean and spread 0: a link is only
     /// learned from calibration runs), one Gauss-Markov term of a tenth of the bound at
     /// 300 s, rate random walk 1 deg/h/sqrt(h). Temperature reference 25 deg C.
     pub fn for_sensor(s: &SensorConfig) -> Self {
@@ -103,7 +107,8 @@ impl GyroModel {
                 mean: 0.0,
                 sigma: third,
             },
-            warmup_tau_s: 600.0,
+            warmup_tau_min_s: 200.0,
+            warmup_tau_max_s: 1800.0,
             temp_ref_c: 25.0,
             temp_dps_per_c: Spread::default(),
             temp_rate_dps_per_c_per_s: Spread::default(),
@@ -111,8 +116,9 @@ impl GyroModel {
         }
     }
 
-    /// Every field finite, rates, white noise, warm-up time and bound > 0, the rest >= 0;
-    /// every present Gauss-Markov term with `tau > 0`.
+    /// Every field finite, rates, white noise, warm-up times and bound > 0, the rest >= 0;
+    /// every present Gauss-Markov term with `tau > 0`; the warm-up's least time constant at
+    /// most its largest.
     pub fn is_valid(&self) -> bool {
         let pos = |v: f32| v > 0.0 && v.is_finite();
         let nonneg = |v: f32| v >= 0.0 && v.is_finite();
@@ -127,7 +133,9 @@ impl GyroModel {
             && nonneg(self.rrw_dps_per_s_rthz)
             && spread(self.turn_on_dps)
             && spread(self.warmup_dps)
-            && pos(self.warmup_tau_s)
+            && pos(self.warmup_tau_min_s)
+            && pos(self.warmup_tau_max_s)
+            && self.warmup_tau_min_s <= self.warmup_tau_max_s
             && self.temp_ref_c.is_finite()
             && spread(self.temp_dps_per_c)
             && spread(self.temp_rate_dps_per_c_per_s)
@@ -196,7 +204,8 @@ pub(crate) mod tests {
                 mean: 0.0,
                 sigma: 25.0 * dph,
             },
-            warmup_tau_s: 600.0,
+            warmup_tau_min_s: 600.0,
+            warmup_tau_max_s: 600.0,
             temp_ref_c: 25.0,
             temp_dps_per_c: Spread {
                 mean: 0.0,
@@ -216,6 +225,12 @@ pub(crate) mod tests {
             sigma_dps: 1e-4,
             tau_s: 0.0,
         };
+        assert!(!bad.is_valid());
+        let mut bad = m;
+        bad.warmup_tau_min_s = 700.0; // above the largest
+        assert!(!bad.is_valid());
+        let mut bad = m;
+        bad.warmup_tau_min_s = 0.0;
         assert!(!bad.is_valid());
         let mut bad = m;
         bad.temp_dps_per_c.sigma = f32::NAN;

@@ -2,7 +2,7 @@
 //! binary file (`host-sim identify` fits the model on calibration runs, the firmware loads
 //! the result and runs [`DriftFilter`]).
 //!
-//! Little-endian, fixed layout for format version 4 ([`IMAGE_LEN`] = 124 bytes for
+//! Little-endian, fixed layout for format version 5 ([`IMAGE_LEN`] = 128 bytes for
 //! [`MAX_MARKOV`] = 3): the header, every field of [`GyroModel`] in declaration order (a
 //! Gauss-Markov term as sigma, tau; a [`Spread`] as mean, sigma), every field of
 //! [`DriftFilterConfig`] in declaration order, the sensor's full scale, the calibration runs,
@@ -18,21 +18,22 @@
 //! | 44 | 4 | model, f32: rate random walk deg/s/sqrt(s) |
 //! | 48 | 8 | model, 2 x f32: turn-on bias mean, sigma deg/s |
 //! | 56 | 8 | model, 2 x f32: warm-up amplitude mean, sigma deg/s |
-//! | 64 | 4 | model, f32: warm-up time constant s |
-//! | 68 | 4 | model, f32: temperature reference deg C |
-//! | 72 | 8 | model, 2 x f32: temperature link mean, sigma deg/s per deg C |
-//! | 80 | 8 | model, 2 x f32: temperature-rate link mean, sigma deg/s per (deg C/s) |
-//! | 88 | 4 | model, f32: drift bound deg/s |
-//! | 92 | 12 | filter, 3 x f32: window s, NIS limit, resolved rate deg/s |
-//! | 104 | 4 | filter, u32: learning windows |
-//! | 108 | 4 | filter, f32: temperature-rate time constant s |
-//! | 112 | 4 | f32: sensor full scale deg/s (> 0) |
-//! | 116 | 4 | u32: calibration runs the model was fitted on |
-//! | 120 | 4 | u32: CRC-32/ISO-HDLC ([`crc32`]) of bytes 0..120 |
+//! | 64 | 8 | model, 2 x f32: warm-up time constant least, largest s |
+//! | 72 | 4 | model, f32: temperature reference deg C |
+//! | 76 | 8 | model, 2 x f32: temperature link mean, sigma deg/s per deg C |
+//! | 84 | 8 | model, 2 x f32: temperature-rate link mean, sigma deg/s per (deg C/s) |
+//! | 92 | 4 | model, f32: drift bound deg/s |
+//! | 96 | 12 | filter, 3 x f32: window s, NIS limit, resolved rate deg/s |
+//! | 108 | 4 | filter, u32: learning windows |
+//! | 112 | 4 | filter, f32: temperature-rate time constant s |
+//! | 116 | 4 | f32: sensor full scale deg/s (> 0) |
+//! | 120 | 4 | u32: calibration runs the model was fitted on |
+//! | 124 | 4 | u32: CRC-32/ISO-HDLC ([`crc32`]) of bytes 0..124 |
 //!
 //! Versions 1 to 3 held the retired dual-thermal and bank estimators with the wavelet
-//! network: they are refused by name ([`ImageError::RetiredFormat`]); retrain with
-//! `host-sim identify`. [`Image::to_bytes`] writes version 4 only, and only an image
+//! network, version 4 the drift filter with one known warm-up time constant: they are
+//! refused by name ([`ImageError::RetiredFormat`]); retrain with `host-sim identify`.
+//! [`Image::to_bytes`] writes version 5 only, and only an image
 //! that [`Image::parse`] accepts.
 //!
 //! [`Image::parse`] never panics (fuzzed by a proptest) and returns a typed
@@ -57,27 +58,27 @@ pub fn crc32(bytes: &[u8]) -> u32 {
 const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 /// The format this code writes and reads.
-pub const FORMAT_VERSION: u16 = 4;
+pub const FORMAT_VERSION: u16 = 5;
 /// Preset id of [`crate::drift_filter`] (1 was the retired motion identifier).
 pub const PRESET_DRIFT_FILTER: u16 = 2;
-/// Bytes of a version-4 image.
-pub const IMAGE_LEN: usize = 124;
+/// Bytes of a version-5 image.
+pub const IMAGE_LEN: usize = 128;
 
 /// Offset of the model (after the 8-byte header).
 const MODEL_AT: usize = 8;
 /// Offset of the filter configuration.
-const CONFIG_AT: usize = 92;
+const CONFIG_AT: usize = 96;
 /// Offset of the full scale.
-const FULL_SCALE_AT: usize = 112;
+const FULL_SCALE_AT: usize = 116;
 /// Offset of the calibration runs.
-const RUNS_AT: usize = 116;
+const RUNS_AT: usize = 120;
 /// Offset of the checksum.
 const CRC_AT: usize = IMAGE_LEN - 4;
 
-// The layout counts 15 + 2 MAX_MARKOV words of model: another MAX_MARKOV is another format
+// The layout counts 16 + 2 MAX_MARKOV words of model: another MAX_MARKOV is another format
 // (a new version and table), not a silent change of this one.
 const _: () = assert!(
-    MODEL_AT + 4 * (15 + 2 * MAX_MARKOV) == CONFIG_AT
+    MODEL_AT + 4 * (16 + 2 * MAX_MARKOV) == CONFIG_AT
         && CONFIG_AT + 4 * 5 == FULL_SCALE_AT
         && FULL_SCALE_AT + 4 == RUNS_AT
         && RUNS_AT + 4 == CRC_AT
@@ -94,8 +95,9 @@ pub enum ImageError {
         /// Bytes available.
         offset: usize,
     },
-    /// A format version 1 to 3: the identifier images of the retired dual-thermal and bank
-    /// estimators with the wavelet network. Retrain with `host-sim identify`.
+    /// A format version 1 to 4: the identifier images of the retired dual-thermal and bank
+    /// estimators with the wavelet network (1 to 3), the drift filter with one known warm-up
+    /// time constant (4). Retrain with `host-sim identify`.
     RetiredFormat(u16),
     /// Any other format version this code does not read.
     UnsupportedVersion(u16),
@@ -130,6 +132,10 @@ impl core::fmt::Display for ImageError {
         match self {
             Self::BadMagic => f.write_str("not a drift image (bad magic, expected FOGI)"),
             Self::Truncated { offset } => write!(f, "truncated at byte offset {offset}"),
+            Self::RetiredFormat(v) if *v >= 4 => write!(
+                f,
+                "format version {v} held the drift filter with one known warm-up time constant (this build reads {FORMAT_VERSION}): retrain with `host-sim identify`"
+            ),
             Self::RetiredFormat(v) => write!(
                 f,
                 "format version {v} held the retired dual-thermal/bank estimators with the wavelet network: retrain with `host-sim identify`"
@@ -255,7 +261,8 @@ impl Image {
         w.f32(m.rrw_dps_per_s_rthz);
         w.spread(m.turn_on_dps);
         w.spread(m.warmup_dps);
-        w.f32(m.warmup_tau_s);
+        w.f32(m.warmup_tau_min_s);
+        w.f32(m.warmup_tau_max_s);
         w.f32(m.temp_ref_c);
         w.spread(m.temp_dps_per_c);
         w.spread(m.temp_rate_dps_per_c_per_s);
@@ -287,7 +294,7 @@ impl Image {
         }
         let version = Reader { b: head(6)?, at: 4 }.u16();
         match version {
-            1..=3 => return Err(ImageError::RetiredFormat(version)),
+            1..=4 => return Err(ImageError::RetiredFormat(version)),
             FORMAT_VERSION => {}
             _ => return Err(ImageError::UnsupportedVersion(version)),
         }
@@ -325,7 +332,8 @@ impl Image {
             rrw_dps_per_s_rthz: r.f32(),
             turn_on_dps: r.spread(),
             warmup_dps: r.spread(),
-            warmup_tau_s: r.f32(),
+            warmup_tau_min_s: r.f32(),
+            warmup_tau_max_s: r.f32(),
             temp_ref_c: r.f32(),
             temp_dps_per_c: r.spread(),
             temp_rate_dps_per_c_per_s: r.spread(),
@@ -354,7 +362,7 @@ impl Image {
     fn check(&self) -> Result<(), ImageError> {
         let taus_finite = self.model.markov.iter().all(|t| t.tau_s.is_finite());
         let full_scale = self.full_scale_dps > 0.0 && self.full_scale_dps.is_finite();
-        if taus_finite && full_scale && self.filter().is_ok() {
+        if taus_finite && full_scale && DriftFilter::check(&self.model, &self.config).is_ok() {
             Ok(())
         } else {
             Err(ImageError::BadModel)
@@ -398,6 +406,8 @@ mod tests {
         };
         model.turn_on_dps.mean = 3.0 / 3600.0;
         model.warmup_dps.mean = -2.0 / 3600.0;
+        model.warmup_tau_min_s = 150.0;
+        model.warmup_tau_max_s = 1500.0;
         model.temp_rate_dps_per_c_per_s = Spread {
             mean: 1.0e-4,
             sigma: 2.0e-4,
@@ -454,7 +464,8 @@ mod tests {
             m.turn_on_dps.sigma,
             m.warmup_dps.mean,
             m.warmup_dps.sigma,
-            m.warmup_tau_s,
+            m.warmup_tau_min_s,
+            m.warmup_tau_max_s,
             m.temp_ref_c,
             m.temp_dps_per_c.mean,
             m.temp_dps_per_c.sigma,
@@ -511,7 +522,7 @@ mod tests {
         let b = bytes(&img);
         let m = &img.model;
         assert_eq!(&b[0..4], b"FOGI");
-        assert_eq!(u16::from_le_bytes([b[4], b[5]]), 4);
+        assert_eq!(u16::from_le_bytes([b[4], b[5]]), 5);
         assert_eq!(u16::from_le_bytes([b[6], b[7]]), 2);
         assert_eq!(f32_at(&b, 8), m.sample_rate_hz);
         assert_eq!(f32_at(&b, 16), m.quantum_dps);
@@ -520,15 +531,16 @@ mod tests {
         assert_eq!(f32_at(&b, 44), m.rrw_dps_per_s_rthz);
         assert_eq!(f32_at(&b, 48), m.turn_on_dps.mean);
         assert_eq!(f32_at(&b, 56), m.warmup_dps.mean);
-        assert_eq!(f32_at(&b, 64), m.warmup_tau_s);
-        assert_eq!(f32_at(&b, 68), m.temp_ref_c);
-        assert_eq!(f32_at(&b, 76), m.temp_dps_per_c.sigma);
-        assert_eq!(f32_at(&b, 80), m.temp_rate_dps_per_c_per_s.mean);
-        assert_eq!(f32_at(&b, 88), m.drift_bound_dps);
+        assert_eq!(f32_at(&b, 64), m.warmup_tau_min_s);
+        assert_eq!(f32_at(&b, 68), m.warmup_tau_max_s);
+        assert_eq!(f32_at(&b, 72), m.temp_ref_c);
+        assert_eq!(f32_at(&b, 80), m.temp_dps_per_c.sigma);
+        assert_eq!(f32_at(&b, 84), m.temp_rate_dps_per_c_per_s.mean);
+        assert_eq!(f32_at(&b, 92), m.drift_bound_dps);
         assert_eq!(f32_at(&b, CONFIG_AT), img.config.window_s);
-        assert_eq!(f32_at(&b, 100), img.config.resolve_dps);
-        assert_eq!(u32_at(&b, 104), img.config.learn_windows);
-        assert_eq!(f32_at(&b, 108), img.config.temp_rate_tau_s);
+        assert_eq!(f32_at(&b, 104), img.config.resolve_dps);
+        assert_eq!(u32_at(&b, 108), img.config.learn_windows);
+        assert_eq!(f32_at(&b, 112), img.config.temp_rate_tau_s);
         assert_eq!(f32_at(&b, FULL_SCALE_AT), img.full_scale_dps);
         assert_eq!(u32_at(&b, RUNS_AT), img.trained_runs);
         assert_eq!(u32_at(&b, CRC_AT), crc32(&b[..CRC_AT]));
@@ -597,12 +609,12 @@ mod tests {
         c[0] = b'X';
         assert_eq!(Image::parse(&c), Err(ImageError::BadMagic));
         assert_eq!(Image::parse(b"FOX"), Err(ImageError::BadMagic));
-        for v in [0u16, 5, 0xFFFF] {
+        for v in [0u16, 6, 0xFFFF] {
             let mut c = b;
             c[4..6].copy_from_slice(&v.to_le_bytes());
             assert_eq!(Image::parse(&c), Err(ImageError::UnsupportedVersion(v)));
         }
-        for v in 1u16..=3 {
+        for v in 1u16..=4 {
             let mut c = b;
             c[4..6].copy_from_slice(&v.to_le_bytes());
             assert_eq!(Image::parse(&c), Err(ImageError::RetiredFormat(v)));
@@ -638,12 +650,14 @@ mod tests {
             (24, 0.0),                 // a present term's tau
             (40, f32::NAN),            // an absent term's tau (sigma 0 below)
             (52, -1.0),                // turn-on sigma
-            (68, f32::NEG_INFINITY),   // temperature reference
-            (88, 0.0),                 // drift bound
+            (64, 0.0),                 // least warm-up time constant
+            (64, 2000.0),              // least warm-up time constant above the largest
+            (72, f32::NEG_INFINITY),   // temperature reference
+            (92, 0.0),                 // drift bound
             (CONFIG_AT, 0.0),          // window
             (CONFIG_AT, 0.01),         // a window of 1 sample at 100 Hz
             (CONFIG_AT + 4, f32::NAN), // NIS limit
-            (108, -60.0),              // temperature-rate time constant
+            (112, -60.0),              // temperature-rate time constant
             (FULL_SCALE_AT, 0.0),
             (FULL_SCALE_AT, f32::INFINITY),
         ] {
@@ -668,8 +682,8 @@ mod tests {
     }
 
     #[test]
-    fn a_format_3_identifier_image_is_refused_by_name() {
-        for version in 1u16..=3 {
+    fn a_retired_image_is_refused_by_name() {
+        for version in 1u16..=4 {
             let mut head = [0u8; 584];
             head[..4].copy_from_slice(b"FOGI");
             head[4..6].copy_from_slice(&version.to_le_bytes());

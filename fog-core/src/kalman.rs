@@ -146,6 +146,30 @@ impl<const N: usize, T: Scalar> Kalman<N, T> {
         Self { x: x0, p }
     }
 
+    /// A filter at its prior: mean `x0`, covariance `p0` (made symmetric: the mean of it
+    /// and its transpose).
+    pub fn with_covariance(x0: [T; N], p0: [[T; N]; N]) -> Self {
+        let mut p = p0;
+        for i in 0..N {
+            for j in (i + 1)..N {
+                let (Some(a), Some(b)) = (
+                    p0.get(i).and_then(|r| r.get(j)),
+                    p0.get(j).and_then(|r| r.get(i)),
+                ) else {
+                    continue;
+                };
+                let v = (*a + *b) * T::from_f64(0.5);
+                if let Some(x) = p.get_mut(i).and_then(|r| r.get_mut(j)) {
+                    *x = v;
+                }
+                if let Some(x) = p.get_mut(j).and_then(|r| r.get_mut(i)) {
+                    *x = v;
+                }
+            }
+        }
+        Self { x: x0, p }
+    }
+
     /// The state.
     pub fn x(&self) -> &[T; N] {
         &self.x

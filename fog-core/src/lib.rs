@@ -40,6 +40,7 @@ pub mod threshold;
 pub mod tmp105;
 pub mod tmp117;
 pub mod train;
+pub mod warmup_basis;
 pub mod wnn;
 
 pub use denoise::{BlockDenoiser, DenoiseConfig, DenoiseError, Push, Thresholds};

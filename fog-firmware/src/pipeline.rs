@@ -14,7 +14,7 @@
 //! stillness test (or the external still flag) finds still updates the filter; the update
 //! is undone when the next window fails. Per sample the drift is `h(t, T) x`, clamped to
 //! the model's drift bound, and the compensated rate is `rate - drift`. [`new_stage`] builds
-//! it from the drift image: `fog_core::image::Image::parse` (format 4; formats 1 to 3, the
+//! it from the drift image: `fog_core::image::Image::parse` (format 5; formats 1 to 4, the
 //! retired estimators' images, are refused by name), the model's rate within
 //! [`MIN_RATE_HZ`] .. [`MAX_RATE_HZ`], `Image::filter`. Beside it runs the paper's block
 //! denoiser (db4, 3 levels, `B` = 512) in its resumable form
@@ -152,7 +152,7 @@ impl Stage {
     }
 }
 
-/// Builds the stage from a drift image (`fog_core::image` format 4) for any rate from
+/// Builds the stage from a drift image (`fog_core::image` format 5) for any rate from
 /// [`MIN_RATE_HZ`] to [`MAX_RATE_HZ`] (another rate: `ImageError::RateMismatch` naming the
 /// nearer end of the range).
 ///

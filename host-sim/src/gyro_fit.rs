@@ -38,6 +38,12 @@ pub const TEMP_REF_C: f64 = 25.0;
 const BIN_S: f64 = 10.0;
 /// Correlation times of the Gauss-Markov terms tried, s (ASSUMED: one per decade).
 const MARKOV_TAUS_S: [f64; MAX_MARKOV] = [30.0, 300.0, 3000.0];
+/// A unit's warm-up time constant is taken to lie within this factor of the family's best
+/// one, log-uniform (ASSUMED: units differ in their warm-up's time constant; one fitted
+/// time constant extrapolated through a long drive was the largest error of the filter on
+/// the generator's families, docs/drift-filter.md).
+pub const WARMUP_TAU_RATIO: f64 = 3.0;
+
 /// Time constant of the temperature-rate estimate, s (the drift filter's default).
 const TEMP_RATE_TAU_S: f64 = 60.0;
 
@@ -532,7 +538,8 @@ pub fn fit(
         rrw_dps_per_s_rthz: coef[1].sqrt() as f32,
         turn_on_dps: turn_on,
         warmup_dps: warmup,
-        warmup_tau_s: tau_w as f32,
+        warmup_tau_min_s: (tau_w / WARMUP_TAU_RATIO) as f32,
+        warmup_tau_max_s: (tau_w * WARMUP_TAU_RATIO) as f32,
         temp_dps_per_c: temp,
         temp_rate_dps_per_c_per_s: temp_rate,
         temp_ref_c: TEMP_REF_C as f32,

@@ -359,7 +359,7 @@ fn image_command_describes_an_image() {
         .assert()
         .success()
         .stdout(predicates::str::contains(format!(
-            "th.fogi: drift-filter image, format 4, 124 bytes, CRC-32 0x{crc:08x}; fitted on 2 calibration runs"
+            "th.fogi: drift-filter image, format 5, 128 bytes, CRC-32 0x{crc:08x}; fitted on 2 calibration runs"
         )))
         .stdout(predicates::str::contains("noise: white 0.06"))
         .stdout(predicates::str::contains(
@@ -510,9 +510,13 @@ fn bad_identifiers_are_refused() {
     flipped[60] ^= 0x10;
     refused(&flipped, &rec, d, "checksum mismatch");
     refused(&good[..100], &rec, d, "truncated at byte offset 100");
-    let mut v5 = good.clone();
-    v5[4] = 5;
-    refused(&v5, &rec, d, "format version 5 unsupported");
+    let mut v6 = good.clone();
+    v6[4] = 6;
+    refused(&v6, &rec, d, "format version 6 unsupported");
+    // An image of the filter with one known warm-up time constant (format 4).
+    let mut v4 = good.clone();
+    v4[4] = 4;
+    refused(&v4, &rec, d, "one known warm-up time constant");
     // An image of the retired estimator (format 3) is named as such.
     let mut v3 = good.clone();
     v3[4] = 3;

@@ -6,7 +6,7 @@
 //! frame, a checksum error, a random burst), with in-band still-flag commands (still, moving,
 //! back to the stillness test) at known places, followed by the end marker, sent to the
 //! firmware's UART0. The firmware runs the drift filter **loaded from the drift image it
-//! embeds** (`fog-firmware/identifier/default.fogi`, format 4). The host decodes the same bytes with the same
+//! embeds** (`fog-firmware/identifier/default.fogi`, format 5). The host decodes the same bytes with the same
 //! fog-core decoder and runs the same per-sample code (`fog-firmware/src/pipeline.rs`,
 //! compiled here) with the same image. Every per-sample record must match bit for bit, and
 //! the final statistics record must match the host's byte counters exactly. The record
@@ -417,7 +417,7 @@ fn the_default_image_parses_and_says_how_it_was_made() {
     image
         .check_rate(pipeline::SAMPLE_RATE_HZ)
         .expect("default.fogi is for the firmware's rate");
-    assert_eq!(bytes.len(), fog_core::image::IMAGE_LEN, "format 4");
+    assert_eq!(bytes.len(), fog_core::image::IMAGE_LEN, "format 5");
     assert_eq!(image.full_scale_dps, pipeline::FULL_SCALE_DPS);
     assert!(image.filter().is_ok(), "builds its drift filter");
     // A model fitted on calibration runs, not the sensor specification's alone.

@@ -38,14 +38,14 @@ const SAMPLES: usize = 1600;
 /// Line rate of the test, bit/s (8N1: 10 bits per byte).
 const BAUD: &str = "115200";
 /// The polling control's line rate: a byte every 1,680 instructions, shorter than the
-/// heaviest samples (about 2,450 instructions: a drift filter window end), so that a main loop
+/// heaviest samples (about 2,540 instructions: a drift filter window end), so that a main loop
 /// that polls between samples must lose bytes. (At 115,200 baud, a byte every 14,583
 /// instructions, no sample of the stage outlasts a byte since the denoiser is resumable:
 /// polling would lose nothing there, and the control could not fail.)
 const POLL_BAUD: &str = "1000000";
 /// A line rate at which the main loop cannot keep up on average (a byte every 280
 /// instructions, a frame every 2,240, less than a sample with its record and the feed's and
-/// receive interrupts cost; 870 mean for the pipeline alone with the drift filter image):
+/// receive interrupts cost; 893 mean for the pipeline alone with the drift filter image):
 /// the queue fills, the receive interrupt pauses (back-pressure) and bytes are overwritten
 /// (measured: 3,642 bytes in 101 loss events). (With the retired estimators' images, at
 /// 8,000,000 baud the feed's and the receive interrupts left the main loop too little time

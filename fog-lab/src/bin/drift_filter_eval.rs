@@ -58,6 +58,9 @@ struct Args {
     /// Write each vehicle's `t_s,drift_dps,estimate_dps,moving` here (every 100th sample).
     #[arg(long)]
     dump: Option<PathBuf>,
+    /// Exploration: the warm-up time constant's range as this factor around the fit's.
+    #[arg(long)]
+    warmup_tau_ratio: Option<f32>,
     /// Exploration: multiply the warm-up's spread.
     #[arg(long)]
     warmup_scale: Option<f32>,
@@ -204,6 +207,11 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
     }
     if let Some(m) = args.warmup_scale {
         model.warmup_dps.sigma *= m;
+    }
+    if let Some(r) = args.warmup_tau_ratio {
+        let mid = (model.warmup_tau_min_s * model.warmup_tau_max_s).sqrt();
+        model.warmup_tau_min_s = mid / r;
+        model.warmup_tau_max_s = mid * r;
     }
     if let Some(m) = args.prior_scale {
         model.temp_dps_per_c.sigma *= m;
@@ -394,7 +402,8 @@ fn true_model(csv: &Path, fitted: &GyroModel) -> Option<GyroModel> {
     m.turn_on_dps.sigma = (f("turn_on_sigma_dph")? * dph) as f32;
     m.warmup_dps.mean = (f("warmup1_dph")? * dph) as f32;
     m.warmup_dps.sigma = 0.0;
-    m.warmup_tau_s = f("warmup1_tau_s")? as f32;
+    m.warmup_tau_min_s = f("warmup1_tau_s")? as f32;
+    m.warmup_tau_max_s = m.warmup_tau_min_s;
     m.temp_dps_per_c.mean = (f("k1_dph_per_c")? * dph) as f32;
     m.temp_dps_per_c.sigma = 0.0;
     m.temp_rate_dps_per_c_per_s.mean = (f("shupe_dph_per_c_per_min")? * dph * 60.0) as f32;
@@ -403,9 +412,13 @@ fn true_model(csv: &Path, fitted: &GyroModel) -> Option<GyroModel> {
     match std::env::var("FOG_LIMIT_ABLATE").as_deref() {
         Ok("warmup") => {
             m.warmup_dps = fitted.warmup_dps;
-            m.warmup_tau_s = fitted.warmup_tau_s;
+            m.warmup_tau_min_s = fitted.warmup_tau_min_s;
+            m.warmup_tau_max_s = fitted.warmup_tau_max_s;
         }
-        Ok("warmup-tau") => m.warmup_tau_s = fitted.warmup_tau_s,
+        Ok("warmup-tau") => {
+            m.warmup_tau_min_s = fitted.warmup_tau_min_s;
+            m.warmup_tau_max_s = fitted.warmup_tau_max_s;
+        }
         Ok("links") => {
             m.temp_dps_per_c = fitted.temp_dps_per_c;
             m.temp_rate_dps_per_c_per_s = fitted.temp_rate_dps_per_c_per_s;
@@ -519,8 +532,9 @@ fn print_family(f: &Family) {
     println!("== {}", f.family);
     println!("  model: {}", f.model);
     println!(
-        "  warm-up tau {:.0} s; ADEV after the deterministic part (tau s, deg/h; fit): {}",
+        "  warm-up tau {:.0} s (terms {:?}); ADEV after the deterministic part (tau s, deg/h; fit): {}",
         f.fit.warmup_tau_s,
+        [f.fit.warmup_tau_s / 3.0, f.fit.warmup_tau_s * 3.0],
         f.fit
             .adev_dph
             .iter()
@@ -583,10 +597,17 @@ fn demo_family(cfg: DriftFilterConfig, args: &Args) -> Result<()> {
     if let Some(m) = args.warmup_scale {
         model.warmup_dps.sigma *= m;
     }
+    if let Some(r) = args.warmup_tau_ratio {
+        let mid = (model.warmup_tau_min_s * model.warmup_tau_max_s).sqrt();
+        model.warmup_tau_min_s = mid / r;
+        model.warmup_tau_max_s = mid * r;
+    }
     println!("== demo family: model {model:?}");
     println!(
-        "  warm-up tau {:.0} s; ADEV {:?}",
-        fit.warmup_tau_s, fit.adev_dph
+        "  warm-up tau {:.0} s (terms {:?}); ADEV {:?}",
+        fit.warmup_tau_s,
+        [fit.warmup_tau_s / 3.0, fit.warmup_tau_s * 3.0],
+        fit.adev_dph
     );
     let vehicles = |unit0: u64, seed0: u64| -> Result<Vec<NavRecord>> {
         (0..32)

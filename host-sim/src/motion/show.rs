@@ -31,8 +31,8 @@ pub struct ImageInfo {
     pub rrw_dph_rth: f32,
     /// Turn-on bias: family mean and unit spread, deg/h.
     pub turn_on_dph: (f32, f32),
-    /// Warm-up amplitude: mean and spread, deg/h; time constant s.
-    pub warmup_dph_tau_s: (f32, f32, f32),
+    /// Warm-up amplitude: mean and spread, deg/h; time constant: least and largest, s.
+    pub warmup_dph_tau_s: (f32, f32, f32, f32),
     /// Temperature link: mean and spread, deg/h per deg C, from this temperature, deg C.
     pub temp_dph_per_c: (f32, f32, f32),
     /// Temperature-rate link: mean and spread, deg/h per (deg C/min).
@@ -91,7 +91,8 @@ pub fn describe(image: &Image, bytes: &[u8]) -> ImageInfo {
         warmup_dph_tau_s: (
             m.warmup_dps.mean * DPH,
             m.warmup_dps.sigma * DPH,
-            m.warmup_tau_s,
+            m.warmup_tau_min_s,
+            m.warmup_tau_max_s,
         ),
         temp_dph_per_c: (
             m.temp_dps_per_c.mean * DPH,
@@ -127,7 +128,7 @@ pub fn text(name: &str, i: &ImageInfo) -> String {
         "{name}: drift-filter image, format {}, {} bytes, CRC-32 0x{:08x}; fitted on {} calibration runs\n\
          sensor: {} Hz, full scale {} deg/s, quantum {} deg/s\n\
          noise: white {:.4} deg/sqrt(h); Gauss-Markov {markov}; rate random walk {:.3} deg/h/sqrt(h)\n\
-         turn-on {:+.2} +- {:.2} deg/h; warm-up {:+.2} +- {:.2} deg/h, time constant {:.0} s; drift bound {:.1} deg/h\n\
+         turn-on {:+.2} +- {:.2} deg/h; warm-up {:+.2} +- {:.2} deg/h, time constant {:.0} to {:.0} s; drift bound {:.1} deg/h\n\
          temperature link {:+.4} +- {:.4} deg/h per deg C from {} deg C; rate link {:+.3} +- {:.3} deg/h per deg C/min; reads temperature: {}\n\
          filter: window {} s, stillness threshold {} (chi-square(1)), resolves {:.1} deg/h\n",
         i.format_version,
@@ -144,6 +145,7 @@ pub fn text(name: &str, i: &ImageInfo) -> String {
         i.warmup_dph_tau_s.0,
         i.warmup_dph_tau_s.1,
         i.warmup_dph_tau_s.2,
+        i.warmup_dph_tau_s.3,
         i.drift_bound_dph,
         i.temp_dph_per_c.0,
         i.temp_dph_per_c.1,
