@@ -1,7 +1,11 @@
 //! Whether an identifier image fits the firmware (`fog-firmware`), and what the firmware
-//! will do with it: `host-sim image` prints it, and every command that writes an image
-//! (`identify --preset motion --save-identifier`, `demo`) prints it and refuses to write an
-//! image the firmware would refuse ([`crate::motion::write_image`]).
+//! will do with it, in ONE verdict: `fits`, or `does not fit:` and every reason (its set-up
+//! refuses the image, the UART cannot carry its rate, the decoder's full scale is not the
+//! unit's, the core cannot keep up). `host-sim image` prints it (and exits non-zero on an
+//! image that does not fit), and every command that writes an image (`identify --preset
+//! motion --save-identifier`, `demo`) prints it and refuses to write an image that does not
+//! fit unless forced (`identify --force`; [`crate::motion::write_image`]). The JSON carries
+//! the same verdict and reasons ([`FirmwareFit`]).
 //!
 //! # Sources
 //! - **The firmware's own set-up code**: `fog-firmware/src/pipeline.rs` is compiled into
@@ -82,12 +86,29 @@ pub const UART_BAUD: f64 = 115_200.0;
 /// Bit times per byte on the UART (8N1).
 pub const UART_BITS_PER_BYTE: f64 = 10.0;
 
+/// One reason an image does not fit: a few words for the verdict and the whole statement.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Misfit {
+    /// For the verdict line (`UART 226 % (records out)`).
+    pub short: String,
+    /// What happens, in a sentence.
+    pub detail: String,
+}
+
 /// What the firmware does with an image (units in the field names; shares are fractions).
 #[derive(Debug, Clone, Serialize)]
 pub struct FirmwareFit {
-    /// The firmware's set-up (`pipeline::new_stage`) accepts the image.
-    pub accepted: bool,
-    /// Why it refuses it (the firmware stops at set-up), if it does.
+    /// The one verdict: the firmware runs the image as the unit needs (no [`Self::reasons`]).
+    pub fits: bool,
+    /// The verdict in words, as printed: `fits` or `does not fit: ` and every reason's short
+    /// form ([`Misfit::short`]), comma-separated.
+    pub verdict: String,
+    /// Why it does not fit (empty when it fits): set-up refusal, decoder full scale, core
+    /// load, UART.
+    pub reasons: Vec<Misfit>,
+    /// The firmware's set-up (`pipeline::new_stage`) takes the image (it may still not fit).
+    pub setup_accepts: bool,
+    /// Why the set-up refuses it (the firmware stops there), if it does (also a reason).
     pub refusal: Option<String>,
     /// The rate the firmware runs at: the image's, Hz.
     pub sample_rate_hz: f32,
@@ -124,33 +145,48 @@ pub struct FirmwareFit {
     pub uart_baud: f64,
     /// Share of the UART's line at this rate: frames in, records out.
     pub uart_share: (f64, f64),
-    /// Where the image does not fit (the firmware runs it, but not as the unit needs).
-    pub warnings: Vec<String>,
 }
 
 impl FirmwareFit {
-    /// `Err` naming `output` when the firmware would refuse the image (nothing is to be
-    /// written then).
-    pub fn refuse(&self, output: &Path) -> Result<()> {
-        if let Some(r) = &self.refusal {
+    /// `Err` naming `output` and the verdict when the image does not fit, unless `force`
+    /// (nothing is to be written then).
+    pub fn refuse(&self, output: &Path, force: bool) -> Result<()> {
+        if !self.fits && !force {
             bail!(
-                "{}: not written: the firmware would refuse this image at set-up: {r}",
-                output.display()
+                "{}: not written: the image does not fit the firmware: {} (write it anyway: --force)",
+                output.display(),
+                self.why()
             );
         }
         Ok(())
     }
 
-    /// The statement, a few lines (each starting `firmware:`; warnings `firmware: WARNING:`).
+    /// Every reason's short form, comma-separated (the verdict after `does not fit: `);
+    /// empty when the image fits.
+    pub fn why(&self) -> String {
+        self.reasons
+            .iter()
+            .map(|r| r.short.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// The statement, a few lines (each starting `firmware:`): the verdict first, then each
+    /// reason, then the figures.
     pub fn text(&self) -> String {
         let (lo, hi) = self.accepted_rate_hz;
         let hz = self.sample_rate_hz;
-        let mut s = match &self.refusal {
-            Some(r) => format!("firmware: REFUSES this image (it stops at set-up): {r}\n"),
-            None => format!(
-                "firmware: accepts this image and runs at its {hz} Hz (accepted: {lo} to {hi} Hz)\n"
-            ),
+        let mut s = if self.fits {
+            format!(
+                "firmware: {}: runs this image at its {hz} Hz (rates {lo} to {hi} Hz)\n",
+                self.verdict
+            )
+        } else {
+            format!("firmware: {}\n", self.verdict)
         };
+        for r in &self.reasons {
+            s += &format!("firmware:   - {}\n", r.detail);
+        }
         s += &format!(
             "firmware: decodes {}, full scale {} deg/s; this image's unit: {} deg/s\n",
             self.decoder, self.decoder_full_scale_dps, self.image_full_scale_dps
@@ -188,9 +224,6 @@ impl FirmwareFit {
             100.0 * self.uart_share.0,
             100.0 * self.uart_share.1,
         );
-        for w in &self.warnings {
-            s += &format!("firmware: WARNING: {w}\n");
-        }
         s
     }
 }
@@ -224,61 +257,101 @@ fn setup_reason(e: &pipeline::SetupError) -> String {
     }
 }
 
-/// The figures and warnings for an image at `sample_rate_hz` from a unit of
-/// `full_scale_dps`; `refusal`: the set-up's verdict.
+/// The verdict, its reasons and the figures for an image at `sample_rate_hz` from a unit of
+/// `full_scale_dps`; `refusal`: the set-up's verdict (a reason too).
 pub fn assess(sample_rate_hz: f32, full_scale_dps: f32, refusal: Option<String>) -> FirmwareFit {
     let hz = f64::from(sample_rate_hz);
-    let mut warnings = Vec::new();
-    let fs = DECODER_FULL_SCALE_DPS;
-    if full_scale_dps > fs * (1.0 + 1e-6) {
-        warnings.push(format!(
-            "the unit's full scale {full_scale_dps} deg/s is beyond the decoder's {fs} deg/s: the firmware decodes E-Core 2000 frames only (16-bit counts, 32768 = {fs} deg/s), so rates beyond {fs} deg/s cannot reach it, and a unit whose counts mean {full_scale_dps} deg/s is read at {:.3}x its rate",
-            fs / full_scale_dps
-        ));
-    } else if full_scale_dps < fs * (1.0 - 1e-6) {
-        warnings.push(format!(
-            "the unit's full scale {full_scale_dps} deg/s is not the decoder's {fs} deg/s: a unit whose E-Core counts mean {full_scale_dps} deg/s is read at {:.3}x its rate",
-            fs / full_scale_dps
-        ));
-    }
-    let period_cycles = CLOCK_HZ / hz;
-    if CYCLES_MEAN > period_cycles {
-        warnings.push(format!(
-            "the mean sample ({} cycles) exceeds the {:.0}-cycle sample period: the firmware falls behind and loses frames",
-            grouped(CYCLES_MEAN, 1),
-            period_cycles
-        ));
-    } else if CYCLES_WORST > period_cycles {
-        warnings.push(format!(
-            "the worst sample ({} cycles) exceeds the {:.0}-cycle sample period: the receive queue must absorb it",
-            grouped(CYCLES_WORST, 0),
-            period_cycles
-        ));
+    let mut reasons = Vec::new();
+    let mut why = |short: String, detail: String| reasons.push(Misfit { short, detail });
+    if let Some(r) = &refusal {
+        why(
+            format!("set-up refuses it ({r})"),
+            format!("its set-up code refuses the image and the firmware stops there: {r}"),
+        );
     }
     let line = |bytes: usize| bytes as f64 * UART_BITS_PER_BYTE * hz / UART_BAUD;
     let uart_share = (line(FRAME_LEN), line(RECORD_LEN));
     let most_hz = |bytes: usize| UART_BAUD / (bytes as f64 * UART_BITS_PER_BYTE);
-    for (what, bytes, share, consequence) in [
+    for (what, way, bytes, share, consequence) in [
         (
             "records",
+            "out",
             RECORD_LEN,
             uart_share.1,
-            ": the firmware falls behind and loses frames",
+            "the firmware falls behind and loses frames",
         ),
-        ("frames", FRAME_LEN, uart_share.0, ""),
+        (
+            "frames",
+            "in",
+            FRAME_LEN,
+            uart_share.0,
+            "the unit's frames cannot arrive at this rate",
+        ),
     ] {
         if share <= 1.0 {
             continue;
         }
-        warnings.push(format!(
-            "the {what} ({bytes} B per sample) need {:.0} % of the {} baud UART at {sample_rate_hz} Hz (at most {:.0} Hz fit){consequence}",
-            100.0 * share,
-            grouped(UART_BAUD, 0),
-            most_hz(bytes).floor()
-        ));
+        why(
+            format!("UART {:.0} % ({what} {way})", 100.0 * share),
+            format!(
+                "the {what} ({bytes} B per sample) need {:.0} % of the {} baud UART at {sample_rate_hz} Hz (at most {:.0} Hz fit): {consequence}",
+                100.0 * share,
+                grouped(UART_BAUD, 0),
+                most_hz(bytes).floor()
+            ),
+        );
     }
-    FirmwareFit {
-        accepted: refusal.is_none(),
+    let fs = DECODER_FULL_SCALE_DPS;
+    if full_scale_dps > fs * (1.0 + 1e-6) {
+        why(
+            format!("decoder full scale {fs} deg/s < unit's {full_scale_dps} deg/s"),
+            format!(
+                "the unit's full scale {full_scale_dps} deg/s is beyond the decoder's {fs} deg/s: the firmware decodes E-Core 2000 frames only (16-bit counts, 32768 = {fs} deg/s), so rates beyond {fs} deg/s cannot reach it, and a unit whose counts mean {full_scale_dps} deg/s is read at {:.3}x its rate",
+                fs / full_scale_dps
+            ),
+        );
+    } else if full_scale_dps < fs * (1.0 - 1e-6) {
+        why(
+            format!("decoder full scale {fs} deg/s > unit's {full_scale_dps} deg/s"),
+            format!(
+                "the unit's full scale {full_scale_dps} deg/s is not the decoder's {fs} deg/s: a unit whose E-Core counts mean {full_scale_dps} deg/s is read at {:.3}x its rate",
+                fs / full_scale_dps
+            ),
+        );
+    }
+    let period_cycles = CLOCK_HZ / hz;
+    if CYCLES_MEAN > period_cycles {
+        why(
+            format!(
+                "core: mean sample {} cycles > {:.0}-cycle period",
+                grouped(CYCLES_MEAN, 1),
+                period_cycles
+            ),
+            format!(
+                "the mean sample ({} cycles) exceeds the {:.0}-cycle sample period: the firmware falls behind and loses frames",
+                grouped(CYCLES_MEAN, 1),
+                period_cycles
+            ),
+        );
+    } else if CYCLES_WORST > period_cycles {
+        why(
+            format!(
+                "core: worst sample {} cycles > {:.0}-cycle period",
+                grouped(CYCLES_WORST, 0),
+                period_cycles
+            ),
+            format!(
+                "the worst sample ({} cycles) exceeds the {:.0}-cycle sample period: the receive queue must absorb it (not measured)",
+                grouped(CYCLES_WORST, 0),
+                period_cycles
+            ),
+        );
+    }
+    let mut fit = FirmwareFit {
+        fits: reasons.is_empty(),
+        verdict: String::new(),
+        reasons,
+        setup_accepts: refusal.is_none(),
         refusal,
         sample_rate_hz,
         accepted_rate_hz: (MIN_RATE_HZ, MAX_RATE_HZ),
@@ -297,8 +370,13 @@ pub fn assess(sample_rate_hz: f32, full_scale_dps: f32, refusal: Option<String>)
         flash_bytes: FLASH_BYTES,
         uart_baud: UART_BAUD,
         uart_share,
-        warnings,
-    }
+    };
+    fit.verdict = if fit.fits {
+        "fits".to_string()
+    } else {
+        format!("does not fit: {}", fit.why())
+    };
+    fit
 }
 
 /// `x` with `decimals` decimals and thousands separated by commas (`1,327.8`).
@@ -383,23 +461,56 @@ mod tests {
         assert_eq!(grouped(-1234.5, 1), "-1,234.5");
     }
 
-    /// Load and warnings follow the rate: 100 Hz fits quietly, 1 kHz overfills the UART's
-    /// records, a 100 deg/s unit is named.
+    /// The verdict follows the rate and the unit: 100 Hz at 60 deg/s fits, 1 kHz overfills
+    /// the UART's records, a 100 deg/s unit is named; every reason in the verdict.
     #[test]
-    fn warnings_follow_the_rate_and_unit() {
+    fn the_verdict_follows_the_rate_and_unit() {
         let at100 = assess(100.0, 60.0, None);
-        assert!(at100.warnings.is_empty(), "{:?}", at100.warnings);
+        assert!(
+            at100.fits && at100.reasons.is_empty(),
+            "{:?}",
+            at100.reasons
+        );
+        assert_eq!(at100.verdict, "fits");
         assert!((at100.core_share.0 - CYCLES_MEAN * 100.0 / 168e6).abs() < 1e-12);
         assert!((at100.uart_share.1 - 26.0 * 10.0 * 100.0 / 115_200.0).abs() < 1e-12);
         let at1k = assess(1000.0, 60.0, None);
-        assert_eq!(at1k.warnings.len(), 1, "{:?}", at1k.warnings);
-        assert!(at1k.warnings[0].contains("at most 443 Hz fit"));
+        assert!(!at1k.fits);
+        assert_eq!(at1k.reasons.len(), 1, "{:?}", at1k.reasons);
+        assert!(at1k.reasons[0].detail.contains("at most 443 Hz fit"));
+        assert_eq!(at1k.verdict, "does not fit: UART 226 % (records out)");
+        let both = assess(1000.0, 100.0, None);
+        assert_eq!(
+            both.verdict,
+            "does not fit: UART 226 % (records out), decoder full scale 60 deg/s < unit's 100 deg/s"
+        );
+        assert!(both.setup_accepts);
         let fs100 = assess(200.0, 100.0, None);
-        assert_eq!(fs100.warnings.len(), 1, "{:?}", fs100.warnings);
-        assert!(fs100.warnings[0].contains("beyond the decoder's 60 deg/s"));
+        assert_eq!(fs100.reasons.len(), 1, "{:?}", fs100.reasons);
+        assert!(fs100.reasons[0]
+            .detail
+            .contains("beyond the decoder's 60 deg/s"));
+        let refused = assess(5000.0, 60.0, Some("rate".into()));
+        assert!(!refused.setup_accepts);
+        assert!(refused
+            .verdict
+            .starts_with("does not fit: set-up refuses it (rate)"));
         // A core too slow for the rate (not reachable within the firmware's range at 168
         // MHz): named.
         let fast = assess(200_000.0, 60.0, None);
-        assert!(fast.warnings.iter().any(|w| w.contains("the mean sample")));
+        assert!(fast
+            .reasons
+            .iter()
+            .any(|w| w.detail.contains("the mean sample")));
+        for f in [&at100, &at1k, &both, &fs100, &refused, &fast] {
+            let text = f.text();
+            assert!(
+                text.starts_with(&format!("firmware: {}", f.verdict)),
+                "{text}"
+            );
+            for r in &f.reasons {
+                assert!(text.contains(&r.detail), "{text}");
+            }
+        }
     }
 }

@@ -102,9 +102,14 @@ pub struct Args {
     /// JSON report to write (with `--preset motion`: the per-record training figures).
     #[arg(long, required_unless_present = "save_identifier")]
     pub json: Option<PathBuf>,
-    /// `--preset motion`: the identifier image to write (fog_core::image).
+    /// `--preset motion`: the identifier image to write (fog_core::image). An image that
+    /// does not fit the firmware (host_sim::firmware_fit) is not written without `--force`.
     #[arg(long)]
     pub save_identifier: Option<PathBuf>,
+    /// `--preset motion`: write the image (and the JSON) even when it does not fit the
+    /// firmware; the verdict and its reasons are still printed and in the JSON.
+    #[arg(long)]
+    pub force: bool,
     /// `--preset motion`: the sensor: a built-in's name (`ecore2000`: 60 deg/s, 100 Hz;
     /// `kvh1750`: 490 deg/s, 1 kHz) or a sensor file (host_sim::sensor).
     #[arg(long, value_name = "NAME|FILE", value_parser = crate::sensor::parse_sensor_arg, default_value = "ecore2000")]
@@ -357,10 +362,12 @@ fn run_motion(a: &Args) -> Result<()> {
         crate::replay::motion::print_validation(&v)?;
         Some(v)
     };
-    // What the firmware does with the image; one it would refuse is not written, nor the
-    // report.
+    // What the firmware does with the image, said first; one that does not fit is not
+    // written, nor the report, unless --force.
     let firmware = crate::firmware_fit::check_image(&image)?;
-    firmware.refuse(out)?;
+    eprint!("{}", firmware.text());
+    firmware.refuse(out, a.force)?;
+    let forced = a.force && !firmware.fits;
     if let Some(j) = &a.json {
         let text = serde_json::to_string_pretty(&serde_json::json!({
             "preset": "motion",
@@ -375,6 +382,7 @@ fn run_motion(a: &Args) -> Result<()> {
             "tuning": tuning,
             "holes": holes,
             "firmware": firmware,
+            "written_with_force": forced,
         }))
         .context("report to JSON")?;
         record::write_atomic(j, |w| {
@@ -383,7 +391,7 @@ fn run_motion(a: &Args) -> Result<()> {
             Ok(())
         })?;
     }
-    motion::write_image(out, &image)?;
+    motion::write_image(out, &image, a.force)?;
     eprintln!(
         "drift filter: model fitted on {} calibration runs{} -> {}",
         train.0.len(),
@@ -394,6 +402,12 @@ fn run_motion(a: &Args) -> Result<()> {
         },
         out.display()
     );
-    eprint!("{}", firmware.text());
+    if forced {
+        eprintln!(
+            "{}: WARNING: written because of --force, although the image does not fit the firmware: {}",
+            out.display(),
+            firmware.why()
+        );
+    }
     Ok(())
 }

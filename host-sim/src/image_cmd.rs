@@ -21,8 +21,10 @@ pub struct Args {
 }
 
 /// Runs the command: the description on stdout, what the firmware does with the image on
-/// stderr ([`crate::firmware_fit`]), both in the JSON. An image the firmware would refuse
-/// at set-up: the same lines, then an error naming the image (non-zero exit) and no JSON.
+/// stderr ([`crate::firmware_fit`]: the verdict first), both in the JSON. An image that
+/// does not fit (its set-up refuses it, or it does not run as the unit needs): the same
+/// lines and the JSON (with the same verdict and reasons), then an error naming the image
+/// and the verdict (non-zero exit).
 pub fn run(a: &Args) -> Result<()> {
     let bytes =
         std::fs::read(&a.input).with_context(|| format!("{}: cannot read", a.input.display()))?;
@@ -30,12 +32,6 @@ pub fn run(a: &Args) -> Result<()> {
     let info = show::describe(&image, &bytes);
     print!("{}", show::text(&a.input.display().to_string(), &info));
     eprint!("{}", info.firmware.text());
-    if let Some(r) = &info.firmware.refusal {
-        bail!(
-            "{}: the firmware would refuse this image at set-up: {r}",
-            a.input.display()
-        );
-    }
     if let Some(j) = &a.json {
         record::refuse_overwrite(&a.input, j)?;
         let text = serde_json::to_string_pretty(&info)?;
@@ -43,6 +39,13 @@ pub fn run(a: &Args) -> Result<()> {
             std::io::Write::write_all(w, text.as_bytes())
                 .with_context(|| format!("{}: write failed", j.display()))
         })?;
+    }
+    if !info.firmware.fits {
+        bail!(
+            "{}: the image does not fit the firmware: {}",
+            a.input.display(),
+            info.firmware.why()
+        );
     }
     Ok(())
 }

@@ -178,14 +178,79 @@ pub struct Row {
     pub still: Option<Option<bool>>,
 }
 
-/// Opens `path` for reading, decompressing a `.gz` file on the fly.
+/// Opens `path` for reading, decompressing a `.gz` file on the fly ([`GzFile`]: a
+/// truncated or corrupt one is an error saying so, with the compressed byte offset).
 pub fn open_maybe_gz(path: &Path) -> Result<Box<dyn std::io::Read>> {
     let file = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
     Ok(if path.extension().is_some_and(|e| e == "gz") {
-        Box::new(flate2::read::GzDecoder::new(std::io::BufReader::new(file)))
+        let len = file.metadata().map(|m| m.len()).ok();
+        Box::new(GzFile::new(file, len))
     } else {
         Box::new(std::io::BufReader::new(file))
     })
+}
+
+/// Counts the bytes read through it.
+struct Counted<R> {
+    inner: R,
+    bytes: std::rc::Rc<std::cell::Cell<u64>>,
+}
+
+impl<R: std::io::Read> std::io::Read for Counted<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.bytes.set(self.bytes.get() + n as u64);
+        Ok(n)
+    }
+}
+
+/// A `.gz` file decompressed on the fly whose read errors say that the file is truncated
+/// or corrupt and where: the compressed bytes read from the file so far (the decoder reads
+/// ahead in blocks of at most 32 KiB, so the damage lies before that offset, at the end of
+/// the file when it is truncated), of the file's length, and the decompressed bytes
+/// delivered (the CSV reader adds the line).
+pub struct GzFile {
+    dec: flate2::read::GzDecoder<Counted<File>>,
+    compressed: std::rc::Rc<std::cell::Cell<u64>>,
+    file_len: Option<u64>,
+    decompressed: u64,
+}
+
+impl GzFile {
+    /// `file`, of `file_len` bytes when known.
+    pub fn new(file: File, file_len: Option<u64>) -> Self {
+        let compressed = std::rc::Rc::new(std::cell::Cell::new(0));
+        Self {
+            dec: flate2::read::GzDecoder::new(Counted {
+                inner: file,
+                bytes: compressed.clone(),
+            }),
+            compressed,
+            file_len,
+            decompressed: 0,
+        }
+    }
+}
+
+impl std::io::Read for GzFile {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        match self.dec.read(buf) {
+            Ok(n) => {
+                self.decompressed += n as u64;
+                Ok(n)
+            }
+            Err(e) => Err(std::io::Error::new(
+                e.kind(),
+                format!(
+                    "the gzip data is truncated or corrupt ({e}) after {} compressed bytes read{} ({} bytes decompressed)",
+                    self.compressed.get(),
+                    self.file_len
+                        .map_or(String::new(), |n| format!(" of the file's {n}")),
+                    self.decompressed
+                ),
+            )),
+        }
+    }
 }
 
 /// A record read row by row: every row validated (finite numbers, `t_s` strictly
@@ -270,9 +335,16 @@ impl<R: std::io::Read> Rows<R> {
     /// The next row; `None` at the end of the file.
     pub fn next_row(&mut self) -> Result<Option<Row>> {
         let name = &self.name;
-        let more = self.rdr.read_record(&mut self.rec).map_err(|e| {
-            let line = e.position().map_or(0, |p| p.line());
-            anyhow!("{name}:{line}: {e}")
+        let reached = self.rdr.position().line();
+        let more = self.rdr.read_record(&mut self.rec).map_err(|e| match e.kind() {
+            // A read error has no position of its own: the line the reader had reached.
+            csv::ErrorKind::Io(io) => {
+                anyhow!("{name}:{reached}: read error at line {reached} (the lines before it were read): {io}")
+            }
+            _ => {
+                let line = e.position().map_or(reached, |p| p.line());
+                anyhow!("{name}:{line}: {e}")
+            }
         })?;
         if !more {
             return Ok(None);

@@ -18,12 +18,15 @@ pub struct RecordArgs {
     /// increments in deg per 1-ms sample).
     #[arg(long, default_value_t = 1.0)]
     pub rate_scale: f64,
-    /// Sample rate, Hz, of a record without time stamps: a CSV without `t_s` (`t_s = row
-    /// index / rate_hz`; without it such a CSV is refused) and, for `replay`, binary and
-    /// ASCII captures (default there: the sensor's).
+    /// Sample rate, Hz, of a CSV without a `t_s` column (`t_s = row index / rate_hz`;
+    /// without it such a CSV is refused).
+    // A command that reads more than CSV says so in its own help (`REPLAY_RATE_HZ_HELP`).
     #[arg(long)]
     pub rate_hz: Option<f64>,
 }
+
+/// `replay`'s help of `--rate-hz` (`replay` also reads captures, which have no time stamps).
+pub const REPLAY_RATE_HZ_HELP: &str = "Sample rate, Hz, of a record without time stamps: a CSV without a `t_s` column (`t_s = row index / rate_hz`; without it such a CSV is refused unless --sensor gives the rate) and binary and ASCII captures (default: the sensor's)";
 
 impl Default for RecordArgs {
     fn default() -> Self {

@@ -13,6 +13,7 @@ use std::path::PathBuf;
 
 /// Arguments of `host-sim replay`.
 #[derive(clap::Args, Debug)]
+#[command(mut_arg("rate_hz", |a| a.help(crate::record_args::REPLAY_RATE_HZ_HELP)))]
 pub struct Args {
     /// Recording to read: interchange CSV, E-Core binary capture or DSP-3000 lines.
     #[arg(long)]

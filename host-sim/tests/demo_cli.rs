@@ -128,6 +128,177 @@ fn demo_writes_the_report() {
     assert!(!html.contains("<script"));
 }
 
+/// A verdict line, `fog loses: X deg against Y deg for the best baseline (P %), NAME`:
+/// (verdict, X, Y, P, NAME).
+fn parse_verdict(line: &str) -> (String, f64, f64, f64, String) {
+    let (verdict, rest) = line.trim().split_once(": ").expect("verdict: ...");
+    let words: Vec<&str> = rest.split_whitespace().collect();
+    assert_eq!(
+        (words[1], words[2], words[4]),
+        ("deg", "against", "deg"),
+        "{line}"
+    );
+    let num = |w: &str| {
+        w.parse::<f64>()
+            .unwrap_or_else(|_| panic!("{w:?} in {line}"))
+    };
+    let (_, after) = rest.split_once(" (").expect("(P %)");
+    let (pct, name) = after.split_once(" %), ").expect("P %), NAME");
+    (
+        verdict.to_string(),
+        num(words[0]),
+        num(words[3]),
+        num(pct),
+        name.to_string(),
+    )
+}
+
+/// `fog is below every baseline on K of N test vehicles`: (K, N).
+fn parse_count(line: &str) -> (u64, u64) {
+    let w: Vec<&str> = line.split_whitespace().collect();
+    let i = w.iter().position(|x| *x == "on").expect("on K of N");
+    assert_eq!(w[i + 2], "of", "{line}");
+    (w[i + 1].parse().expect("K"), w[i + 3].parse().expect("N"))
+}
+
+/// What the JSON's per-record figures say: (identifier's mean, best baseline and its
+/// mean, verdict, records below every baseline, records), recomputed here.
+fn pooled_from_json(t: &serde_json::Value) -> (f64, String, f64, &'static str, u64, u64) {
+    let per = t["heading_rms_deg"].as_array().expect("per record");
+    let n = per.len();
+    let names: Vec<String> = per[0]
+        .as_array()
+        .expect("row")
+        .iter()
+        .map(|p| p[0].as_str().expect("name").to_string())
+        .collect();
+    let v = |r: &serde_json::Value, k: usize| r[k][1].as_f64().expect("value");
+    let mean: Vec<f64> = (0..names.len())
+        .map(|k| per.iter().map(|r| v(r, k)).sum::<f64>() / n as f64)
+        .collect();
+    // The JSON's means are these.
+    for (k, m) in t["mean_heading_rms_deg"]
+        .as_array()
+        .expect("mean")
+        .iter()
+        .enumerate()
+    {
+        assert_eq!(m[0].as_str(), Some(names[k].as_str()));
+        assert!((m[1].as_f64().expect("mean") - mean[k]).abs() < 1e-12);
+    }
+    let baselines: Vec<usize> = (1..names.len())
+        .filter(|&k| names[k] != "no compensation")
+        .collect();
+    let best = *baselines
+        .iter()
+        .min_by(|&&a, &&b| mean[a].total_cmp(&mean[b]))
+        .expect("a baseline");
+    let below = per
+        .iter()
+        .filter(|r| baselines.iter().all(|&k| v(r, 0) < v(r, k)))
+        .count() as u64;
+    let verdict = if mean[0] < mean[best] {
+        "fog wins"
+    } else {
+        "fog loses"
+    };
+    (
+        mean[0],
+        names[best].clone(),
+        mean[best],
+        verdict,
+        below,
+        n as u64,
+    )
+}
+
+/// The printed headline and index.html's lead with the pooled result over every test
+/// vehicle, and say what the JSON's per-record figures say; the example record comes after.
+#[test]
+fn demo_leads_with_the_pooled_result_of_its_json() {
+    let (dir, _, stderr) = demo();
+    let s: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(dir.join("summary.json")).expect("summary"))
+            .expect("json");
+    let t = &s["test_set"];
+    let (id_mean, best, best_mean, verdict, below, n) = pooled_from_json(t);
+    let check = |verdict_line: &str, count_line: &str, what: &str| {
+        let (v, x, y, pct, name) = parse_verdict(verdict_line);
+        assert_eq!(v, verdict, "{what}: {verdict_line}");
+        assert!((x - id_mean).abs() <= 5e-5, "{what}: {x} vs {id_mean}");
+        assert!((y - best_mean).abs() <= 5e-5, "{what}: {y} vs {best_mean}");
+        assert_eq!(name, best, "{what}");
+        let p = 100.0 * (id_mean / best_mean - 1.0);
+        assert!((pct - p).abs() <= 0.05 + 1e-9, "{what}: {pct} vs {p}");
+        assert_eq!(parse_count(count_line), (below, n), "{what}: {count_line}");
+    };
+    // Printed: the result before the example record (and before any score of it).
+    let lines: Vec<&str> = stderr.lines().collect();
+    let at = |p: &str| lines.iter().position(|l| l.contains(p));
+    let result = at("demo: result over ").expect("result line");
+    assert!(lines[result].contains(&format!("over {n} test vehicles")));
+    let example = at("demo: example record:").expect("example line");
+    let record = at("heading error RMS: motion identifier").expect("record's headline");
+    assert!(result < example && example < record, "{stderr}");
+    let verdict_line = lines[result + 1].trim_start_matches("demo:");
+    let count_line = lines[result + 2];
+    check(verdict_line, count_line, "stderr");
+    // Each estimator's mean and fog's difference from it, as in the JSON.
+    for m in t["mean_heading_rms_deg"]
+        .as_array()
+        .expect("mean")
+        .iter()
+        .skip(1)
+    {
+        let name = m[0].as_str().expect("name");
+        let mean = m[1].as_f64().expect("mean");
+        let row = lines[result..example]
+            .iter()
+            .find(|l| l.trim_start_matches("demo:").trim_start().starts_with(name))
+            .unwrap_or_else(|| panic!("{name} in the result"));
+        let w: Vec<&str> = row.split_whitespace().collect();
+        let printed: f64 = w[w.len() - 3].parse().expect("mean");
+        let pct: f64 = w[w.len() - 2].parse().expect("pct");
+        assert!((printed - mean).abs() <= 5e-5, "{row}");
+        assert!(
+            (pct - 100.0 * (id_mean / mean - 1.0)).abs() <= 0.05 + 1e-9,
+            "{row}"
+        );
+    }
+    // The JSON states the same verdict.
+    let h = &t["headline"];
+    assert_eq!(h["verdict"], verdict);
+    assert_eq!(h["best_baseline"], best.as_str());
+    assert_eq!(h["below_every_baseline"].as_u64(), Some(below));
+    assert_eq!(h["records"].as_u64(), Some(n));
+    // index.html: the same two lines lead the page, before the example record's scores.
+    let html = fs::read_to_string(dir.join("index.html")).expect("index.html");
+    let start = html
+        .find("<p class=\"headline\">")
+        .expect("headline paragraph");
+    let end = start + html[start..].find("</p>").expect("end");
+    let text = html[start..end]
+        .replace("<p class=\"headline\">", "")
+        .replace("<strong>", "")
+        .replace("</strong>", "")
+        .replace("&amp;", "&")
+        .replace("&#39;", "'")
+        .replace("&quot;", "\"");
+    let parts: Vec<&str> = text.split("<br>").collect();
+    assert_eq!(parts.len(), 3, "{text}");
+    assert!(
+        parts[0].contains(&format!("over {n} test vehicles")),
+        "{text}"
+    );
+    check(parts[1], parts[2], "index.html");
+    let example = html.find("Example record").expect("example record");
+    let record = html
+        .find("heading error RMS: motion identifier")
+        .expect("record's headline");
+    assert!(start < example && example < record, "headline first");
+    assert!(start < html.find("<svg").expect("svg"));
+}
+
 fn find_browser() -> Option<PathBuf> {
     let names = [
         "chromium",

@@ -1,7 +1,7 @@
-//! What the firmware does with an identifier image (host_sim::firmware_fit): `host-sim
-//! image` states it on stderr and in its JSON, `identify --save-identifier` too, and an
-//! image the firmware would refuse at set-up is refused (non-zero exit, one line naming the
-//! file, nothing written).
+//! What the firmware does with an identifier image (host_sim::firmware_fit), in one
+//! verdict: `host-sim image` states it on stderr and in its JSON (the same verdict and
+//! reasons) and exits non-zero on an image that does not fit; `identify --save-identifier`
+//! states it too and writes an image that does not fit only with `--force`.
 
 use assert_cmd::Command;
 use fog_core::image::{Image, IMAGE_LEN};
@@ -46,6 +46,40 @@ fn json(p: &Path) -> serde_json::Value {
     serde_json::from_str(&fs::read_to_string(p).expect("read")).expect("json")
 }
 
+/// The verdict line of `text` (`firmware: fits: ...` or `firmware: does not fit: ...`),
+/// which must be the first `firmware:` line, as the JSON's `verdict` starts it.
+fn verdict_line(text: &str) -> String {
+    let first = text
+        .lines()
+        .find(|l| l.starts_with("firmware:"))
+        .expect("a firmware line");
+    first.trim_start_matches("firmware: ").to_string()
+}
+
+/// The text states the JSON's verdict first and every reason's detail under it, and the
+/// verdict lists every reason's short form.
+fn text_agrees_with_json(err: &str, f: &serde_json::Value) {
+    let verdict = f["verdict"].as_str().expect("verdict");
+    let line = verdict_line(err);
+    assert!(line.starts_with(verdict), "{line:?} vs {verdict:?}");
+    let reasons = f["reasons"].as_array().expect("reasons");
+    assert_eq!(f["fits"].as_bool(), Some(reasons.is_empty()));
+    if reasons.is_empty() {
+        assert_eq!(verdict, "fits");
+    } else {
+        let shorts: Vec<&str> = reasons
+            .iter()
+            .map(|r| r["short"].as_str().expect("short"))
+            .collect();
+        assert_eq!(line, format!("does not fit: {}", shorts.join(", ")));
+    }
+    for r in reasons {
+        let d = r["detail"].as_str().expect("detail");
+        assert!(err.contains(&format!("firmware:   - {d}")), "{d} in {err}");
+    }
+    assert!(!err.contains("accepts this image"), "{err}");
+}
+
 #[test]
 fn a_100_hz_image_fits_and_says_so() {
     let dir = tempfile::tempdir().expect("tmp");
@@ -54,7 +88,7 @@ fn a_100_hz_image_fits_and_says_so() {
     let a = image(&img, &j)
         .success()
         .stderr(contains(
-            "firmware: accepts this image and runs at its 100 Hz (accepted: 10 to 2000 Hz)",
+            "firmware: fits: runs this image at its 100 Hz (rates 10 to 2000 Hz)",
         ))
         .stderr(contains(
             "firmware: decodes E-Core 2000 frames only, full scale 60 deg/s; this image's unit: 60 deg/s",
@@ -71,44 +105,53 @@ fn a_100_hz_image_fits_and_says_so() {
     let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
     assert!(!err.contains("WARNING"), "{err}");
     let f = &json(&j)["firmware"];
-    assert_eq!(f["accepted"], true);
+    assert_eq!(f["fits"], true);
+    assert_eq!(f["verdict"], "fits");
+    assert_eq!(f["setup_accepts"], true);
     assert_eq!(f["sample_rate_hz"], 100.0);
-    assert_eq!(f["warnings"].as_array().map(Vec::len), Some(0));
+    assert_eq!(f["reasons"].as_array().map(Vec::len), Some(0));
+    text_agrees_with_json(&err, f);
 }
 
+/// A 200-Hz image of a 100 deg/s unit does not fit (the decoder's full scale): `image`
+/// says so first, writes the JSON with the same verdict and exits non-zero.
 #[test]
-fn a_200_hz_image_of_a_100_dps_unit_is_warned_about() {
+fn a_200_hz_image_of_a_100_dps_unit_does_not_fit() {
     let dir = tempfile::tempdir().expect("tmp");
     let img = image_file(dir.path(), "u200.fogi", 200.0, 100.0);
     let j = dir.path().join("u200.json");
-    image(&img, &j)
-        .success()
+    let a = image(&img, &j)
+        .failure()
         .stderr(contains(
-            "firmware: accepts this image and runs at its 200 Hz",
+            "firmware: does not fit: decoder full scale 60 deg/s < unit's 100 deg/s\n",
         ))
         .stderr(contains(format!(
             "load at 200 Hz: {} instructions/s",
             ff::grouped(ff::INSTRUCTIONS_MEAN * 200.0, 0)
         )))
         .stderr(contains(
-            "firmware: WARNING: the unit's full scale 100 deg/s is beyond the decoder's 60 deg/s",
+            "firmware:   - the unit's full scale 100 deg/s is beyond the decoder's 60 deg/s",
+        ))
+        .stderr(contains(
+            "u200.fogi: the image does not fit the firmware: decoder full scale 60 deg/s < unit's 100 deg/s",
         ));
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
     let f = &json(&j)["firmware"];
-    assert_eq!(f["accepted"], true);
+    assert_eq!(f["fits"], false);
+    assert_eq!(f["setup_accepts"], true);
     assert_eq!(f["decoder_full_scale_dps"], 60.0);
     assert_eq!(f["image_full_scale_dps"], 100.0);
-    assert_eq!(f["warnings"].as_array().map(Vec::len), Some(1));
+    assert_eq!(f["reasons"].as_array().map(Vec::len), Some(1));
+    text_agrees_with_json(&err, f);
 }
 
-/// The writer says it too: `identify` with a 200-Hz, 100 deg/s sensor file.
-#[test]
-fn identify_states_the_fit_of_the_image_it_writes() {
-    let dir = tempfile::tempdir().expect("tmp");
-    let d = dir.path();
-    let sensor = d.join("unit100.toml");
+/// A sensor file and two static calibration runs (120 s) of a unit at `rate_hz` and
+/// `full_scale_dps`, in `d`.
+fn unit_runs(d: &Path, rate_hz: u32, full_scale_dps: u32) -> (PathBuf, [PathBuf; 2]) {
+    let sensor = d.join(format!("unit{rate_hz}.toml"));
     fs::write(
         &sensor,
-        "name = \"unit100\"\nsample_rate_hz = 200.0\nfull_scale_dps = 100.0\nquantum_dps = 0.0\nnoise_density_deg_rth = 0.0667\ndrift_bound_dph = 30.0\n",
+        format!("name = \"unit{rate_hz}\"\nsample_rate_hz = {rate_hz}.0\nfull_scale_dps = {full_scale_dps}.0\nquantum_dps = 0.0\nnoise_density_deg_rth = 0.0667\ndrift_bound_dph = 30.0\n"),
     )
     .expect("write");
     // Two calibration runs (the model's unit-to-unit spread needs two), 120 s each.
@@ -118,7 +161,7 @@ fn identify_states_the_fit_of_the_image_it_writes() {
             .args(["simulate", "--preset", "ecore2000", "--duration-s", "120"])
             .args([
                 "--rate-hz",
-                "200",
+                &rate_hz.to_string(),
                 "--seed",
                 &(seed + 1).to_string(),
                 "--output",
@@ -127,24 +170,98 @@ fn identify_states_the_fit_of_the_image_it_writes() {
             .assert()
             .success();
     }
-    let (img, j) = (d.join("m.fogi"), d.join("m.json"));
+    (sensor, recs)
+}
+
+/// `identify --preset motion --sensor S --input RUNS --save-identifier IMG --json J` and
+/// `extra`.
+fn identify(
+    sensor: &Path,
+    recs: &[PathBuf],
+    img: &Path,
+    j: &Path,
+    extra: &[&str],
+) -> assert_cmd::assert::Assert {
     host_sim()
         .args(["identify", "--preset", "motion", "--sensor"])
-        .arg(&sensor)
+        .arg(sensor)
         .arg("--input")
-        .args(&recs)
+        .args(recs)
         .arg("--save-identifier")
-        .arg(&img)
+        .arg(img)
         .arg("--json")
-        .arg(&j)
+        .arg(j)
+        .args(extra)
         .assert()
+}
+
+/// A 1 kHz, 100 deg/s unit: one verdict, every reason (the UART's records, the decoder's
+/// full scale); `identify` writes neither image nor JSON without `--force`, and with it
+/// writes both and says so; `image` then exits non-zero with the same verdict as its JSON.
+#[test]
+fn a_1_khz_100_dps_unit_does_not_fit_and_is_written_only_with_force() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let d = dir.path();
+    let (sensor, recs) = unit_runs(d, 1000, 100);
+    let (img, j) = (d.join("k.fogi"), d.join("k.json"));
+    let verdict =
+        "does not fit: UART 226 % (records out), decoder full scale 60 deg/s < unit's 100 deg/s";
+    let a = identify(&sensor, &recs, &img, &j, &[])
+        .failure()
+        .stderr(contains(format!("firmware: {verdict}\n")));
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(errors.len(), 1, "{err}");
+    assert!(
+        errors[0].contains("k.fogi: not written: the image does not fit the firmware: UART 226 % (records out), decoder full scale 60 deg/s < unit's 100 deg/s (write it anyway: --force)"),
+        "{err}"
+    );
+    assert!(!err.contains("accepts this image"), "{err}");
+    assert!(!img.exists() && !j.exists(), "nothing written");
+
+    let a = identify(&sensor, &recs, &img, &j, &["--force"])
         .success()
-        .stderr(contains(
-            "firmware: accepts this image and runs at its 200 Hz",
-        ))
-        .stderr(contains("beyond the decoder's 60 deg/s"));
+        .stderr(contains(format!("firmware: {verdict}\n")))
+        .stderr(contains("k.fogi: WARNING: written because of --force"));
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
     assert!(img.exists());
-    assert_eq!(json(&j)["firmware"]["image_full_scale_dps"], 100.0);
+    let v = json(&j);
+    assert_eq!(v["written_with_force"], true);
+    let f = &v["firmware"];
+    assert_eq!(f["verdict"], verdict);
+    assert_eq!(f["reasons"].as_array().map(Vec::len), Some(2));
+    text_agrees_with_json(&err, f);
+
+    let j2 = d.join("k-image.json");
+    let a = image(&img, &j2).failure();
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    let f = &json(&j2)["firmware"];
+    assert_eq!(f["verdict"], verdict);
+    assert_eq!(f["fits"], false);
+    text_agrees_with_json(&err, f);
+    assert!(
+        err.lines().any(|l| l.starts_with("error:")
+            && l.contains("k.fogi: the image does not fit the firmware: UART 226 %")),
+        "{err}"
+    );
+}
+
+/// The writer says it too: `identify` with a 200-Hz, 60 deg/s sensor file fits.
+#[test]
+fn identify_states_the_fit_of_the_image_it_writes() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let d = dir.path();
+    let (sensor, recs) = unit_runs(d, 200, 60);
+    let (img, j) = (d.join("m.fogi"), d.join("m.json"));
+    let a = identify(&sensor, &recs, &img, &j, &[])
+        .success()
+        .stderr(contains("firmware: fits: runs this image at its 200 Hz"));
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    assert!(img.exists());
+    let v = json(&j);
+    assert_eq!(v["written_with_force"], false);
+    assert_eq!(v["firmware"]["image_full_scale_dps"], 60.0);
+    text_agrees_with_json(&err, &v["firmware"]);
 }
 
 #[test]
@@ -155,24 +272,29 @@ fn an_image_outside_the_firmwares_rates_is_refused_and_not_written() {
     let a = image(&img, &j)
         .failure()
         .stderr(contains(
-            "firmware: REFUSES this image (it stops at set-up): sample rate 5000 Hz outside the 10 to 2000 Hz it runs",
+            "firmware: does not fit: set-up refuses it (sample rate 5000 Hz outside the 10 to 2000 Hz it runs)",
         ));
     let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
     let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
     assert_eq!(errors.len(), 1, "{err}");
     assert!(
-        errors[0].contains("u5k.fogi: the firmware would refuse this image at set-up"),
+        errors[0].contains("u5k.fogi: the image does not fit the firmware: set-up refuses it"),
         "{err}"
     );
-    assert!(!j.exists(), "no JSON for a refused image");
+    // The JSON states the same verdict.
+    let f = &json(&j)["firmware"];
+    assert_eq!(f["setup_accepts"], false);
+    text_agrees_with_json(&err, f);
 
-    // A command that writes the image refuses it and writes nothing.
+    // A command that writes the image refuses it and writes nothing, unless forced.
     let mut image = default_image();
     image.model.sample_rate_hz = 5000.0;
     let out = dir.path().join("written.fogi");
-    let e = host_sim::motion::write_image(&out, &image).expect_err("refused");
+    let e = host_sim::motion::write_image(&out, &image, false).expect_err("refused");
     let msg = format!("{e:#}");
     assert!(msg.contains("written.fogi: not written"), "{msg}");
     assert!(msg.contains("5000 Hz outside the 10 to 2000 Hz"), "{msg}");
     assert!(!out.exists());
+    let fit = host_sim::motion::write_image(&out, &image, true).expect("forced");
+    assert!(!fit.fits && out.exists());
 }

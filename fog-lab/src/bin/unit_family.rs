@@ -390,6 +390,9 @@ fn family(fam: &Path, exe: &Path, extra: &[String], dir: &Path) -> Result<Family
         train.as_os_str(),
         "--save-identifier".as_ref(),
         img.as_os_str(),
+        // The image runs on the host here: written even when it does not fit the firmware
+        // (another rate or full scale than the E-Core decoder's; the verdict is in the log).
+        "--force".as_ref(),
         "--tune-on".as_ref(),
         vtune.as_os_str(),
         "--json".as_ref(),

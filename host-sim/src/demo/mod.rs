@@ -13,8 +13,11 @@
 //!    (and, for the baseline, written into its label; never silent).
 //! 4. Simulates one `vehicle` record (unit [`VEHICLE_UNIT`], seed [`VEHICLE_SEED`]), writes
 //!    it as `DIR/vehicle.csv`, replays it with the identifier ([`crate::replay::motion`]),
-//!    `DIR/replay.csv`, and writes the report (`index.html`, heading-error figure with the
-//!    identifier beside the baselines, `summary.json`).
+//!    `DIR/replay.csv`, scores `test_records` vehicle records (the replayed one first) and
+//!    writes the report (`index.html`, heading-error figure with the identifier beside the
+//!    baselines, `summary.json`). Printed and in `index.html`, the result comes first: the
+//!    pooled mean over the test vehicles against each baseline and the verdict
+//!    ([`crate::replay::pooled`]); the replayed record, one draw, after it.
 
 use crate::identify::series::{Records, Series};
 use crate::motion::tune::{self, run_image};
@@ -205,10 +208,8 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let baseline_note = grid_end_note(&baseline_grid, tuned.q_dps2);
     // The model's two least certain numbers, tuned on the same records.
     let (image, tuning) = tune::tune(&image, &val)?;
-    let firmware = motion::write_image(&fogi, &image)?;
-    for line in firmware.text().lines() {
-        eprintln!("demo: {line}");
-    }
+    // What the firmware does with the image: printed after the result.
+    let firmware = motion::write_image(&fogi, &image, false)?;
     eprintln!("demo: {}", tune::describe(&tuning));
     eprintln!(
         "demo: gated Kalman q {:.3e} (deg/s)^2 per sample{baseline_note} ({:.4} deg on the validation vehicles, truth still flags)",
@@ -251,7 +252,6 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         figures: true,
     };
     let mut out = replay(&vehicle, &dir.join("replay.csv"), &o)?;
-    crate::replay::motion::print_summary(&out.summary)?;
     let cmp = BaselineConfig {
         q_dps2: tuned.q_dps2,
         q_source: format!(
@@ -262,7 +262,16 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         release_samples: crate::replay::motion::release_samples(&image),
     };
     let set = test_set(&image, cfg, &cmp)?;
+    // The result first (pooled over every test vehicle), then the one example record.
     print_test_set(&set);
+    eprintln!(
+        "demo: example record: the first test vehicle (unit {VEHICLE_UNIT}, seed {VEHICLE_SEED}), one draw of the {}:",
+        cfg.test_records
+    );
+    crate::replay::motion::print_summary(&out.summary)?;
+    for line in firmware.text().lines() {
+        eprintln!("demo: {line}");
+    }
     out.summary.test_set = Some(set);
     out.summary.level_tuning = Some(tuning);
     out.summary.firmware = Some(firmware);

@@ -18,6 +18,10 @@ use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
+/// What "right effect named" counts, as the output states it.
+pub const RIGHT_DEFINITION: &str =
+    "the confusion matrix's diagonal over all its records, `none` included";
+
 /// Benchmark options.
 #[derive(Debug, Clone)]
 pub struct BenchOptions {
@@ -104,7 +108,13 @@ pub struct BenchReport {
     pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
     /// Per class.
     pub classes: BTreeMap<String, ClassSummary>,
-    /// Right effect named, over records with an effect.
+    /// Records whose named effect is the withheld one (`none` for a record without one):
+    /// the confusion matrix's diagonal.
+    pub right: usize,
+    /// Every record: the matrix's total.
+    pub total: usize,
+    /// Right effect named: `right / total` (the diagonal over every record, `none`
+    /// included; [`RIGHT_DEFINITION`]).
     pub right_rate: f64,
     /// Records without an effect that were flagged.
     pub none_false_rate: f64,
@@ -382,8 +392,13 @@ fn summarise(records: Vec<BenchRecord>, o: &BenchOptions, seconds: f64) -> Bench
     }
     let with: Vec<&BenchRecord> = records.iter().filter(|r| r.truth != "none").collect();
     let without: Vec<&BenchRecord> = records.iter().filter(|r| r.truth == "none").collect();
-    let right_rate =
-        with.iter().filter(|r| r.diagnosed == r.truth).count() as f64 / with.len().max(1) as f64;
+    // One definition, the matrix's: its diagonal over its total.
+    let right: usize = confusion
+        .iter()
+        .filter_map(|(truth, row)| row.get(truth))
+        .sum();
+    let total: usize = confusion.values().flat_map(|row| row.values()).sum();
+    let right_rate = right as f64 / total.max(1) as f64;
     let none_false_rate = without.iter().filter(|r| r.diagnosed != "none").count() as f64
         / without.len().max(1) as f64;
     let median_shrink = super::features::median(
@@ -401,6 +416,8 @@ fn summarise(records: Vec<BenchRecord>, o: &BenchOptions, seconds: f64) -> Bench
         records,
         confusion,
         classes,
+        right,
+        total,
         right_rate,
         none_false_rate,
         median_shrink,
@@ -448,9 +465,20 @@ pub fn table(r: &BenchReport) -> String {
             c.correct, c.records, c.median_shrink
         ));
     }
+    let none_flagged = r
+        .records
+        .iter()
+        .filter(|x| x.truth == "none" && x.diagnosed != "none")
+        .count();
+    let nones = r.records.iter().filter(|x| x.truth == "none").count();
     s.push_str(&format!(
-        "\nright effect named: {:.1} % (goal >= 90 %); none wrongly flagged: {:.1} % (goal <= 10 %); median shrink of the true effect: {:.2} (goal >= 0.7); goals met: {}; {:.0} s\n",
-        100.0 * r.right_rate,
+        "\nright effect named: {} of {} records = {:.1} % ({RIGHT_DEFINITION}; goal >= 90 %)\n",
+        r.right,
+        r.total,
+        100.0 * r.right_rate
+    ));
+    s.push_str(&format!(
+        "none wrongly flagged: {none_flagged} of {nones} = {:.1} % (goal <= 10 %); median shrink of the true effect: {:.2} (goal >= 0.7); goals met: {}; {:.0} s\n",
         100.0 * r.none_false_rate,
         r.median_shrink,
         r.goals_met,

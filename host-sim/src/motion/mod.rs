@@ -139,13 +139,13 @@ pub fn image_bytes(image: &Image) -> Result<Vec<u8>> {
     Ok(buf[..n].to_vec())
 }
 
-/// Writes `image` to `path` atomically, unless the firmware would refuse it
-/// ([`crate::firmware_fit`]: then an error naming `path`, and nothing is written). Returns
-/// what the firmware does with it, for the caller to print and report.
-pub fn write_image(path: &Path, image: &Image) -> Result<FirmwareFit> {
+/// Writes `image` to `path` atomically, unless it does not fit the firmware and `force` is
+/// off ([`crate::firmware_fit`]: then an error naming `path` and the verdict, and nothing is
+/// written). Returns what the firmware does with it, for the caller to print and report.
+pub fn write_image(path: &Path, image: &Image, force: bool) -> Result<FirmwareFit> {
     let bytes = image_bytes(image).map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let fit = firmware_fit::check(image, &bytes);
-    fit.refuse(path)?;
+    fit.refuse(path, force)?;
     record::write_atomic(path, |w| {
         w.write_all(&bytes)
             .with_context(|| format!("{}: write failed", path.display()))

@@ -14,6 +14,7 @@
 //! (`identify --preset motion --validate`, [`score_records`]) are read whole.
 
 use super::input::{self, Input};
+use super::pooled::Pooled;
 use super::stream::{self, InputFormat};
 use super::tally::Tally;
 use crate::identify::series::{CsvFiles, Records, Series};
@@ -155,7 +156,7 @@ pub struct MotionSummary {
 
 /// Mean scores over several test records with truth, the identifier beside the baselines
 /// (`host-sim demo`: the replayed record is one draw; the set says whether its outcome is
-/// typical).
+/// typical), and the result in one verdict ([`Pooled`]).
 #[derive(Debug, Clone, Serialize)]
 pub struct TestSet {
     /// What the records are.
@@ -166,6 +167,9 @@ pub struct TestSet {
     pub mean_heading_rms_deg: Vec<(String, f64)>,
     /// Records on which the identifier's heading-error RMS is below every baseline's.
     pub identifier_best: usize,
+    /// The result: the means above against each baseline, the verdict, the count (none
+    /// without a baseline).
+    pub headline: Option<Pooled>,
 }
 
 impl TestSet {
@@ -202,22 +206,17 @@ impl TestSet {
             .count();
         Self {
             records,
+            headline: Pooled::new(&mean, per.len(), identifier_best),
             heading_rms_deg: per,
             mean_heading_rms_deg: mean,
             identifier_best,
         }
     }
-    /// The mean table and the win count, as printed by `host-sim demo` and in the report.
+    /// The result first ([`Pooled::text`]), then what the records are: as printed by
+    /// `host-sim demo` and in the report.
     pub fn text(&self) -> String {
-        let mut text = format!("mean heading error RMS over {}:\n", self.records);
-        for (name, v) in &self.mean_heading_rms_deg {
-            text.push_str(&format!("  {name:<50} {v:>8.4} deg\n"));
-        }
-        text.push_str(&format!(
-            "the identifier is below every baseline on {} of {} records",
-            self.identifier_best,
-            self.heading_rms_deg.len()
-        ));
+        let mut text = self.headline.as_ref().map(Pooled::text).unwrap_or_default();
+        text.push_str(&format!("test vehicles: {}", self.records));
         text
     }
 }
@@ -529,6 +528,32 @@ pub fn gap_treatment(h: &record::Holes) -> String {
     }
 }
 
+/// What to do about a record whose white noise is `k` times the image's (beyond
+/// [`NOISE_WARN`]), naming the flag that fixes each cause: `--rate-scale` for a rate column
+/// in another unit (`rate_scale`: the factor given), `--sensor` / `--identifier` for
+/// another sensor (`builtin`: the image is the built-in one of a sensor's specification).
+pub fn noise_hint(k: f64, rate_scale: f64, builtin: bool) -> String {
+    const DPS_PER_RADPS: f64 = 57.29578;
+    let near = |x: f64| (x - 1.0).abs() < 0.5;
+    let scaled = (rate_scale / DPS_PER_RADPS - 1.0).abs() < 1e-3;
+    let sensor = if builtin {
+        "another sensor than the built-in one used: give the record's with --sensor FILE|NAME (its sensor file, or a built-in: ecore2000, kvh1750), or --identifier F.fogi fitted on this unit"
+    } else {
+        "another sensor than the identifier's: give an --identifier fitted on this unit (or, without one, --sensor FILE|NAME)"
+    };
+    if near(k * DPS_PER_RADPS) && !scaled {
+        format!("a rate in rad/s read as deg/s? then --rate-scale 57.29578; or {sensor}")
+    } else if near(k / DPS_PER_RADPS) && scaled {
+        format!(
+            "a rate in deg/s scaled as rad/s? then drop --rate-scale {rate_scale} (or --rate-scale 1); or {sensor}"
+        )
+    } else {
+        format!(
+            "{sensor}; or a rate column in another unit: --rate-scale K converts it to deg/s (given: {rate_scale}; 57.29578 from rad/s)"
+        )
+    }
+}
+
 /// Prints the summary (and the score table) on stderr.
 pub fn print_summary(s: &MotionSummary) -> Result<()> {
     let mut err = std::io::stderr().lock();
@@ -564,17 +589,11 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
         .noise_x_image
         .filter(|k| !(1.0 / NOISE_WARN..=NOISE_WARN).contains(k))
     {
-        let hint = if (k * 57.29578 - 1.0).abs() < 0.5 {
-            ": a rate in rad/s read as deg/s? (--rate-scale 57.29578)"
-        } else if (k / 57.29578 - 1.0).abs() < 0.5 {
-            ": a rate in deg/s scaled as rad/s? (check --rate-scale)"
-        } else {
-            ": another sensor than the identifier's, or a wrong --rate-scale"
-        };
         writeln!(
             err,
-            "{}: warning: the record's white noise is {k:.3}x the identifier's{hint}",
-            s.input
+            "{}: warning: the record's white noise is {k:.3}x the identifier's: {}",
+            s.input,
+            noise_hint(k, s.rate_scale, s.trained_runs == 0)
         )?;
     }
     if s.temperature_missing {

@@ -8,8 +8,9 @@
 //!   drift estimate, and of the true drift when the record has it), deg: the heading in
 //!   sight without truth, where raw and compensated angles differ too little to see;
 //! - `rate.svg`: measured and compensated rate, deg/s;
-//! - `summary.json` ([`MotionSummary`]) and `index.html` (headline first, the score table,
-//!   the figures inlined).
+//! - `summary.json` ([`MotionSummary`]) and `index.html` (headline first: a test set's pooled
+//!   result when there is one (`demo`), else the record's; the score table, the figures
+//!   inlined).
 
 use super::decimate::MinMax;
 use super::heading::{heading_error_svg_labelled, HeadingSeries, Spans};
@@ -257,12 +258,18 @@ pub fn write(dir: &Path, out: &MotionOutcome) -> Result<PathBuf> {
 /// The score table as HTML: the headline, one row per estimator (numbers right-aligned, the
 /// best heading RMS in bold), then the detector's rates and the baselines' setup as
 /// paragraphs (they wrap with the page instead of widening it).
-fn score_table_html(c: &nav::Comparison) -> Result<String> {
+/// `lead`: the record's headline leads the page (a replay); else it is one example record's
+/// (`demo`, after the pooled result).
+fn score_table_html(c: &nav::Comparison, lead: bool) -> Result<String> {
     let mut o = String::new();
     let text = nav::table(c);
     let mut lines = text.lines();
     if let Some(head) = lines.next() {
-        writeln!(o, "<p><strong>{}</strong></p>", esc(head))?;
+        if lead {
+            writeln!(o, "<p><strong>{}</strong></p>", esc(head))?;
+        } else {
+            writeln!(o, "<p>{}</p>", esc(head))?;
+        }
     }
     writeln!(
         o,
@@ -316,19 +323,34 @@ fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
          figcaption{{font-size:90%;color:#444}}svg{{max-width:100%;height:auto}}</style>\n</head>\n<body>\n<h1>{t}</h1>",
         t = esc(&title)
     )?;
-    if let Some(c) = &s.scores {
-        o.push_str(&score_table_html(c)?);
-    } else {
-        writeln!(
-            o,
-            "<p>The record carries no truth (`true_rate_dps` and `drift_dps`): no scores.</p>"
-        )?;
-    }
+    // A test set's pooled result leads (`demo`); the replayed record is one example after it.
     if let Some(t) = &s.test_set {
+        if let Some(h) = &t.headline {
+            writeln!(
+                o,
+                "<p class=\"headline\">Result over {} test vehicles, pooled mean heading error RMS:<br><strong>{}</strong><br>{}</p>",
+                h.records,
+                esc(&h.verdict_line()),
+                esc(&h.count_line())
+            )?;
+        }
         writeln!(
             o,
             "<h2>Over the test records</h2>\n<pre>{}</pre>",
             esc(&t.text())
+        )?;
+        writeln!(
+            o,
+            "<h2>Example record: {}</h2>\n<p>One draw of the test set (the first test vehicle); the result is above.</p>",
+            esc(&s.input)
+        )?;
+    }
+    if let Some(c) = &s.scores {
+        o.push_str(&score_table_html(c, s.test_set.is_none())?);
+    } else {
+        writeln!(
+            o,
+            "<p>The record carries no truth (`true_rate_dps` and `drift_dps`): no scores.</p>"
         )?;
     }
     if let Some(t) = &s.level_tuning {

@@ -1,0 +1,185 @@
+//! The result of a set of test records in one verdict (`host-sim demo`, its `index.html`):
+//! the identifier's mean heading-error RMS over every test record against each baseline's
+//! (pooled: the mean of the per-record RMS), the difference in %, "fog wins" / "fog loses"
+//! against the best baseline, and on how many records the identifier is below every
+//! baseline. Computed from [`super::motion::TestSet`]'s means and per-record figures, the
+//! numbers written to the JSON, and printed from this struct alone ([`Pooled::text`]).
+
+use crate::nav;
+use serde::Serialize;
+
+/// The verdict's words.
+pub const WINS: &str = "fog wins";
+/// The verdict's words.
+pub const LOSES: &str = "fog loses";
+/// The verdict's words (the same pooled mean to the last bit).
+pub const TIES: &str = "fog ties";
+
+/// One baseline's pooled mean and the identifier's difference from it.
+#[derive(Debug, Clone, Serialize)]
+pub struct BaselineMean {
+    /// The baseline.
+    pub name: String,
+    /// Its mean heading-error RMS over the records, deg.
+    pub mean_heading_rms_deg: f64,
+    /// `100 (identifier / baseline - 1)`, %: negative when the identifier's is lower.
+    pub identifier_difference_pct: f64,
+}
+
+/// The pooled result ([module docs](self)).
+#[derive(Debug, Clone, Serialize)]
+pub struct Pooled {
+    /// Test records pooled.
+    pub records: usize,
+    /// The identifier (fog's drift filter).
+    pub identifier: String,
+    /// Its mean heading-error RMS over the records, deg.
+    pub identifier_mean_heading_rms_deg: f64,
+    /// Every baseline, in the table's order.
+    pub baselines: Vec<BaselineMean>,
+    /// The baseline with the least mean ([`nav::NO_COMPENSATION`] is not a candidate).
+    pub best_baseline: String,
+    /// Its mean, deg.
+    pub best_baseline_mean_heading_rms_deg: f64,
+    /// `100 (identifier / best - 1)`, %.
+    pub difference_pct: f64,
+    /// [`WINS`] (the identifier's mean below the best baseline's), [`LOSES`] or [`TIES`].
+    pub verdict: String,
+    /// Records on which the identifier is below every baseline (no compensation aside).
+    pub below_every_baseline: usize,
+}
+
+/// `100 (a / b - 1)`.
+fn pct(a: f64, b: f64) -> f64 {
+    100.0 * (a / b - 1.0)
+}
+
+impl Pooled {
+    /// From the means per estimator (the identifier first) over `records` records, of which
+    /// the identifier is below every baseline on `below_every_baseline`. `None` without a
+    /// baseline other than no compensation.
+    pub fn new(
+        means: &[(String, f64)],
+        records: usize,
+        below_every_baseline: usize,
+    ) -> Option<Self> {
+        let ((identifier, id_mean), rest) = means.split_first()?;
+        let best = rest
+            .iter()
+            .filter(|(n, _)| n != nav::NO_COMPENSATION)
+            .min_by(|a, b| a.1.total_cmp(&b.1))?;
+        let verdict = if id_mean < &best.1 {
+            WINS
+        } else if id_mean > &best.1 {
+            LOSES
+        } else {
+            TIES
+        };
+        Some(Self {
+            records,
+            identifier: identifier.clone(),
+            identifier_mean_heading_rms_deg: *id_mean,
+            baselines: rest
+                .iter()
+                .map(|(name, m)| BaselineMean {
+                    name: name.clone(),
+                    mean_heading_rms_deg: *m,
+                    identifier_difference_pct: pct(*id_mean, *m),
+                })
+                .collect(),
+            best_baseline: best.0.clone(),
+            best_baseline_mean_heading_rms_deg: best.1,
+            difference_pct: pct(*id_mean, best.1),
+            verdict: verdict.to_string(),
+            below_every_baseline,
+        })
+    }
+
+    /// The verdict line: `fog loses: 0.1694 deg against 0.1451 deg for the best baseline
+    /// (+16.7 %), NAME`.
+    pub fn verdict_line(&self) -> String {
+        format!(
+            "{}: {:.4} deg against {:.4} deg for the best baseline ({:+.1} %), {}",
+            self.verdict,
+            self.identifier_mean_heading_rms_deg,
+            self.best_baseline_mean_heading_rms_deg,
+            self.difference_pct,
+            self.best_baseline
+        )
+    }
+
+    /// The count line: `fog is below every baseline on 7 of 32 test vehicles`.
+    pub fn count_line(&self) -> String {
+        format!(
+            "fog is below every baseline on {} of {} test vehicles",
+            self.below_every_baseline, self.records
+        )
+    }
+
+    /// The headline, a few lines: what is pooled, the verdict, the count, then each
+    /// estimator's mean and the identifier's difference from it.
+    pub fn text(&self) -> String {
+        let mut s = format!(
+            "result over {} test vehicles (pooled: the mean of each vehicle's heading error RMS):\n",
+            self.records
+        );
+        s += &format!("  {}\n", self.verdict_line());
+        s += &format!("  {}\n", self.count_line());
+        s += &format!(
+            "  {:<50} {:>10} {:>12}\n",
+            "estimator", "mean (deg)", "fog vs it"
+        );
+        s += &format!(
+            "  {:<50} {:>10.4}\n",
+            format!("{} (fog)", self.identifier),
+            self.identifier_mean_heading_rms_deg
+        );
+        for b in &self.baselines {
+            s += &format!(
+                "  {:<50} {:>10.4} {:>+10.1} %\n",
+                b.name, b.mean_heading_rms_deg, b.identifier_difference_pct
+            );
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn means(id: f64) -> Vec<(String, f64)> {
+        vec![
+            ("motion identifier".into(), id),
+            (nav::NO_COMPENSATION.into(), 1.6),
+            ("gated".into(), 0.1461),
+            ("own detector".into(), 0.1451),
+        ]
+    }
+
+    #[test]
+    fn the_verdict_is_against_the_best_baseline() {
+        let p = Pooled::new(&means(0.1694), 32, 7).expect("pooled");
+        assert_eq!(p.verdict, LOSES);
+        assert_eq!(p.best_baseline, "own detector");
+        assert!((p.difference_pct - 100.0 * (0.1694 / 0.1451 - 1.0)).abs() < 1e-12);
+        assert_eq!(
+            p.verdict_line(),
+            "fog loses: 0.1694 deg against 0.1451 deg for the best baseline (+16.7 %), own detector"
+        );
+        assert_eq!(p.baselines.len(), 3);
+        assert!(p.baselines[0].identifier_difference_pct < -80.0);
+        let w = Pooled::new(&means(0.1), 2, 2).expect("pooled");
+        assert_eq!(w.verdict, WINS);
+        assert!(w.text().contains("fog wins: 0.1000 deg"));
+        assert_eq!(Pooled::new(&means(0.1451), 2, 0).expect("p").verdict, TIES);
+        // No compensation is never the best baseline, even when it is the least.
+        let mut m = means(0.2);
+        m[1].1 = 0.01;
+        assert_eq!(
+            Pooled::new(&m, 2, 0).expect("p").best_baseline,
+            "own detector"
+        );
+        assert!(Pooled::new(&m[..2], 2, 0).is_none());
+    }
+}
