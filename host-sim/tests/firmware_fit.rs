@@ -100,7 +100,7 @@ fn a_200_hz_image_of_a_100_dps_unit_is_warned_about() {
     assert_eq!(f["warnings"].as_array().map(Vec::len), Some(1));
 }
 
-/// The writer says it too: `identify` with a 200-Hz, 100 deg/s sensor file.
+/// The writer says it too: `identify` with a 200-Hz, 100 deg/s gyro file.
 #[test]
 fn identify_states_the_fit_of_the_image_it_writes() {
     let dir = tempfile::tempdir().expect("tmp");
@@ -108,14 +108,14 @@ fn identify_states_the_fit_of_the_image_it_writes() {
     let sensor = d.join("unit100.toml");
     fs::write(
         &sensor,
-        "name = \"unit100\"\nsample_rate_hz = 200.0\nfull_scale_dps = 100.0\nquantum_dps = 0.0\nnoise_density_deg_rth = 0.0667\ndrift_bound_dph = 30.0\n",
+        "name = \"unit100\"\nsample_rate_hz = 200.0\nfull_scale_dps = 100.0\nquantum_dps = 0.0\narw_deg_per_rth = 0.0667\ndrift_bound_dph = 30.0\n",
     )
     .expect("write");
     // Two calibration runs (the model's unit-to-unit spread needs two), 120 s each.
     let recs = [d.join("r1.csv"), d.join("r2.csv")];
     for (seed, rec) in recs.iter().enumerate() {
         host_sim()
-            .args(["simulate", "--preset", "ecore2000", "--duration-s", "120"])
+            .args(["simulate", "--gyro", "ecore2000", "--duration-s", "120"])
             .args([
                 "--rate-hz",
                 "200",
@@ -129,7 +129,7 @@ fn identify_states_the_fit_of_the_image_it_writes() {
     }
     let (img, j) = (d.join("m.fogi"), d.join("m.json"));
     host_sim()
-        .args(["identify", "--preset", "motion", "--sensor"])
+        .args(["identify", "--preset", "motion", "--gyro"])
         .arg(&sensor)
         .arg("--input")
         .args(&recs)
