@@ -5,8 +5,8 @@ Requires: python3 and numpy (`pip install numpy`); a built host-sim (`--bin`, de
 target/release/host-sim).
 
 For every record in DIR/manifest.jsonl (optionally only --classes), runs
-  host-sim gap --real DIR/NAME.csv --json OUT/NAME.json --no-task [--sim DIR/NAME.toml]
-(`--sim` in --mode sim), then prints and writes (OUT/summary.json, OUT/summary.md):
+  host-sim gap --real DIR/NAME.csv --json OUT/NAME.json --no-task [--gyro DIR/NAME.toml]
+(`--gyro` in --mode sim), then prints and writes (OUT/summary.json, OUT/summary.md):
 - the confusion table (truth x named), right-effect rate over the effect records, the rate
   at which `none` records are wrongly flagged, the median held-out shrink of the true
   effect's candidate (over the effect records; and, as a diagnostic, over those whose
@@ -39,7 +39,7 @@ def run_one(binary, d, out, name, mode, extra):
     # The first decision alone (what this benchmark scores; gap's default runs rounds).
     cmd = [binary, "gap", "--real", os.path.join(d, name + ".csv"), "--json", js, "--no-task", "--rounds", "1"]
     if mode == "sim":
-        cmd += ["--sim", os.path.join(d, name + ".toml")]
+        cmd += ["--gyro", os.path.join(d, name + ".toml")]
     cmd += extra
     t0 = time.time()
     r = subprocess.run(cmd, capture_output=True, text=True)

@@ -19,7 +19,7 @@ but `temperature`, which always carries one it does follow), some a `true_rate_d
 turntable motion (always for `scale_factor`).
 
 Output: DIR/NAME.csv (t_s, rate_dps[, temp_c][, true_rate_dps]), DIR/NAME.toml (the nominal
-baseline model, for `gap --sim` mode: the N, B, K the record was made with, before any
+baseline model (a gyro file), for `gap --gyro` mode: the N, B, K the record was made with, before any
 baseline-type effect), DIR/manifest.jsonl (one line per record: truth and parameters).
 
 Usage:
@@ -41,7 +41,7 @@ FITTED_CLASSES = [
     "none", "quantization", "rate_ramp", "markov", "sinusoid", "temperature",
     "warmup", "spikes", "dropouts", "scale_factor",
 ]
-# Baseline-type effects: only meaningful against a stated model (`gap --sim`).
+# Baseline-type effects: only meaningful against a stated model (`gap --gyro`).
 SIM_ONLY_CLASSES = ["white_noise", "bias_instability", "rate_random_walk"]
 
 # Strength range per effect (log-uniform), see `effect()` for what s means.
@@ -253,11 +253,21 @@ def write_csv(path, cols, keep):
                fmt=[fmt[k] for k in names])
 
 
+# The model's terms (deg/s units) as gyro-file keys (host_sim::gyro: datasheet units).
+GYRO_KEYS = {
+    "arw_dps_per_rthz": ("arw_deg_per_rth", 60.0),
+    "bias_instability_dps": ("bias_instability_dph", 3600.0),
+    "rrw_dps_per_s_rthz": ("rrw_dph_per_rth", 216000.0),
+}
+
+
 def write_toml(path, model, fs):
+    """A gyro file (`host-sim gap --gyro PATH`) of the nominal model."""
     with open(path, "w") as f:
-        f.write(f"sample_rate_hz = {fs}\n\n[noise]\n")
+        f.write(f"sample_rate_hz = {fs}\n")
         for k, v in model.items():
-            f.write(f"{k} = {v:.9e}\n")
+            key, factor = GYRO_KEYS[k]
+            f.write(f"{key} = {v * factor:.9e}\n")
 
 
 def main():
@@ -267,7 +277,7 @@ def main():
     ap.add_argument("--per-class", type=int, default=6)
     ap.add_argument("--classes", default=None)
     ap.add_argument("--mode", choices=["fitted", "sim"], default="fitted",
-                    help="fitted: classes usable without --sim; sim: all 13 (run gap with --sim NAME.toml)")
+                    help="fitted: classes usable without --gyro; sim: all 13 (run gap with --gyro NAME.toml)")
     ap.add_argument("--duration-s", type=float, default=1800.0)
     ap.add_argument("--strength", type=float, default=None, help="force the strength (smoke tests)")
     ap.add_argument("--with-temp", action="store_true", help="every record carries temp_c (smoke tests)")

@@ -39,6 +39,10 @@ pub struct Args {
     /// Also fit a first-order Gauss-Markov term (sigma, T).
     #[arg(long)]
     pub markov: bool,
+    /// Also write the fitted terms as a gyro file (host_sim::gyro: `simulate --gyro`
+    /// takes it).
+    #[arg(long, alias = "save-model", value_name = "FILE")]
+    pub save_gyro: Option<PathBuf>,
 }
 
 /// `t_s` and the rate of a record ([`read_series`]) with its gaps.
@@ -120,7 +124,10 @@ struct Output<'a> {
 
 /// Runs the command.
 pub fn run(args: &Args) -> Result<()> {
-    for out in std::iter::once(&args.json).chain(args.svg.as_ref()) {
+    for out in std::iter::once(&args.json)
+        .chain(args.svg.as_ref())
+        .chain(args.save_gyro.as_ref())
+    {
         record::refuse_overwrite(&args.input, out)?;
     }
     let s = read_series(&args.input, &args.record)?;
@@ -174,6 +181,9 @@ pub fn run(args: &Args) -> Result<()> {
             w.write_all(svg.as_bytes())
                 .with_context(|| format!("{}: write failed", path.display()))
         })?;
+    }
+    if let Some(p) = &args.save_gyro {
+        crate::gyro::fitted::save_allan(p, &fit, tau0_s, &args.input)?;
     }
     let mut err = std::io::stderr().lock();
     writeln!(

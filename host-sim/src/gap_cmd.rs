@@ -2,8 +2,8 @@
 //! on simulated records with a withheld effect (see `docs/gap.md`).
 
 use crate::gap::{self, bench, effects::Effect};
+use crate::gyro::Gyro;
 use crate::record_args::RecordArgs;
-use crate::sim::Model;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 
@@ -13,16 +13,22 @@ pub struct Args {
     /// Real record: CSV or .csv.gz with `t_s`, the rate column, optional `temp_c`.
     #[arg(long)]
     pub real: PathBuf,
-    /// The user's model (TOML); without it the baseline is ARW + bias instability + rate
-    /// random walk fitted to the record's fit blocks.
-    #[arg(long)]
-    pub sim: Option<PathBuf>,
+    /// The gyro: a built-in's name or a gyro file (host_sim::gyro), simulated as the
+    /// record's model; without it the baseline is ARW + bias instability + rate random walk
+    /// fitted to the record's fit blocks.
+    #[arg(long, alias = "sim", value_name = "NAME|FILE")]
+    pub gyro: Option<String>,
     /// JSON output.
     #[arg(long)]
     pub json: PathBuf,
     /// Report folder (index.html, adev.svg, psd.svg).
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Also write the model the last round simulated as a gyro file (the baseline or
+    /// `--gyro`'s model with the named effects that enter the model; `simulate --gyro`
+    /// takes it).
+    #[arg(long, alias = "save-model", value_name = "FILE")]
+    pub save_gyro: Option<PathBuf>,
     /// The rate column and scale, the sample rate of a record without `t_s`.
     #[command(flatten)]
     pub record: RecordArgs,
@@ -49,8 +55,9 @@ pub struct Args {
 
 /// Runs `gap`.
 pub fn run(a: &Args) -> Result<()> {
+    let gyro = a.gyro.as_deref().map(Gyro::from_arg).transpose()?;
     let inputs: Vec<&std::path::Path> = std::iter::once(a.real.as_path())
-        .chain(a.sim.as_deref())
+        .chain(gyro.as_ref().and_then(|g| g.path.as_deref()))
         .collect();
     let report_files: Vec<std::path::PathBuf> = a
         .report
@@ -59,12 +66,15 @@ pub fn run(a: &Args) -> Result<()> {
         .collect();
     let outputs: Vec<&std::path::Path> = std::iter::once(a.json.as_path())
         .chain(report_files.iter().map(|p| p.as_path()))
+        .chain(a.save_gyro.as_deref())
         .collect();
     crate::record::refuse_overwrite_all(&inputs, &outputs)?;
-    let model = match &a.sim {
-        Some(p) => Some(Model::load(p)?),
-        None => None,
-    };
+    if let Some(g) = &a.save_gyro {
+        if g == &a.json {
+            anyhow::bail!("{}: --save-gyro and --json name the same file", g.display());
+        }
+    }
+    let model = gyro.as_ref().map(Gyro::sim_model);
     let opts = crate::record::ReadOptions {
         reference_column: a.reference_column.clone(),
         ..a.record.options()
@@ -131,6 +141,9 @@ pub fn run(a: &Args) -> Result<()> {
                 format!("; next round: {}", r.applied)
             }
         );
+    }
+    if let Some(p) = &a.save_gyro {
+        crate::gyro::fitted::save_gap(p, &a.real, gyro.as_ref(), &out, rec.dt_s)?;
     }
     eprintln!("{}", headline(&rec.name, &out));
     if let Some(dir) = &a.report {
@@ -212,7 +225,7 @@ pub struct BenchArgs {
     #[arg(long)]
     pub classes: Option<String>,
     /// Also write every record (CSV: t_s, rate_dps, temp_c, true_rate_dps) and the baseline
-    /// model (`baseline.toml`) into this folder, to rerun `gap` on one.
+    /// model (`baseline.toml`, a gyro file) into this folder, to rerun `gap --gyro` on one.
     #[arg(long)]
     pub write_records: Option<PathBuf>,
     /// JSON output.
@@ -268,14 +281,13 @@ pub fn run_bench(a: &BenchArgs) -> Result<()> {
 /// Writes the benchmark's records and baseline model into `dir`.
 fn write_records(dir: &std::path::Path, o: &bench::BenchOptions) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-    let base = bench::baseline_model(o.rate_hz);
-    let toml = toml::to_string(&base).context("baseline model to TOML")?;
-    let p = dir.join("baseline.toml");
-    crate::record::write_atomic(&p, |w| {
-        use std::io::Write;
-        w.write_all(toml.as_bytes())
-            .with_context(|| format!("{}: write failed", p.display()))
-    })?;
+    let parts = crate::gyro::write::Parts {
+        header: vec!["gap-bench's baseline model (a gyro file: gap --gyro baseline.toml)".into()],
+        name: "baseline",
+        model: bench::baseline_model(o.rate_hz),
+        ..Default::default()
+    };
+    crate::gyro::write::save(&dir.join("baseline.toml"), &parts, &[])?;
     for (ci, c) in o.classes.iter().enumerate() {
         for k in 0..o.per_effect {
             let seed = o.first_seed + (ci * 1000 + k) as u64;

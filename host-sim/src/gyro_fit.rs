@@ -22,7 +22,7 @@
 //!    rate random walk and Gauss-Markov terms at 30, 300 and 3000 s (a flicker floor is a
 //!    sum of Gauss-Markov terms one per decade; ASSUMED correlation times). Terms fitted at
 //!    zero are absent.
-//! 5. Drift bound: 1.5x the largest |10-s mean| of the runs (as the sensor file's learned
+//! 5. Drift bound: 1.5x the largest |10-s mean| of the runs (as the gyro file's learned
 //!    bound), at least the file's.
 
 use crate::allan;
@@ -378,7 +378,7 @@ fn solve_dyn(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
 }
 
 /// Fits the family's model to its calibration `runs` (module docs); `cal` is their
-/// measurement, `file_bound_dps` the sensor file's drift bound.
+/// measurement, `file_bound_dps` the gyro file's drift bound.
 pub fn fit(
     runs: &[Series],
     cal: &Calibration,

@@ -1,5 +1,6 @@
 //! `host-sim identify`: see [`crate::identify`].
 
+use crate::gyro::Gyro;
 use crate::identify::series::CsvFiles;
 use crate::identify::{self, Act, DrlsFormArg, LevelInput, Options, Preset, TrainerKind};
 use crate::motion;
@@ -7,7 +8,6 @@ use crate::nav::NavRecord;
 use crate::record;
 use crate::record::ReadOptions;
 use crate::record_args::{HolesSummary, RecordArgs};
-use crate::sensor::SensorSpec;
 use anyhow::{Context, Result};
 use fog_core::image::Image;
 use std::path::PathBuf;
@@ -110,10 +110,20 @@ pub struct Args {
     /// firmware; the verdict and its reasons are still printed and in the JSON.
     #[arg(long)]
     pub force: bool,
-    /// `--preset motion`: the sensor: a built-in's name (`ecore2000`: 60 deg/s, 100 Hz;
-    /// `kvh1750`: 490 deg/s, 1 kHz) or a sensor file (host_sim::sensor).
-    #[arg(long, value_name = "NAME|FILE", value_parser = crate::sensor::parse_sensor_arg, default_value = "ecore2000")]
-    pub sensor: SensorSpec,
+    /// `--preset motion`: the gyro: a built-in's name (`ecore2000`: 60 deg/s, 100 Hz;
+    /// `kvh1750`: 490 deg/s, 1 kHz) or a gyro file (host_sim::gyro; its datasheet part).
+    #[arg(
+        long,
+        alias = "sensor",
+        value_name = "NAME|FILE",
+        default_value = "ecore2000"
+    )]
+    pub gyro: String,
+    /// `--preset motion`: also write the gyro file with what the calibration runs fitted
+    /// (`[identified]`: the model in the image, in datasheet units) beside the image; the
+    /// rest is `--gyro`'s. `replay --gyro` and `image --gyro` take it.
+    #[arg(long, value_name = "FILE")]
+    pub save_gyro: Option<PathBuf>,
     /// `--preset motion`: vehicle records with truth (`true_rate_dps`, `drift_dps`; CSV
     /// files or folders; other units than the training records') on which the fitted
     /// model's two least certain numbers (the temperature links' unit spread and the
@@ -253,6 +263,9 @@ pub fn run(a: &Args) -> Result<()> {
     if a.save_identifier.is_some() {
         anyhow::bail!("--save-identifier needs --preset motion");
     }
+    if a.save_gyro.is_some() {
+        anyhow::bail!("--save-gyro needs --preset motion");
+    }
     if !a.tune_on.is_empty() {
         anyhow::bail!("--tune-on needs --preset motion");
     }
@@ -298,6 +311,14 @@ fn run_motion(a: &Args) -> Result<()> {
     let Some(out) = &a.save_identifier else {
         anyhow::bail!("--preset motion needs --save-identifier FILE");
     };
+    let gyro = Gyro::from_arg(&a.gyro)?;
+    let sensor = gyro.sensor()?;
+    if gyro.identified.is_some() {
+        eprintln!(
+            "{}: note: its [identified] model is not used: identify fits a new one on the calibration runs",
+            gyro.source
+        );
+    }
     let train = CsvFiles::from_args(&a.train, &a.record.options())?;
     let validate = if a.validate.is_empty() {
         Vec::new()
@@ -309,21 +330,35 @@ fn run_motion(a: &Args) -> Result<()> {
     } else {
         CsvFiles::from_args(&a.tune_on, &ReadOptions::default())?.0
     };
-    for p in train.0.iter().chain(&validate).chain(&tune_on) {
-        record::refuse_overwrite(p, out)?;
-        if let Some(j) = &a.json {
-            record::refuse_overwrite(p, j)?;
+    let mut inputs: Vec<&std::path::Path> = train
+        .0
+        .iter()
+        .chain(&validate)
+        .chain(&tune_on)
+        .map(PathBuf::as_path)
+        .collect();
+    inputs.extend(gyro.path.as_deref());
+    let mut outputs = vec![out.as_path()];
+    outputs.extend(a.json.as_deref());
+    outputs.extend(a.save_gyro.as_deref());
+    record::refuse_overwrite_all(&inputs, &outputs)?;
+    if let Some(g) = &a.save_gyro {
+        if outputs[..outputs.len() - 1].contains(&g.as_path()) {
+            anyhow::bail!(
+                "{}: --save-gyro names the same file as another output",
+                g.display()
+            );
         }
     }
     let mut holes = scan_holes(&train.0, &train.1)?;
     // Records with truth are read at the image's (the sensor's) rate when they lack `t_s`.
     let truth_opts = ReadOptions {
-        rate_hz: Some(f64::from(a.sensor.config.sample_rate_hz)),
+        rate_hz: Some(f64::from(sensor.config.sample_rate_hz)),
         ..ReadOptions::default()
     };
     holes.extend(scan_holes(&validate, &truth_opts)?);
     holes.extend(scan_holes(&tune_on, &truth_opts)?);
-    let mut o = motion::TrainOptions::new(a.sensor.config);
+    let mut o = motion::TrainOptions::new(sensor.config);
     if let Some(w) = a.window_s {
         o.config.window_s = w;
         if !o.config.is_valid() {
@@ -331,10 +366,10 @@ fn run_motion(a: &Args) -> Result<()> {
         }
     }
     let trained = motion::train(&train, &o)?;
-    // What the calibration runs showed, beside the sensor file; the image carries the fit.
+    // What the calibration runs showed, beside the gyro file's; the image carries the fit.
     eprintln!(
         "{}",
-        motion::calibration::table(&trained.calibration, &a.sensor.config)
+        motion::calibration::table(&trained.calibration, &sensor.config)
     );
     for w in &trained.calibration_warnings {
         eprintln!("WARNING: {w}");
@@ -372,8 +407,9 @@ fn run_motion(a: &Args) -> Result<()> {
         let text = serde_json::to_string_pretty(&serde_json::json!({
             "preset": "motion",
             "estimator": "drift filter (fog_core::drift_filter)",
-            "sensor": a.sensor.name,
-            "sensor_source": a.sensor.source,
+            "sensor": sensor.name,
+            "sensor_source": sensor.source,
+            "gyro_file": a.save_gyro.as_ref().map(|p| p.display().to_string()),
             "calibration": trained.calibration,
             "calibration_warnings": trained.calibration_warnings,
             "fit": trained.fit,
@@ -392,6 +428,9 @@ fn run_motion(a: &Args) -> Result<()> {
         })?;
     }
     motion::write_image(out, &image, a.force)?;
+    if let Some(p) = &a.save_gyro {
+        save_gyro(p, &gyro, &image, &train.0)?;
+    }
     eprintln!(
         "drift filter: model fitted on {} calibration runs{} -> {}",
         train.0.len(),
@@ -409,5 +448,39 @@ fn run_motion(a: &Args) -> Result<()> {
             firmware.why()
         );
     }
+    Ok(())
+}
+
+/// `--save-gyro`: `gyro` with `[identified]` set to `image`'s model.
+fn save_gyro(path: &std::path::Path, gyro: &Gyro, image: &Image, runs: &[PathBuf]) -> Result<()> {
+    let header = vec![
+        format!(
+            "{}: {}, with [identified]: the drift filter's model",
+            gyro.name, gyro.source
+        ),
+        format!(
+            "host-sim identify fitted on {} calibration runs ({}{}); the image holds it too.",
+            runs.len(),
+            runs.iter()
+                .take(3)
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            if runs.len() > 3 { ", ..." } else { "" }
+        ),
+    ];
+    let parts = crate::gyro::write::Parts {
+        header,
+        name: &gyro.name,
+        model: gyro.model.clone(),
+        drift_bound_dps: gyro.drift_bound_dps,
+        temperature_column: gyro.temperature_column.as_deref(),
+        identified: Some(crate::gyro::Identified {
+            model: image.model,
+            runs: image.trained_runs,
+        }),
+    };
+    crate::gyro::write::save(path, &parts, &[])?;
+    eprintln!("gyro file with the fitted model -> {}", path.display());
     Ok(())
 }

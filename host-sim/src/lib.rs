@@ -10,6 +10,8 @@ pub mod denoise_cmd;
 pub mod firmware_fit;
 pub mod gap;
 pub mod gap_cmd;
+pub mod gyro;
+pub mod gyro_cmd;
 pub mod gyro_fit;
 pub mod identify;
 pub mod identify_cmd;

@@ -4,8 +4,8 @@
 
 use clap::{Parser, Subcommand};
 use host_sim::{
-    allan_cmd, demo_cmd, denoise_cmd, gap_cmd, identify_cmd, image_cmd, replay_cmd, reproduce_cmd,
-    simulate_cmd,
+    allan_cmd, demo_cmd, denoise_cmd, gap_cmd, gyro_cmd, identify_cmd, image_cmd, replay_cmd,
+    reproduce_cmd, simulate_cmd,
 };
 use std::process::ExitCode;
 
@@ -22,7 +22,7 @@ enum Cmd {
     /// Wavelet-denoise a recording: adds a `denoised_dps` column (db4 lifting, soft universal
     /// threshold, as in the paper).
     Denoise(denoise_cmd::Args),
-    /// Simulate a FOG record from an error model (TOML or a built-in preset): interchange
+    /// Simulate a FOG record from a gyro file or a built-in gyro (`--gyro`): interchange
     /// CSV or E-Core binary frames, streamed sample by sample.
     Simulate(simulate_cmd::Args),
     /// Overlapping Allan deviation of a record with chi-square error bars and a weighted
@@ -50,6 +50,9 @@ enum Cmd {
     Gap(gap_cmd::Args),
     /// Benchmark of `gap` on simulated records with one withheld effect: confusion matrix.
     GapBench(gap_cmd::BenchArgs),
+    /// The gyro file (one TOML file per gyro, read by `--gyro` everywhere): convert an old
+    /// sensor or model file, show a built-in.
+    Gyro(gyro_cmd::Args),
 }
 
 fn main() -> ExitCode {
@@ -73,6 +76,7 @@ fn main() -> ExitCode {
         Cmd::Demo(a) => demo_cmd::run(a),
         Cmd::Gap(a) => gap_cmd::run(a),
         Cmd::GapBench(a) => gap_cmd::run_bench(a),
+        Cmd::Gyro(a) => gyro_cmd::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

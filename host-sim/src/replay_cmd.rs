@@ -2,12 +2,12 @@
 //! (default; [`crate::replay::motion`]) or the streamed level-trend / paper presets
 //! ([`crate::replay::stream`]).
 
+use crate::gyro::Gyro;
 use crate::record::ReadOptions;
 use crate::record_args::RecordArgs;
 use crate::replay::motion::{self, MotionOptions};
 use crate::replay::stream::{self, IdPreset, InputFormat, Options, Outcome};
 use crate::report;
-use crate::sensor::SensorSpec;
 use anyhow::{bail, Context, Result};
 use std::path::PathBuf;
 
@@ -21,12 +21,12 @@ pub struct Args {
     /// Input format.
     #[arg(long, value_enum, default_value_t = InputFormat::Auto)]
     pub format: InputFormat,
-    /// Sensor configuration (full scale, quantum, rate, noise, drift bound) when no
-    /// `--identifier` gives it: a built-in's name, `ecore2000` (60 deg/s, 100 Hz) or
-    /// `kvh1750` (490 deg/s, 1 kHz), or a sensor file (host_sim::sensor); default: the
-    /// built-in whose rate matches the record's.
-    #[arg(long, value_name = "NAME|FILE", value_parser = crate::sensor::parse_sensor_arg)]
-    pub sensor: Option<SensorSpec>,
+    /// The gyro when no `--identifier` gives it: a built-in's name, `ecore2000` (60 deg/s,
+    /// 100 Hz) or `kvh1750` (490 deg/s, 1 kHz), or a gyro file (host_sim::gyro: its
+    /// datasheet part, and its `[identified]` model when it has one); default: the built-in
+    /// whose rate matches the record's.
+    #[arg(long, alias = "sensor", value_name = "NAME|FILE")]
+    pub gyro: Option<String>,
     /// Full scale of E-Core binary frames, deg/s (32768 counts); default: the sensor's.
     #[arg(long)]
     pub full_scale_dps: Option<f32>,
@@ -45,7 +45,8 @@ pub struct Args {
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Motion preset: an image (`identify --preset motion --save-identifier`: the gyro model
-    /// fitted on calibration runs); default: the model of `--sensor`'s specification alone.
+    /// fitted on calibration runs); default: `--gyro`'s `[identified]` model, else the model of
+    /// its specification alone.
     #[arg(long)]
     pub identifier: Option<PathBuf>,
     /// Motion preset: column holding an external still flag (1/0, true/false; empty cells
@@ -86,14 +87,18 @@ pub fn run(args: &Args) -> Result<()> {
             }
         }
     }
-    let sensor = args.sensor.as_ref().map(|s| s.config);
+    let gyro = args.gyro.as_deref().map(Gyro::from_arg).transpose()?;
+    let sensor = match &gyro {
+        Some(g) => Some(g.sensor()?.config),
+        None => None,
+    };
     let id_preset = match args.preset {
         PresetArg::Motion => None,
         PresetArg::LevelTrend => Some(IdPreset::LevelTrend),
         PresetArg::Paper => Some(IdPreset::Paper),
     };
     let Some(id_preset) = id_preset else {
-        return run_motion(args, sensor);
+        return run_motion(args, sensor, gyro.as_ref());
     };
     if args.identifier.is_some()
         || args.still_column.is_some()
@@ -125,11 +130,16 @@ pub fn run(args: &Args) -> Result<()> {
     Ok(())
 }
 
-fn run_motion(args: &Args, sensor: Option<fog_core::still::SensorConfig>) -> Result<()> {
+fn run_motion(
+    args: &Args,
+    sensor: Option<fog_core::still::SensorConfig>,
+    gyro: Option<&Gyro>,
+) -> Result<()> {
     // Before anything is written: no output may be an input (the record, the identifier,
-    // the validation records) or another output.
+    // the gyro file, the validation records) or another output.
     let mut inputs = vec![args.input.as_path()];
     inputs.extend(args.identifier.as_deref());
+    inputs.extend(gyro.and_then(|g| g.path.as_deref()));
     inputs.extend(args.validate.iter().map(PathBuf::as_path));
     let mut outputs = vec![args.output.as_path()];
     outputs.extend(args.json.as_deref());
@@ -145,6 +155,10 @@ fn run_motion(args: &Args, sensor: Option<fog_core::still::SensorConfig>) -> Res
     let o = MotionOptions {
         identifier: args.identifier.clone(),
         sensor,
+        gyro_image: match gyro {
+            Some(g) if g.identified.is_some() => Some((g.image()?, g.image_words())),
+            _ => None,
+        },
         stream: Options {
             format: args.format,
             full_scale_dps: args.full_scale_dps.unwrap_or(0.0),

@@ -1,45 +1,30 @@
-//! The sensor file: a gyro's specification as a small TOML file that a user writes for any
-//! gyro, read into a [`fog_core::still::SensorConfig`] (`--sensor NAME|FILE` of `identify`
-//! and `replay`).
+//! The sensor as the drift filter and the stream readers take it (`identify`, `replay`,
+//! `image`): a [`fog_core::still::SensorConfig`] made from a gyro file's datasheet part
+//! ([`crate::gyro`]: `sample_rate_hz`, `full_scale_dps`, `quantum_dps`, `arw_deg_per_rth`,
+//! `drift_bound_dph`, `[temperature] column`).
 //!
-//! ```toml
-//! # KVH E-Core 2000, 60 deg/s unit (sources and ASSUMED values in comments)
-//! name = "ecore2000"                 # shown in messages and reports (not empty)
-//! sample_rate_hz = 100.0             # output data rate, Hz, 10 to 2000
-//! full_scale_dps = 60.0              # largest rate the unit reports, deg/s, > 0
-//! quantum_dps = 0.0018310546875      # one output count, deg/s, >= 0 (0: floating-point output)
-//! noise_density_deg_rth = 0.0666666  # white noise (angle random walk), deg/sqrt(h), > 0
-//! drift_bound_dph = 30.0             # largest drift the unit can have, deg/h, > 0
+//! Conversions to [`SensorConfig`]'s units: exact from the decimal written
+//! ([`crate::gyro::units`]), then rounded once to f32: `N deg/sqrt(h) = N / 60
+//! deg/s/sqrt(Hz)`, `D deg/h = D / 3600 deg/s`. A key these commands need and the file
+//! lacks, or a value out of their range, stops them with one message naming the file, the
+//! key and its line and column.
 //!
-//! [temperature]                      # optional table
-//! column = "temp_c"                  # CSV column of the case temperature, deg C; absent or "": none
-//! ```
-//!
-//! Every key but `[temperature]` is required; an unknown key is refused. Conversions to
-//! [`SensorConfig`]'s units, in f64 then rounded once to f32: noise density
-//! `N deg/sqrt(h) = N / 60 deg/s/sqrt(Hz)`, drift bound `D deg/h = D / 3600 deg/s`. A bad
-//! file stops with one message naming the file, the line and the column
-//! (`FILE:LINE:COL: ...`).
-//!
-//! The built-in sensors ([`BUILTIN`]) are files of the same form in `host-sim/sensors/`,
-//! embedded in the binary and read by the same code; each reproduces its fog-core constant
-//! (`SensorConfig::ECORE_2000`, `SensorConfig::KVH_DSP_1750`) bit for bit (unit tests).
+//! The built-in gyros reproduce their fog-core constants (`SensorConfig::ECORE_2000`,
+//! `SensorConfig::KVH_DSP_1750`) bit for bit (unit tests).
 //!
 //! `[temperature] column`: today every host-sim reader takes the temperature from a column
-//! named `temp_c` when the record has one, whatever the sensor file says (the readers of
+//! named `temp_c` when the record has one, whatever the gyro file says (the readers of
 //! `identify`, `replay`, `--validate` and `--tune-on` name it literally). The key is parsed
 //! and kept in [`SensorSpec::temperature_column`] for the day the readers take it; until
 //! then a name other than `temp_c` is refused rather than silently ignored, and absent or
 //! `""` ("no temperature") does not stop a record's `temp_c` column from being read.
 
+use crate::gyro::Gyro;
 use anyhow::{anyhow, Result};
 use fog_core::still::SensorConfig;
-use serde::Deserialize;
 use std::ops::RangeInclusive;
-use std::path::Path;
-use toml::Spanned;
 
-/// Output data rates a sensor file may give, Hz. The range the project supports (the
+/// Output data rates the drift filter takes, Hz. The range the project supports (the
 /// records it is tested on are at 100 Hz and 1 kHz). ASSUMED: at 10 Hz the stillness
 /// detector's 1-s window still holds its minimum of 8 samples; above 2 kHz nothing has been
 /// run (the firmware's per-sample budget is measured at 1 kHz at most).
@@ -48,21 +33,7 @@ pub const SAMPLE_RATE_RANGE_HZ: RangeInclusive<f64> = 10.0..=2000.0;
 /// The column name every host-sim reader takes the temperature from (see the module doc).
 pub const TEMPERATURE_COLUMN: &str = "temp_c";
 
-/// The built-in sensors: (name, file in the repository, its text).
-pub const BUILTIN: [(&str, &str, &str); 2] = [
-    (
-        "ecore2000",
-        "host-sim/sensors/ecore2000.toml",
-        include_str!("../sensors/ecore2000.toml"),
-    ),
-    (
-        "kvh1750",
-        "host-sim/sensors/kvh1750.toml",
-        include_str!("../sensors/kvh1750.toml"),
-    ),
-];
-
-/// A sensor read from a sensor file or a built-in.
+/// A sensor read from a gyro file or a built-in.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SensorSpec {
     /// The file's `name`.
@@ -72,231 +43,98 @@ pub struct SensorSpec {
     /// `[temperature] column`: `Some("temp_c")` or `None` (absent or `""`); see the module
     /// doc for what the readers do with it today.
     pub temperature_column: Option<String>,
-    /// Where it came from: the path as given, or `host-sim/sensors/NAME.toml` for a built-in.
+    /// Where it came from: the path as given, or `host-sim/gyros/NAME.toml` for a built-in.
     pub source: String,
-    /// True for a built-in ([`BUILTIN`]).
+    /// True for a built-in.
     pub builtin: bool,
 }
 
-/// The file as written (user units).
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SensorFile {
-    name: Spanned<String>,
-    sample_rate_hz: Spanned<f64>,
-    full_scale_dps: Spanned<f64>,
-    quantum_dps: Spanned<f64>,
-    noise_density_deg_rth: Spanned<f64>,
-    drift_bound_dph: Spanned<f64>,
-    #[serde(default)]
-    temperature: Option<TemperatureTable>,
-}
-
-/// `[temperature]`.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct TemperatureTable {
-    #[serde(default)]
-    column: Option<Spanned<String>>,
-}
-
-/// 1-based line and column (in characters) of byte `offset` of `text`.
-fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let mut at = offset.min(text.len());
-    while !text.is_char_boundary(at) {
-        at -= 1;
-    }
-    let before = &text[..at];
-    let line = before.matches('\n').count() + 1;
-    let start = before.rfind('\n').map_or(0, |i| i + 1);
-    (line, before[start..].chars().count() + 1)
-}
-
-/// `source:LINE:COL` of byte `offset`.
-fn at(text: &str, source: &str, offset: usize) -> String {
-    let (l, c) = line_col(text, offset);
-    format!("{source}:{l}:{c}")
-}
-
-/// Checks one value; the error names its line and column.
-fn check(
-    text: &str,
-    source: &str,
-    key: &str,
-    v: &Spanned<f64>,
-    ok: bool,
-    want: &str,
-) -> Result<f64> {
-    let x = *v.get_ref();
-    if ok && x.is_finite() {
-        Ok(x)
-    } else {
-        Err(anyhow!(
-            "{}: {key} = {x}: must be {want}",
-            at(text, source, v.span().start)
-        ))
-    }
-}
-
-/// `x` rounded to f32, refused when it does not stay finite and (for `positive`) > 0.
-fn to_f32(
-    text: &str,
-    source: &str,
-    key: &str,
-    v: &Spanned<f64>,
-    x: f64,
-    positive: bool,
-) -> Result<f32> {
-    let y = x as f32;
-    if y.is_finite() && (!positive || y > 0.0) {
-        Ok(y)
-    } else {
-        Err(anyhow!(
-            "{}: {key} = {}: out of f32 range once converted to deg/s ({x:e})",
-            at(text, source, v.span().start),
-            v.get_ref()
-        ))
-    }
-}
+/// Who needs the datasheet part's keys (for the messages).
+const NEEDED_BY: &str = "identify, replay and image need";
 
 impl SensorSpec {
-    /// Parses and validates sensor-file text; `source` (the file name) starts every error
-    /// message, with the line and column when known.
-    pub fn from_toml_str(text: &str, source: &str) -> Result<Self> {
-        let f: SensorFile = toml::from_str(text).map_err(|e| {
-            let place = e
-                .span()
-                .map_or(source.to_string(), |s| at(text, source, s.start));
-            anyhow!("{place}: {}", e.message().trim().replace('\n', " "))
-        })?;
-        let name = f.name.get_ref().trim().to_string();
-        if name.is_empty() {
-            return Err(anyhow!(
-                "{}: name: must not be empty",
-                at(text, source, f.name.span().start)
+    /// The sensor of `g`'s datasheet part.
+    pub fn from_gyro(g: &Gyro) -> Result<Self> {
+        let m = &g.model;
+        let missing = |key: &str, what: &str| {
+            anyhow!(
+                "{}: {key} missing: {NEEDED_BY} {what} (add `{key} = ...` at the top of the file)",
+                g.source
+            )
+        };
+        let bad = |key: &str, want: &str| {
+            anyhow!(
+                "{}: {key} = {}: must be {want} for identify, replay and image",
+                g.place(key),
+                g.literal(key).unwrap_or("?")
+            )
+        };
+        let rate_hz = m
+            .sample_rate_hz
+            .ok_or_else(|| missing("sample_rate_hz", "the output data rate, Hz"))?;
+        let (lo, hi) = (*SAMPLE_RATE_RANGE_HZ.start(), *SAMPLE_RATE_RANGE_HZ.end());
+        if !SAMPLE_RATE_RANGE_HZ.contains(&rate_hz) {
+            return Err(bad(
+                "sample_rate_hz",
+                &format!("{lo} to {hi} Hz (the supported range)"),
             ));
         }
-        let (lo, hi) = (*SAMPLE_RATE_RANGE_HZ.start(), *SAMPLE_RATE_RANGE_HZ.end());
-        let r = &f.sample_rate_hz;
-        let rate_hz = check(
-            text,
-            source,
-            "sample_rate_hz",
-            r,
-            SAMPLE_RATE_RANGE_HZ.contains(r.get_ref()),
-            &format!("{lo} to {hi} Hz (the supported range)"),
-        )?;
-        let fs = &f.full_scale_dps;
-        let full_scale_dps = check(
-            text,
-            source,
-            "full_scale_dps",
-            fs,
-            *fs.get_ref() > 0.0,
-            "> 0",
-        )?;
-        let q = &f.quantum_dps;
-        let quantum_dps = check(
-            text,
-            source,
-            "quantum_dps",
-            q,
-            *q.get_ref() >= 0.0 && *q.get_ref() < full_scale_dps,
-            ">= 0 (0: floating-point output) and below full_scale_dps",
-        )?;
-        let n = &f.noise_density_deg_rth;
-        let noise_deg_rth = check(
-            text,
-            source,
-            "noise_density_deg_rth",
-            n,
-            *n.get_ref() > 0.0,
-            "> 0 (deg/sqrt(h))",
-        )?;
-        let d = &f.drift_bound_dph;
-        let bound_dph = check(
-            text,
-            source,
-            "drift_bound_dph",
-            d,
-            *d.get_ref() > 0.0,
-            "> 0 (deg/h)",
-        )?;
-        let config = SensorConfig {
-            full_scale_dps: to_f32(text, source, "full_scale_dps", fs, full_scale_dps, true)?,
-            quantum_dps: to_f32(text, source, "quantum_dps", q, quantum_dps, false)?,
-            sample_rate_hz: to_f32(text, source, "sample_rate_hz", r, rate_hz, true)?,
-            noise_density_dps_rthz: to_f32(
-                text,
-                source,
-                "noise_density_deg_rth",
-                n,
-                noise_deg_rth / 60.0,
-                true,
-            )?,
-            drift_bound_dps: to_f32(text, source, "drift_bound_dph", d, bound_dph / 3600.0, true)?,
-        };
-        if !config.is_valid() {
-            return Err(anyhow!("{source}: not a valid sensor configuration"));
+        let full_scale_dps = m
+            .full_scale_dps
+            .ok_or_else(|| missing("full_scale_dps", "the largest rate the unit reports, deg/s"))?;
+        let quantum_dps = m.quantization.quantum_dps;
+        if quantum_dps >= full_scale_dps {
+            return Err(bad(
+                "quantum_dps",
+                ">= 0 (0: floating-point output) and below full_scale_dps",
+            ));
         }
-        let column = f.temperature.and_then(|t| t.column);
-        let temperature_column = match column {
-            None => None,
-            Some(c) if c.get_ref().trim().is_empty() => None,
-            Some(c) if c.get_ref().trim() == TEMPERATURE_COLUMN => {
-                Some(TEMPERATURE_COLUMN.to_string())
-            }
-            Some(c) => {
-                return Err(anyhow!(
-                    "{}: [temperature] column = {:?}: host-sim reads the temperature from a column named `{TEMPERATURE_COLUMN}` only (today); rename the record's column or leave this out",
-                    at(text, source, c.span().start),
-                    c.get_ref()
+        if !g.gives("arw_deg_per_rth") {
+            return Err(missing(
+                "arw_deg_per_rth",
+                "the white noise (angle random walk), deg/sqrt(h)",
+            ));
+        }
+        let noise = m.noise.arw_dps_per_rthz;
+        if noise <= 0.0 {
+            return Err(bad("arw_deg_per_rth", "> 0 (deg/sqrt(h))"));
+        }
+        let bound = g.drift_bound_dps.ok_or_else(|| {
+            missing(
+                "drift_bound_dph",
+                "the largest drift the unit can have, deg/h",
+            )
+        })?;
+        let f32_of = |key: &str, x: f64, positive: bool| -> Result<f32> {
+            let y = x as f32;
+            if y.is_finite() && (!positive || y > 0.0) {
+                Ok(y)
+            } else {
+                Err(anyhow!(
+                    "{}: {key} = {}: out of f32 range once converted to deg/s ({x:e})",
+                    g.place(key),
+                    g.literal(key).unwrap_or("?")
                 ))
             }
         };
+        let config = SensorConfig {
+            full_scale_dps: f32_of("full_scale_dps", full_scale_dps, true)?,
+            quantum_dps: f32_of("quantum_dps", quantum_dps, false)?,
+            sample_rate_hz: f32_of("sample_rate_hz", rate_hz, true)?,
+            noise_density_dps_rthz: f32_of("arw_deg_per_rth", noise, true)?,
+            drift_bound_dps: f32_of("drift_bound_dph", bound, true)?,
+        };
+        if !config.is_valid() {
+            return Err(anyhow!("{}: not a valid sensor configuration", g.source));
+        }
         Ok(Self {
-            name,
+            name: g.name.clone(),
             config,
-            temperature_column,
-            source: source.to_string(),
-            builtin: false,
+            temperature_column: g.temperature_column.clone(),
+            source: g.source.clone(),
+            builtin: g.builtin,
         })
     }
-
-    /// Reads and validates a sensor file.
-    pub fn load(path: &Path) -> Result<Self> {
-        let source = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{source}: {e}"))?;
-        Self::from_toml_str(&text, &source)
-    }
-
-    /// The built-in sensor `name` ([`BUILTIN`]), `None` when there is none of that name.
-    pub fn builtin(name: &str) -> Option<Result<Self>> {
-        let (_, file, text) = BUILTIN.iter().find(|b| b.0 == name)?;
-        Some(Self::from_toml_str(text, file).map(|s| Self { builtin: true, ..s }))
-    }
-
-    /// `--sensor NAME|FILE`: a built-in's name, else a path to a sensor file (an existing
-    /// file, or any argument ending in `.toml`).
-    pub fn from_arg(arg: &str) -> Result<Self> {
-        if let Some(b) = Self::builtin(arg) {
-            return b;
-        }
-        let path = Path::new(arg);
-        if path.is_file() || arg.ends_with(".toml") {
-            return Self::load(path);
-        }
-        let names: Vec<&str> = BUILTIN.iter().map(|b| b.0).collect();
-        Err(anyhow!(
-            "unknown sensor {arg:?}: give a built-in ({}) or a path to a .toml sensor file",
-            names.join(", ")
-        ))
-    }
-}
-
-/// clap's value parser of `--sensor NAME|FILE` ([`SensorSpec::from_arg`]).
-pub fn parse_sensor_arg(arg: &str) -> Result<SensorSpec, String> {
-    SensorSpec::from_arg(arg).map_err(|e| format!("{e:#}"))
 }
 
 #[cfg(test)]
@@ -304,19 +142,24 @@ mod tests {
     use super::*;
 
     fn builtin(name: &str) -> SensorSpec {
-        SensorSpec::builtin(name)
+        Gyro::builtin_named(name)
             .expect("a built-in")
-            .expect("parses")
+            .sensor()
+            .expect("a sensor")
+    }
+
+    fn sensor(text: &str) -> Result<SensorSpec> {
+        Gyro::from_toml_str(text, "my.toml", None)?.sensor()
     }
 
     fn err(text: &str) -> String {
-        match SensorSpec::from_toml_str(text, "my.toml") {
+        match sensor(text) {
             Ok(s) => panic!("accepted: {s:?}"),
             Err(e) => format!("{e:#}"),
         }
     }
 
-    const GOOD: &str = "name = \"mine\"\nsample_rate_hz = 50\nfull_scale_dps = 100.0\nquantum_dps = 0.0\nnoise_density_deg_rth = 0.1\ndrift_bound_dph = 10.0\n";
+    const GOOD: &str = "name = \"mine\"\nsample_rate_hz = 50\nfull_scale_dps = 100.0\nquantum_dps = 0.0\narw_deg_per_rth = 0.1\ndrift_bound_dph = 10.0\n";
 
     /// The built-in files give exactly fog-core's constants (every field bit for bit).
     #[test]
@@ -350,7 +193,7 @@ mod tests {
 
     #[test]
     fn a_user_file_converts_units() {
-        let s = SensorSpec::from_toml_str(GOOD, "my.toml").expect("parses");
+        let s = sensor(GOOD).expect("parses");
         assert_eq!(s.name, "mine");
         assert_eq!(s.source, "my.toml");
         assert!(!s.builtin);
@@ -359,8 +202,14 @@ mod tests {
         assert_eq!(s.config.drift_bound_dps, (10.0f64 / 3600.0) as f32);
         assert_eq!(s.temperature_column, None);
         let t = format!("{GOOD}[temperature]\ncolumn = \"\"\n");
-        let s = SensorSpec::from_toml_str(&t, "my.toml").expect("parses");
-        assert_eq!(s.temperature_column, None);
+        assert_eq!(sensor(&t).expect("parses").temperature_column, None);
+        // Without a quantum: floating-point output.
+        let s = sensor(&GOOD.replace("quantum_dps = 0.0\n", "")).expect("parses");
+        assert_eq!(s.config.quantum_dps, 0.0);
+        // Without a name: the file's stem.
+        let g = Gyro::from_toml_str(&GOOD.replace("name = \"mine\"\n", ""), "d/unit7.toml", None)
+            .expect("parses");
+        assert_eq!(g.name, "unit7");
     }
 
     #[test]
@@ -373,6 +222,9 @@ mod tests {
         ));
         assert!(e.starts_with("my.toml:9:1: "), "{e}");
         assert!(e.contains("unknown field `unit`"), "{e}");
+        // A top-level key below a section: said so.
+        let e = err(&format!("{GOOD}[temperature]\ndrift_bound_dph = 3.0\n"));
+        assert!(e.contains("top-level key"), "{e}");
     }
 
     #[test]
@@ -394,12 +246,7 @@ mod tests {
                 2,
                 "10 to 2000 Hz",
             ),
-            (
-                "sample_rate_hz = 50",
-                "sample_rate_hz = nan",
-                2,
-                "10 to 2000 Hz",
-            ),
+            ("sample_rate_hz = 50", "sample_rate_hz = nan", 2, "finite"),
             ("full_scale_dps = 100.0", "full_scale_dps = 0.0", 3, "> 0"),
             ("quantum_dps = 0.0", "quantum_dps = -1e-3", 4, ">= 0"),
             (
@@ -408,17 +255,12 @@ mod tests {
                 4,
                 "below full_scale_dps",
             ),
+            ("arw_deg_per_rth = 0.1", "arw_deg_per_rth = 0", 5, "> 0"),
             (
-                "noise_density_deg_rth = 0.1",
-                "noise_density_deg_rth = 0",
+                "arw_deg_per_rth = 0.1",
+                "arw_deg_per_rth = inf",
                 5,
-                "> 0",
-            ),
-            (
-                "noise_density_deg_rth = 0.1",
-                "noise_density_deg_rth = inf",
-                5,
-                "> 0",
+                "finite",
             ),
             ("drift_bound_dph = 10.0", "drift_bound_dph = -3", 6, "> 0"),
         ] {
@@ -447,40 +289,41 @@ mod tests {
     }
 
     #[test]
-    fn missing_field_names_file_and_line() {
-        let e = err(&GOOD.replace("drift_bound_dph = 10.0\n", ""));
-        assert!(e.starts_with("my.toml:1:1: "), "{e}");
-        assert!(e.contains("missing field `drift_bound_dph`"), "{e}");
-        let e = err("");
-        assert!(e.starts_with("my.toml"), "{e}");
-        assert!(e.contains("missing field"), "{e}");
+    fn missing_keys_name_the_key() {
+        for key in [
+            "sample_rate_hz",
+            "full_scale_dps",
+            "arw_deg_per_rth",
+            "drift_bound_dph",
+        ] {
+            let text: String = GOOD
+                .lines()
+                .filter(|l| !l.starts_with(key))
+                .map(|l| format!("{l}\n"))
+                .collect();
+            let e = err(&text);
+            assert!(e.starts_with("my.toml: "), "{e}");
+            assert!(e.contains(&format!("{key} missing")), "{e}");
+        }
     }
 
     #[test]
     fn arg_is_a_builtin_a_file_or_refused() {
-        assert_eq!(
-            SensorSpec::from_arg("kvh1750").expect("built-in").config,
-            SensorConfig::KVH_DSP_1750
-        );
+        let parse_gyro_arg = |a: &str| Gyro::from_arg(a).map_err(|e| format!("{e:#}"));
+        assert_eq!(builtin("kvh1750").config, SensorConfig::KVH_DSP_1750);
         let dir = tempfile::tempdir().expect("test");
         let p = dir.path().join("mine.toml");
         std::fs::write(&p, GOOD).expect("test");
-        let s = parse_sensor_arg(&p.display().to_string()).expect("file");
+        let s = parse_gyro_arg(&p.display().to_string())
+            .expect("file")
+            .sensor()
+            .expect("sensor");
         assert_eq!((s.name.as_str(), s.config.sample_rate_hz), ("mine", 50.0));
-        let e = parse_sensor_arg("ecore").expect_err("unknown");
+        let e = parse_gyro_arg("ecore").expect_err("unknown");
         assert!(e.contains("ecore2000, kvh1750"), "{e}");
         assert!(e.contains(".toml"), "{e}");
         let missing = dir.path().join("none.toml").display().to_string();
-        let e = parse_sensor_arg(&missing).expect_err("missing");
+        let e = parse_gyro_arg(&missing).expect_err("missing");
         assert!(e.starts_with(&missing), "{e}");
-    }
-
-    #[test]
-    fn line_col_counts_characters() {
-        assert_eq!(line_col("ab\ncd", 0), (1, 1));
-        assert_eq!(line_col("ab\ncd", 4), (2, 2));
-        assert_eq!(line_col("é\nx", 3), (2, 1));
-        assert_eq!(line_col("éx", 2), (1, 2));
-        assert_eq!(line_col("x", 99), (1, 2));
     }
 }

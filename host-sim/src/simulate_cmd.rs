@@ -7,14 +7,15 @@
 //!
 //! Peak-memory check (release build), 10^5 and 10^7 samples:
 //! ```text
-//! /usr/bin/time -v target/release/host-sim simulate --preset ecore2000 --duration-s 1000 \
+//! /usr/bin/time -v target/release/host-sim simulate --gyro ecore2000 --duration-s 1000 \
 //!     --seed 1 --output /tmp/a.csv      # "Maximum resident set size": 4056 kB
-//! /usr/bin/time -v target/release/host-sim simulate --preset ecore2000 --duration-s 100000 \
+//! /usr/bin/time -v target/release/host-sim simulate --gyro ecore2000 --duration-s 100000 \
 //!     --seed 1 --output /tmp/b.csv      # 4084 kB (576 MB of CSV, 10.7 s)
 //! ```
 
+use crate::gyro::Gyro;
 use crate::record;
-use crate::sim::{self, Model, Simulator};
+use crate::sim::{self, Simulator};
 use anyhow::{bail, Context, Result};
 use fog_core::frame::ecore;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -24,12 +25,11 @@ use std::path::{Path, PathBuf};
 /// Arguments of `host-sim simulate`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Error model TOML (units in every key name); see `host-sim/presets/ecore2000.toml`.
-    #[arg(long, conflicts_with = "preset", required_unless_present = "preset")]
-    pub model: Option<PathBuf>,
-    /// Built-in model instead of `--model`.
-    #[arg(long, value_enum)]
-    pub preset: Option<Preset>,
+    /// The gyro: a built-in's name (`ecore2000`, `kvh1750`) or a gyro file
+    /// (host_sim::gyro: datasheet units in every key; `host-sim gyro show ecore2000` prints
+    /// a commented one).
+    #[arg(long, aliases = ["model", "preset"], value_name = "NAME|FILE")]
+    pub gyro: String,
     /// Length of the record, s.
     #[arg(long)]
     pub duration_s: f64,
@@ -58,16 +58,6 @@ pub struct Args {
     /// the record seed (overrides `[family] initial_c_range`), e.g. `10,35`.
     #[arg(long, value_delimiter = ',', value_name = "LO,HI")]
     pub initial_c_range: Option<Vec<f64>>,
-}
-
-/// Built-in models.
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum Preset {
-    /// KVH E-Core 2000 class (`host-sim/presets/ecore2000.toml`).
-    Ecore2000,
-    /// KVH DSP-1750-like axis, 1 kHz, the sensor `--sensor kvh1750` names
-    /// (`host-sim/presets/kvh1750.toml`).
-    Kvh1750,
 }
 
 /// Output formats.
@@ -113,16 +103,12 @@ pub fn counts(rate_dps: f64, full_scale_dps: f64) -> i16 {
 
 /// Runs the command.
 pub fn run(args: &Args) -> Result<()> {
-    let mut model = match (&args.model, args.preset) {
-        (Some(p), _) => Model::load(p)?,
-        (None, Some(Preset::Ecore2000)) => sim::preset("ecore2000")?,
-        (None, Some(Preset::Kvh1750)) => sim::preset("kvh1750")?,
-        (None, None) => bail!("give --model FILE or --preset NAME"),
-    };
-    let source = match (&args.model, args.preset) {
-        (Some(p), _) => p.display().to_string(),
-        (None, Some(Preset::Kvh1750)) => "preset kvh1750".to_string(),
-        (None, _) => "preset ecore2000".to_string(),
+    let gyro = Gyro::from_arg(&args.gyro)?;
+    let mut model = gyro.sim_model();
+    let source = if gyro.builtin {
+        format!("gyro {}", gyro.name)
+    } else {
+        gyro.source.clone()
     };
     let rate_hz = match (args.rate_hz, model.sample_rate_hz) {
         (Some(r), _) | (None, Some(r)) => r,
@@ -133,7 +119,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let full_scale_dps = match (args.format, model.full_scale_dps) {
         (Format::EcoreBin, None) => {
-            bail!("{source}: --format ecore-bin needs full_scale_dps in the model")
+            bail!("{source}: --format ecore-bin needs full_scale_dps in the gyro file")
         }
         (_, fs) => fs.unwrap_or(0.0),
     };
@@ -181,8 +167,8 @@ pub fn run(args: &Args) -> Result<()> {
         ProgressBar::hidden()
     };
     let out = &args.output;
-    if let Some(model) = &args.model {
-        record::refuse_overwrite(model, out)?;
+    if let Some(path) = &gyro.path {
+        record::refuse_overwrite(path, out)?;
     }
     // The size, estimated from the first 64 rows (a CSV row's length varies little), said
     // when large and refused beyond the free space before anything is written.

@@ -13,12 +13,12 @@ fn simulated(dir: &Path, name: &str, duration_s: &str) -> PathBuf {
     let model = dir.join("m.toml");
     fs::write(
         &model,
-        "sample_rate_hz = 10.0\n[noise]\narw_dps_per_rthz = 1e-3\nbias_instability_dps = 2e-4\nflicker_tau_min_s = 0.5\n",
+        "sample_rate_hz = 10.0\narw_deg_per_rth = 0.06\nbias_instability_dph = 0.72\n[noise]\nflicker_tau_min_s = 0.5\n",
     )
     .expect("write model");
     let out = dir.join(name);
     host_sim()
-        .args(["simulate", "--model"])
+        .args(["simulate", "--gyro"])
         .arg(&model)
         .args(["--duration-s", duration_s, "--seed", "5", "--output"])
         .arg(&out)

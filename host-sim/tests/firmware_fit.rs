@@ -145,20 +145,20 @@ fn a_200_hz_image_of_a_100_dps_unit_does_not_fit() {
     text_agrees_with_json(&err, f);
 }
 
-/// A sensor file and two static calibration runs (120 s) of a unit at `rate_hz` and
+/// A gyro file and two static calibration runs (120 s) of a unit at `rate_hz` and
 /// `full_scale_dps`, in `d`.
 fn unit_runs(d: &Path, rate_hz: u32, full_scale_dps: u32) -> (PathBuf, [PathBuf; 2]) {
     let sensor = d.join(format!("unit{rate_hz}.toml"));
     fs::write(
         &sensor,
-        format!("name = \"unit{rate_hz}\"\nsample_rate_hz = {rate_hz}.0\nfull_scale_dps = {full_scale_dps}.0\nquantum_dps = 0.0\nnoise_density_deg_rth = 0.0667\ndrift_bound_dph = 30.0\n"),
+        format!("name = \"unit{rate_hz}\"\nsample_rate_hz = {rate_hz}.0\nfull_scale_dps = {full_scale_dps}.0\nquantum_dps = 0.0\narw_deg_per_rth = 0.0667\ndrift_bound_dph = 30.0\n"),
     )
     .expect("write");
     // Two calibration runs (the model's unit-to-unit spread needs two), 120 s each.
     let recs = [d.join("r1.csv"), d.join("r2.csv")];
     for (seed, rec) in recs.iter().enumerate() {
         host_sim()
-            .args(["simulate", "--preset", "ecore2000", "--duration-s", "120"])
+            .args(["simulate", "--gyro", "ecore2000", "--duration-s", "120"])
             .args([
                 "--rate-hz",
                 &rate_hz.to_string(),
@@ -173,7 +173,7 @@ fn unit_runs(d: &Path, rate_hz: u32, full_scale_dps: u32) -> (PathBuf, [PathBuf;
     (sensor, recs)
 }
 
-/// `identify --preset motion --sensor S --input RUNS --save-identifier IMG --json J` and
+/// `identify --preset motion --gyro G --input RUNS --save-identifier IMG --json J` and
 /// `extra`.
 fn identify(
     sensor: &Path,
@@ -183,7 +183,7 @@ fn identify(
     extra: &[&str],
 ) -> assert_cmd::assert::Assert {
     host_sim()
-        .args(["identify", "--preset", "motion", "--sensor"])
+        .args(["identify", "--preset", "motion", "--gyro"])
         .arg(sensor)
         .arg("--input")
         .args(recs)

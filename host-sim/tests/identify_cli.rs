@@ -14,7 +14,7 @@ fn simulate(dir: &Path, seed: u32, duration_s: u32) -> std::path::PathBuf {
     host_sim()
         .args([
             "simulate",
-            "--preset",
+            "--gyro",
             "ecore2000",
             "--duration-s",
             &duration_s.to_string(),

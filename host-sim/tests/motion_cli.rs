@@ -16,7 +16,7 @@ fn simulate(seed: u64, duration_s: &str, rate_hz: Option<&str>, out: &Path) {
     let mut c = host_sim();
     c.args([
         "simulate",
-        "--preset",
+        "--gyro",
         "ecore2000",
         "--duration-s",
         duration_s,
@@ -153,7 +153,7 @@ fn the_image_holds_the_fitted_model_and_retired_flags_are_refused() {
 
 /// A CSV without `t_s` has no rate of its own: replaying it with an identifier alone (whose
 /// rate would pass the rate check by construction) or with nothing is refused, naming the
-/// file and the flags; `--rate-hz` or `--sensor` states it.
+/// file and the flags; `--rate-hz` or `--gyro` states it.
 #[test]
 fn a_csv_without_time_stamps_needs_its_rate_stated() {
     let dir = tempfile::tempdir().expect("test");
@@ -178,7 +178,7 @@ fn a_csv_without_time_stamps_needs_its_rate_stated() {
         let a = c.assert().failure();
         let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
         assert!(err.contains("no_t.csv: no t_s column"), "{err}");
-        assert!(err.contains("give --rate-hz HZ or --sensor"), "{err}");
+        assert!(err.contains("give --rate-hz HZ or --gyro"), "{err}");
         assert!(!out.exists());
     }
     host_sim()
@@ -565,7 +565,7 @@ fn bad_identifiers_are_refused() {
 
 /// The default replay (no `--identifier`: the built-in untrained motion identifier, its
 /// sensor picked by the record's 1 kHz rate) of the KVH log converted to `t_s,rate_dps`
-/// (`dtheta_x_deg / 0.001`), and the raw log with `--sensor kvh1750 --rate-column
+/// (`dtheta_x_deg / 0.001`), and the raw log with `--gyro kvh1750 --rate-column
 /// dtheta_x_deg --rate-scale 1000`: the compensated angle stays within 0.5 deg of the raw
 /// angle at the 180-deg hold and at the end, nothing clipped at 327 deg/s. Reads `../shared`
 /// (non-commercial data, never copied): skipped when absent.
@@ -600,7 +600,7 @@ fn kvh_log_rotation_is_not_drift() {
         (
             &src,
             &[
-                "--sensor",
+                "--gyro",
                 "kvh1750",
                 "--rate-column",
                 "dtheta_x_deg",
@@ -661,7 +661,7 @@ fn tune_on_vehicles_scales_the_model() {
     let train = train_dir(d);
     // Two 300-s vehicle records of the ecore2000 preset (alignment 60 s).
     let preset =
-        fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("presets/ecore2000.toml"))
+        fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("gyros/ecore2000.toml"))
             .expect("preset");
     // The preset's [motion] table is its last; the vehicle profile replaces it.
     let head = preset.split("[motion]").next().expect("preset head");
@@ -672,7 +672,7 @@ fn tune_on_vehicles_scales_the_model() {
     fs::create_dir(&veh).expect("test");
     for seed in [21u64, 22] {
         host_sim()
-            .args(["simulate", "--model"])
+            .args(["simulate", "--gyro"])
             .arg(&model)
             .args([
                 "--duration-s",

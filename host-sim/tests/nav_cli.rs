@@ -227,7 +227,7 @@ fn sensor_option_sets_full_scale_and_rate() {
     fs::write(&rec, &text).expect("test");
     let out = d.join("o.csv");
     let a = host_sim()
-        .args(["replay", "--sensor", "kvh1750", "--input"])
+        .args(["replay", "--gyro", "kvh1750", "--input"])
         .arg(&rec)
         .arg("--output")
         .arg(&out)
@@ -239,7 +239,7 @@ fn sensor_option_sets_full_scale_and_rate() {
     // The E-Core sensor at 1 kHz: refused, naming the rates; nothing written.
     let out2 = d.join("o2.csv");
     host_sim()
-        .args(["replay", "--sensor", "ecore2000", "--input"])
+        .args(["replay", "--gyro", "ecore2000", "--input"])
         .arg(&rec)
         .arg("--output")
         .arg(&out2)

@@ -32,7 +32,7 @@ fn model(dir: &Path) -> PathBuf {
     let p = dir.join("model.toml");
     fs::write(
         &p,
-        "sample_rate_hz = 100.0\nfull_scale_dps = 60.0\n[noise]\narw_dps_per_rthz = 1e-3\n",
+        "sample_rate_hz = 100.0\nfull_scale_dps = 60.0\narw_deg_per_rth = 0.06\n",
     )
     .expect("write model");
     p
@@ -144,7 +144,7 @@ fn simulate_refuses_its_model() {
     refuses_every_alias(&m, |o| {
         let v = [
             "simulate",
-            "--model",
+            "--gyro",
             &s(&m),
             "--duration-s",
             "1",
@@ -210,7 +210,15 @@ fn gap_refuses_its_inputs() {
         ]
     });
     refuses_every_alias(&m, |o| {
-        let v = ["gap", "--real", &s(&real), "--sim", &s(&m), "--json", &s(o)];
+        let v = [
+            "gap",
+            "--real",
+            &s(&real),
+            "--gyro",
+            &s(&m),
+            "--json",
+            &s(o),
+        ];
         v.iter().map(|x| x.to_string()).collect()
     });
     // A report folder whose index.html is the real record (by hard link).
@@ -296,7 +304,7 @@ fn an_interrupted_command_leaves_no_temporary_file() {
         let out = d.path().join("long.csv");
         let bin = assert_cmd::cargo::cargo_bin("host-sim");
         let mut child = std::process::Command::new(bin)
-            .args(["simulate", "--preset", "ecore2000", "--seed", "1"])
+            .args(["simulate", "--gyro", "ecore2000", "--seed", "1"])
             .args(["--duration-s", "2e5", "--output"])
             .arg(&out)
             .stderr(std::process::Stdio::piped())

@@ -1,4 +1,4 @@
-//! `--sensor FILE`: a user's sensor file (host_sim::sensor) drives `identify --preset
+//! `--gyro FILE`: a user's gyro file (host_sim::gyro) drives `identify --preset
 //! motion` and `replay` like a built-in: the rate check uses the file's rate, the image
 //! carries its configuration, and a bad file stops the command naming the file and line.
 
@@ -11,13 +11,13 @@ fn host_sim() -> Command {
     Command::cargo_bin("host-sim").expect("binary built")
 }
 
-/// A 50-Hz, 100 deg/s sensor file.
+/// A 50-Hz, 100 deg/s gyro file (its datasheet part).
 const SENSOR_50HZ: &str = r#"# A test gyro (ASSUMED values)
 name = "test50"
 sample_rate_hz = 50.0
 full_scale_dps = 100.0
 quantum_dps = 0.0
-noise_density_deg_rth = 0.0667
+arw_deg_per_rth = 0.0667
 drift_bound_dph = 30.0
 
 [temperature]
@@ -27,7 +27,7 @@ column = "temp_c"
 /// A static 60-s E-Core record at `rate_hz`.
 fn simulate(seed: u64, rate_hz: &str, out: &Path) {
     host_sim()
-        .args(["simulate", "--preset", "ecore2000", "--duration-s", "60"])
+        .args(["simulate", "--gyro", "ecore2000", "--duration-s", "60"])
         .args([
             "--rate-hz",
             rate_hz,
@@ -58,7 +58,7 @@ fn identify_and_replay_use_the_files_rate() {
     // A 100-Hz record against the file's 50 Hz: refused by the rate check, nothing written.
     let img = d.join("m.fogi");
     host_sim()
-        .args(["identify", "--preset", "motion", "--sensor"])
+        .args(["identify", "--preset", "motion", "--gyro"])
         .arg(&sensor)
         .arg("--input")
         .arg(&r100)
@@ -75,7 +75,7 @@ fn identify_and_replay_use_the_files_rate() {
     // report carry the file's sensor.
     let j = d.join("id.json");
     host_sim()
-        .args(["identify", "--preset", "motion", "--sensor"])
+        .args(["identify", "--preset", "motion", "--gyro"])
         .arg(&sensor)
         .arg("--input")
         .arg(&r50)
@@ -99,7 +99,7 @@ fn identify_and_replay_use_the_files_rate() {
     // replay with the file and no identifier: the built-in untrained model at 50 Hz.
     let out = d.join("o.csv");
     host_sim()
-        .args(["replay", "--sensor"])
+        .args(["replay", "--gyro"])
         .arg(&sensor)
         .arg("--input")
         .arg(&r50)
@@ -107,12 +107,12 @@ fn identify_and_replay_use_the_files_rate() {
         .arg(&out)
         .assert()
         .success()
-        .stderr(contains("sensor 50 Hz / 100 deg/s (--sensor)"));
+        .stderr(contains("sensor 50 Hz / 100 deg/s (--gyro)"));
     assert!(out.exists());
     // The same sensor with the image it trained: accepted (they agree).
     let out2 = d.join("o2.csv");
     host_sim()
-        .args(["replay", "--sensor"])
+        .args(["replay", "--gyro"])
         .arg(&sensor)
         .arg("--identifier")
         .arg(&img)
@@ -125,7 +125,7 @@ fn identify_and_replay_use_the_files_rate() {
     // The 100-Hz record with the 50-Hz file: refused, naming both rates; nothing written.
     let out3 = d.join("o3.csv");
     host_sim()
-        .args(["replay", "--sensor"])
+        .args(["replay", "--gyro"])
         .arg(&sensor)
         .arg("--input")
         .arg(&r100)
@@ -146,7 +146,7 @@ fn bad_sensor_files_and_names_are_refused() {
     fs::write(&bad, SENSOR_50HZ.replace("50.0", "5.0")).expect("test");
     let name = bad.display().to_string();
     host_sim()
-        .args(["replay", "--sensor", &name, "--input", "x.csv", "--output"])
+        .args(["replay", "--gyro", &name, "--input", "x.csv", "--output"])
         .arg(d.join("o.csv"))
         .assert()
         .failure()
@@ -158,16 +158,14 @@ fn bad_sensor_files_and_names_are_refused() {
     )
     .expect("test");
     host_sim()
-        .args(["identify", "--preset", "motion", "--sensor", &name])
+        .args(["identify", "--preset", "motion", "--gyro", &name])
         .args(["--input", "x.csv", "--save-identifier"])
         .arg(d.join("m.fogi"))
         .assert()
         .failure()
         .stderr(contains(format!("{name}:6:1: unknown field `rate_hz`")));
     host_sim()
-        .args([
-            "replay", "--sensor", "ecore", "--input", "x.csv", "--output",
-        ])
+        .args(["replay", "--gyro", "ecore", "--input", "x.csv", "--output"])
         .arg(d.join("o.csv"))
         .assert()
         .failure()

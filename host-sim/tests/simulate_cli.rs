@@ -28,7 +28,7 @@ fn expect_model_error(toml: &str, needles: &[&str]) {
     let output = dir.path().join("out.csv");
     let a = simulate(
         &[
-            "--model",
+            "--gyro",
             &model.to_string_lossy(),
             "--duration-s",
             "1",
@@ -65,7 +65,7 @@ fn assert_no_tmp(dir: &Path) {
 #[test]
 fn unknown_key_names_key_file_and_line() {
     expect_model_error(
-        "[noise]\narw_dps_per_rthz = 0.001\nflux_capacitor_dps = 1.0\n",
+        "arw_deg_per_rth = 0.06\n[noise]\nflux_capacitor_dps = 1.0\n",
         &["bad_model.toml:3", "unknown field `flux_capacitor_dps`"],
     );
     expect_model_error("[warp]\nspeed_c = 9\n", &["unknown field `warp`"]);
@@ -74,36 +74,42 @@ fn unknown_key_names_key_file_and_line() {
 #[test]
 fn negative_noise_density_is_refused() {
     expect_model_error(
-        "[noise]\nbias_instability_dps = 1e-4\narw_dps_per_rthz = -0.001\n",
+        "bias_instability_dph = 0.36\narw_deg_per_rth = -0.06\n",
         &[
-            "bad_model.toml:3",
-            "arw_dps_per_rthz = -0.001",
+            "bad_model.toml:2:19",
+            "arw_deg_per_rth = -0.06",
             "noise density must be >= 0",
         ],
     );
-    expect_model_error(
-        "[noise]\nrrw_dps_per_s_rthz = -1e-6\n",
-        &["rrw_dps_per_s_rthz", ">= 0"],
-    );
+    expect_model_error("rrw_dph_per_rth = -0.2\n", &["rrw_dph_per_rth", ">= 0"]);
 }
 
 #[test]
 fn wrong_or_missing_units_are_refused() {
     expect_model_error(
-        "[noise]\narw = 0.001\n",
-        &["bad_model.toml:2", "`arw` has no unit", "arw_dps_per_rthz"],
+        "arw = 0.06\n",
+        &["bad_model.toml:1", "`arw` has no unit", "arw_deg_per_rth"],
     );
     expect_model_error(
-        "[noise]\narw_dph_per_rthz = 4.0\n",
+        "arw_dph_per_rthz = 4.0\n",
         &[
             "unknown field `arw_dph_per_rthz`",
             "wrong unit",
-            "arw_dps_per_rthz",
+            "arw_deg_per_rth",
         ],
     );
     expect_model_error(
-        "[temperature]\nbias_dps_per_k = 1e-5\n",
-        &["bias_dps_per_k", "bias_dps_per_c"],
+        "[temperature]\nbias_dph_per_k = 0.1\n",
+        &["bias_dph_per_k", "bias_dph_per_c"],
+    );
+    // A key of the old model file: its new name, and the command that converts the file.
+    expect_model_error(
+        "[noise]\narw_dps_per_rthz = 1e-3\n",
+        &[
+            "bad_model.toml:2:1",
+            "arw_dps_per_rthz -> arw_deg_per_rth (top level, x 60)",
+            "host-sim gyro convert",
+        ],
     );
 }
 
@@ -111,13 +117,10 @@ fn wrong_or_missing_units_are_refused() {
 fn bad_values_are_refused() {
     expect_model_error("[faults]\ndrop_probability = 1.5\n", &["probability"]);
     expect_model_error(
-        "[noise]\ngm_sigma_dps = 1e-3\ngm_tau_s = 0\n",
+        "[noise]\ngm_sigma_dph = 3.6\ngm_tau_s = 0\n",
         &["gm_tau_s", "> 0"],
     );
-    expect_model_error(
-        "[noise]\narw_dps_per_rthz = \"a lot\"\n",
-        &["bad_model.toml:2"],
-    );
+    expect_model_error("arw_deg_per_rth = \"a lot\"\n", &["bad_model.toml:1:19"]);
 }
 
 #[test]
@@ -126,14 +129,7 @@ fn same_seed_same_bytes_other_seed_other_bytes() {
     let run = |seed: &str, name: &str| {
         let out = dir.path().join(name);
         simulate(
-            &[
-                "--preset",
-                "ecore2000",
-                "--duration-s",
-                "20",
-                "--seed",
-                seed,
-            ],
+            &["--gyro", "ecore2000", "--duration-s", "20", "--seed", seed],
             &out,
         )
         .success();
@@ -158,7 +154,7 @@ fn ecore_frames_decode_to_the_counts() {
     let dir = tempfile::tempdir().expect("tmp");
     let csv_out = dir.path().join("r.csv");
     let bin_out = dir.path().join("r.bin");
-    let args = ["--preset", "ecore2000", "--duration-s", "30", "--seed", "7"];
+    let args = ["--gyro", "ecore2000", "--duration-s", "30", "--seed", "7"];
     simulate(&args, &csv_out).success();
     let mut bin_args = args.to_vec();
     bin_args.extend(["--format", "ecore-bin"]);
@@ -190,14 +186,10 @@ fn no_half_written_output_on_error() {
     fs::write(&out, "previous content\n").expect("write");
     let model = dir.path().join("m.toml");
     // No full_scale_dps: ecore-bin is refused; the old file must survive untouched.
-    fs::write(
-        &model,
-        "sample_rate_hz = 100.0\n[noise]\narw_dps_per_rthz = 1e-3\n",
-    )
-    .expect("w");
+    fs::write(&model, "sample_rate_hz = 100.0\narw_deg_per_rth = 0.06\n").expect("w");
     simulate(
         &[
-            "--model",
+            "--gyro",
             &model.to_string_lossy(),
             "--duration-s",
             "1",
@@ -216,7 +208,7 @@ fn no_half_written_output_on_error() {
     assert_no_tmp(dir.path());
     // Output into a missing directory: an error naming it, nothing written.
     let a = simulate(
-        &["--preset", "ecore2000", "--duration-s", "1", "--seed", "1"],
+        &["--gyro", "ecore2000", "--duration-s", "1", "--seed", "1"],
         &dir.path().join("missing/out.csv"),
     )
     .failure();
@@ -225,7 +217,7 @@ fn no_half_written_output_on_error() {
     // A good run replaces the old content.
     simulate(
         &[
-            "--model",
+            "--gyro",
             &model.to_string_lossy(),
             "--duration-s",
             "1",
@@ -246,10 +238,10 @@ fn needs_a_model_and_a_rate() {
     let out = dir.path().join("o.csv");
     simulate(&["--duration-s", "1", "--seed", "1"], &out).failure();
     let model = dir.path().join("m.toml");
-    fs::write(&model, "[noise]\narw_dps_per_rthz = 1e-3\n").expect("w");
+    fs::write(&model, "arw_deg_per_rth = 0.06\n").expect("w");
     let a = simulate(
         &[
-            "--model",
+            "--gyro",
             &model.to_string_lossy(),
             "--duration-s",
             "1",
@@ -271,14 +263,7 @@ fn a_record_beyond_the_free_space_is_refused_with_its_size() {
     let dir = tempfile::tempdir().expect("test");
     let out = dir.path().join("huge.csv");
     simulate(
-        &[
-            "--preset",
-            "ecore2000",
-            "--seed",
-            "1",
-            "--duration-s",
-            "1e12",
-        ],
+        &["--gyro", "ecore2000", "--seed", "1", "--duration-s", "1e12"],
         &out,
     )
     .failure()
@@ -289,20 +274,20 @@ fn a_record_beyond_the_free_space_is_refused_with_its_size() {
     assert_no_tmp(dir.path());
 }
 
-/// `--preset kvh1750` is the sensor `--sensor kvh1750` names: 1 kHz, floating-point output,
+/// `--gyro kvh1750` is one gyro for `simulate` and `replay`: 1 kHz, floating-point output,
 /// white noise 0.012 deg/sqrt(h) (one-sample sigma 0.0002 sqrt(1000) deg/s, within 5 % on
 /// 20,000 samples).
 #[test]
-fn the_kvh1750_preset_is_the_kvh_sensor() {
+fn the_kvh1750_gyro_is_one_file_for_simulate_and_replay() {
     let dir = tempfile::tempdir().expect("tmp");
     let out = dir.path().join("kvh.csv");
     simulate(
-        &["--preset", "kvh1750", "--duration-s", "20", "--seed", "4"],
+        &["--gyro", "kvh1750", "--duration-s", "20", "--seed", "4"],
         &out,
     )
     .success()
     .stderr(predicates::str::contains(
-        "preset kvh1750: 20000 samples at 1000 Hz",
+        "gyro kvh1750: 20000 samples at 1000 Hz",
     ));
     let text = fs::read_to_string(&out).expect("csv");
     let rates: Vec<f64> = text
@@ -329,7 +314,7 @@ fn the_start_temperature_spreads_with_initial_c_range() {
     let dir = tempfile::tempdir().expect("tmp");
     let start_c = |seed: &str, extra: &[&str]| {
         let out = dir.path().join(format!("s{seed}.csv"));
-        let mut args = vec!["--preset", "ecore2000", "--duration-s", "1", "--seed", seed];
+        let mut args = vec!["--gyro", "ecore2000", "--duration-s", "1", "--seed", seed];
         args.extend_from_slice(extra);
         let a = simulate(&args, &out).success();
         let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
@@ -359,7 +344,7 @@ fn the_start_temperature_spreads_with_initial_c_range() {
     assert!(seen[0] != seen[1] && seen[1] != seen[2], "{seen:?}");
     simulate(
         &[
-            "--preset",
+            "--gyro",
             "ecore2000",
             "--duration-s",
             "1",

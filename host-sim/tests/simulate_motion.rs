@@ -1,12 +1,18 @@
 //! Motion profiles (`vehicle`, `turntable`, `file`), the `moving` truth and the gyro family.
 
 use assert_cmd::Command;
+use host_sim::gyro::Gyro;
 use host_sim::sim::{self, Model, Platform, Profile, Simulator, Vehicle};
 use rand::SeedableRng;
 use std::fs;
 
+/// A gyro file's simulator model (host_sim::gyro: the reader every command uses).
+fn read(toml: &str, name: &str) -> anyhow::Result<Model> {
+    Gyro::from_toml_str(toml, name, None).map(|g| g.model)
+}
+
 fn model(toml: &str) -> Model {
-    Model::from_toml_str(toml, "test.toml").expect("valid model")
+    read(toml, "test.toml").expect("valid model")
 }
 
 fn samples(m: &Model, seed: u64, rate_hz: f64, duration_s: f64) -> Vec<sim::Sample> {
@@ -30,13 +36,13 @@ fn fnv(bytes: &[u8]) -> u64 {
 
 #[test]
 fn static_record_is_bit_identical_to_before_motion_profiles() {
-    // Hash of `host-sim simulate --preset ecore2000 --duration-s 200 --seed 3` written by the
+    // Hash of `host-sim simulate --gyro ecore2000 --duration-s 200 --seed 3` written by the
     // simulator before the motion profiles existed (commit 9005f48): 1332744 bytes.
     let dir = tempfile::tempdir().expect("tmp");
     let out = dir.path().join("s.csv");
     Command::cargo_bin("host-sim")
         .expect("binary")
-        .args(["simulate", "--preset", "ecore2000", "--duration-s", "200"])
+        .args(["simulate", "--gyro", "ecore2000", "--duration-s", "200"])
         .args(["--seed", "3", "--output"])
         .arg(&out)
         .assert()
@@ -183,7 +189,7 @@ fn file_profile_interpolates_its_input() {
     let toml = "sample_rate_hz = 10.0\n[motion]\nprofile = \"file\"\nfile = \"rate.csv\"\n";
     let path = dir.path().join("m.toml");
     fs::write(&path, toml).expect("write");
-    let m = Model::load(&path).expect("model");
+    let m = Gyro::load(&path).expect("model").model;
     let s = samples(&m, 1, 10.0, 25.0);
     for x in &s {
         let want = if x.t_s <= 10.0 {
@@ -220,7 +226,7 @@ fn file_profile_interpolates_its_input() {
 
 #[test]
 fn motion_errors_name_key_and_line() {
-    let e = Model::from_toml_str(
+    let e = read(
         "[motion]\nprofile = \"vehicle\"\n[motion.vehicle]\nstop_min_s = 10\nstop_max_s = 5\n",
         "m.toml",
     )
@@ -230,7 +236,7 @@ fn motion_errors_name_key_and_line() {
         e.starts_with("m.toml:5:") && e.contains("stop_max_s"),
         "{e}"
     );
-    let e = Model::from_toml_str(
+    let e = read(
         "[motion]\nprofile = \"turntable\"\n[[motion.turntable.step]]\nduration_s = 1\n\
          [[motion.turntable.step]]\nangle_deg = 10\n",
         "m.toml",
@@ -241,11 +247,11 @@ fn motion_errors_name_key_and_line() {
         e.starts_with("m.toml:5:") && e.contains("#2 rate_dps"),
         "{e}"
     );
-    let e = Model::from_toml_str("[motion]\nprofile = \"file\"\n", "m.toml")
+    let e = read("[motion]\nprofile = \"file\"\n", "m.toml")
         .expect_err("no file")
         .to_string();
     assert!(e.starts_with("m.toml:2:"), "{e}");
-    let e = Model::from_toml_str("[motion]\nprofile = \"boat\"\n", "m.toml")
+    let e = read("[motion]\nprofile = \"boat\"\n", "m.toml")
         .expect_err("unknown")
         .to_string();
     assert!(e.starts_with("m.toml:2:") && e.contains("boat"), "{e}");
@@ -295,7 +301,7 @@ fn family_spreads_units_and_varies_records() {
     }
     // Off: unchanged.
     assert_eq!(sim::realize(&base, 9), base);
-    let e = Model::from_toml_str(
+    let e = read(
         "[family]\nunit_spread = 0.1\ninitial_c_range = [30, 10]\n",
         "f.toml",
     )
@@ -315,7 +321,7 @@ fn simulate_writes_moving_column_for_a_vehicle() {
     let out = dir.path().join("v.csv");
     Command::cargo_bin("host-sim")
         .expect("binary")
-        .args(["simulate", "--model"])
+        .args(["simulate", "--gyro"])
         .arg(&mpath)
         .args(["--duration-s", "400", "--seed", "2", "--unit-seed", "4"])
         .args(["--unit-spread", "0.2", "--output"])

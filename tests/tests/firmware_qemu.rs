@@ -26,13 +26,13 @@ use hil::{default_image, defmt_payloads, host_reference, parse_records, pipeline
 /// Length of the vehicle capture, s (100 Hz).
 const DURATION_S: u32 = 70;
 
-/// The ecore2000 preset with the vehicle profile: 20 s still alignment, drives of 15-30 s
+/// The ecore2000 gyro file with the vehicle profile: 20 s still alignment, drives of 15-30 s
 /// with a turn every 8 s on average, stops of 8-15 s.
 fn vehicle_model() -> String {
     let preset = std::fs::read_to_string(
-        fog_system_tests::firmware_dir().join("../host-sim/presets/ecore2000.toml"),
+        fog_system_tests::firmware_dir().join("../host-sim/gyros/ecore2000.toml"),
     )
-    .expect("host-sim/presets/ecore2000.toml");
+    .expect("host-sim/gyros/ecore2000.toml");
     let preset = preset.replacen("[motion]\n", "[motion]\nprofile = \"vehicle\"\n", 1);
     assert!(preset.contains("profile = \"vehicle\""), "[motion] section");
     format!(
@@ -52,7 +52,7 @@ fn vehicle_capture(dir: &std::path::Path) -> (Vec<u8>, Vec<f64>) {
         let out = dir.join(file);
         let _ = std::fs::remove_file(&out);
         let st = host_sim()
-            .args(["simulate", "--model"])
+            .args(["simulate", "--gyro"])
             .arg(&model)
             .args(["--duration-s", &DURATION_S.to_string(), "--seed", "4242"])
             .args(["--format", format, "--output"])

@@ -223,9 +223,9 @@ fn a_temperature_profile_over_qmp_reaches_the_estimator_bit_for_bit() {
     };
     let fw = default_firmware("hil-temperature");
     let capture = fw.file("capture.bin");
-    let preset = fog_system_tests::firmware_dir().join("../host-sim/presets/ecore2000.toml");
+    let preset = fog_system_tests::firmware_dir().join("../host-sim/gyros/ecore2000.toml");
     let st = host_sim()
-        .args(["simulate", "--model"])
+        .args(["simulate", "--gyro"])
         .arg(&preset)
         .args(["--duration-s", &(FRAMES / 100).to_string(), "--seed", "105"])
         .args(["--format", "ecore-bin", "--output"])

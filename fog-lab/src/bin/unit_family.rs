@@ -35,7 +35,7 @@
 //! ```sh
 //! cargo build --release -p host-sim
 //! cargo run --release -p fog-lab --bin unit_family -- --family DIR [--family DIR2 ...] \
-//!     [--host-sim PATH] [--json OUT.json] [--work DIR] [-- extra identify args, e.g. --sensor FILE]
+//!     [--host-sim PATH] [--json OUT.json] [--work DIR] [-- extra identify args, e.g. --gyro FILE]
 //! ```
 
 use anyhow::{anyhow, bail, Context, Result};

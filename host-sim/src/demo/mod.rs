@@ -233,6 +233,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let o = MotionOptions {
         identifier: Some(fogi),
         sensor: None,
+        gyro_image: None,
         stream: Options {
             format: InputFormat::Csv,
             full_scale_dps: 0.0,

@@ -4,7 +4,7 @@
 //! deg/h/sqrt(h): the E-Core 2000 preset's stochastic terms) with a random temperature
 //! profile (`temp_c` column, no effect on the rate unless the effect is `temperature`) and a
 //! random two-sine turntable motion (`true_rate_dps` reference column), plus ONE extra effect
-//! with random parameters (or none). The diagnosis gets the baseline model (`--sim`) and the
+//! with random parameters (or none). The diagnosis gets the baseline model (`--gyro`) and the
 //! record, never the effect.
 
 use super::effects::{Effect, ALL};

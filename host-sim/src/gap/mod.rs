@@ -4,7 +4,7 @@
 //!
 //! # Split
 //! The record is cut in time into 6 equal blocks. Even blocks (0, 2, 4: the first sixth,
-//! the third, the fifth) are the **fit** part: the baseline (without `--sim`) and every
+//! the third, the fifth) are the **fit** part: the baseline (without `--gyro`) and every
 //! candidate's parameters are fitted there. Odd blocks (1, 3, 5) are **held out**: the gap
 //! before and after is scored there only. Simulations always span the whole record, so
 //! time-dependent effects (warm-up, ramp, temperature) are compared at the same times.
@@ -373,7 +373,7 @@ pub struct Diagnosis {
     pub curves: Curves,
 }
 
-const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --sim) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2. An effect is named when gap_before > null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others). A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
+const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --gyro) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2. An effect is named when gap_before > null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others). A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
 
 /// Per-simulation summary.
 struct SimOut {
@@ -660,7 +660,7 @@ impl Setup {
         // Without a model the baseline is fitted to the rate less the reference rate (if any).
         let fitted_on = less_reference(real, 1.0);
         let (base_model, source) = match model {
-            Some(m) => (m.clone(), "user model (--sim)".to_string()),
+            Some(m) => (m.clone(), "user model (--gyro)".to_string()),
             None => (
                 fit_baseline(&fitted_on, &layout, &split.fit_ranges)?,
                 "fitted to the fit blocks: ARW, bias instability, rate random walk".to_string(),

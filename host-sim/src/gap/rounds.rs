@@ -237,6 +237,10 @@ pub struct Outcome {
     pub unexplained: Vec<Unexplained>,
     /// Why the rounds stopped, in words.
     pub stopped: String,
+    /// The model the last round simulated: the user's or the first round's fitted
+    /// baseline, with every named effect that enters the model added (module docs); the
+    /// effects taken out of the record are not in it (`gap --save-gyro`).
+    pub model: Model,
 }
 
 /// The groups of `d` whose held-out gap exceeds their null 95 % quantile, largest ratio
@@ -367,7 +371,9 @@ pub fn run(
             "the cap of {n} rounds reached (--rounds); the last round's effect is not applied and its diagnosis is before it"
         ),
     };
+    let model = model.unwrap_or_else(|| first.baseline.clone());
     Ok(Outcome {
+        model,
         final_gap: end.gap_after,
         final_null_gap_95: end.null_gap_95,
         unexplained: unexplained_groups(end),

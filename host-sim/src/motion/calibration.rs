@@ -1,5 +1,5 @@
 //! What the static calibration runs show about the user's gyro, measured before training
-//! (`identify --preset motion`), printed beside the sensor file's values and folded into
+//! (`identify --preset motion`), printed beside the gyro file's values and folded into
 //! the image: the unit is never the datasheet.
 //!
 //! Per run (every sample at rest, from power-on):
@@ -30,7 +30,7 @@ use serde::Serialize;
 /// The image's drift bound is at least this many times the largest |10-s mean drift| of
 /// the calibration runs (ASSUMED: 1.5, room for a unit beyond the runs' spread).
 pub const DRIFT_MARGIN: f64 = 1.5;
-/// A measured noise density this many times above or below the sensor file's is warned
+/// A measured noise density this many times above or below the gyro file's is warned
 /// about (ASSUMED: 2; a family spreads 0.5x to 3x around its nominal).
 pub const DISAGREE_FACTOR: f64 = 2.0;
 /// Averaging time of the drift range, s.
@@ -213,7 +213,7 @@ pub fn measure(records: &[Series]) -> Result<Calibration> {
     })
 }
 
-/// Where the runs and the sensor file `file` disagree (warnings: the image carries the
+/// Where the runs and the gyro file's sensor `file` disagree (warnings: the image carries the
 /// runs' values, [`crate::gyro_fit`]). Refuses a family without measurable noise (every run
 /// constant).
 pub fn warnings(file: &SensorConfig, cal: &Calibration) -> Result<Vec<String>> {
@@ -227,7 +227,7 @@ pub fn warnings(file: &SensorConfig, cal: &Calibration) -> Result<Vec<String>> {
     }
     if med > DISAGREE_FACTOR * file_noise || med * DISAGREE_FACTOR < file_noise {
         warnings.push(format!(
-            "white noise measured {med:.4} deg/sqrt(h) (median of {} runs) is {:.2}x the sensor file's {file_noise:.4}: check the rate column's unit and scale (rad/s read as deg/s shows 57x below); the image carries the measured value",
+            "white noise measured {med:.4} deg/sqrt(h) (median of {} runs) is {:.2}x the gyro file's {file_noise:.4}: check the rate column's unit and scale (rad/s read as deg/s shows 57x below); the image carries the measured value",
             cal.runs.len(),
             med / file_noise
         ));
@@ -237,7 +237,7 @@ pub fn warnings(file: &SensorConfig, cal: &Calibration) -> Result<Vec<String>> {
             > f64::from(fog_core::image::RATE_TOLERANCE * file.sample_rate_hz)
         {
             warnings.push(format!(
-                "{}: sample rate {:.3} Hz, the sensor file says {} Hz",
+                "{}: sample rate {:.3} Hz, the gyro file says {} Hz",
                 r.name, r.rate_hz, file.sample_rate_hz
             ));
         }
@@ -245,7 +245,7 @@ pub fn warnings(file: &SensorConfig, cal: &Calibration) -> Result<Vec<String>> {
             let ratio = q / f64::from(file.quantum_dps);
             if (ratio - ratio.round()).abs() > 0.01 || ratio.round() < 1.0 {
                 warnings.push(format!(
-                    "{}: output step {q:.3e} deg/s is not a multiple of the sensor file's quantum {:.3e}",
+                    "{}: output step {q:.3e} deg/s is not a multiple of the gyro file's quantum {:.3e}",
                     r.name, file.quantum_dps
                 ));
             }
@@ -255,7 +255,7 @@ pub fn warnings(file: &SensorConfig, cal: &Calibration) -> Result<Vec<String>> {
         (cal.drift_abs_max_dph * DRIFT_MARGIN).max(f64::from(file.drift_bound_dps) * 3600.0);
     if cal.drift_abs_max_dph > f64::from(file.drift_bound_dps) * 3600.0 {
         warnings.push(format!(
-            "drift reaches {:.1} deg/h in the runs, beyond the sensor file's bound {:.1} deg/h: the image's bound is {bound_dph:.1} deg/h ({DRIFT_MARGIN} x the runs')",
+            "drift reaches {:.1} deg/h in the runs, beyond the gyro file's bound {:.1} deg/h: the image's bound is {bound_dph:.1} deg/h ({DRIFT_MARGIN} x the runs')",
             cal.drift_abs_max_dph,
             f64::from(file.drift_bound_dps) * 3600.0
         ));
@@ -292,7 +292,7 @@ pub fn table(cal: &Calibration, file: &SensorConfig) -> String {
         cal.drift_abs_max_dph
     );
     s += &format!(
-        "sensor file                    {:>7.2}  {:.4}  quantum {:.3e}  drift bound {:.1} deg/h",
+        "gyro file                      {:>7.2}  {:.4}  quantum {:.3e}  drift bound {:.1} deg/h",
         file.sample_rate_hz,
         f64::from(file.noise_density_dps_rthz) * 60.0,
         file.quantum_dps,

@@ -29,7 +29,7 @@ use std::path::Path;
 /// How to fit.
 #[derive(Debug, Clone, Copy)]
 pub struct TrainOptions {
-    /// The sensor file (rate, full scale, quantum; its noise and bound are checked against
+    /// The gyro file's sensor (rate, full scale, quantum; its noise and bound are checked against
     /// the runs').
     pub sensor: SensorConfig,
     /// The filter's settings stored in the image.
@@ -66,7 +66,7 @@ pub fn check_full_scale(s: &Series, sensor: &SensorConfig) -> Result<()> {
     let fs = sensor.full_scale_dps;
     if let Some(k) = s.rate_dps.iter().position(|r| r.abs() > fs) {
         bail!(
-            "{}: sample {k} (t_s = {} s): rate {} deg/s beyond the sensor's full scale {fs} deg/s (a glitch, or give the right --sensor); calibration runs are static records",
+            "{}: sample {k} (t_s = {} s): rate {} deg/s beyond the sensor's full scale {fs} deg/s (a glitch, or give the right --gyro); calibration runs are static records",
             s.name,
             s.t_s[k],
             s.rate_dps[k]
@@ -84,7 +84,7 @@ pub struct Trained {
     pub fit: GyroFitReport,
     /// What the calibration runs showed ([`calibration`]).
     pub calibration: calibration::Calibration,
-    /// Where the runs and the sensor file disagree.
+    /// Where the runs and the gyro file disagree.
     pub calibration_warnings: Vec<String>,
 }
 
@@ -103,7 +103,7 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
     let cal = calibration::measure(&all)?;
     let calibration_warnings = calibration::warnings(&o.sensor, &cal)?;
     let (mut model, fit) = gyro_fit::fit(&all, &cal, f64::from(o.sensor.drift_bound_dps))?;
-    // The sensor file fixes what the stream is: its rate and output quantum (the runs'
+    // The gyro file fixes what the stream is: its rate and output quantum (the runs'
     // measured ones are checked against them: the warnings above).
     model.sample_rate_hz = o.sensor.sample_rate_hz;
     model.quantum_dps = o.sensor.quantum_dps;

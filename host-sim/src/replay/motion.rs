@@ -3,9 +3,10 @@
 //! navigator's scores beside the causal baselines ([`crate::nav::compare`]).
 //!
 //! The image is a file (`--identifier`, from `identify --preset motion --save-identifier`:
-//! the gyro model fitted on the unit family's calibration runs) or, without one, the
-//! BUILT-IN default: the model of the sensor's specification alone (`--sensor`, default
-//! `ecore2000`; [`fog_core::gyro_model::GyroModel::for_sensor`]). It never subtracts more
+//! the gyro model fitted on the unit family's calibration runs), or the `[identified]` model
+//! of a `--gyro` file (`identify --save-gyro`), or, without either, the BUILT-IN default: the
+//! model of the sensor's specification alone (`--gyro`, default the built-in whose rate
+//! matches the record's; [`fog_core::gyro_model::GyroModel::for_sensor`]). It never subtracts more
 //! than the model's drift bound, and learns only from windows its stillness test finds
 //! still, so it cannot erase rotation.
 //!
@@ -38,8 +39,11 @@ pub struct MotionOptions {
     /// The drift image; None: the built-in default for `sensor` (the model of its
     /// specification alone).
     pub identifier: Option<PathBuf>,
-    /// `--sensor`: the sensor without an image (with an image, it must agree).
+    /// `--gyro`: the sensor without an image (with an image, it must agree).
     pub sensor: Option<SensorConfig>,
+    /// `--gyro`'s `[identified]` model as an image, and what it is in words: run instead of
+    /// the sensor's specification alone when there is no `identifier`.
+    pub gyro_image: Option<(Image, String)>,
     /// Format, full scale and rate for decoding captures (and `t_s` without a column).
     pub stream: stream::Options,
     /// The CSV's rate column and scale and the external still flag column (`rate_hz` is
@@ -305,7 +309,7 @@ pub const NOISE_WARN: f64 = 10.0;
 
 pub use crate::motion::show::uses_temperature;
 
-/// The image `o` names (checked against `--sensor`), with its name for messages.
+/// The image `o` names (checked against `--gyro`), with its name for messages.
 fn file_image(o: &MotionOptions) -> Result<Option<(Image, String)>> {
     let Some(p) = &o.identifier else {
         return Ok(None);
@@ -320,26 +324,27 @@ fn file_image(o: &MotionOptions) -> Result<Option<(Image, String)>> {
     };
     if o.sensor.is_some_and(differs) {
         bail!(
-            "{}: its sensor (rate, full scale, quantum) differs from --sensor; leave --sensor out",
+            "{}: its sensor (rate, full scale, quantum) differs from --gyro's; leave --gyro out",
             p.display()
         );
     }
     Ok(Some((im, p.display().to_string())))
 }
 
-/// The image to run: `file` or the built-in one for `--sensor` or for the record's rate
-/// `hz`; checked against `hz`.
+/// The image to run: `file`, else `--gyro`'s `[identified]` model, else the built-in one for
+/// `--gyro`'s sensor or for the record's rate `hz`; checked against `hz`.
 fn image_for(
     file: Option<(Image, String)>,
     o: &MotionOptions,
     input: &Path,
     hz: f32,
 ) -> Result<(Image, String)> {
-    let (image, identifier) = match file {
-        Some(f) => f,
-        None => {
+    let (image, identifier) = match (file, &o.gyro_image) {
+        (Some(f), _) => f,
+        (None, Some(g)) => g.clone(),
+        (None, None) => {
             let (sensor, how) = match o.sensor {
-                Some(s) => (s, "--sensor"),
+                Some(s) => (s, "--gyro"),
                 None => (sensor_for_rate(hz), "picked by the record's rate"),
             };
             (
@@ -353,7 +358,7 @@ fn image_for(
     };
     image.check_rate(hz).map_err(|e| {
         anyhow!(
-            "{}: {e} ({}; give --sensor or an identifier for this rate)",
+            "{}: {e} ({}; give --gyro or an identifier for this rate)",
             identifier,
             input.display()
         )
@@ -396,7 +401,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         && o.sensor.is_none()
     {
         bail!(
-            "{}: no t_s column, so the record's sample rate is unknown: give --rate-hz HZ or --sensor NAME|FILE (the {} Hz of {} is not assumed)",
+            "{}: no t_s column, so the record's sample rate is unknown: give --rate-hz HZ or --gyro NAME|FILE (the {} Hz of {} is not assumed)",
             input.display(),
             sopts.rate_hz,
             if o.identifier.is_some() { "the identifier" } else { "the default sensor" }
@@ -581,7 +586,7 @@ pub fn print_summary(s: &MotionSummary) -> Result<()> {
     if s.at_full_scale > 0 {
         writeln!(
             err,
-            "{}: warning: {} samples at or beyond the sensor's full scale ({} deg/s; max |rate| {} deg/s): give the right --sensor",
+            "{}: warning: {} samples at or beyond the sensor's full scale ({} deg/s; max |rate| {} deg/s): give the right --gyro",
             s.input, s.at_full_scale, s.sensor.full_scale_dps, s.max_abs_rate_dps
         )?;
     }

@@ -31,6 +31,7 @@ pub mod motion;
 
 pub use family::{realize, Family};
 pub use markov::{flicker_adev, gm_avar, GaussMarkov, FLICKER_FLOOR, FLICKER_PER_DECADE};
+pub(crate) use model::Bad;
 pub use model::{
     check_rate_hz, Bias, Faults, Model, Motion, Noise, QuantMode, Quantization, ScaleFactor,
     Temperature, Timing, EARTH_RATE_DPS, KEYS,
@@ -43,22 +44,12 @@ use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 use rand_pcg::Pcg64Mcg;
 
-/// The built-in E-Core 2000 model (see the file for which values are assumed).
-pub const PRESET_ECORE2000: &str = include_str!("../../presets/ecore2000.toml");
-
-/// The built-in KVH DSP-1750-like preset (`host-sim/presets/kvh1750.toml`).
-pub const PRESET_KVH1750: &str = include_str!("../../presets/kvh1750.toml");
-
-/// Names of the built-in presets.
+/// Names of the built-in gyros ([`crate::gyro::BUILTIN`]).
 pub const PRESETS: &[&str] = &["ecore2000", "kvh1750"];
 
-/// The model of a built-in preset.
+/// The simulator's model of a built-in gyro (`host-sim/gyros/NAME.toml`).
 pub fn preset(name: &str) -> Result<Model> {
-    match name {
-        "ecore2000" => Model::from_toml_str(PRESET_ECORE2000, "preset ecore2000"),
-        "kvh1750" => Model::from_toml_str(PRESET_KVH1750, "preset kvh1750"),
-        _ => bail!("unknown preset `{name}` (known: {})", PRESETS.join(", ")),
-    }
+    crate::gyro::builtin_model(name)
 }
 
 /// One output sample.
@@ -128,8 +119,7 @@ pub struct Simulator {
 }
 
 impl Simulator {
-    /// Simulator of `model` (already validated by [`Model::load`] or
-    /// [`Model::from_toml_str`]) at `rate_hz` nominal samples per second. The model's
+    /// Simulator of `model` (already validated: read from a gyro file, [`crate::gyro`]) at `rate_hz` nominal samples per second. The model's
     /// `[family]` section is applied first ([`realize`]: unit coefficients, this record's
     /// temperature conditions); [`Simulator::model`] returns the realized model.
     pub fn new(model: &Model, seed: u64, rate_hz: f64) -> Result<Self> {

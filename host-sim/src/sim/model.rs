@@ -1,9 +1,13 @@
-//! The FOG error model: what a model TOML file may say, with the unit in every key name.
+//! The FOG error model the simulator runs ([`Model`]), in deg/s, s and deg C, with the
+//! unit in every field name.
 //!
-//! Every section and key is optional; a missing key is 0 (the term is off) unless its doc
-//! gives another default. Unknown keys are errors (`deny_unknown_fields`), so a key written
-//! with a wrong or missing unit (`arw = 0.1`, `arw_dph_per_rthz = 4`) is refused with the
-//! key, the file and the line, and a hint naming the key this model takes.
+//! Users write it as a gyro file ([`crate::gyro`]: datasheet units, deg/h and
+//! deg/sqrt(h)), which the reader converts into this model exactly. The TOML form of this
+//! struct itself (`[noise] arw_dps_per_rthz = ...`) is the old model-file format, read only
+//! by `host-sim gyro convert` ([`Model::from_toml_str`]).
+//!
+//! Every field is optional in a file; a missing one is 0 (the term is off) unless its doc
+//! gives another default.
 
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
@@ -15,7 +19,8 @@ use super::motion::{Profile, Turntable, Vehicle};
 /// Earth's rotation rate, deg/s (sidereal: 360 deg / 86164.0905 s).
 pub const EARTH_RATE_DPS: f64 = 360.0 / 86_164.090_5;
 
-/// A complete FOG error model. See `host-sim/presets/ecore2000.toml` for a commented file.
+/// A complete FOG error model. Its file form: a gyro file ([`crate::gyro`]), e.g.
+/// `host-sim/gyros/ecore2000.toml`.
 #[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct Model {
@@ -283,13 +288,35 @@ enum Rule {
 /// One single-value rule: (section, key, value, rule).
 type Check = (&'static str, &'static str, f64, Rule);
 
+/// The first rule a model breaks ([`Model::check`]), for the reader to place in its file.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Bad {
+    /// A single value: (section, "" = top level; key; value; why).
+    Value {
+        section: &'static str,
+        key: &'static str,
+        value: f64,
+        why: String,
+    },
+    /// `[[motion.turntable.step]]` number `index` (from 0).
+    Step {
+        index: usize,
+        key: &'static str,
+        why: String,
+    },
+    /// `profile = "file"` without `file`.
+    NoMotionFile,
+    /// `[family]`.
+    Family { key: &'static str, why: String },
+}
+
 /// Why a negative noise density is refused.
 const DENSITY: &str = "a noise density must be >= 0";
 /// Why a negative size is refused.
 const SIZE: &str = "must be >= 0";
 
 impl Model {
-    /// Reads and validates a model file.
+    /// Reads and validates a file of the old model-file format ([`Self::from_toml_str`]).
     pub fn load(path: &Path) -> Result<Self> {
         let name = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
@@ -302,7 +329,9 @@ impl Model {
         Ok(model)
     }
 
-    /// Parses and validates model TOML; `name` (a file name) starts every error message.
+    /// Parses and validates model TOML of the old model-file format (before the gyro file,
+    /// [`crate::gyro`]); `name` (a file name) starts every error message. Read by `host-sim
+    /// gyro convert` and the tests only: the commands read gyro files.
     pub fn from_toml_str(text: &str, name: &str) -> Result<Self> {
         let model: Model = toml::from_str(text).map_err(|e| {
             let line = e
@@ -312,33 +341,63 @@ impl Model {
             let msg = e.message().replace('\n', " ");
             anyhow::anyhow!("{name}{at}: {}{}", msg.trim(), unit_hint(&msg))
         })?;
-        model.validate().map_err(|(section, key, v, why)| {
-            let at = find_line(text, section, key).map_or(String::new(), |l| format!(":{l}"));
-            let sec = if section.is_empty() {
-                String::new()
-            } else {
-                format!("[{section}] ")
+        model.check().map_err(|bad| {
+            let (at, what) = match &bad {
+                Bad::Value {
+                    section,
+                    key,
+                    value,
+                    why,
+                } => {
+                    let sec = if section.is_empty() {
+                        String::new()
+                    } else {
+                        format!("[{section}] ")
+                    };
+                    (
+                        find_line(text, section, key),
+                        format!("{sec}{key} = {value}: {why}"),
+                    )
+                }
+                Bad::Step { index, key, why } => (
+                    find_line_nth(text, "motion.turntable.step", *index, key),
+                    format!("[[motion.turntable.step]] #{} {key}: {why}", index + 1),
+                ),
+                Bad::NoMotionFile => (
+                    find_line(text, "motion", "profile"),
+                    "[motion] profile = \"file\" needs `file = \"PATH.csv\"`".to_string(),
+                ),
+                Bad::Family { key, why } => (
+                    find_line(text, "family", key),
+                    format!("[family] {key}: {why}"),
+                ),
             };
-            anyhow::anyhow!("{name}{at}: {sec}{key} = {v}: {why}")
-        })?;
-        model.motion.turntable.check().map_err(|(i, key, why)| {
-            let at = find_line_nth(text, "motion.turntable.step", i, key)
-                .map_or(String::new(), |l| format!(":{l}"));
-            anyhow::anyhow!(
-                "{name}{at}: [[motion.turntable.step]] #{} {key}: {why}",
-                i + 1
-            )
-        })?;
-        if model.motion.profile == Profile::File && model.motion.file.is_none() {
-            let at =
-                find_line(text, "motion", "profile").map_or(String::new(), |l| format!(":{l}"));
-            bail!("{name}{at}: [motion] profile = \"file\" needs `file = \"PATH.csv\"`");
-        }
-        model.family.check().map_err(|(key, why)| {
-            let at = find_line(text, "family", key).map_or(String::new(), |l| format!(":{l}"));
-            anyhow::anyhow!("{name}{at}: [family] {key}: {why}")
+            let at = at.map_or(String::new(), |l| format!(":{l}"));
+            anyhow::anyhow!("{name}{at}: {what}")
         })?;
         Ok(model)
+    }
+
+    /// Every rule a model must satisfy, the first one broken: single values in the order
+    /// of [`KEYS`], then the ranges, the turntable's steps, the motion file, the family.
+    pub(crate) fn check(&self) -> Result<(), Bad> {
+        self.validate()
+            .map_err(|(section, key, value, why)| Bad::Value {
+                section,
+                key,
+                value,
+                why,
+            })?;
+        self.motion
+            .turntable
+            .check()
+            .map_err(|(index, key, why)| Bad::Step { index, key, why })?;
+        if self.motion.profile == Profile::File && self.motion.file.is_none() {
+            return Err(Bad::NoMotionFile);
+        }
+        self.family
+            .check()
+            .map_err(|(key, why)| Bad::Family { key, why })
     }
 
     /// Every single-value rule, section by section in the order of [`KEYS`]: (section,
