@@ -9,7 +9,14 @@
 //! samples are analysed as if evenly spaced. The input (CSV, or `.csv.gz`) is read into
 //! memory ([`Record`]: `t_s` and the rate, f64: 16 bytes per sample) with only those two
 //! columns read.
+//!
+//! A record that is not static is refused with `gap`'s test
+//! ([`crate::gap::not_static_series`]: a 1-s mean more than 1 deg/s from the median), unless
+//! the known rotation is given (`--reference-column`, deg/s): then the residual (rate minus
+//! reference) is tested and analysed. The summary ([`allan::summary`]) goes to stdout; the
+//! JSON (`--json`) and the plot (`--svg`) are written when asked for.
 
+use crate::allan::summary::round9;
 use crate::allan::{self, edf, Taus};
 use crate::record::{self, Holes, ReadOptions, Record};
 use crate::record_args::RecordArgs;
@@ -27,16 +34,22 @@ pub struct Args {
     /// The rate column and scale, the sample rate of a record without `t_s`.
     #[command(flatten)]
     pub record: RecordArgs,
-    /// JSON result to write.
+    /// JSON result to write (optional: the summary is printed on stdout either way).
     #[arg(long)]
-    pub json: PathBuf,
+    pub json: Option<PathBuf>,
+    /// Reference (true) rate column, deg/s (not scaled by `--rate-scale`), e.g. a turntable's
+    /// rate: subtracted from the rate before the static test and the analysis, to analyse a
+    /// record that turns. Without it a record that turns is refused (the test `gap` uses).
+    #[arg(long)]
+    pub reference_column: Option<String>,
     /// Log-log SVG plot to write.
     #[arg(long)]
     pub svg: Option<PathBuf>,
     /// Averaging times: `octave` (m = 1, 2, 4, ...), `all`, or `decade:N` (N per decade).
     #[arg(long, default_value = "octave")]
     pub taus: Taus,
-    /// Also fit a first-order Gauss-Markov term (sigma, T).
+    /// Try a hump term (first-order Gauss-Markov or a band) even when the IEEE 952 terms
+    /// describe the curve within its statistics (without it, only when they do not).
     #[arg(long)]
     pub markov: bool,
     /// Also write the fitted terms as a gyro file (host_sim::gyro: `simulate --gyro`
@@ -86,14 +99,24 @@ pub fn sample_period(s: &AllanInput) -> SamplePeriod {
 }
 
 /// Reads `t_s` and the rate (the rate column times the scale, deg/s) from an interchange
-/// CSV or `.csv.gz` ([`Record::read`]; other columns are not read); errors name the file
-/// and line.
-pub fn read_series(path: &Path, args: &RecordArgs) -> Result<AllanInput> {
+/// CSV or `.csv.gz` ([`Record::read`]; other columns are not read), minus the reference
+/// column (deg/s) when `reference_column` names one; errors name the file and line.
+pub fn read_series(
+    path: &Path,
+    args: &RecordArgs,
+    reference_column: Option<&str>,
+) -> Result<AllanInput> {
     let opts = ReadOptions {
         optional_columns: false,
+        reference_column: reference_column.map(str::to_string),
         ..args.options()
     };
-    let record = Record::read(path, &opts)?;
+    let mut record = Record::read(path, &opts)?;
+    if let Some(reference) = record.true_rate_dps.take() {
+        for (r, t) in record.rate_dps.iter_mut().zip(&reference) {
+            *r -= t;
+        }
+    }
     let name = path.display();
     let t_s = &record.t_s;
     if t_s.len() < 8 {
@@ -118,22 +141,50 @@ struct Output<'a> {
     edf_method: &'static str,
     confidence: f64,
     fit_method: &'static str,
-    points: &'a [allan::AdevPoint],
+    reference_column: Option<&'a str>,
+    min_clusters: usize,
+    points: Vec<PointOut<'a>>,
     fit: &'a allan::fit::Fit,
+    summary: &'a [String],
+}
+
+/// A point as written: the Allan point, how many independent clusters the record holds at
+/// its tau, whether it was fitted and the fitted deviation there.
+#[derive(Serialize)]
+struct PointOut<'a> {
+    #[serde(flatten)]
+    point: &'a allan::AdevPoint,
+    clusters: f64,
+    supported: bool,
+    fit_adev_dps: f64,
 }
 
 /// Runs the command.
 pub fn run(args: &Args) -> Result<()> {
-    for out in std::iter::once(&args.json)
+    for out in args
+        .json
+        .iter()
         .chain(args.svg.as_ref())
         .chain(args.save_gyro.as_ref())
     {
         record::refuse_overwrite(&args.input, out)?;
     }
-    let s = read_series(&args.input, &args.record)?;
+    let reference = args.reference_column.as_deref();
+    let s = read_series(&args.input, &args.record, reference)?;
     let name = args.input.display().to_string();
     let period = sample_period(&s);
     let tau0_s = period.tau0_s;
+    if let Some(why) =
+        crate::gap::not_static_series(&s.record.t_s, &s.record.rate_dps, None, tau0_s)
+    {
+        let what = match reference {
+            Some(c) => format!("(the rate minus `{c}`) "),
+            None => String::new(),
+        };
+        bail!(
+            "{name}: {what}{why}; the Allan analysis needs the sensor at rest (its noise alone, the test `gap` applies): cut the record to its static part, or give the known rotation as a column of reference rate in deg/s (--reference-column COL) to analyse the residual"
+        );
+    }
     // The rate in single precision, as the firmware holds it.
     let rate: Vec<f64> = s
         .record
@@ -144,6 +195,7 @@ pub fn run(args: &Args) -> Result<()> {
     let ms = allan::tau_factors(rate.len(), args.taus);
     let (points, fit) = allan::analyse(&rate, tau0_s, &ms, args.markov, edf::ONE_SIGMA)
         .with_context(|| name.clone())?;
+    let summary = allan::summary::lines(&name, &points, &fit);
     let largest = s.holes.largest.map(|g| g.dt_s);
     let doc = Output {
         input: name.clone(),
@@ -158,12 +210,24 @@ pub fn run(args: &Args) -> Result<()> {
                      100 dof, Wilson-Hilferty above)",
         confidence: edf::ONE_SIGMA,
         fit_method:
-            "IEEE 952 terms on AVAR, NNLS by support enumeration, weights edf/(2 model^2), \
-                     5 IRLS iterations; sigma from (A^T W A)^-1 x max(1, chi2_red)",
-        points: &points,
+            "IEEE 952 terms (and one hump: Gauss-Markov or band, when they miss the curve) on \
+             AVAR of the taus with at least min_clusters independent clusters, NNLS by support \
+             enumeration, weights edf/(2 model^2), 5 IRLS iterations; sigma from \
+             (A^T W A)^-1 x max(1, chi2_red)",
+        reference_column: reference,
+        min_clusters: allan::MIN_CLUSTERS,
+        points: points
+            .iter()
+            .map(|p| PointOut {
+                point: p,
+                clusters: allan::clusters(p),
+                supported: allan::supported(p),
+                fit_adev_dps: fit.avar(p.tau_s).sqrt(),
+            })
+            .collect(),
         fit: &fit,
+        summary: &summary,
     };
-    let json = serde_json::to_string_pretty(&doc)?;
     let svg = match &args.svg {
         Some(_) => Some(allan::plot::svg(
             &points,
@@ -172,10 +236,13 @@ pub fn run(args: &Args) -> Result<()> {
         )?),
         None => None,
     };
-    record::write_atomic(&args.json, |w| {
-        w.write_all(json.as_bytes())
-            .with_context(|| format!("{}: write failed", args.json.display()))
-    })?;
+    if let Some(path) = &args.json {
+        let json = serde_json::to_string_pretty(&doc)?;
+        record::write_atomic(path, |w| {
+            w.write_all(json.as_bytes())
+                .with_context(|| format!("{}: write failed", path.display()))
+        })?;
+    }
     if let (Some(path), Some(svg)) = (&args.svg, svg) {
         record::write_atomic(path, |w| {
             w.write_all(svg.as_bytes())
@@ -188,84 +255,26 @@ pub fn run(args: &Args) -> Result<()> {
     let mut err = std::io::stderr().lock();
     writeln!(
         err,
-        "{name}: {} samples, tau0 = {} s ({}; median step {} s), {} taus -> {}",
+        "{name}: {} samples, tau0 = {} s ({}; median step {} s), {} taus{}{}",
         rate.len(),
         round9(tau0_s),
         period.method,
         round9(period.median_s),
         points.len(),
-        args.json.display()
+        reference.map_or(String::new(), |c| format!(", reference `{c}` subtracted")),
+        args.json
+            .as_ref()
+            .map_or(String::new(), |p| format!(" -> {}", p.display()))
     )?;
-    if let Some(p) = points
-        .iter()
-        .filter(|p| p.adev_dps.is_finite())
-        .min_by(|a, b| a.adev_dps.total_cmp(&b.adev_dps))
-    {
-        writeln!(
-            err,
-            "{name}: least Allan deviation {:.4} deg/h at tau {} s",
-            p.adev_dps * 3600.0,
-            round9(p.tau_s)
-        )?;
-    }
-    for t in &fit.terms {
-        if t.active {
-            let pm = |v: Option<f64>| v.map_or(String::new(), |v| format!(" +- {v:.2e}"));
-            writeln!(
-                err,
-                "  {:>8} = {:.4e}{} {} ({:.4e}{} {}): {}",
-                t.symbol,
-                t.value,
-                pm(t.sigma),
-                t.unit,
-                t.value_alt,
-                pm(t.sigma_alt),
-                t.unit_alt,
-                t.selection
-            )?;
-        } else {
-            writeln!(err, "  {:>8}   not in the model: {}", t.symbol, t.selection)?;
-        }
-    }
-    writeln!(
-        err,
-        "  fit: reduced chi-square {:.2} over {} points; model uncertainty {:.1} % of AVAR per point beside the statistical one ({})",
-        fit.chi2_reduced,
-        fit.n_points,
-        100.0 * fit.model_rel,
-        if fit.model_rel > 0.0 {
-            "the IEEE 952 terms do not describe the curve within its statistics"
-        } else {
-            "all the terms together fit the points within their statistics"
-        }
-    )?;
-    for m in &fit.not_followed {
-        writeln!(
-            err,
-            "  not followed at tau {} s: measured {:.4} deg/h, fitted {:.4} deg/h ({:+.1} sigma): the IEEE 952 terms cannot describe the curve there",
-            round9(m.tau_s),
-            m.adev_dps * 3600.0,
-            m.fit_adev_dps * 3600.0,
-            m.z
-        )?;
-    }
-    if let Some(t) = fit.gm_tau_s {
-        writeln!(
-            err,
-            "  {:>8} = {t:.4e} s (Gauss-Markov correlation time)",
-            "T_gm"
-        )?;
-    }
     if let Some(w) = s.holes.warning(
         &name,
         "tau0 is that period, and the samples are analysed as if evenly spaced",
     ) {
         writeln!(err, "{w}")?;
     }
+    let mut out = std::io::stdout().lock();
+    for line in &summary {
+        writeln!(out, "{line}")?;
+    }
     Ok(())
-}
-
-/// `x` rounded to 9 decimals for printing (a tau of 0.010000000000218279 s prints 0.01).
-fn round9(x: f64) -> f64 {
-    (x * 1e9).round() / 1e9
 }

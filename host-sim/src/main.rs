@@ -25,8 +25,9 @@ enum Cmd {
     /// Simulate a FOG record from a gyro file or a built-in gyro (`--gyro`): interchange
     /// CSV or E-Core binary frames, streamed sample by sample.
     Simulate(simulate_cmd::Args),
-    /// Overlapping Allan deviation of a record with chi-square error bars and a weighted
-    /// NNLS fit of the IEEE 952 noise terms; JSON and optional SVG plot.
+    /// Overlapping Allan deviation of a static record with chi-square error bars and a
+    /// weighted NNLS fit of the IEEE 952 noise terms; summary on stdout, optional JSON and
+    /// SVG plot.
     Allan(allan_cmd::Args),
     /// Train the on-line drift identifier on training records and score it, still on line,
     /// on validation records beside causal baselines; JSON report.

@@ -49,7 +49,8 @@ fn json_and_svg() {
         stderr.contains("tau0 = 0.1 s (mean t_s step, gaps left out"),
         "{stderr}"
     );
-    assert!(stderr.contains("least Allan deviation"), "{stderr}");
+    let stdout = String::from_utf8_lossy(&a.get_output().stdout).to_string();
+    assert!(stdout.contains("least Allan deviation"), "{stdout}");
     let v: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(&json).expect("json")).expect("valid JSON");
     let tau0 = v["tau0_s"].as_f64().expect("tau0");
@@ -245,10 +246,12 @@ fn bursty_stamps_gz_and_a_rate_column() {
 
 /// The ADIS16405 run 1 (z, 10,000 s at 100 Hz, `../shared/data/real`): its curve is not a
 /// sum of the IEEE 952 terms within its statistics (the 0.02-s point equals the 0.01-s
-/// one), so the model's own accuracy is fitted and the fit follows the points within 25 %
-/// from 0.04 s to 1,311 s (with statistical weights alone it ran up to 24x below them, at a
-/// reduced chi-square of 57,895). The least deviation and its tau are printed. Skipped
-/// without `../shared` (a user's clone).
+/// one: a band of the sensor's own noise near 20 Hz), so a hump term is fitted (a band) and
+/// the model's own accuracy with it; the fit follows every supported point (1,311 s and
+/// 2,621 s hold fewer than 9 clusters and are not fitted) within 25 % (with statistical
+/// weights alone it ran up to 24x below them, at a reduced chi-square of 57,895; with the
+/// IEEE terms alone 24 % off at 0.02 s, at 18.7 % model uncertainty). The least deviation
+/// and its tau are printed. Skipped without `../shared` (a user's clone).
 #[test]
 fn a_real_mems_curve_is_followed_where_the_terms_can() {
     let rec = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -260,36 +263,35 @@ fn a_real_mems_curve_is_followed_where_the_terms_can() {
     let dir = tempfile::tempdir().expect("tmp");
     let json = dir.path().join("adis.json");
     let a = allan(&rec, &json, &["--rate-column", "gz_dps"]).success();
-    let stderr = String::from_utf8_lossy(&a.get_output().stderr).to_string();
-    assert!(stderr.contains("least Allan deviation 29.13"), "{stderr}");
-    assert!(stderr.contains("at tau 81.92 s"), "{stderr}");
+    let stdout = String::from_utf8_lossy(&a.get_output().stdout).to_string();
+    assert!(stdout.contains("least Allan deviation 29.13"), "{stdout}");
+    assert!(stdout.contains("at tau 81.92 s"), "{stdout}");
+    assert!(
+        stdout.contains("too long for the record: tau 1310.72, 2621.44 s"),
+        "{stdout}"
+    );
     let v: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(&json).expect("json")).expect("JSON");
     let fit = &v["fit"];
     let rel = fit["model_rel"].as_f64().expect("model_rel");
-    assert!(rel > 0.05, "model accuracy fitted: {rel}");
-    let coef = |s: &str| {
-        fit["terms"]
-            .as_array()
-            .expect("terms")
-            .iter()
-            .find(|t| t["symbol"] == s)
-            .and_then(|t| t["coefficient"].as_f64())
-            .expect("term")
-    };
-    let (q, n, b, k, r) = (coef("Q"), coef("N"), coef("B"), coef("K"), coef("R"));
-    let flicker = 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI;
+    assert!(rel > 0.02 && rel < 0.15, "model accuracy fitted: {rel}");
+    let band = fit["band_hz"].as_array().expect("a band term");
+    let lo = band[0].as_f64().expect("lo");
+    assert!((10.0..30.0).contains(&lo), "{band:?}");
+    let mut fitted = 0;
     for p in v["points"].as_array().expect("points") {
         let tau = p["tau_s"].as_f64().expect("tau");
         let adev = p["adev_dps"].as_f64().expect("adev");
-        let model =
-            (3.0 * q / (tau * tau) + n / tau + flicker * b + k * tau / 3.0 + r * tau * tau / 2.0)
-                .sqrt();
-        if (0.04..=1311.0).contains(&tau) {
+        let model = p["fit_adev_dps"].as_f64().expect("fit");
+        assert_eq!(p["supported"], tau < 1111.2, "{p}");
+        if p["supported"] == true {
+            fitted += 1;
             assert!(
                 (model / adev - 1.0).abs() < 0.25,
                 "tau {tau}: fit {model} vs {adev}"
             );
         }
     }
+    assert_eq!(fitted, 17);
+    assert_eq!(fit["n_points"], 17);
 }

@@ -2,12 +2,12 @@
 //! variance:
 //! ```text
 //! AVAR(tau) = 3 Q^2 / tau^2 + N^2 / tau + (2 ln 2 / pi) B^2 + K^2 tau / 3 + R^2 tau^2 / 2
-//!             [+ gm_avar(sigma^2, T, tau)]
+//!             [+ gm_avar(sigma^2, T, tau) or + sigma_band^2 band_avar(f1, f2, tau)]
 //! ```
 //! Units (rate in deg/s, tau in s): Q deg (angle quantization; also arcsec), N deg/s/sqrt(Hz)
 //! = deg/sqrt(s) (also deg/sqrt(h) = 60 N), B deg/s (also deg/h), K deg/s^1.5 = deg/s/sqrt(s)
 //! (also deg/h/sqrt(h) = 216000 K), R deg/s^2 (also deg/h^2), Gauss-Markov sigma deg/s and
-//! correlation time T s.
+//! correlation time T s, band sigma deg/s over the band `[f1, f2]` Hz ([`super::band`]).
 //!
 //! # Method
 //! - Unknowns: the coefficients `c = (Q^2, N^2, B^2, K^2, R^2[, sigma^2])`, linear in AVAR,
@@ -29,13 +29,22 @@
 //!   selection repeated). Each term's `selection` says why, with the figures.
 //! - Gauss-Markov (`--markov`): T is searched on a grid of 8 points per decade spanning the
 //!   taus of the curve; the best (T, support) wins. T has no error bar (grid step 33 %).
+//! - A hump ([`fit`] only, not [`fit_statistical`]): when the IEEE 952 terms cannot describe
+//!   the curve within its statistics (`model_rel` > 0), or with `--markov`, one hump term is
+//!   tried beside them: a Gauss-Markov term (T on the grid above) or an octave band of rate
+//!   noise ([`super::band`]: centre from `0.371 / last tau` to `0.354 / tau0`, so the hump
+//!   peaks within the curve and the band stays below the Nyquist frequency, 8 per decade). The shape whose fit on every term has
+//!   the lowest weighted cost (at the IEEE terms' `model_rel`) is kept; `model_rel` is
+//!   fitted again with it and the term selection decides, the hump counting as two
+//!   parameters (its size and its shape). A hump the selection drops leaves the IEEE-only
+//!   fit, with the hump listed as not in the model and why.
 //! - Uncertainty: the covariance of the active coefficients is `(A^T W A)^-1`, multiplied by
 //!   the reduced chi-square when that exceeds 1; values get `sigma_c / (2 sqrt(c))` (delta
 //!   method). Overlapping ADEV points at nearby taus are correlated, which this ignores:
 //!   treat the uncertainties as optimistic. An inactive term (at the bound 0) has value 0
 //!   and no uncertainty.
 
-use super::AdevPoint;
+use super::{band, AdevPoint};
 use anyhow::{bail, Result};
 use serde::Serialize;
 
@@ -77,7 +86,13 @@ pub enum Kind {
     RateRamp,
     /// First-order Gauss-Markov (sigma, T).
     GaussMarkov,
+    /// An octave band of rate noise (sigma, centre frequency): a hump ([`super::band`]).
+    Band,
 }
+
+/// A band's Allan deviation peaks near `tau = BAND_PEAK / f` (that of a sinusoid of
+/// frequency `f`).
+pub const BAND_PEAK: f64 = 0.371;
 
 /// The terms always fitted, in order.
 pub const BASE: [Kind; 5] = [
@@ -89,27 +104,36 @@ pub const BASE: [Kind; 5] = [
 ];
 
 impl Kind {
-    /// AVAR of the term per unit coefficient at `tau_s` (`gm_t_s`: the GM correlation time).
-    pub fn basis(self, tau_s: f64, gm_t_s: f64) -> f64 {
+    /// AVAR of the term per unit coefficient at `tau_s` (`shape`: the GM correlation time,
+    /// s, or the band's centre frequency, Hz).
+    pub fn basis(self, tau_s: f64, shape: f64) -> f64 {
         match self {
             Kind::Quantization => 3.0 / (tau_s * tau_s),
             Kind::Arw => 1.0 / tau_s,
             Kind::BiasInstability => FLICKER_AVAR,
             Kind::Rrw => tau_s / 3.0,
             Kind::RateRamp => tau_s * tau_s / 2.0,
-            Kind::GaussMarkov => crate::sim::gm_avar(1.0, gm_t_s, tau_s),
+            Kind::GaussMarkov => crate::sim::gm_avar(1.0, shape, tau_s),
+            Kind::Band => {
+                let (lo, hi) = band::edges_hz(shape);
+                band::band_avar(lo, hi, tau_s)
+            }
         }
     }
 
     /// Power-law noise type (alpha of the frequency PSD) the term looks like at `tau_s`.
-    pub fn alpha(self, tau_s: f64, gm_t_s: f64) -> i32 {
+    pub fn alpha(self, tau_s: f64, shape: f64) -> i32 {
         match self {
             Kind::Quantization => 2,
             Kind::Arw => 0,
             Kind::BiasInstability => -1,
             Kind::Rrw | Kind::RateRamp => -2,
-            Kind::GaussMarkov if tau_s < gm_t_s => -2,
+            Kind::GaussMarkov if tau_s < shape => -2,
             Kind::GaussMarkov => 0,
+            // Below the band's peak its ADEV rises (like a random walk), above it falls as
+            // tau^-1 (like white phase noise).
+            Kind::Band if tau_s < BAND_PEAK / shape => -2,
+            Kind::Band => 2,
         }
     }
 
@@ -122,6 +146,7 @@ impl Kind {
             Kind::Rrw => ("K", "deg/s^1.5", "deg/h/sqrt(h)", 3600.0 * 60.0),
             Kind::RateRamp => ("R", "deg/s^2", "deg/h^2", 3600.0 * 3600.0),
             Kind::GaussMarkov => ("sigma_gm", "deg/s", "deg/h", 3600.0),
+            Kind::Band => ("sigma_band", "deg/s", "deg/h", 3600.0),
         }
     }
 }
@@ -158,10 +183,12 @@ pub struct Term {
 /// Result of the fit.
 #[derive(Debug, Clone, Serialize)]
 pub struct Fit {
-    /// Every fitted term (Gauss-Markov only with `--markov`).
+    /// Every fitted term (the hump, Gauss-Markov or band, only when it was tried).
     pub terms: Vec<Term>,
     /// Gauss-Markov correlation time, s (when that term is active).
     pub gm_tau_s: Option<f64>,
+    /// The band's edges, Hz (when that term is active).
+    pub band_hz: Option<[f64; 2]>,
     /// Weighted residual sum of squares over (points - parameters), final weights.
     pub chi2_reduced: f64,
     /// Points fitted.
@@ -169,15 +196,19 @@ pub struct Fit {
     /// The model's own relative accuracy on AVAR added to each point's (0: the terms fit
     /// the points within their statistics).
     pub model_rel: f64,
-    /// Points the fitted curve does not follow (beyond [`NOT_FOLLOWED_Z`] of their
-    /// statistical and model uncertainty): there the IEEE 952 terms cannot describe the
-    /// data.
+    /// Points the fitted curve does not follow: missed by more than [`FOLLOW_TOL`] of their
+    /// deviation, or by more than [`NOT_FOLLOWED_Z`] of their statistical and model
+    /// uncertainty.
     pub not_followed: Vec<Miss>,
 }
 
 /// Points further than this many standard uncertainties (statistical and
 /// [`Fit::model_rel`], on log ADEV) from the fitted curve are reported as not followed.
 pub const NOT_FOLLOWED_Z: f64 = 3.0;
+
+/// Points whose fitted deviation is further than this fraction of the measured one are
+/// reported as not followed, whatever their statistics (issue 43's goal: 25 %).
+pub const FOLLOW_TOL: f64 = 0.25;
 
 /// A point the fit does not follow.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -188,8 +219,12 @@ pub struct Miss {
     pub adev_dps: f64,
     /// Fitted ADEV, deg/s.
     pub fit_adev_dps: f64,
-    /// `ln(fit / measured)` in standard uncertainties.
+    /// `ln(fit / measured)` in standard uncertainties (statistical and model).
     pub z: f64,
+    /// `ln(fit / measured)` in the point's statistical standard uncertainty alone.
+    pub z_statistical: f64,
+    /// `fit / measured - 1`.
+    pub rel_error: f64,
 }
 
 impl Fit {
@@ -198,21 +233,26 @@ impl Fit {
         self.terms.iter().find(|t| t.term == kind)
     }
 
-    fn gm_t(&self) -> f64 {
-        self.gm_tau_s.unwrap_or(1.0)
+    /// The shape parameter of `kind` ([`Kind::basis`]; 1 when it has none).
+    fn shape(&self, kind: Kind) -> f64 {
+        match kind {
+            Kind::GaussMarkov => self.gm_tau_s.unwrap_or(1.0),
+            Kind::Band => self.band_hz.map_or(1.0, |[lo, hi]| (lo * hi).sqrt()),
+            _ => 1.0,
+        }
     }
 
     /// Fitted AVAR of one term at `tau_s`.
     pub fn term_avar(&self, kind: Kind, tau_s: f64) -> f64 {
         self.get(kind)
-            .map_or(0.0, |t| t.coefficient * kind.basis(tau_s, self.gm_t()))
+            .map_or(0.0, |t| t.coefficient * kind.basis(tau_s, self.shape(kind)))
     }
 
     /// Fitted total AVAR at `tau_s`.
     pub fn avar(&self, tau_s: f64) -> f64 {
         self.terms
             .iter()
-            .map(|t| t.coefficient * t.term.basis(tau_s, self.gm_t()))
+            .map(|t| t.coefficient * t.term.basis(tau_s, self.shape(t.term)))
             .sum()
     }
 
@@ -222,11 +262,11 @@ impl Fit {
             .iter()
             .filter(|t| t.active)
             .max_by(|a, b| {
-                let va = a.coefficient * a.term.basis(tau_s, self.gm_t());
-                let vb = b.coefficient * b.term.basis(tau_s, self.gm_t());
+                let va = a.coefficient * a.term.basis(tau_s, self.shape(a.term));
+                let vb = b.coefficient * b.term.basis(tau_s, self.shape(b.term));
                 va.total_cmp(&vb)
             })
-            .map_or(0, |t| t.term.alpha(tau_s, self.gm_t()))
+            .map_or(0, |t| t.term.alpha(tau_s, self.shape(t.term)))
     }
 }
 
@@ -253,43 +293,109 @@ pub fn fit_statistical(points: &[AdevPoint], markov: bool) -> Result<Fit> {
 }
 
 fn fit_with(points: &[AdevPoint], markov: bool, fit_model_rel: bool) -> Result<Fit> {
-    let problem = Problem::new(points, markov)?;
-    let model_rel = if fit_model_rel {
-        problem.fitted_model_rel()?
-    } else {
-        0.0
+    if !fit_model_rel {
+        let problem = Problem::new(points, markov.then_some(Kind::GaussMarkov), None)?;
+        let (s, t, reasons) = problem.select_terms(0.0)?;
+        return Ok(problem.finish(&s, t, reasons, 0.0));
+    }
+    let base = Problem::new(points, None, None)?;
+    let rel0 = base.fitted_model_rel()?;
+    let (s, t, reasons) = base.select_terms(rel0)?;
+    let mut fit = base.finish(&s, t, reasons, rel0);
+    if !(rel0 > 0.0 || markov) {
+        return Ok(fit);
+    }
+    let Some((kind, shape)) = hump_search(points, rel0)? else {
+        return Ok(fit);
     };
-    let (s, t, reasons) = problem.select_terms(model_rel)?;
-    let n = points.len();
-    let gm_active = markov && s.coef.last().is_some_and(|&c| c > 0.0);
-    let params = s.active + usize::from(gm_active);
-    let chi2_reduced = if n > params {
-        s.cost / (n - params) as f64
-    } else {
-        f64::NAN
-    };
-    let inflate = if chi2_reduced.is_finite() {
-        chi2_reduced.max(1.0).sqrt()
-    } else {
-        1.0
-    };
-    let terms = problem
-        .kinds
-        .iter()
-        .zip(s.coef.iter().zip(&s.sigma))
-        .zip(reasons)
-        .map(|((&kind, (&c, &sc)), reason)| term(kind, c, sc, inflate, reason))
-        .collect();
-    let mut fit = Fit {
-        terms,
-        gm_tau_s: gm_active.then_some(t),
-        chi2_reduced,
-        n_points: n,
-        model_rel,
-        not_followed: Vec::new(),
-    };
-    fit.not_followed = not_followed(&fit, points);
+    let mut p = Problem::new(points, Some(kind), Some(vec![shape]))?;
+    p.hump_params = 2;
+    let rel1 = p.fitted_model_rel()?;
+    let (s, t, mut reasons) = p.select_terms(rel1)?;
+    let what = describe_shape(kind, shape);
+    let hump = BASE.len();
+    if s.coef[hump] > 0.0 {
+        if let Some(r) = reasons[hump].as_mut() {
+            *r = format!(
+                "{what}: {r} (the hump counts as 2 terms: size and shape); model uncertainty {:.1} % with it, {:.1} % without it",
+                100.0 * rel1,
+                100.0 * rel0
+            );
+        }
+        return Ok(p.finish(&s, t, reasons, rel1));
+    }
+    let why = reasons[hump]
+        .take()
+        .unwrap_or_else(|| "at the bound 0 in the NNLS fit".into());
+    fit.terms.push(term(
+        kind,
+        0.0,
+        None,
+        1.0,
+        Some(format!(
+            "tried ({}); best shape {what}; {why}",
+            if rel0 > 0.0 {
+                "the IEEE 952 terms miss the curve beyond its statistics"
+            } else {
+                "--markov"
+            }
+        )),
+    ));
     Ok(fit)
+}
+
+/// The hump shape in words: `Gauss-Markov T = 3.2 s` or `band 2.1-4.2 Hz`.
+fn describe_shape(kind: Kind, shape: f64) -> String {
+    match kind {
+        Kind::Band => {
+            let (lo, hi) = band::edges_hz(shape);
+            format!(
+                "band {lo:.3}-{hi:.3} Hz (ADEV peak near tau {:.4} s)",
+                BAND_PEAK / shape
+            )
+        }
+        _ => format!("Gauss-Markov T = {shape:.4} s"),
+    }
+}
+
+/// The hump shape (kind and [`Kind::basis`] shape) whose fit on every term at model accuracy
+/// `rel` has the lowest weighted cost with the hump active; `None` when no shape makes the
+/// hump active. Gauss-Markov: T on [`gm_grid_s`]; band: centre on [`band_grid_hz`].
+fn hump_search(points: &[AdevPoint], rel: f64) -> Result<Option<(Kind, f64)>> {
+    let n = points.len();
+    let (first, last) = (points[0].tau_s, points[n - 1].tau_s);
+    let tau0 = first / points[0].m.max(1) as f64;
+    let mut best: Option<(Kind, f64, f64)> = None;
+    for (kind, grid) in [
+        (Kind::GaussMarkov, gm_grid_s(first, last)),
+        (Kind::Band, band_grid_hz(tau0, last)),
+    ] {
+        for shape in grid {
+            let p = Problem::new(points, Some(kind), Some(vec![shape]))?;
+            let Ok(r) = p.irls(p.all_terms(), rel) else {
+                continue;
+            };
+            let s = r.solution;
+            if s.coef[BASE.len()] > 0.0 && best.is_none_or(|b| s.cost < b.2) {
+                best = Some((kind, shape, s.cost));
+            }
+        }
+    }
+    Ok(best.map(|(k, x, _)| (k, x)))
+}
+
+/// Band centres tried, Hz: from `BAND_PEAK / last_tau_s` (a hump that peaks at the
+/// curve's last tau) to `0.354 / tau0_s` (the octave's top at the Nyquist frequency, the
+/// peak near the first tau), evenly in log, 8 per decade; empty when that range is empty.
+fn band_grid_hz(tau0_s: f64, last_tau_s: f64) -> Vec<f64> {
+    let (lo, hi) = ((BAND_PEAK / last_tau_s).log10(), (0.354 / tau0_s).log10());
+    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+        return Vec::new();
+    }
+    let k = ((hi - lo) * 8.0).ceil().max(1.0) as usize;
+    (0..=k)
+        .map(|j| 10f64.powf(lo + (hi - lo) * j as f64 / k as f64))
+        .collect()
 }
 
 /// The reported term `kind` from its fitted coefficient `c` (in its unit squared), the
@@ -321,21 +427,28 @@ fn term(kind: Kind, c: f64, sc: Option<f64>, inflate: f64, reason: Option<String
     }
 }
 
-/// The points `fit` does not follow: `ln(fitted / measured ADEV)` beyond
-/// [`NOT_FOLLOWED_Z`] standard uncertainties (statistical and [`Fit::model_rel`]).
+/// The points `fit` does not follow: the fitted deviation more than [`FOLLOW_TOL`] from
+/// the measured one, or `ln(fitted / measured ADEV)` beyond [`NOT_FOLLOWED_Z`] standard
+/// uncertainties (statistical and [`Fit::model_rel`]).
 fn not_followed(fit: &Fit, points: &[AdevPoint]) -> Vec<Miss> {
     points
         .iter()
         .filter_map(|p| {
             let model = fit.avar(p.tau_s).sqrt();
             // ADEV's relative sigma is half the AVAR's.
+            let stat = 0.5 * (2.0 / p.edf).sqrt();
             let rel = 0.5 * (2.0 / p.edf + fit.model_rel * fit.model_rel).sqrt();
-            let z = (model / p.adev_dps).ln() / rel;
-            (z.abs() > NOT_FOLLOWED_Z && z.is_finite()).then_some(Miss {
+            let ln = (model / p.adev_dps).ln();
+            let z = ln / rel;
+            let rel_error = model / p.adev_dps - 1.0;
+            let missed = z.abs() > NOT_FOLLOWED_Z || rel_error.abs() > FOLLOW_TOL;
+            (missed && z.is_finite()).then_some(Miss {
                 tau_s: p.tau_s,
                 adev_dps: p.adev_dps,
                 fit_adev_dps: model,
                 z,
+                z_statistical: ln / stat,
+                rel_error,
             })
         })
         .collect()
@@ -362,8 +475,14 @@ struct Problem<'a> {
     avar: Vec<f64>,
     /// The terms fitted, in column order.
     kinds: Vec<Kind>,
-    /// Gauss-Markov correlation times tried, s (`[1.0]`, unused, without that term).
-    gm_grid_s: Vec<f64>,
+    /// The hump's shapes tried ([`Kind::basis`]: Gauss-Markov correlation times, s, or band
+    /// centres, Hz; `[1.0]`, unused, without a hump).
+    shapes: Vec<f64>,
+    /// The design of each shape ([`Self::columns`]).
+    designs: Vec<Vec<Vec<f64>>>,
+    /// Parameters the hump counts for in the information criterion (1: its size, the
+    /// statistical fit's Gauss-Markov; 2: its size and its searched shape).
+    hump_params: usize,
     /// Lower bound of a model AVAR used as a weight or a share's denominator, (deg/s)^2:
     /// 1e-30 of the largest measured AVAR.
     floor: f64,
@@ -373,8 +492,8 @@ struct Problem<'a> {
 struct Reweighted {
     /// The NNLS solution of the last iteration.
     solution: Solution,
-    /// Its Gauss-Markov correlation time, s (1 without that term).
-    gm_t_s: f64,
+    /// Its hump shape: an index of the grid.
+    shape: usize,
     /// The weights it was solved with, 1 / (deg/s)^4.
     weights: Vec<f64>,
 }
@@ -392,9 +511,10 @@ struct Round {
 }
 
 impl<'a> Problem<'a> {
-    /// The problem of `points` (their `edf` set), with the Gauss-Markov term when
-    /// `markov`; refuses fewer than 3 points and a curve that is 0 at every tau.
-    fn new(points: &'a [AdevPoint], markov: bool) -> Result<Self> {
+    /// The problem of `points` (their `edf` set), with the hump term `hump` when given
+    /// (its shapes `shapes`, by default the Gauss-Markov grid over the curve's taus);
+    /// refuses fewer than 3 points and a curve that is 0 at every tau.
+    fn new(points: &'a [AdevPoint], hump: Option<Kind>, shapes: Option<Vec<f64>>) -> Result<Self> {
         let n = points.len();
         if n < 3 {
             bail!("the fit needs at least 3 Allan points, got {n}");
@@ -405,23 +525,73 @@ impl<'a> Problem<'a> {
             bail!("the Allan deviation is 0 at every tau (constant rate?): nothing to fit");
         }
         let mut kinds: Vec<Kind> = BASE.to_vec();
-        if markov {
-            kinds.push(Kind::GaussMarkov);
-        }
-        let gm_grid_s = if markov {
-            gm_grid_s(tau_s[0], tau_s[n - 1])
-        } else {
-            vec![1.0]
+        kinds.extend(hump);
+        let shapes = match (hump, shapes) {
+            (Some(_), Some(shapes)) if !shapes.is_empty() => shapes,
+            (Some(_), _) => gm_grid_s(tau_s[0], tau_s[n - 1]),
+            (None, _) => vec![1.0],
         };
         let floor = avar.iter().cloned().fold(0.0, f64::max) * 1e-30;
+        let designs = shapes
+            .iter()
+            .map(|&t| Self::columns(&kinds, &tau_s, t))
+            .collect();
         Ok(Self {
             points,
             tau_s,
             avar,
             kinds,
-            gm_grid_s,
+            shapes,
+            designs,
+            hump_params: 1,
             floor,
         })
+    }
+
+    /// The reported fit from the selected solution `s` (its hump shape `shape`, each term's
+    /// selection reason) at model accuracy `model_rel`.
+    fn finish(
+        &self,
+        s: &Solution,
+        shape: f64,
+        reasons: Vec<Option<String>>,
+        model_rel: f64,
+    ) -> Fit {
+        let n = self.points.len();
+        let hump = self.kinds.get(BASE.len()).copied();
+        let hump_active = hump.is_some() && s.coef.last().is_some_and(|&c| c > 0.0);
+        let params = s.active + usize::from(hump_active);
+        let chi2_reduced = if n > params {
+            s.cost / (n - params) as f64
+        } else {
+            f64::NAN
+        };
+        let inflate = if chi2_reduced.is_finite() {
+            chi2_reduced.max(1.0).sqrt()
+        } else {
+            1.0
+        };
+        let terms = self
+            .kinds
+            .iter()
+            .zip(s.coef.iter().zip(&s.sigma))
+            .zip(reasons)
+            .map(|((&kind, (&c, &sc)), reason)| term(kind, c, sc, inflate, reason))
+            .collect();
+        let mut fit = Fit {
+            terms,
+            gm_tau_s: (hump_active && hump == Some(Kind::GaussMarkov)).then_some(shape),
+            band_hz: (hump_active && hump == Some(Kind::Band)).then(|| {
+                let (lo, hi) = band::edges_hz(shape);
+                [lo, hi]
+            }),
+            chi2_reduced,
+            n_points: n,
+            model_rel,
+            not_followed: Vec::new(),
+        };
+        fit.not_followed = not_followed(&fit, self.points);
+        fit
     }
 
     /// Every term's bit.
@@ -429,12 +599,12 @@ impl<'a> Problem<'a> {
         (1 << self.kinds.len()) - 1
     }
 
-    /// The design: each term's AVAR per unit coefficient at every tau, for the
-    /// Gauss-Markov correlation time `gm_t_s`.
-    fn columns(&self, gm_t_s: f64) -> Vec<Vec<f64>> {
-        self.kinds
+    /// The design for the hump shape `shape`: each term's AVAR per unit coefficient at
+    /// every tau.
+    fn columns(kinds: &[Kind], tau_s: &[f64], shape: f64) -> Vec<Vec<f64>> {
+        kinds
             .iter()
-            .map(|k| self.tau_s.iter().map(|&x| k.basis(x, gm_t_s)).collect())
+            .map(|k| tau_s.iter().map(|&x| k.basis(x, shape)).collect())
             .collect()
     }
 
@@ -456,16 +626,15 @@ impl<'a> Problem<'a> {
             .collect()
     }
 
-    /// Fitted AVAR at every tau of the coefficients `coef` and the Gauss-Markov
-    /// correlation time `gm_t_s`, at least the floor.
-    fn model_avar(&self, coef: &[f64], gm_t_s: f64) -> Vec<f64> {
-        self.tau_s
-            .iter()
-            .map(|&x| {
-                self.kinds
-                    .iter()
+    /// Fitted AVAR at every tau of the coefficients `coef` on the design of shape
+    /// `shape` (an index of the grid), at least the floor.
+    fn model_avar(&self, coef: &[f64], shape: usize) -> Vec<f64> {
+        let cols = &self.designs[shape];
+        (0..self.tau_s.len())
+            .map(|i| {
+                cols.iter()
                     .zip(coef)
-                    .map(|(k, c)| c * k.basis(x, gm_t_s))
+                    .map(|(col, c)| c * col[i])
                     .sum::<f64>()
                     .max(self.floor)
             })
@@ -481,12 +650,12 @@ impl<'a> Problem<'a> {
         for _ in 0..5 {
             let w = self.weights(&model, rel);
             best = None;
-            for &t in &self.gm_grid_s {
-                if let Some(s) = nnls(&self.columns(t), &self.avar, &w, allowed) {
+            for (k, cols) in self.designs.iter().enumerate() {
+                if let Some(s) = nnls(cols, &self.avar, &w, allowed) {
                     if best.as_ref().is_none_or(|b| s.cost < b.solution.cost) {
                         best = Some(Reweighted {
                             solution: s,
-                            gm_t_s: t,
+                            shape: k,
                             weights: w.clone(),
                         });
                     }
@@ -495,7 +664,7 @@ impl<'a> Problem<'a> {
             let Some(b) = &best else {
                 bail!("the least-squares fit failed (no positive solution)");
             };
-            model = self.model_avar(&b.solution.coef, b.gm_t_s);
+            model = self.model_avar(&b.solution.coef, b.shape);
         }
         best.ok_or_else(|| anyhow::anyhow!("the least-squares fit failed"))
     }
@@ -541,13 +710,13 @@ impl<'a> Problem<'a> {
         let mut reasons: Vec<Option<String>> = vec![None; self.kinds.len()];
         loop {
             let full = self.irls(allowed, model_rel)?;
-            let t = full.gm_t_s;
-            let cols = self.columns(t);
-            let Some(round) = self.selection_round(&full, &cols, allowed) else {
+            let t = self.shapes[full.shape];
+            let cols = &self.designs[full.shape];
+            let Some(round) = self.selection_round(&full, cols, allowed) else {
                 return Ok((full.solution, t, reasons));
             };
             let sel = self.irls(round.best_support, model_rel)?.solution;
-            match self.judge_terms(&round, &sel, &cols, allowed, &mut reasons) {
+            match self.judge_terms(&round, &sel, cols, allowed, &mut reasons) {
                 Some(j) => allowed = round.best_support & !(1 << j),
                 None => return Ok((sel, t, reasons)),
             }
@@ -566,7 +735,15 @@ impl<'a> Problem<'a> {
             1.0
         };
         let penalty = SELECT_BIC_FACTOR * (n as f64).ln();
-        let ic = |x: &Solution| x.cost / chi2_red + penalty * x.active as f64;
+        let hump = BASE.len();
+        let ic = |x: &Solution| {
+            let extra = if x.coef.get(hump).is_some_and(|&c| c > 0.0) {
+                self.hump_params - 1
+            } else {
+                0
+            };
+            x.cost / chi2_red + penalty * (x.active + extra) as f64
+        };
         let mut ics: Vec<(u32, f64)> = Vec::new();
         for mask in 1..=self.all_terms() {
             if mask & !allowed != 0 {
@@ -811,6 +988,28 @@ mod tests {
             assert!((got / want - 1.0).abs() < 1e-6, "{kind:?}: {got} vs {want}");
         }
         assert_eq!(f.get(Kind::RateRamp).map(|t| t.active), Some(false));
+    }
+
+    #[test]
+    fn band_term_is_found_when_the_ieee_terms_miss_the_curve() {
+        // White noise and an octave band at 3 Hz: a hump near tau 0.12 s.
+        let (lo, hi) = band::edges_hz(3.0);
+        let pts = points(|t| 1e-6 / t + 1e-4 * band::band_avar(lo, hi, t));
+        let f = fit(&pts, false).expect("fit");
+        let b = f.get(Kind::Band).expect("band tried");
+        assert!(b.active, "{}", b.selection);
+        assert!((b.value / 1e-2 - 1.0).abs() < 0.15, "{}", b.value);
+        let [flo, _] = f.band_hz.expect("edges");
+        assert!((flo / lo).ln().abs() < 0.2, "{flo} vs {lo}");
+        assert!(f.model_rel < 0.05, "{}", f.model_rel);
+    }
+
+    #[test]
+    fn no_hump_is_tried_when_the_ieee_terms_fit() {
+        let pts = points(|t| 1e-6 / t + FLICKER_AVAR * 1e-8);
+        let f = fit(&pts, false).expect("fit");
+        assert_eq!(f.model_rel, 0.0);
+        assert_eq!(f.terms.len(), BASE.len());
     }
 
     #[test]

@@ -9,10 +9,20 @@
 //! AVAR(tau) = sum_{i=0}^{N-2m} (x_{i+2m} - 2 x_{i+m} + x_i)^2 / (2 tau^2 (N - 2m + 1))
 //! ```
 //! O(N) per tau, `1 <= m <= N/2`.
+//!
+//! # Taus the record supports
+//! A tau is fitted only when the record holds at least [`MIN_CLUSTERS`] independent
+//! (non-overlapping) clusters of that length, `N / m >= 9`: IEEE Std 952-1997 Annex C gives
+//! the relative (1-sigma) error of an Allan deviation from `K` clusters as
+//! `1 / sqrt(2 (K - 1))`, at most 25 % for `K >= 9`. The longer taus are computed and
+//! reported (marked `supported: false`) but not fitted: their curve is too uncertain to
+//! take a term from, e.g. a bias-instability floor.
 
+pub mod band;
 pub mod edf;
 pub mod fit;
 pub mod plot;
+pub mod summary;
 
 use anyhow::{bail, Result};
 use serde::Serialize;
@@ -46,6 +56,21 @@ pub fn oavar_phase(phase: &[f64], tau0_s: f64, m: usize) -> Option<(f64, usize)>
         .sum();
     let tau = m as f64 * tau0_s;
     Some((s / (2.0 * n as f64 * tau * tau), n))
+}
+
+/// Independent clusters a tau must hold in the record to be fitted (module docs).
+pub const MIN_CLUSTERS: usize = 9;
+
+/// Independent (non-overlapping) clusters of the point's length in its record: `N / m`,
+/// with `N` rate samples (`n_diff = N + 1 - 2m` second differences were summed).
+pub fn clusters(p: &AdevPoint) -> f64 {
+    let m = p.m.max(1);
+    (p.n_diff + 2 * m - 1) as f64 / m as f64
+}
+
+/// Whether the record supports the point's tau ([`MIN_CLUSTERS`]).
+pub fn supported(p: &AdevPoint) -> bool {
+    clusters(p) >= MIN_CLUSTERS as f64
 }
 
 /// Which averaging factors `m` (tau = m tau0) to use.
@@ -138,7 +163,9 @@ pub fn oadev(rate: &[f64], tau0_s: f64, ms: &[usize]) -> Vec<AdevPoint> {
 }
 
 /// The whole analysis: ADEV, then fit and EDF alternately (the EDF needs the noise type at
-/// each tau, taken as the dominant fitted term there; the fit weights need the EDF).
+/// each tau, taken as the dominant fitted term there; the fit weights need the EDF). Only
+/// the taus the record supports ([`supported`]) are fitted; every point gets its EDF and
+/// bounds.
 pub fn analyse(
     rate: &[f64],
     tau0_s: f64,
@@ -147,9 +174,13 @@ pub fn analyse(
     confidence: f64,
 ) -> Result<(Vec<AdevPoint>, fit::Fit)> {
     let mut pts = oadev(rate, tau0_s, ms);
-    if pts.len() < 3 {
+    if !pts.is_empty() && pts.iter().all(|p| p.adev_dps == 0.0) {
+        bail!("the Allan deviation is 0 at every tau (constant rate?): nothing to fit");
+    }
+    let fitted = pts.iter().filter(|p| supported(p)).count();
+    if fitted < 3 {
         bail!(
-            "{} samples give {} Allan points; the fit needs at least 3",
+            "{} samples give {} Allan points of which {fitted} hold at least {MIN_CLUSTERS} independent clusters; the fit needs at least 3 (a longer record)",
             rate.len(),
             pts.len()
         );
@@ -159,13 +190,17 @@ pub fn analyse(
         p.alpha = 0;
         p.edf = edf::edf_simple(n_phase, p.m, p.alpha);
     }
-    let mut f = fit::fit(&pts, markov)?;
+    let fit_on = |pts: &[AdevPoint]| {
+        let used: Vec<AdevPoint> = pts.iter().filter(|p| supported(p)).cloned().collect();
+        fit::fit(&used, markov)
+    };
+    let mut f = fit_on(&pts)?;
     for _ in 0..2 {
         for p in &mut pts {
             p.alpha = f.dominant_alpha(p.tau_s);
             p.edf = edf::edf_simple(n_phase, p.m, p.alpha);
         }
-        f = fit::fit(&pts, markov)?;
+        f = fit_on(&pts)?;
     }
     for p in &mut pts {
         let (lo, hi) = edf::adev_bounds(p.adev_dps, p.edf, confidence)?;

@@ -7,13 +7,14 @@ use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 
 /// Colours of the fitted terms, in [`Kind`] order, then the total.
-const COLOURS: [RGBColor; 7] = [
+const COLOURS: [RGBColor; 8] = [
     RGBColor(148, 103, 189),
     RGBColor(31, 119, 180),
     RGBColor(44, 160, 44),
     RGBColor(214, 39, 40),
     RGBColor(140, 86, 75),
     RGBColor(227, 119, 194),
+    RGBColor(188, 189, 34),
     RGBColor(0, 0, 0),
 ];
 
@@ -25,6 +26,7 @@ fn colour(kind: Kind) -> RGBColor {
         Kind::Rrw => 3,
         Kind::RateRamp => 4,
         Kind::GaussMarkov => 5,
+        Kind::Band => 6,
     };
     COLOURS[i]
 }
@@ -78,6 +80,9 @@ pub fn svg(points: &[AdevPoint], fit: &Fit, title: &str) -> Result<String> {
             if let (Kind::GaussMarkov, Some(tau)) = (t.term, fit.gm_tau_s) {
                 label.push_str(&format!(", T = {tau:.3e} s"));
             }
+            if let (Kind::Band, Some([lo, hi])) = (t.term, fit.band_hz) {
+                label.push_str(&format!(", {lo:.3}-{hi:.3} Hz"));
+            }
             let pts: Vec<(f64, f64)> = taus
                 .iter()
                 .filter_map(|&x| clip(fit.term_avar(t.term, x).sqrt()).map(|y| (x, y)))
@@ -108,12 +113,27 @@ pub fn svg(points: &[AdevPoint], fit: &Fit, title: &str) -> Result<String> {
             .draw_series(
                 points
                     .iter()
-                    .filter(|p| p.adev_dps > 0.0)
+                    .filter(|p| p.adev_dps > 0.0 && super::supported(p))
                     .map(|p| Circle::new((p.tau_s, p.adev_dps), 3, BLUE.filled())),
             )
             .map_err(|e| err(e.to_string()))?
             .label("overlapping ADEV, 68 % bounds")
             .legend(|(x, y)| Circle::new((x + 10, y), 3, BLUE.filled()));
+        if points.iter().any(|p| !super::supported(p)) {
+            chart
+                .draw_series(
+                    points
+                        .iter()
+                        .filter(|p| p.adev_dps > 0.0 && !super::supported(p))
+                        .map(|p| Circle::new((p.tau_s, p.adev_dps), 3, BLUE)),
+                )
+                .map_err(|e| err(e.to_string()))?
+                .label(format!(
+                    "fewer than {} clusters: not fitted",
+                    super::MIN_CLUSTERS
+                ))
+                .legend(|(x, y)| Circle::new((x + 10, y), 3, BLUE));
+        }
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::UpperRight)

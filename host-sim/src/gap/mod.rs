@@ -106,13 +106,25 @@ pub const NOT_STATIC_DPS: f64 = 1.0;
 /// `None` for a static record (or a residual against its reference); otherwise what shows it
 /// is not: the first 1-s mean beyond [`NOT_STATIC_DPS`] from the median, and when.
 pub fn not_static(rec: &Rec) -> Option<String> {
-    let per = ((1.0 / rec.dt_s).round() as usize).max(1);
+    not_static_series(&rec.t_s, &rec.rate_dps, rec.ref_dps.as_deref(), rec.dt_s)
+}
+
+/// [`not_static`] on a rate series (`rate_dps` minus `ref_dps` when given) sampled every
+/// `dt_s` with time stamps `t_s` (the time of the first moving second is `t_s` there):
+/// `gap` and `allan` refuse a record with the same test.
+pub fn not_static_series(
+    t_s: &[f64],
+    rate_dps: &[f64],
+    ref_dps: Option<&[f64]>,
+    dt_s: f64,
+) -> Option<String> {
+    let per = ((1.0 / dt_s).round() as usize).max(1);
     // Residual against the reference when there is one (no copy of the record).
-    let reference = |i: usize| rec.ref_dps.as_ref().map_or(0.0, |r| r[i]);
-    let means: Vec<f64> = (0..rec.rate_dps.len() / per)
+    let reference = |i: usize| ref_dps.map_or(0.0, |r| r[i]);
+    let means: Vec<f64> = (0..rate_dps.len() / per)
         .map(|k| {
             (k * per..(k + 1) * per)
-                .map(|i| rec.rate_dps[i] - reference(i))
+                .map(|i| rate_dps[i] - reference(i))
                 .sum::<f64>()
                 / per as f64
         })
@@ -131,7 +143,7 @@ pub fn not_static(rec: &Rec) -> Option<String> {
         .find(|(_, d)| d.abs() > NOT_STATIC_DPS)?;
     Some(format!(
         "not a static record: its 1-s mean from t = {:.1} s is {:.3} deg/s from the median {:.4} deg/s (over {NOT_STATIC_DPS} deg/s)",
-        rec.t_s[k * per],
+        t_s[k * per],
         far,
         median
     ))
