@@ -63,7 +63,7 @@ fn noise_warning(dir: &Path, rec: &Path, extra: &[&str]) -> String {
 }
 
 /// Noise 40x the built-in sensor's (another sensor, picked by the record's rate) names
-/// `--sensor` (and `--rate-scale` for a column in another unit); a deg/s column given
+/// `--gyro` (and `--rate-scale` for a column in another unit); a deg/s column given
 /// `--rate-scale 57.29578` names the fix: drop it.
 #[test]
 fn replay_unit_hints_name_the_flag_that_fixes_them() {
@@ -77,7 +77,7 @@ fn replay_unit_hints_name_the_flag_that_fixes_them() {
         w.contains("another sensor than the built-in one used"),
         "{w}"
     );
-    assert!(w.contains("--sensor FILE|NAME"), "{w}");
+    assert!(w.contains("--gyro NAME|FILE"), "{w}");
     assert!(w.contains("--rate-scale K"), "{w}");
     // Scaled as rad/s though in deg/s: 57x the image's.
     let w = noise_warning(d, &rec, &["--rate-scale", "57.29578"]);
@@ -86,7 +86,7 @@ fn replay_unit_hints_name_the_flag_that_fixes_them() {
         w.contains("then drop --rate-scale 57.29578 (or --rate-scale 1)"),
         "{w}"
     );
-    assert!(w.contains("--sensor FILE|NAME"), "{w}");
+    assert!(w.contains("--gyro NAME|FILE"), "{w}");
 }
 
 /// A `.csv.gz` cut short: the error names the line reached (the first line not read whole)

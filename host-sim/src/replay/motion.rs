@@ -542,9 +542,9 @@ pub fn noise_hint(k: f64, rate_scale: f64, builtin: bool) -> String {
     let near = |x: f64| (x - 1.0).abs() < 0.5;
     let scaled = (rate_scale / DPS_PER_RADPS - 1.0).abs() < 1e-3;
     let sensor = if builtin {
-        "another sensor than the built-in one used: give the record's with --sensor FILE|NAME (its sensor file, or a built-in: ecore2000, kvh1750), or --identifier F.fogi fitted on this unit"
+        "another sensor than the built-in one used: give the record's with --gyro NAME|FILE (its gyro file, or a built-in: ecore2000, kvh1750), or --identifier F.fogi fitted on this unit"
     } else {
-        "another sensor than the identifier's: give an --identifier fitted on this unit (or, without one, --sensor FILE|NAME)"
+        "another sensor than the identifier's: give an --identifier fitted on this unit (or, without one, --gyro NAME|FILE)"
     };
     if near(k * DPS_PER_RADPS) && !scaled {
         format!("a rate in rad/s read as deg/s? then --rate-scale 57.29578; or {sensor}")
