@@ -8,4 +8,4 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-cargo run --release -p host-sim -- demo --out "${1:-out/demo}"
+cargo run --release -p host-sim -- demo --report "${1:-out/demo}"

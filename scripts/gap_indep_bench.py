@@ -5,7 +5,7 @@ Requires: python3 and numpy (`pip install numpy`); a built host-sim (`--bin`, de
 target/release/host-sim).
 
 For every record in DIR/manifest.jsonl (optionally only --classes), runs
-  host-sim gap --real DIR/NAME.csv --json OUT/NAME.json --no-task [--gyro DIR/NAME.toml]
+  host-sim gap --input DIR/NAME.csv --json OUT/NAME.json --no-task [--gyro DIR/NAME.toml]
 (`--gyro` in --mode sim), then prints and writes (OUT/summary.json, OUT/summary.md):
 - the confusion table (truth x named), right-effect rate over the effect records, the rate
   at which `none` records are wrongly flagged, the median held-out shrink of the true
@@ -37,7 +37,7 @@ def run_one(binary, d, out, name, mode, extra):
     if os.path.exists(js):
         return name, 0.0, None
     # The first decision alone (what this benchmark scores; gap's default runs rounds).
-    cmd = [binary, "gap", "--real", os.path.join(d, name + ".csv"), "--json", js, "--no-task", "--rounds", "1"]
+    cmd = [binary, "gap", "--input", os.path.join(d, name + ".csv"), "--json", js, "--no-task", "--rounds", "1"]
     if mode == "sim":
         cmd += ["--gyro", os.path.join(d, name + ".toml")]
     cmd += extra

@@ -175,7 +175,7 @@ def run_gap(binary, csv, js, log, rounds):
     t0 = time.time()
     with open(log, "w") as lf:
         p = subprocess.run(
-            [binary, "gap", "--real", csv, "--json", js, "--rounds", str(rounds)],
+            [binary, "gap", "--input", csv, "--json", js, "--rounds", str(rounds)],
             stdout=lf,
             stderr=subprocess.STDOUT,
         )

@@ -14,7 +14,7 @@ mkdir -p "$out"
 run() {
   local name=$1; shift
   printf '%-34s ' "$name"
-  ./target/release/host-sim reproduce --records "$records" --train "$train" "$@" --json "$out/repro-$name.json" 2>&1 | tail -1
+  ./target/release/host-sim reproduce --records "$records" --train-records "$train" "$@" --json "$out/repro-$name.json" 2>&1 | tail -1
 }
 run paper-exact                 --preset paper
 run paper-guarded-sequential    --preset paper --trainer drls-sequential --guard true

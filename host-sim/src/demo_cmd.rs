@@ -1,4 +1,4 @@
-//! `host-sim demo --out DIR [--quick]`: the project's main job with nothing to configure,
+//! `host-sim demo --report DIR [--quick]`: the project's main job with nothing to configure,
 //! run by [`crate::demo`] (fit the gyro model on simulated static records, replay a
 //! simulated vehicle record, report the identifier beside the causal baselines).
 
@@ -9,10 +9,10 @@ use std::path::PathBuf;
 /// Arguments of `host-sim demo`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Folder to write (created if missing; its demo files are replaced).
-    #[arg(long)]
-    pub out: PathBuf,
-    /// Records of 600 s instead of 1800 s, 2 validation and 2 test vehicles instead of 32
+    /// Report folder to write (created if missing; its demo files are replaced).
+    #[arg(long, alias = "out", value_name = "DIR")]
+    pub report: PathBuf,
+    /// Records of 600 s instead of 1800 s, 2 tune and 2 test vehicles instead of 32
     /// each (the CI test's variant).
     #[arg(long)]
     pub quick: bool,
@@ -25,7 +25,7 @@ pub fn run(args: &Args) -> Result<()> {
     } else {
         DemoConfig::full()
     };
-    let index = demo::run(&args.out, &cfg)?;
+    let index = demo::run(&args.report, &cfg)?;
     println!("{}", index.display());
     Ok(())
 }

@@ -252,7 +252,9 @@ fn setup_reason(e: &pipeline::SetupError) -> String {
             "sample rate {image_hz} Hz outside the {MIN_RATE_HZ} to {MAX_RATE_HZ} Hz it runs"
         ),
         pipeline::SetupError::Image(e) => e.to_string(),
-        pipeline::SetupError::Estimator(e) => format!("estimator: {e:?}"),
+        pipeline::SetupError::Estimator(e) => {
+            format!("estimator: {}", crate::motion::filter_error_words(e))
+        }
         pipeline::SetupError::Denoiser(e) => format!("denoiser: {e}"),
     }
 }

@@ -10,17 +10,17 @@ use std::path::PathBuf;
 /// `host-sim gap`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Real record: CSV or .csv.gz with `t_s`, the rate column, optional `temp_c`.
-    #[arg(long)]
-    pub real: PathBuf,
+    /// The real record: CSV or .csv.gz with `t_s`, the rate column, optional `temp_c`.
+    #[arg(long, alias = "real")]
+    pub input: PathBuf,
     /// The gyro: a built-in's name or a gyro file (host_sim::gyro), simulated as the
     /// record's model; without it the baseline is ARW + bias instability + rate random walk
     /// fitted to the record's fit blocks.
     #[arg(long, alias = "sim", value_name = "NAME|FILE")]
     pub gyro: Option<String>,
-    /// JSON output.
+    /// JSON report to write (default: on stdout).
     #[arg(long)]
-    pub json: PathBuf,
+    pub json: Option<PathBuf>,
     /// Report folder (index.html, adev.svg, psd.svg).
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -39,9 +39,9 @@ pub struct Args {
     /// `scale_factor` here makes a missing column an error instead of a skip.
     #[arg(long)]
     pub effects: Option<String>,
-    /// Simulations per model.
-    #[arg(long, default_value_t = 12)]
-    pub seeds: usize,
+    /// Simulations of each model (a count: the seeds are drawn from it).
+    #[arg(long, alias = "seeds", default_value_t = 12)]
+    pub simulations: usize,
     /// Skip the identification-task comparison.
     #[arg(long)]
     pub no_task: bool,
@@ -56,7 +56,7 @@ pub struct Args {
 /// Runs `gap`.
 pub fn run(a: &Args) -> Result<()> {
     let gyro = a.gyro.as_deref().map(Gyro::from_arg).transpose()?;
-    let inputs: Vec<&std::path::Path> = std::iter::once(a.real.as_path())
+    let inputs: Vec<&std::path::Path> = std::iter::once(a.input.as_path())
         .chain(gyro.as_ref().and_then(|g| g.path.as_deref()))
         .collect();
     let report_files: Vec<std::path::PathBuf> = a
@@ -64,13 +64,16 @@ pub fn run(a: &Args) -> Result<()> {
         .iter()
         .flat_map(|d| gap::report::FILES.iter().map(move |f| d.join(f)))
         .collect();
-    let outputs: Vec<&std::path::Path> = std::iter::once(a.json.as_path())
+    let outputs: Vec<&std::path::Path> = a
+        .json
+        .as_deref()
+        .into_iter()
         .chain(report_files.iter().map(|p| p.as_path()))
         .chain(a.save_gyro.as_deref())
         .collect();
     crate::record::refuse_overwrite_all(&inputs, &outputs)?;
-    if let Some(g) = &a.save_gyro {
-        if g == &a.json {
+    if let (Some(g), Some(j)) = (&a.save_gyro, &a.json) {
+        if g == j {
             anyhow::bail!("{}: --save-gyro and --json name the same file", g.display());
         }
     }
@@ -79,7 +82,7 @@ pub fn run(a: &Args) -> Result<()> {
         reference_column: a.reference_column.clone(),
         ..a.record.options()
     };
-    let (rec, time) = gap::read_rec(&a.real, &opts)?;
+    let (rec, time) = gap::read_rec(&a.input, &opts)?;
     if let Some(why) = gap::not_static(&rec) {
         anyhow::bail!(
             "{}: {why}; gap diagnoses static records, or the residual against a reference rate (--reference-column)",
@@ -87,7 +90,7 @@ pub fn run(a: &Args) -> Result<()> {
         );
     }
     let mut o = gap::Options {
-        seeds: a.seeds,
+        seeds: a.simulations,
         task: !a.no_task,
         ..Default::default()
     };
@@ -120,11 +123,7 @@ pub fn run(a: &Args) -> Result<()> {
         );
     }
     let text = serde_json::to_string_pretty(&value).context("JSON encoding")?;
-    crate::record::write_atomic(&a.json, |w| {
-        use std::io::Write;
-        w.write_all(text.as_bytes())
-            .with_context(|| format!("{}: write failed", a.json.display()))
-    })?;
+    write_json(a.json.as_deref(), &text)?;
     for r in &out.rounds {
         eprintln!(
             "{}: round {}: effect {} (held-out gap {:.3} -> {:.3}, shrink {:.3}); {}{}",
@@ -143,12 +142,12 @@ pub fn run(a: &Args) -> Result<()> {
         );
     }
     if let Some(p) = &a.save_gyro {
-        crate::gyro::fitted::save_gap(p, &a.real, gyro.as_ref(), &out, rec.dt_s)?;
+        crate::gyro::fitted::save_gap(p, &a.input, gyro.as_ref(), &out, rec.dt_s)?;
     }
     eprintln!("{}", headline(&rec.name, &out));
     if let Some(dir) = &a.report {
         let page = gap::report::write(dir, d)?;
-        println!("{}", page.display());
+        eprintln!("{}: report -> {}", rec.name, page.display());
     }
     Ok(())
 }
@@ -203,12 +202,12 @@ fn headline(record: &str, out: &gap::rounds::Outcome) -> String {
 /// `host-sim gap-bench`.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// Records per class (each effect, and none).
-    #[arg(long, default_value_t = 8)]
-    pub per_effect: usize,
-    /// Simulations per model in each diagnosis.
-    #[arg(long, default_value_t = 12)]
-    pub seeds: usize,
+    /// Records per class (each effect, and none): a count.
+    #[arg(long, alias = "per-effect", default_value_t = 8)]
+    pub records_per_class: usize,
+    /// Simulations of each model in each diagnosis (a count).
+    #[arg(long, alias = "seeds", default_value_t = 12)]
+    pub simulations: usize,
     /// Record length, s.
     #[arg(long, default_value_t = 1800.0)]
     pub duration_s: f64,
@@ -226,18 +225,18 @@ pub struct BenchArgs {
     pub classes: Option<String>,
     /// Also write every record (CSV: t_s, rate_dps, temp_c, true_rate_dps) and the baseline
     /// model (`baseline.toml`, a gyro file) into this folder, to rerun `gap --gyro` on one.
+    #[arg(long, alias = "write-records", value_name = "DIR")]
+    pub save_records: Option<PathBuf>,
+    /// JSON report to write (the table is on stdout either way).
     #[arg(long)]
-    pub write_records: Option<PathBuf>,
-    /// JSON output.
-    #[arg(long)]
-    pub json: PathBuf,
+    pub json: Option<PathBuf>,
 }
 
 /// Runs `gap-bench`.
 pub fn run_bench(a: &BenchArgs) -> Result<()> {
     let mut o = bench::BenchOptions {
-        per_effect: a.per_effect,
-        seeds: a.seeds,
+        per_effect: a.records_per_class,
+        seeds: a.simulations,
         duration_s: a.duration_s,
         rate_hz: a.rate_hz,
         first_seed: a.first_seed,
@@ -255,7 +254,7 @@ pub fn run_bench(a: &BenchArgs) -> Result<()> {
             }
         }
     }
-    if let Some(dir) = &a.write_records {
+    if let Some(dir) = &a.save_records {
         write_records(dir, &o)?;
     }
     let r = bench::run(&o, &|r| {
@@ -268,14 +267,27 @@ pub fn run_bench(a: &BenchArgs) -> Result<()> {
                 .map_or("-".to_string(), |s| format!("{s:.2}"))
         );
     })?;
-    let text = serde_json::to_string_pretty(&r).context("JSON encoding")?;
-    crate::record::write_atomic(&a.json, |w| {
-        use std::io::Write;
-        w.write_all(text.as_bytes())
-            .with_context(|| format!("{}: write failed", a.json.display()))
-    })?;
+    if let Some(j) = &a.json {
+        let text = serde_json::to_string_pretty(&r).context("JSON encoding")?;
+        write_json(Some(j), &text)?;
+    }
     print!("{}", bench::table(&r));
     Ok(())
+}
+
+/// Writes `text` to `path` (atomically), or on stdout without a path.
+fn write_json(path: Option<&std::path::Path>, text: &str) -> Result<()> {
+    use std::io::Write;
+    match path {
+        Some(p) => crate::record::write_atomic(p, |w| {
+            w.write_all(text.as_bytes())
+                .with_context(|| format!("{}: write failed", p.display()))
+        }),
+        None => {
+            let mut out = std::io::stdout().lock();
+            writeln!(out, "{text}").context("stdout: write failed")
+        }
+    }
 }
 
 /// Writes the benchmark's records and baseline model into `dir`.

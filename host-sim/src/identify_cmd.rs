@@ -15,9 +15,11 @@ use std::path::PathBuf;
 /// The identifier's options, shared by `identify` and `reproduce`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct IdentifierArgs {
-    /// Network layout and inputs (`paper` = the paper's exact configuration).
-    #[arg(long, value_enum, default_value_t = Preset::LevelTrend)]
-    pub preset: Preset,
+    /// Estimator: `motion` (the drift filter the firmware runs; `identify`'s default),
+    /// or a network layout and inputs (`paper` = the paper's exact configuration, the
+    /// reference; `level-trend` is `reproduce`'s default).
+    #[arg(long, value_enum)]
+    pub preset: Option<Preset>,
     /// Trainer (default: the preset's: drls-parallel for paper, drls-sequential otherwise).
     #[arg(long, value_enum)]
     pub trainer: Option<TrainerKind>,
@@ -89,8 +91,9 @@ pub struct Args {
     #[arg(long, alias = "input", num_args = 1.., required = true)]
     pub train: Vec<PathBuf>,
     /// Validation records: CSV files or folders of them (with `--preset motion`: optional,
-    /// records with truth on which the trained identifier is scored beside the baselines).
-    #[arg(long, num_args = 1.., required_unless_present = "save_identifier")]
+    /// records with truth on which the trained identifier is scored beside the baselines;
+    /// required by the other presets).
+    #[arg(long, num_args = 1..)]
     pub validate: Vec<PathBuf>,
     /// The training (and, except with `--preset motion`, validation) records' rate column
     /// and scale, the sample rate of a record without `t_s`.
@@ -99,11 +102,13 @@ pub struct Args {
     /// Identifier options.
     #[command(flatten)]
     pub id: IdentifierArgs,
-    /// JSON report to write (with `--preset motion`: the per-record training figures).
-    #[arg(long, required_unless_present = "save_identifier")]
+    /// JSON report to write (with `--preset motion`: the per-record training figures;
+    /// the other presets: on stdout without it).
+    #[arg(long)]
     pub json: Option<PathBuf>,
-    /// `--preset motion`: the identifier image to write (fog_core::image). An image that
-    /// does not fit the firmware (host_sim::firmware_fit) is not written without `--force`.
+    /// `--preset motion`: the identifier image to write (fog_core::image); without it the
+    /// model is fitted, described and scored, and no image written. An image that does not
+    /// fit the firmware (host_sim::firmware_fit) is not written without `--force`.
     #[arg(long)]
     pub save_identifier: Option<PathBuf>,
     /// `--preset motion`: write the image (and the JSON) even when it does not fit the
@@ -137,13 +142,13 @@ pub struct Args {
     pub window_s: Option<f32>,
     /// `--preset motion --validate`: the baselines' gated Kalman q, (deg/s)^2 per sample
     /// (default: tuned on the validation records).
-    #[arg(long)]
-    pub baseline_q: Option<f64>,
+    #[arg(long, alias = "baseline-q", value_name = "Q_DPS2")]
+    pub baseline_q_dps2: Option<f64>,
 }
 
 /// Options from the arguments.
 pub fn options(a: &IdentifierArgs) -> Options {
-    let mut o = match a.preset {
+    let mut o = match a.preset.unwrap_or(Preset::LevelTrend) {
         Preset::Paper => Options::paper(),
         Preset::LevelTrend => Options::level_trend(),
         Preset::TimeTemp => Options::time_temp(),
@@ -191,18 +196,22 @@ pub fn options(a: &IdentifierArgs) -> Options {
     o
 }
 
-/// Writes a report as pretty JSON, atomically, and prints its headline figures.
+/// Writes a report as pretty JSON, atomically (on stdout without a path), and prints its
+/// headline figures.
 pub fn write_report<T: serde::Serialize>(
-    json: &std::path::Path,
+    json: Option<&std::path::Path>,
     report: &T,
     headline: &identify::Report,
 ) -> Result<()> {
+    use std::io::Write;
     let text = serde_json::to_string_pretty(report).context("report to JSON")?;
-    record::write_atomic(json, |w| {
-        use std::io::Write;
-        w.write_all(text.as_bytes())?;
-        Ok(())
-    })?;
+    match json {
+        Some(json) => record::write_atomic(json, |w| {
+            w.write_all(text.as_bytes())?;
+            Ok(())
+        })?,
+        None => writeln!(std::io::stdout().lock(), "{text}").context("stdout: write failed")?,
+    }
     let f = |v: Option<f64>| v.map_or("null".to_string(), |x| format!("{x:.4}"));
     let best_baseline = headline
         .baselines
@@ -217,7 +226,7 @@ pub fn write_report<T: serde::Serialize>(
         f(headline.rms_err_truth_dph),
         headline.train_records,
         headline.validate_records,
-        json.display()
+        json.map_or("stdout".to_string(), |j| j.display().to_string())
     );
     Ok(())
 }
@@ -257,25 +266,31 @@ fn scan_holes(files: &[PathBuf], opts: &ReadOptions) -> Result<Vec<HolesSummary>
 
 /// Runs the command.
 pub fn run(a: &Args) -> Result<()> {
-    if a.id.preset == Preset::Motion {
+    let preset = a.id.preset.unwrap_or(Preset::Motion);
+    if preset == Preset::Motion {
         return run_motion(a);
     }
     if a.save_identifier.is_some() {
-        anyhow::bail!("--save-identifier needs --preset motion");
+        anyhow::bail!("--save-identifier needs --preset motion (the default)");
     }
     if a.save_gyro.is_some() {
-        anyhow::bail!("--save-gyro needs --preset motion");
+        anyhow::bail!("--save-gyro needs --preset motion (the default)");
     }
     if !a.tune_on.is_empty() {
-        anyhow::bail!("--tune-on needs --preset motion");
+        anyhow::bail!("--tune-on needs --preset motion (the default)");
     }
-    let (Some(json), false) = (&a.json, a.validate.is_empty()) else {
-        anyhow::bail!("--validate and --json are required (except with --preset motion)");
-    };
+    if a.validate.is_empty() {
+        anyhow::bail!(
+            "--validate is required (the records it is scored on) by every preset but motion"
+        );
+    }
+    let json = a.json.as_deref();
     let train = CsvFiles::from_args(&a.train, &a.record.options())?;
     let validate = CsvFiles::from_args(&a.validate, &a.record.options())?;
-    for p in train.0.iter().chain(&validate.0) {
-        record::refuse_overwrite(p, json)?;
+    if let Some(json) = json {
+        for p in train.0.iter().chain(&validate.0) {
+            record::refuse_overwrite(p, json)?;
+        }
     }
     let mut holes = scan_holes(&train.0, &train.1)?;
     holes.extend(scan_holes(&validate.0, &validate.1)?);
@@ -308,9 +323,7 @@ fn read_vehicles(image: &Image, paths: &[PathBuf]) -> Result<Vec<NavRecord>> {
 
 /// `--preset motion`: trains on the static records and writes the identifier image.
 fn run_motion(a: &Args) -> Result<()> {
-    let Some(out) = &a.save_identifier else {
-        anyhow::bail!("--preset motion needs --save-identifier FILE");
-    };
+    let out = a.save_identifier.as_deref();
     let gyro = Gyro::from_arg(&a.gyro)?;
     let sensor = gyro.sensor()?;
     if gyro.identified.is_some() {
@@ -338,7 +351,7 @@ fn run_motion(a: &Args) -> Result<()> {
         .map(PathBuf::as_path)
         .collect();
     inputs.extend(gyro.path.as_deref());
-    let mut outputs = vec![out.as_path()];
+    let mut outputs: Vec<&std::path::Path> = out.into_iter().collect();
     outputs.extend(a.json.as_deref());
     outputs.extend(a.save_gyro.as_deref());
     record::refuse_overwrite_all(&inputs, &outputs)?;
@@ -392,7 +405,9 @@ fn run_motion(a: &Args) -> Result<()> {
     let validation = if a.validate.is_empty() {
         None
     } else {
-        let q = a.baseline_q.map(|q| (q, "--baseline-q".to_string()));
+        let q = a
+            .baseline_q_dps2
+            .map(|q| (q, "--baseline-q-dps2".to_string()));
         let v = crate::replay::motion::score_records(&image, &a.validate, q)?;
         crate::replay::motion::print_validation(&v)?;
         Some(v)
@@ -401,8 +416,10 @@ fn run_motion(a: &Args) -> Result<()> {
     // written, nor the report, unless --force.
     let firmware = crate::firmware_fit::check_image(&image)?;
     eprint!("{}", firmware.text());
-    firmware.refuse(out, a.force)?;
-    let forced = a.force && !firmware.fits;
+    if let Some(out) = out {
+        firmware.refuse(out, a.force)?;
+    }
+    let forced = out.is_some() && a.force && !firmware.fits;
     if let Some(j) = &a.json {
         let text = serde_json::to_string_pretty(&serde_json::json!({
             "preset": "motion",
@@ -427,7 +444,9 @@ fn run_motion(a: &Args) -> Result<()> {
             Ok(())
         })?;
     }
-    motion::write_image(out, &image, a.force)?;
+    if let Some(out) = out {
+        motion::write_image(out, &image, a.force)?;
+    }
     if let Some(p) = &a.save_gyro {
         save_gyro(p, &gyro, &image, &train.0)?;
     }
@@ -435,13 +454,16 @@ fn run_motion(a: &Args) -> Result<()> {
         "drift filter: model fitted on {} calibration runs{} -> {}",
         train.0.len(),
         if tuning.is_some() {
-            ", tuned on the vehicles"
+            ", tuned on the tune vehicles"
         } else {
             ""
         },
-        out.display()
+        out.map_or(
+            "no image written (--save-identifier FILE writes it)".to_string(),
+            |o| o.display().to_string()
+        )
     );
-    if forced {
+    if let (true, Some(out)) = (forced, out) {
         eprintln!(
             "{}: WARNING: written because of --force, although the image does not fit the firmware: {}",
             out.display(),

@@ -15,8 +15,8 @@ pub struct RecordArgs {
     #[arg(long, default_value = "rate_dps")]
     pub rate_column: String,
     /// Factor from the rate column's unit to deg/s (e.g. 57.29578 for rad/s, 1000 for angle
-    /// increments in deg per 1-ms sample).
-    #[arg(long, default_value_t = 1.0)]
+    /// increments in deg per 1-ms sample, -1 for an axis mounted the other way round).
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub rate_scale: f64,
     /// Sample rate, Hz, of a CSV without a `t_s` column (`t_s = row index / rate_hz`;
     /// without it such a CSV is refused).

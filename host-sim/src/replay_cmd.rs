@@ -59,8 +59,8 @@ pub struct Args {
     pub record: RecordArgs,
     /// Motion preset: the baselines' gated Kalman q, (deg/s)^2 per sample (default: tuned
     /// on `--validate`, else the identifier's level noise).
-    #[arg(long)]
-    pub baseline_q: Option<f64>,
+    #[arg(long, alias = "baseline-q", value_name = "Q_DPS2")]
+    pub baseline_q_dps2: Option<f64>,
     /// Motion preset: records with truth (CSV files or folders) on which the baselines' q is
     /// tuned ([`crate::nav::tune_gated_q`]).
     #[arg(long)]
@@ -104,11 +104,11 @@ pub fn run(args: &Args) -> Result<()> {
         || args.still_column.is_some()
         || args.record.rate_column != "rate_dps"
         || args.record.rate_scale != 1.0
-        || args.baseline_q.is_some()
+        || args.baseline_q_dps2.is_some()
         || !args.validate.is_empty()
         || args.json.is_some()
     {
-        bail!("--identifier, --still-column, --rate-column, --rate-scale, --baseline-q, --validate and --json need --preset motion");
+        bail!("--identifier, --still-column, --rate-column, --rate-scale, --baseline-q-dps2, --validate and --json need --preset motion");
     }
     let s = sensor.unwrap_or(fog_core::still::SensorConfig::ECORE_2000);
     let opts = Options {
@@ -170,7 +170,9 @@ fn run_motion(
             still_column: args.still_column.clone(),
             ..args.record.options()
         },
-        baseline_q: args.baseline_q.map(|q| (q, "--baseline-q".to_string())),
+        baseline_q: args
+            .baseline_q_dps2
+            .map(|q| (q, "--baseline-q-dps2".to_string())),
         validate: args.validate.clone(),
         figures: args.report.is_some(),
     };

@@ -18,17 +18,17 @@ pub struct Args {
     #[arg(long, default_value_t = 265)]
     pub records: usize,
     /// Of which for training (the paper: 180); the rest validate.
-    #[arg(long, default_value_t = 180)]
-    pub train: usize,
+    #[arg(long, alias = "train", default_value_t = 180)]
+    pub train_records: usize,
     /// Duration of each record, s (the paper: 1800).
     #[arg(long, default_value_t = 1800.0)]
     pub duration_s: f64,
     /// Identifier options.
     #[command(flatten)]
     pub id: IdentifierArgs,
-    /// JSON report to write.
+    /// JSON report to write (default: on stdout).
     #[arg(long)]
-    pub json: PathBuf,
+    pub json: Option<PathBuf>,
 }
 
 /// The report: the identify report plus the experiment's shape.
@@ -43,21 +43,26 @@ struct ReproReport<'a> {
 
 /// Runs the command.
 pub fn run(a: &Args) -> Result<()> {
-    if a.train == 0 || a.train >= a.records {
+    if a.train_records == 0 || a.train_records >= a.records {
         bail!(
-            "--train must be between 1 and --records - 1 ({} given for {} records)",
-            a.train,
+            "--train-records must be between 1 and --records - 1 ({} given for {} records)",
+            a.train_records,
             a.records
         );
     }
     if !(a.duration_s >= 60.0 && a.duration_s.is_finite()) {
         bail!("--duration-s must be at least 60");
     }
-    let train = SimRecords::new(a.group, 0, a.train, a.duration_s)?;
-    let validate = SimRecords::new(a.group, a.train, a.records - a.train, a.duration_s)?;
+    let train = SimRecords::new(a.group, 0, a.train_records, a.duration_s)?;
+    let validate = SimRecords::new(
+        a.group,
+        a.train_records,
+        a.records - a.train_records,
+        a.duration_s,
+    )?;
     let report = identify::run(&options(&a.id), &train, &validate)?;
     write_report(
-        &a.json,
+        a.json.as_deref(),
         &ReproReport {
             group: a.group,
             records: a.records,

@@ -34,7 +34,7 @@ pub struct Args {
     #[arg(long)]
     pub duration_s: f64,
     /// Seed: the same model, seed and rate give the same output, byte for byte.
-    #[arg(long)]
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// File to write.
     #[arg(long)]
@@ -56,7 +56,12 @@ pub struct Args {
     pub unit_spread: Option<f64>,
     /// Start temperature of each record (power-on), deg C, drawn uniformly in `LO,HI` from
     /// the record seed (overrides `[family] initial_c_range`), e.g. `10,35`.
-    #[arg(long, value_delimiter = ',', value_name = "LO,HI")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "LO,HI",
+        allow_hyphen_values = true
+    )]
     pub initial_c_range: Option<Vec<f64>>,
 }
 

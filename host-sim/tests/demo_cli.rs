@@ -29,7 +29,7 @@ fn demo() -> &'static (PathBuf, String, String) {
             .keep();
         let a = Command::cargo_bin("host-sim")
             .expect("binary built")
-            .args(["demo", "--quick", "--out"])
+            .args(["demo", "--quick", "--report"])
             .arg(&out)
             .assert()
             .success();
@@ -72,7 +72,8 @@ fn demo_writes_the_report() {
         serde_json::from_str(&fs::read_to_string(dir.join("summary.json")).expect("summary"))
             .expect("json");
     assert_eq!(s["rows"], 60_000);
-    // The model's two scales, tuned on the validation vehicles.
+    // The model's two scales, tuned on the tune vehicles (never "validation": they are
+    // not the records the result is scored on).
     let tuning = &s["level_tuning"];
     assert_eq!(tuning["grid"].as_array().expect("grid").len(), 16);
     finite(&tuning["picked"], "heading_rms_deg");
@@ -80,9 +81,10 @@ fn demo_writes_the_report() {
         stderr.contains("demo: tuned on 2 vehicle records:"),
         "{stderr}"
     );
-    assert!(fs::read_to_string(dir.join("index.html"))
-        .expect("index.html")
-        .contains("tuned on validation vehicles"));
+    let html = fs::read_to_string(dir.join("index.html")).expect("index.html");
+    assert!(html.contains("tuned on the tune vehicles"));
+    assert!(!html.contains("validation vehicle"), "index.html");
+    assert!(!stderr.contains("validation vehicle"), "{stderr}");
     assert_eq!(s["trained_runs"], 12, "12 calibration runs");
     // The test set: the identifier and the five baselines over 2 vehicles (--quick).
     let t = &s["test_set"];

@@ -63,7 +63,7 @@ fn gap_json(real: &std::path::Path, json: &std::path::Path, args: &[&str]) -> se
         .expect("binary")
         .arg("gap")
         .args(args)
-        .arg("--real")
+        .arg("--input")
         .arg(real)
         .arg("--json")
         .arg(json)
@@ -76,7 +76,7 @@ fn gap_refused(p: &std::path::Path, dir: &std::path::Path) -> String {
     let json = dir.join("o.json");
     let out = Command::cargo_bin("host-sim")
         .expect("binary")
-        .args(["gap", "--real"])
+        .args(["gap", "--input"])
         .arg(p)
         .args(["--json"])
         .arg(&json)
@@ -156,12 +156,12 @@ fn cli_writes_json_with_gaps_reported() {
         .expect("binary")
         .args([
             "gap",
-            "--seeds",
+            "--simulations",
             "4",
             "--no-task",
             "--rounds",
             "1",
-            "--real",
+            "--input",
         ])
         .arg(&p)
         .arg("--json")
@@ -223,7 +223,7 @@ fn rounds_name_two_effects_in_turn() {
     let v = gap_json(
         &p,
         &dir.path().join("rounds.json"),
-        &["--seeds", "6", "--no-task", "--rounds", "3"],
+        &["--simulations", "6", "--no-task", "--rounds", "3"],
     );
     let rounds = v["rounds"].as_array().expect("rounds");
     let named: Vec<&str> = rounds.iter().filter_map(|r| r["effect"].as_str()).collect();
@@ -271,7 +271,7 @@ fn real_mpu6050_runs() {
         &p,
         &dir.path().join("mpu.json"),
         &[
-            "--seeds",
+            "--simulations",
             "4",
             "--no-task",
             "--rounds",

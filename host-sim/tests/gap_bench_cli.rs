@@ -13,7 +13,7 @@ fn printed_accuracy_is_the_matrix_in_the_json() {
         .expect("binary built")
         .args([
             "gap-bench",
-            "--per-effect",
+            "--records-per-class",
             "1",
             "--classes",
             "none,spikes",
@@ -21,7 +21,7 @@ fn printed_accuracy_is_the_matrix_in_the_json() {
             "600",
             "--rate-hz",
             "25",
-            "--seeds",
+            "--simulations",
             "6",
             "--jobs",
             "2",

@@ -319,8 +319,15 @@ fn gap_takes_a_builtin_name_and_writes_its_model() {
     // `--sim kvh1750` was "No such file"; the old flag name is kept as an alias.
     for flag in ["--gyro", "--sim"] {
         host_sim()
-            .args(["gap", "--real", &s(&rec), flag, "kvh1750", "--no-task"])
-            .args(["--seeds", "4", "--rounds", "1", "--effects", "white_noise"])
+            .args(["gap", "--input", &s(&rec), flag, "kvh1750", "--no-task"])
+            .args([
+                "--simulations",
+                "4",
+                "--rounds",
+                "1",
+                "--effects",
+                "white_noise",
+            ])
             .arg("--json")
             .arg(&json)
             .arg("--save-gyro")
@@ -341,7 +348,14 @@ fn gap_takes_a_builtin_name_and_writes_its_model() {
     // Without a gyro: the fitted baseline's terms, in datasheet units.
     let fitted = d.join("fitted.toml");
     host_sim()
-        .args(["gap", "--real", &s(&rec), "--no-task", "--seeds", "4"])
+        .args([
+            "gap",
+            "--input",
+            &s(&rec),
+            "--no-task",
+            "--simulations",
+            "4",
+        ])
         .args(["--rounds", "1", "--json"])
         .arg(&json)
         .arg("--save-model")
@@ -519,6 +533,8 @@ fn identify_writes_the_fitted_model_that_replay_and_image_run() {
         .stderr(contains("not simulated"));
 }
 
+/// Neither unit fits the firmware (E-Core decoder, 60 deg/s; kvh1750 also at 1 kHz): the
+/// image is still described on stdout, then `image` exits non-zero with the verdict.
 #[test]
 fn image_of_a_builtin_gyro_and_of_a_user_file() {
     host_sim()
@@ -526,7 +542,8 @@ fn image_of_a_builtin_gyro_and_of_a_user_file() {
         .assert()
         .code(1) // 1 kHz, 490 deg/s: does not fit the firmware (UART, decoder)
         .stdout(contains("sensor: 1000 Hz, full scale 490 deg/s"))
-        .stdout(contains("fitted on 0 calibration runs"));
+        .stdout(contains("fitted on 0 calibration runs"))
+        .stderr(contains("the image does not fit the firmware"));
     let dir = tempfile::tempdir().expect("tmp");
     let p = dir.path().join("mine.toml");
     fs::write(
@@ -538,6 +555,7 @@ fn image_of_a_builtin_gyro_and_of_a_user_file() {
         .args(["image", "--gyro", &s(&p)])
         .assert()
         .code(1) // 100 deg/s: beyond the firmware's decoder
+        .stderr(contains("decoder full scale 60 deg/s < unit's 100 deg/s"))
         .stdout(contains("sensor: 200 Hz, full scale 100 deg/s"))
         .stdout(contains("white 0.0500 deg/sqrt(h)"));
 }

@@ -44,7 +44,7 @@ fn identify_reports_every_figure_and_the_baselines() {
     simulate(&va, 9, 120);
     let out = dir.path().join("id.json");
     host_sim()
-        .arg("identify")
+        .args(["identify", "--preset", "level-trend"])
         .arg("--train")
         .arg(&tr)
         .arg("--validate")
@@ -112,7 +112,7 @@ fn identify_bad_input_names_the_place() {
     fs::write(&bad, text).expect("write");
     let out = dir.path().join("o.json");
     let a = host_sim()
-        .arg("identify")
+        .args(["identify", "--preset", "level-trend"])
         .arg("--train")
         .arg(&bad)
         .arg("--validate")
@@ -128,7 +128,7 @@ fn identify_bad_input_names_the_place() {
     );
     assert!(!out.exists());
     host_sim()
-        .arg("identify")
+        .args(["identify", "--preset", "level-trend"])
         .arg("--train")
         .arg(dir.path().join("missing"))
         .arg("--validate")
@@ -138,7 +138,7 @@ fn identify_bad_input_names_the_place() {
         .assert()
         .failure();
     host_sim()
-        .arg("identify")
+        .args(["identify", "--preset", "level-trend"])
         .arg("--train")
         .arg(&good)
         .arg("--validate")

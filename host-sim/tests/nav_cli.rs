@@ -156,7 +156,7 @@ fn report_has_the_heading_error_figure_and_readable_axes() {
         .arg(&rec)
         .arg("--output")
         .arg(d.join("out.csv"))
-        .args(["--baseline-q", "1e-12", "--report"])
+        .args(["--baseline-q-dps2", "1e-12", "--report"])
         .arg(&rep)
         .assert()
         .success();
@@ -187,7 +187,7 @@ fn report_has_the_heading_error_figure_and_readable_axes() {
     );
     assert_eq!(assert_readable_ticks(&rep), 4);
     let s = json(&rep.join("summary.json"));
-    assert_eq!(s["scores"]["baselines"]["q_source"], "--baseline-q");
+    assert_eq!(s["scores"]["baselines"]["q_source"], "--baseline-q-dps2");
     assert_eq!(s["scores"]["baselines"]["q_dps2"], 1e-12);
 }
 

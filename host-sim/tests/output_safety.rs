@@ -166,6 +166,8 @@ fn identify_refuses_its_records() {
         refuses_every_alias(input, |o| {
             let v = [
                 "identify",
+                "--preset",
+                "level-trend",
                 "--train",
                 &s(&train),
                 "--validate",
@@ -203,7 +205,7 @@ fn gap_refuses_its_inputs() {
     refuses_every_alias(&real, |o| {
         vec![
             "gap".into(),
-            "--real".into(),
+            "--input".into(),
             s(&real),
             "--json".into(),
             s(o),
@@ -212,7 +214,7 @@ fn gap_refuses_its_inputs() {
     refuses_every_alias(&m, |o| {
         let v = [
             "gap",
-            "--real",
+            "--input",
             &s(&real),
             "--gyro",
             &s(&m),
@@ -229,7 +231,7 @@ fn gap_refuses_its_inputs() {
     let a = host_sim()
         .args([
             "gap",
-            "--real",
+            "--input",
             &s(&real),
             "--json",
             &s(&d.path().join("g.json")),
@@ -283,7 +285,8 @@ fn failing_runs_write_nothing() {
     let bad = record(d.path(), "bad.csv", 600, Some(500));
     let json = d.path().join("id.json");
     let a = host_sim()
-        .args(["identify", "--train", &s(&train), "--validate", &s(&bad)])
+        .args(["identify", "--preset", "level-trend", "--train", &s(&train)])
+        .args(["--validate", &s(&bad)])
         .args(["--block", "256", "--json", &s(&json)])
         .assert()
         .failure();

@@ -109,8 +109,18 @@ fn a_missing_rate_column_is_the_same_message_in_every_command() {
     let commands: Vec<Vec<&str>> = vec![
         vec!["allan", "--input", &r, "--json", &json],
         vec!["denoise", "--input", &r, "--output", &out],
-        vec!["gap", "--rounds", "1", "--real", &r, "--json", &json],
-        vec!["identify", "--train", &r, "--validate", &r, "--json", &json],
+        vec!["gap", "--rounds", "1", "--input", &r, "--json", &json],
+        vec![
+            "identify",
+            "--preset",
+            "level-trend",
+            "--train",
+            &r,
+            "--validate",
+            &r,
+            "--json",
+            &json,
+        ],
         vec!["replay", "--input", &r, "--output", &out],
     ];
     for c in &commands {

@@ -83,7 +83,7 @@ pub struct DemoConfig {
 }
 
 impl DemoConfig {
-    /// The demo: 12 training records, 32 validation and 32 test vehicle records, 1800 s
+    /// The demo: 12 training records, 32 tune and 32 test vehicle records, 1800 s
     /// each. Why 32: the mean heading RMS of one tuned model was 0.1963 and 0.1311 deg on
     /// two sets of 8 vehicles of the same family, 0.1534 and 0.1540 on two sets of 32
     /// (docs/motion.md, "How many vehicles a comparison needs").
@@ -96,7 +96,7 @@ impl DemoConfig {
         }
     }
 
-    /// The CI variant (`--quick`): 12 training records, 2 validation and 2 test records,
+    /// The CI variant (`--quick`): 12 training records, 2 tune and 2 test records,
     /// 600 s each.
     pub fn quick() -> Self {
         Self {
@@ -188,11 +188,13 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let image = trained.image;
     let fogi = dir.join("identifier.fogi");
     eprintln!(
-        "demo: fitted the gyro model on {} static {PRESET} records ({} s, unit spread {UNIT_SPREAD}, start {:?} C, self-heating {:?} C) -> {}",
+        "demo: fitted the gyro model on {} static {PRESET} records ({} s, unit spread {UNIT_SPREAD}, start {} to {} deg C, self-heating {} to {} deg C) -> {}",
         cfg.train_records,
         cfg.duration_s,
-        INITIAL_C_RANGE,
-        WARMUP_RISE_C_RANGE,
+        INITIAL_C_RANGE[0],
+        INITIAL_C_RANGE[1],
+        WARMUP_RISE_C_RANGE[0],
+        WARMUP_RISE_C_RANGE[1],
         fogi.display()
     );
     let mut val = Vec::new();
@@ -204,7 +206,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let (lo, hi, per) = BASELINE_Q_GRID;
     let baseline_grid = nav::log_grid(lo, hi, per);
     let tuned =
-        nav::tune_gated_q(&val, r_dps2, &baseline_grid).context("demo: no validation record")?;
+        nav::tune_gated_q(&val, r_dps2, &baseline_grid).context("demo: no tune vehicle record")?;
     let baseline_note = grid_end_note(&baseline_grid, tuned.q_dps2);
     // The model's two least certain numbers, tuned on the same records.
     let (image, tuning) = tune::tune(&image, &val)?;
@@ -212,7 +214,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let firmware = motion::write_image(&fogi, &image, false)?;
     eprintln!("demo: {}", tune::describe(&tuning));
     eprintln!(
-        "demo: gated Kalman q {:.3e} (deg/s)^2 per sample{baseline_note} ({:.4} deg on the validation vehicles, truth still flags)",
+        "demo: gated Kalman q {:.3e} (deg/s)^2 per sample{baseline_note} ({:.4} deg on the tune vehicles, truth still flags)",
         tuned.q_dps2, tuned.heading_rms_deg
     );
     if !baseline_note.is_empty() {
@@ -245,7 +247,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
         baseline_q: Some((
             tuned.q_dps2,
             format!(
-                "tuned on {} validation vehicle records (units 800.., truth still flags){baseline_note}",
+                "tuned on {} tune vehicle records (units 800.., truth still flags){baseline_note}",
                 val.len()
             ),
         )),
@@ -256,7 +258,7 @@ pub fn run(dir: &Path, cfg: &DemoConfig) -> Result<PathBuf> {
     let cmp = BaselineConfig {
         q_dps2: tuned.q_dps2,
         q_source: format!(
-            "tuned on {} validation vehicle records (units 800.., truth still flags){baseline_note}",
+            "tuned on {} tune vehicle records (units 800.., truth still flags){baseline_note}",
             val.len()
         ),
         r_dps2,

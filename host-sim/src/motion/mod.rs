@@ -189,7 +189,21 @@ pub fn level_q_dps2_per_sample(model: &GyroModel) -> f64 {
 
 /// The image's filter at power-on; an error naming `name` if it cannot be built.
 pub fn filter(image: &Image, name: &str) -> Result<DriftFilter> {
-    image.filter().map_err(|e| anyhow!("{name}: {e:?}"))
+    image
+        .filter()
+        .map_err(|e| anyhow!("{name}: {}", filter_error_words(&e)))
+}
+
+/// Why a drift filter cannot be built, in words (never the enum's internal name).
+pub fn filter_error_words(e: &fog_core::drift_filter::DriftFilterError) -> &'static str {
+    use fog_core::drift_filter::DriftFilterError as E;
+    match e {
+        E::BadModel => "the gyro model is not valid (a term not finite, or out of its range)",
+        E::BadConfig => {
+            "the drift filter's settings are not valid (its window holds fewer than 2 samples)"
+        }
+        E::NonFiniteRate => "a rate that is not finite",
+    }
 }
 
 /// Runs `filter` over a record from power-on: one output per row.

@@ -118,7 +118,7 @@ pub fn describe(t: &Tuning) -> String {
 pub fn run_image(image: &Image, rec: &NavRecord) -> Result<(Vec<f64>, Vec<bool>)> {
     let mut f = image
         .filter()
-        .map_err(|e| anyhow::anyhow!("image: {e:?}"))?;
+        .map_err(|e| anyhow::anyhow!("image: {}", super::filter_error_words(&e)))?;
     anyhow::ensure!(
         rec.rate_dps.len() == rec.len() && rec.temp_c.as_ref().is_none_or(|t| t.len() == rec.len()),
         "record columns of different lengths"

@@ -13,7 +13,7 @@ pub struct BaselineConfig {
     /// Random walk of the gated Kalman filters' bias per sample, (deg/s)^2 (the
     /// self-calibrated one's too: see [`compare`]).
     pub q_dps2: f64,
-    /// Where `q_dps2` came from (`--baseline-q`, tuned on validation records, or the
+    /// Where `q_dps2` came from (`--baseline-q-dps2`, tuned on validation records, or the
     /// identifier's own level noise).
     pub q_source: String,
     /// White-noise variance per sample, (deg/s)^2 (the sensor configuration's).

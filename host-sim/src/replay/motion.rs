@@ -50,7 +50,7 @@ pub struct MotionOptions {
     /// `stream.rate_hz`).
     pub csv: ReadOptions,
     /// The gated Kalman filters' q, (deg/s)^2 per sample, and where it came from (e.g.
-    /// `--baseline-q`).
+    /// `--baseline-q-dps2`).
     pub baseline_q: Option<(f64, String)>,
     /// `--validate`: records with truth on which the q is tuned ([`nav::tune_gated_q`]).
     pub validate: Vec<PathBuf>,
@@ -258,7 +258,7 @@ pub fn release_samples(image: &Image) -> usize {
         .max(0.0) as usize
 }
 
-/// The baselines' q: `--baseline-q`, else tuned on `--validate`, else the model's level
+/// The baselines' q: `--baseline-q-dps2`, else tuned on `--validate`, else the model's level
 /// noise per sample ([`motion::level_q_dps2_per_sample`]).
 fn baseline_config(o: &MotionOptions, image: &Image) -> Result<BaselineConfig> {
     let r_dps2 = f64::from(image.model.sample_var_dps2());

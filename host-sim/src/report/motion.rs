@@ -356,7 +356,7 @@ fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
     if let Some(t) = &s.level_tuning {
         writeln!(
             o,
-            "<h2>The gyro model's two scales, tuned on validation vehicles</h2>\n<pre>{}</pre>",
+            "<h2>The gyro model's two scales, tuned on the tune vehicles</h2>\n<pre>{}</pre>",
             esc(&crate::motion::tune::describe(t))
         )?;
     }
