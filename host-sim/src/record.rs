@@ -740,24 +740,6 @@ impl Record {
     pub fn holes(&self) -> Holes {
         Holes::of(&self.t_s, |i| self.line(i))
     }
-
-    /// Every gap in `t_s`: each step larger than [`GAP_FACTOR`] times the median step.
-    pub fn gaps(&self) -> Vec<Gap> {
-        let Some(median) = median_step_s(&self.t_s) else {
-            return Vec::new();
-        };
-        self.t_s
-            .windows(2)
-            .enumerate()
-            .filter(|(_, w)| w[1] - w[0] > GAP_FACTOR * median)
-            .map(|(i, w)| Gap {
-                start_line: self.line(i),
-                line: self.line(i + 1),
-                t_s: w[0],
-                dt_s: w[1] - w[0],
-            })
-            .collect()
-    }
 }
 
 fn push<T>(v: &mut Option<Vec<T>>, x: Option<T>) {
@@ -1045,9 +1027,6 @@ mod tests {
             let g = h.largest.expect("gap");
             assert_eq!((h.count, h.samples_missing), (1, 2));
             assert_eq!((g.start_line, g.line), (lines[2], lines[3]));
-            let gaps = r.gaps();
-            assert_eq!(gaps.len(), 1);
-            assert_eq!(gaps[0], g);
         }
     }
 
