@@ -648,12 +648,7 @@ fn unit_hint(msg: &str) -> String {
             " (`{unknown}` is a top-level key: write it above the first [section] header)"
         );
     }
-    let stem = |k: &str| -> String {
-        k.split('_')
-            .take_while(|p| !UNIT_WORDS.contains(p))
-            .collect::<Vec<_>>()
-            .join("_")
-    };
+    let stem = crate::sim::key_stem;
     let want = stem(unknown);
     // The keys the section takes, from serde's "expected one of `a`, `b`", else every key.
     let expected: Vec<&str> = msg
@@ -673,28 +668,6 @@ fn unit_hint(msg: &str) -> String {
         None => String::new(),
     }
 }
-
-/// Words that start the unit part of a key name.
-const UNIT_WORDS: &[&str] = &[
-    "dps",
-    "dph",
-    "deg",
-    "rad",
-    "c",
-    "k",
-    "s",
-    "ms",
-    "h",
-    "hz",
-    "ppm",
-    "per",
-    "rthz",
-    "rth",
-    "probability",
-    "mrad",
-    "urad",
-    "arcsec",
-];
 
 /// A key of an old format: its old path, the gyro file's path, the factor (new per old).
 pub(crate) fn old_keys() -> Vec<(String, &'static str, f64)> {

@@ -31,11 +31,11 @@ pub mod motion;
 
 pub use family::{realize, Family};
 pub use markov::{flicker_adev, gm_avar, GaussMarkov, FLICKER_FLOOR, FLICKER_PER_DECADE};
-pub(crate) use model::Bad;
 pub use model::{
     check_rate_hz, Bias, Faults, Model, Motion, Noise, QuantMode, Quantization, ScaleFactor,
     Temperature, Timing, EARTH_RATE_DPS, KEYS,
 };
+pub(crate) use model::{key_stem, Bad};
 pub use motion::{Platform, PlatformState, Profile, RateTable, Turntable, TurntableStep, Vehicle};
 
 use anyhow::{bail, Result};

@@ -860,12 +860,7 @@ fn unit_hint(msg: &str) -> String {
     else {
         return String::new();
     };
-    let stem = |k: &str| -> String {
-        k.split('_')
-            .take_while(|p| !UNIT_WORDS.contains(p))
-            .collect::<Vec<_>>()
-            .join("_")
-    };
+    let stem = key_stem;
     let want = stem(unknown);
     let found = KEYS
         .iter()
@@ -878,6 +873,15 @@ fn unit_hint(msg: &str) -> String {
         Some(k) => format!(" (wrong unit in `{unknown}`? this model takes `{k}`)"),
         None => String::new(),
     }
+}
+
+/// A key's name without its unit part (`arw_dps_per_rthz` -> `arw`): the words before the
+/// first of [`UNIT_WORDS`] (the model file's and the gyro file's unit hints).
+pub(crate) fn key_stem(k: &str) -> String {
+    k.split('_')
+        .take_while(|p| !UNIT_WORDS.contains(p))
+        .collect::<Vec<_>>()
+        .join("_")
 }
 
 /// Words that start the unit part of a key name.
