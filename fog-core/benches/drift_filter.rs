@@ -10,7 +10,7 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use fog_core::drift_filter::{DriftFilter, DriftFilterConfig};
 use fog_core::gyro_model::GyroModel;
-use fog_core::still::SensorConfig;
+use fog_core::sensor::SensorConfig;
 use std::hint::black_box;
 
 const S: SensorConfig = SensorConfig::ECORE_2000;

@@ -19,7 +19,7 @@
 //! [`crate::drift_filter::DriftFilter`] is this model's Kalman filter; `host-sim identify`
 //! fits it to calibration runs and writes it into the image.
 
-use crate::still::SensorConfig;
+use crate::sensor::SensorConfig;
 
 /// Largest number of Gauss-Markov terms a model holds.
 pub const MAX_MARKOV: usize = 3;

@@ -8,11 +8,12 @@
 //! - [`wnn`]: the wavelet neural network (paper section 4.1);
 //! - [`train`]: DRLS (paper section 4.2) and the RLS / NLMS baselines;
 //! - [`features`]: causal network inputs; [`identify`]: the on-line identifier;
-//! - [`still`]: sensor configuration, and a rate-only stillness detector no estimator uses;
+//! - [`sensor`]: a gyro's specification (rate, noise, quantum, full scale, drift bound);
 //! - [`image`]: the fitted gyro model and its filter's settings as a versioned, checksummed
 //!   binary image (what the firmware runs);
 //! - [`baseline`]: causal estimators to compare with;
 //! - [`gyro_model`]: the gyro model as data; [`kalman`]: the Kalman primitive;
+//!   [`warmup_basis`]: the warm-up of an unknown time constant as a few exponentials;
 //!   [`drift_filter`]: the model's Kalman filter with its stillness test;
 //! - [`frame`], [`driver`]: gyro serial frames and the serial reader;
 //! - [`tmp117`], [`tmp105`]: drivers for the TI TMP117 and TMP105 I2C temperature sensors,
@@ -32,7 +33,7 @@ pub mod gyro_model;
 pub mod identify;
 pub mod image;
 pub mod kalman;
-pub mod still;
+pub mod sensor;
 pub mod temp_sensor;
 #[cfg(test)]
 mod test_noise;

@@ -14,16 +14,6 @@ impl Noise {
         (self.0 >> 40) as f32 / (1u64 << 24) as f32
     }
 
-    /// Uniform in [-0.5, 0.5).
-    pub(crate) fn uniform(&mut self) -> f32 {
-        self.unit() - 0.5
-    }
-
-    /// Sum of 4 uniforms scaled to variance 1 (approximately normal).
-    pub(crate) fn normal(&mut self) -> f32 {
-        (self.uniform() + self.uniform() + self.uniform() + self.uniform()) * 3.0f32.sqrt()
-    }
-
     /// Sum of 12 uniforms in [0, 1) minus 6 (approximately normal, variance 1).
     pub(crate) fn normal12(&mut self) -> f32 {
         let mut s = 0.0f32;

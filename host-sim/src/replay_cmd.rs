@@ -110,7 +110,7 @@ pub fn run(args: &Args) -> Result<()> {
     {
         bail!("--identifier, --still-column, --rate-column, --rate-scale, --baseline-q-dps2, --validate and --json need --preset motion");
     }
-    let s = sensor.unwrap_or(fog_core::still::SensorConfig::ECORE_2000);
+    let s = sensor.unwrap_or(fog_core::sensor::SensorConfig::ECORE_2000);
     let opts = Options {
         format: args.format,
         full_scale_dps: args.full_scale_dps.unwrap_or(s.full_scale_dps),
@@ -132,7 +132,7 @@ pub fn run(args: &Args) -> Result<()> {
 
 fn run_motion(
     args: &Args,
-    sensor: Option<fog_core::still::SensorConfig>,
+    sensor: Option<fog_core::sensor::SensorConfig>,
     gyro: Option<&Gyro>,
 ) -> Result<()> {
     // Before anything is written: no output may be an input (the record, the identifier,

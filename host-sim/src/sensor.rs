@@ -1,5 +1,5 @@
 //! The sensor as the drift filter and the stream readers take it (`identify`, `replay`,
-//! `image`): a [`fog_core::still::SensorConfig`] made from a gyro file's datasheet part
+//! `image`): a [`fog_core::sensor::SensorConfig`] made from a gyro file's datasheet part
 //! ([`crate::gyro`]: `sample_rate_hz`, `full_scale_dps`, `quantum_dps`, `arw_deg_per_rth`,
 //! `drift_bound_dph`, `[temperature] column`).
 //!
@@ -21,7 +21,7 @@
 
 use crate::gyro::Gyro;
 use anyhow::{anyhow, Result};
-use fog_core::still::SensorConfig;
+use fog_core::sensor::SensorConfig;
 use std::ops::RangeInclusive;
 
 /// Output data rates the drift filter takes, Hz. The range the project supports (the

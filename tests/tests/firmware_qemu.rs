@@ -428,7 +428,7 @@ fn the_default_image_parses_and_says_how_it_was_made() {
     );
     assert_ne!(
         image.model,
-        fog_core::gyro_model::GyroModel::for_sensor(&fog_core::still::SensorConfig::ECORE_2000),
+        fog_core::gyro_model::GyroModel::for_sensor(&fog_core::sensor::SensorConfig::ECORE_2000),
         "a fitted model, not the specification's"
     );
     let readme =

@@ -32,7 +32,7 @@ use crate::sim::{self, Model, Profile, Simulator};
 use crate::simulate_cmd::{write_csv_row, CSV_HEADER_MOVING};
 use anyhow::{Context, Result};
 use fog_core::image::Image;
-use fog_core::still::SensorConfig;
+use fog_core::sensor::SensorConfig;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

@@ -24,7 +24,7 @@
 
 use crate::identify::series::Series;
 use anyhow::{bail, Result};
-use fog_core::still::SensorConfig;
+use fog_core::sensor::SensorConfig;
 use serde::Serialize;
 
 /// The image's drift bound is at least this many times the largest |10-s mean drift| of

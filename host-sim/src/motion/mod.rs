@@ -22,7 +22,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use fog_core::drift_filter::{DriftFilter, DriftFilterConfig, DriftOutput};
 use fog_core::gyro_model::GyroModel;
 use fog_core::image::{Image, IMAGE_LEN};
-use fog_core::still::SensorConfig;
+use fog_core::sensor::SensorConfig;
 use std::io::Write;
 use std::path::Path;
 

@@ -143,7 +143,7 @@ mod tests {
 
     #[test]
     fn scaled_changes_the_two_spreads_and_nothing_else() {
-        let mut im = crate::motion::untrained(&fog_core::still::SensorConfig::ECORE_2000);
+        let mut im = crate::motion::untrained(&fog_core::sensor::SensorConfig::ECORE_2000);
         im.model.temp_dps_per_c.sigma = 1e-4;
         im.model.temp_rate_dps_per_c_per_s.sigma = 2e-2;
         let s = scaled(&im, 0.5, 3.0);

@@ -36,7 +36,7 @@ use fog_core::kalman::{DiagonalModel, Kalman};
 
 /// Length of the alignment at power-on, s. ASSUMED: a vehicle's 120-s alignment, still.
 pub const ALIGN_S: f64 = 120.0;
-/// Detector window, s (as [`fog_core::still::StillConfig::DEFAULT`]).
+/// Detector window, s.
 pub const WINDOW_S: f64 = 1.0;
 /// Fewest samples in a window (as fog-core's detector).
 pub const MIN_WINDOW_SAMPLES: usize = 8;
@@ -340,7 +340,7 @@ mod tests {
     const DPH: f64 = 1.0 / 3600.0;
     /// The E-Core 2000's nominal white noise per sample at 100 Hz, deg/s.
     fn sigma_nominal_dps() -> f64 {
-        f64::from(fog_core::still::SensorConfig::ECORE_2000.sample_var_dps2()).sqrt()
+        f64::from(fog_core::sensor::SensorConfig::ECORE_2000.sample_var_dps2()).sqrt()
     }
 
     /// Runs the filter over `n` samples of `rate(k)`; returns the estimates and the flags.
@@ -412,16 +412,6 @@ mod tests {
         assert!(frac > 0.95, "still fraction {frac}");
         let last = est.last().copied().expect("estimates");
         assert!((last - bias).abs() < 1.5 * DPH, "{} deg/h", last / DPH);
-        // fog-core's detector, which learns its noise reference on line, finds it still too,
-        // once its reference has risen from the family's top (about 40 s here).
-        let s = fog_core::still::SensorConfig::ECORE_2000;
-        let mut d = fog_core::still::Stillness::new(&s, &fog_core::still::StillConfig::DEFAULT)
-            .expect("valid");
-        let core_still = rates
-            .iter()
-            .filter(|&&r| d.push(r as f32, bias as f32, 0.0, None).still)
-            .count();
-        assert!(core_still > rates.len() * 8 / 10, "{core_still}");
     }
 
     #[test]

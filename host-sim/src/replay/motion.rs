@@ -28,7 +28,7 @@ use crate::report::motion::MotionFigures;
 use crate::report::BytesSummary;
 use anyhow::{anyhow, bail, Result};
 use fog_core::image::Image;
-use fog_core::still::SensorConfig;
+use fog_core::sensor::SensorConfig;
 use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};

@@ -176,7 +176,7 @@ mod tests {
         }
         assert_eq!(h.median(), Some(0.0));
         assert_eq!(
-            h.noise_ratio(fog_core::still::SensorConfig::ECORE_2000.sample_var_dps2()),
+            h.noise_ratio(fog_core::sensor::SensorConfig::ECORE_2000.sample_var_dps2()),
             None
         );
         assert_eq!(DiffMedian::default().median(), None);
