@@ -24,12 +24,20 @@ fn gap(p: &Path, json: &Path, args: &[&str]) -> (serde_json::Value, String) {
     (v, err)
 }
 
-/// Every named round lowered the held-out gap: shrink > 0 and > its null shrink's 95 %.
+/// Every named round lowered the held-out gap: by more than the null's spread, with a
+/// shrink > 0 and > its null shrink's 95 %.
 fn assert_named_rounds_shrink(v: &serde_json::Value) {
     for r in v["rounds"].as_array().expect("rounds") {
         if r["effect"] == "none" {
             continue;
         }
+        let g = |k: &str| r[k].as_f64().expect(k);
+        assert!(
+            g("gap_before") - g("gap_after") > g("null_gap_95") - g("null_gap_median"),
+            "round {} named {} for a fall within the null's spread",
+            r["round"],
+            r["effect"]
+        );
         let s = r["shrink"].as_f64().expect("shrink");
         let need = r["null_shrink_95"].as_f64().unwrap_or(0.0).max(0.0);
         assert!(
@@ -160,13 +168,16 @@ fn printed_lines_agree_with_the_json() {
                 r["best_candidate"].as_str().unwrap_or("no candidate")
             )
         } else {
+            let g = |k: &str| r[k].as_f64().expect(k);
             format!(
-                "round {}: {} named; gap {} -> {} (null 95 % {}), shrink {} > {} needed",
+                "round {}: {} named; gap {} -> {} (null 95 % {}): falls {} > null spread {}, shrink {} > {} needed",
                 r["round"],
                 r["effect"].as_str().expect("effect"),
                 f("gap_before"),
                 f("gap_after"),
                 f("null_gap_95"),
+                num(g("gap_before") - g("gap_after")),
+                num(g("null_gap_95") - g("null_gap_median")),
                 f("shrink"),
                 num(r["null_shrink_95"].as_f64().unwrap_or(0.0).max(0.0))
             )

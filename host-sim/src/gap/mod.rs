@@ -391,7 +391,7 @@ pub struct Diagnosis {
     pub curves: Curves,
 }
 
-const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --gyro) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2. An effect is named only when its shrink (1 - gap_after/gap_before) exceeds 0 and null_shrink_95, the 95 % quantile of the shrink its simulations give the baseline's own simulations each taken as the record (a record without the effect); one whose dedicated test passed needs nothing more; any other only when gap_before > 1.5 x null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others). A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
+const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --gyro) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2. An effect is named only when it lowers the held-out gap by more than chance: gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others) and its shrink (1 - gap_after/gap_before) > 0 and > null_shrink_95, the 95 % quantile of the shrink its simulations give the baseline's own simulations each taken as the record (a record without the effect). One whose dedicated test passed needs nothing more; any other also needs gap_before > 1.5 x null_gap_95. A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
 
 /// Per-simulation summary.
 struct SimOut {
@@ -1052,18 +1052,23 @@ pub fn shrink_threshold(c: &Candidate) -> f64 {
     c.null_shrink_95.map_or(MIN_SHRINK, |q| q.max(MIN_SHRINK))
 }
 
-/// The candidate lowers the held-out gap by more than chance ([`shrink_threshold`]).
-pub fn shrinks_enough(c: &Candidate) -> bool {
+/// The candidate lowers the held-out gap by more than chance: its shrink exceeds
+/// [`shrink_threshold`], and the gap falls by more than the null's spread
+/// `null_gap_95 - null_gap_median` (`spread`) from `gap_before`.
+pub fn shrinks_enough(c: &Candidate, gap_before: f64, spread: f64) -> bool {
     c.shrink.is_some_and(|s| s > shrink_threshold(c))
+        && c.gap_after.is_some_and(|a| gap_before - a > spread)
 }
 
 /// A candidate that does not lower the held-out gap by more than chance
 /// ([`shrinks_enough`]) is never named, by its test or by the gap rule.
-fn exclude_no_shrink(candidates: &mut [Candidate]) {
+fn exclude_no_shrink(candidates: &mut [Candidate], gaps: &Gaps) {
+    let spread = gaps.g95 - gaps.g50;
     for c in candidates.iter_mut() {
-        if c.gap_after.is_some() && !shrinks_enough(c) {
+        if c.gap_after.is_some() && !shrinks_enough(c, gaps.before, spread) {
             let why = format!(
-                "its held-out shrink {:.3} does not exceed {:.3} (the larger of 0 and the 95 % of the shrink it gives the baseline's own simulations)",
+                "it lowers the held-out gap by {:.3} (shrink {:.3}): not more than both the null's spread {spread:.3} (null_gap_95 - null_gap_median) and a shrink of {:.3} (the larger of 0 and the 95 % of the shrink it gives the baseline's own simulations)",
+                gaps.before - c.gap_after.unwrap_or(f64::NAN),
                 c.shrink.unwrap_or(f64::NAN),
                 shrink_threshold(c)
             );
@@ -1259,6 +1264,7 @@ struct Choice<'c> {
 /// exceeds [`OVERRIDE_RATIO`] times `g95` and its shrink beats the tested one's by 0.5
 /// (never a passed temperature test with [`OVERRIDE_SPARES_TEMPERATURE`]).
 fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice<'c> {
+    let spread = gaps.g95 - gaps.g50;
     let by_gap = |a: &&Candidate, b: &&Candidate| {
         a.gap_after
             .unwrap_or(f64::INFINITY)
@@ -1284,7 +1290,7 @@ fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice
     let quantization_first = !zero_size(Effect::Quantization)
         && candidates
             .iter()
-            .any(|c| c.effect == Effect::Quantization && shrinks_enough(c))
+            .any(|c| c.effect == Effect::Quantization && shrinks_enough(c, gaps.before, spread))
         && tests
             .all
             .iter()
@@ -1299,7 +1305,7 @@ fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice
         .filter(|t| {
             candidates
                 .iter()
-                .any(|c| c.effect == t.effect && shrinks_enough(c))
+                .any(|c| c.effect == t.effect && shrinks_enough(c, gaps.before, spread))
         })
         .max_by(|a, b| (a.z / a.threshold).total_cmp(&(b.z / b.threshold)))
         .and_then(|t| {
@@ -1540,7 +1546,7 @@ pub fn diagnose(
     exclude_failed_tests(&mut candidates, &tests.all);
     size_from_count_tests(&mut candidates, &tests.all, real.rate_dps.len());
     exclude_zero_size(&mut candidates);
-    exclude_no_shrink(&mut candidates);
+    exclude_no_shrink(&mut candidates, &gaps);
     let choice = choose(&candidates, &tests, &gaps);
     let Named {
         effect,

@@ -61,12 +61,14 @@ pub fn lines(out: &Outcome) -> Vec<String> {
             ));
         } else {
             v.push(format!(
-                "round {}: {} named; gap {} -> {} (null 95 % {}), shrink {} > {} needed",
+                "round {}: {} named; gap {} -> {} (null 95 % {}): falls {} > null spread {}, shrink {} > {} needed",
                 r.round,
                 r.effect,
                 num(r.gap_before),
                 num(r.gap_after),
                 num(r.null_gap_95),
+                num(r.gap_before - r.gap_after),
+                num(r.null_gap_95 - r.null_gap_median),
                 num(r.shrink),
                 num(need)
             ));
@@ -101,11 +103,24 @@ pub fn lines(out: &Outcome) -> Vec<String> {
             num(out.final_null_gap_95)
         ));
     } else {
-        v.push(format!(
-            "unexplained (final gap {}, null 95 % {}):",
-            num(out.final_gap),
-            num(out.final_null_gap_95)
-        ));
+        // At the cap the last round's effect is named but not applied: its groups are
+        // those before it.
+        let last = out.rounds.last().filter(|r| r.effect != "none");
+        v.push(match last {
+            Some(r) => format!(
+                "unexplained before round {}'s {} (not applied; gap {}, with it {}, null 95 % {}):",
+                r.round,
+                r.effect,
+                num(r.gap_before),
+                num(r.gap_after),
+                num(r.null_gap_95)
+            ),
+            None => format!(
+                "unexplained (final gap {}, null 95 % {}):",
+                num(out.final_gap),
+                num(out.final_null_gap_95)
+            ),
+        });
         for u in &out.unexplained {
             v.push(format!(
                 "  {}: gap {} (null 95 % {}){}",
