@@ -161,11 +161,15 @@ fn printed_lines_agree_with_the_json() {
         let f = |k: &str| num(r[k].as_f64().expect(k));
         let line = if r["effect"] == "none" {
             format!(
-                "round {}: none named; gap {} (null 95 % {}); best candidate {}",
+                "round {}: none named; gap {} (null 95 % {}); {}",
                 r["round"],
                 f("gap_before"),
                 f("null_gap_95"),
-                r["best_candidate"].as_str().unwrap_or("no candidate")
+                r["best_candidate"]
+                    .as_str()
+                    .map_or("no candidate left".to_string(), |b| format!(
+                        "best candidate {b}, not named"
+                    ))
             )
         } else {
             let g = |k: &str| r[k].as_f64().expect(k);
@@ -233,4 +237,16 @@ fn printed_lines_agree_with_the_json() {
         svg.contains(&format!("baseline + {first} (named)")),
         "adev.svg label"
     );
+}
+
+/// The printed numbers: 4 significant digits, e-notation outside 0.001..1e6.
+#[test]
+fn numbers_keep_four_significant_digits() {
+    assert_eq!(num(0.007633588), "0.007634");
+    assert_eq!(num(184.279), "184.3");
+    assert_eq!(num(49233.6), "49234");
+    assert_eq!(num(-0.0064593), "-0.006459");
+    assert_eq!(num(1.487), "1.487");
+    assert_eq!(num(2.71e-4), "2.710e-4");
+    assert_eq!(num(0.0), "0");
 }

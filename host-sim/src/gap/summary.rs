@@ -8,7 +8,8 @@ use super::rounds::Outcome;
 /// At most this many spike or hole times are listed (the JSON has them all).
 pub const MAX_TIMES: usize = 12;
 
-/// A number with 4 significant digits at most, in plain notation where it reads well.
+/// A number with 4 significant digits (all the units of a larger one), in plain notation
+/// from 0.001 to 1e6, else in e-notation.
 pub fn num(x: f64) -> String {
     let a = x.abs();
     if !x.is_finite() {
@@ -17,10 +18,10 @@ pub fn num(x: f64) -> String {
         "0".into()
     } else if !(1e-3..1e6).contains(&a) {
         format!("{x:.3e}")
-    } else if a >= 100.0 {
-        format!("{x:.1}")
     } else {
-        format!("{x:.3}")
+        // 4 significant digits (at least the units).
+        let decimals = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+        format!("{x:.decimals$}")
     }
 }
 
@@ -52,12 +53,16 @@ pub fn lines(out: &Outcome) -> Vec<String> {
     for r in &out.rounds {
         let need = r.null_shrink_95.map_or(0.0, |q| q.max(0.0));
         if r.effect == "none" {
-            let best = r.best_candidate.as_deref().unwrap_or("no candidate");
             v.push(format!(
-                "round {}: none named; gap {} (null 95 % {}); best candidate {best}",
+                "round {}: none named; gap {} (null 95 % {}); {}",
                 r.round,
                 num(r.gap_before),
-                num(r.null_gap_95)
+                num(r.null_gap_95),
+                r.best_candidate
+                    .as_deref()
+                    .map_or("no candidate left".to_string(), |b| {
+                        format!("best candidate {b}, not named")
+                    })
             ));
         } else {
             v.push(format!(
