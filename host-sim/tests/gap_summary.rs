@@ -167,7 +167,7 @@ fn printed_lines_agree_with_the_json() {
                 f("null_gap_95"),
                 r["best_candidate"]
                     .as_str()
-                    .map_or("no candidate left".to_string(), |b| format!(
+                    .map_or("no candidate passes the rule".to_string(), |b| format!(
                         "best candidate {b}, not named"
                     ))
             )

@@ -391,7 +391,7 @@ pub fn run(
             end.gap_before, end.null_gap_95
         ),
         Some("none") => format!(
-            "round {k} named none: nothing in the vocabulary explains the rest (no effect left lowers the held-out gap {:.3} by more than its null shrink; the null's 95 % is {:.3})",
+            "round {k} named none: nothing in the vocabulary explains the rest (no effect left lowers the held-out gap {:.3} by more than chance: the null's spread and its null shrink; the null's 95 % is {:.3})",
             end.gap_before, end.null_gap_95
         ),
         _ if o.effects.is_empty() => format!("round {k}: every effect of the vocabulary named"),

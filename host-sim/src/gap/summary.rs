@@ -60,7 +60,7 @@ pub fn lines(out: &Outcome) -> Vec<String> {
                 num(r.null_gap_95),
                 r.best_candidate
                     .as_deref()
-                    .map_or("no candidate left".to_string(), |b| {
+                    .map_or("no candidate passes the rule".to_string(), |b| {
                         format!("best candidate {b}, not named")
                     })
             ));
