@@ -124,79 +124,18 @@ pub fn run(a: &Args) -> Result<()> {
     }
     let text = serde_json::to_string_pretty(&value).context("JSON encoding")?;
     write_json(a.json.as_deref(), &text)?;
-    for r in &out.rounds {
-        eprintln!(
-            "{}: round {}: effect {} (held-out gap {:.3} -> {:.3}, shrink {:.3}); {}{}",
-            rec.name,
-            r.round,
-            r.effect,
-            r.gap_before,
-            r.gap_after,
-            r.shrink,
-            r.decision,
-            if r.applied.is_empty() {
-                String::new()
-            } else {
-                format!("; next round: {}", r.applied)
-            }
-        );
-    }
     if let Some(p) = &a.save_gyro {
         crate::gyro::fitted::save_gap(p, &a.input, gyro.as_ref(), &out, rec.dt_s)?;
     }
-    eprintln!("{}", headline(&rec.name, &out));
+    eprintln!("{}:", rec.name);
+    for l in gap::summary::lines(&out) {
+        eprintln!("  {l}");
+    }
     if let Some(dir) = &a.report {
         let page = gap::report::write(dir, d)?;
         eprintln!("{}: report -> {}", rec.name, page.display());
     }
     Ok(())
-}
-
-/// The result in words: what the gap is, what was named and how far each shrank it, what
-/// stays unexplained.
-fn headline(record: &str, out: &gap::rounds::Outcome) -> String {
-    let named: Vec<String> = out
-        .rounds
-        .iter()
-        .filter(|r| r.effect != "none")
-        .map(|r| {
-            format!(
-                "{} (gap {:.3} -> {:.3})",
-                r.effect, r.gap_before, r.gap_after
-            )
-        })
-        .collect();
-    let mut s = format!(
-        "{record}: held-out gap (mean squared z-score of the record's Allan, PSD, distribution, \
-         time and drift features against simulations of the model; about 1 when the model \
-         describes the record, its null's 95 % here {:.2}): {:.3} against the first model",
-        out.first.null_gap_95, out.first.gap_before
-    );
-    if named.is_empty() {
-        s.push_str("; nothing named");
-    } else {
-        s.push_str(&format!("; named {}", named.join(", then ")));
-    }
-    s.push_str(&format!("; {}", out.stopped));
-    if out.unexplained.is_empty() {
-        s.push_str("; no group of features stays above its null's 95 %");
-    } else {
-        let groups: Vec<String> = out
-            .unexplained
-            .iter()
-            .map(|u| {
-                format!(
-                    "{} gap {:.1} (null 95 % {:.2}): {}",
-                    u.group, u.gap, u.null_gap_95, u.what
-                )
-            })
-            .collect();
-        s.push_str(&format!(
-            "; unexplained by the vocabulary: {}",
-            groups.join("; ")
-        ));
-    }
-    s
 }
 
 /// `host-sim gap-bench`.

@@ -93,10 +93,12 @@ pub const FILES: [&str; 3] = ["adev.svg", "psd.svg", "index.html"];
 pub fn write(dir: &Path, d: &Diagnosis) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
     let c = &d.curves;
-    let eff = d
-        .best_candidate
-        .map_or("none".to_string(), |e| e.name().to_string());
-    let after = format!("baseline + {eff}");
+    // The third curve is the best candidate's: labelled as named only when it was.
+    let after = match d.best_candidate {
+        Some(e) if d.effect == e.name() => format!("baseline + {} (named)", e.name()),
+        Some(e) => format!("baseline + {} (best candidate, not named)", e.name()),
+        None => "no candidate".to_string(),
+    };
     let blue = RGBColor(31, 119, 180);
     let grey = RGBColor(90, 90, 90);
     let red = RGBColor(214, 39, 40);

@@ -46,6 +46,19 @@ pub struct Round {
     pub gap_after: f64,
     /// `1 - gap_after / gap_before`.
     pub shrink: f64,
+    /// The round's null held-out gap (the model's own simulations scored against each
+    /// other): median.
+    pub null_gap_median: f64,
+    /// Its 95 % quantile.
+    pub null_gap_95: f64,
+    /// The shrink the named (or best) candidate must beat: the 95 % quantile of the shrink
+    /// it gives the model's own simulations ([`super::Candidate::null_shrink_95`]).
+    pub null_shrink_95: Option<f64>,
+    /// The best candidate of the round, named or not.
+    pub best_candidate: Option<String>,
+    /// Times (s from the first sample) of the samples a named `spikes` replaced.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub spike_times_s: Vec<f64>,
     /// Why.
     pub decision: String,
     /// How the effect enters the next round.
@@ -75,7 +88,13 @@ fn take_refit_noise(m: &mut Model, pr: &Option<BTreeMap<String, f64>>) {
 
 /// Applies a named effect: the record for the next round, the model (if it changed) and
 /// what was done, in words.
-fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Model>, String) {
+fn apply(
+    e: Effect,
+    d: &Diagnosis,
+    rec: &Rec,
+    model: &Model,
+    spike_times_s: &mut Vec<f64>,
+) -> (Rec, Option<Model>, String) {
     let mut r = rec.clone();
     let mut m = model.clone();
     let pr = &d.params;
@@ -158,6 +177,7 @@ fn apply(e: Effect, d: &Diagnosis, rec: &Rec, model: &Model) -> (Rec, Option<Mod
             for (j, e) in res.iter().enumerate() {
                 if e.abs() > 6.0 * s {
                     r.rate_dps[j + 2] -= e;
+                    spike_times_s.extend(rec.t_s.get(j + 2));
                     count += 1;
                 }
             }
@@ -328,12 +348,20 @@ pub fn run(
             gap_before: d.gap_before,
             gap_after: d.gap_after,
             shrink: d.shrink,
+            null_gap_median: d.null_gap_median,
+            null_gap_95: d.null_gap_95,
+            null_shrink_95: d
+                .best_candidate
+                .and_then(|b| d.candidates.iter().find(|c| c.effect == b))
+                .and_then(|c| c.null_shrink_95),
+            best_candidate: d.best_candidate.map(|e| e.name().to_string()),
+            spike_times_s: Vec::new(),
             decision: d.decision.clone(),
             applied: String::new(),
         };
         if let Some(e) = named.filter(|_| k < n) {
             let base = model.clone().unwrap_or_else(|| d.baseline.clone());
-            let (r2, m2, what) = apply(e, &d, &rec, &base);
+            let (r2, m2, what) = apply(e, &d, &rec, &base, &mut round.spike_times_s);
             rec = r2;
             if let Some(m2) = m2 {
                 model = Some(m2);
@@ -363,7 +391,7 @@ pub fn run(
             end.gap_before, end.null_gap_95
         ),
         Some("none") => format!(
-            "round {k} named none: nothing left in the vocabulary lowers the held-out gap {:.3} significantly (the null's 95 % is {:.3})",
+            "round {k} named none: nothing in the vocabulary explains the rest (no effect left lowers the held-out gap {:.3} by more than chance: the null's spread and its null shrink; the null's 95 % is {:.3})",
             end.gap_before, end.null_gap_95
         ),
         _ if o.effects.is_empty() => format!("round {k}: every effect of the vocabulary named"),
