@@ -14,7 +14,7 @@
 //!   estimate of the per-sample variance. The median, not the mean: a few windows of motion
 //!   inside the alignment (a violated assumption) do not move it. It is a running median
 //!   over the alignment windows so far (causal), then frozen.
-//! - **Window tests** (as [`fog_core::still`], in f64): a window passes when its sample
+//! - **Window tests** (in f64): a window passes when its sample
 //!   variance is at most `sigma^2 (1 + var_z sqrt(2 / (W - 1)))` and
 //!   `|window mean - b| <= mean_k sqrt(sigma^2 / W + P)` (`b`, `P`: the filter's estimate and
 //!   variance; no mean test before the first update). The state is still after
