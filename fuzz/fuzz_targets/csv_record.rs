@@ -70,8 +70,11 @@ fn check_record(r: &Record, data: &[u8]) {
     }
     assert_eq!(rows, n, "rows lost");
     let lines = data.iter().filter(|&&b| b == b'\n' || b == b'\r').count() as u64 + 1;
-    for g in r.gaps() {
+    let h = r.holes();
+    assert!(h.count <= h.steps, "{} gaps in {} steps", h.count, h.steps);
+    if let Some(g) = h.largest {
         assert!(g.line >= 2 && g.line <= lines, "gap at line {}", g.line);
+        assert!(g.start_line >= 2 && g.start_line < g.line);
         assert!(g.dt_s.is_finite() && g.dt_s > 0.0);
     }
 }
