@@ -147,8 +147,6 @@ pub struct DriftStats {
 struct Built {
     window: DiagonalModel<STATES>,
     samples_per_window: u32,
-    /// The warm-up basis' time constants, s (0: absent).
-    warmup_tau_s: [f32; MAX_WARMUP],
     /// `e^(-dt / tau_j)` per warm-up term.
     warmup_step: [f32; MAX_WARMUP],
     /// `e^(-W dt / tau_j)` per warm-up term: one window.
@@ -242,12 +240,13 @@ impl DriftFilter {
         }
         let basis = Self::warmup_basis(&model)?;
         let warmup_tau_s = basis.tau_s;
+        // The warm-up factors at power-on: 1 for a present term, 0 for an absent one.
+        let warm_at_power_on = warmup_tau_s.map(|t| if t > 0.0 { 1.0 } else { 0.0 });
         let r_floor = model.sample_var_dps2() / w;
         let r_cap = (cfg.resolve_dps * cfg.resolve_dps / cfg.nis_limit).max(r_floor);
         let built = Built {
             window: step.repeated(samples_per_window),
             samples_per_window,
-            warmup_tau_s,
             warmup_step: warmup_tau_s.map(|t| if t > 0.0 { libm::expf(-dt / t) } else { 0.0 }),
             warmup_window_step: warmup_tau_s.map(|t| {
                 if t > 0.0 {
@@ -280,8 +279,8 @@ impl DriftFilter {
             in_window: 0,
             ext_still: false,
             ext_moving: false,
-            warm: Self::warm_at(&warmup_tau_s, 0.0),
-            warm_start: Self::warm_at(&warmup_tau_s, 0.0),
+            warm: warm_at_power_on,
+            warm_start: warm_at_power_on,
             temp_off: 0.0,
             temp_prev: None,
             temp_rate: 0.0,
@@ -394,17 +393,6 @@ impl DriftFilter {
     /// Counters.
     pub fn stats(&self) -> &DriftStats {
         &self.stats
-    }
-
-    /// The warm-up factors at `t_s` after power-on (0 for an absent term).
-    fn warm_at(tau_s: &[f32; MAX_WARMUP], t_s: f32) -> [f32; MAX_WARMUP] {
-        tau_s.map(|tau| {
-            if tau > 0.0 {
-                libm::expf(-t_s / tau)
-            } else {
-                0.0
-            }
-        })
     }
 
     /// The level and Gauss-Markov terms of `x` summed (constant over a window).
