@@ -636,11 +636,7 @@ const TOP_LEVEL: [&str; 10] = [
 
 /// For an "unknown field `x`" message: the key `x` most likely meant.
 fn unit_hint(msg: &str) -> String {
-    let Some(unknown) = msg
-        .split("unknown field `")
-        .nth(1)
-        .and_then(|r| r.split('`').next())
-    else {
+    let Some(unknown) = crate::sim::unknown_field(msg) else {
         return String::new();
     };
     if TOP_LEVEL.contains(&unknown) {

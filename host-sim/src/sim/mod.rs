@@ -35,7 +35,7 @@ pub use model::{
     check_rate_hz, Bias, Faults, Model, Motion, Noise, QuantMode, Quantization, ScaleFactor,
     Temperature, Timing, EARTH_RATE_DPS, KEYS,
 };
-pub(crate) use model::{key_stem, Bad};
+pub(crate) use model::{key_stem, unknown_field, Bad};
 pub use motion::{Platform, PlatformState, Profile, RateTable, Turntable, TurntableStep, Vehicle};
 
 use anyhow::{bail, Result};

@@ -853,11 +853,7 @@ pub const KEYS: &[(&str, &[&str])] = &[
 /// For an "unknown field `x`" message: the known key `x` most likely meant, when `x` is that
 /// key with its unit missing or wrong.
 fn unit_hint(msg: &str) -> String {
-    let Some(unknown) = msg
-        .split("unknown field `")
-        .nth(1)
-        .and_then(|r| r.split('`').next())
-    else {
+    let Some(unknown) = unknown_field(msg) else {
         return String::new();
     };
     let stem = key_stem;
@@ -873,6 +869,13 @@ fn unit_hint(msg: &str) -> String {
         Some(k) => format!(" (wrong unit in `{unknown}`? this model takes `{k}`)"),
         None => String::new(),
     }
+}
+
+/// The key an "unknown field `x`" message (serde's) names: `x`.
+pub(crate) fn unknown_field(msg: &str) -> Option<&str> {
+    msg.split("unknown field `")
+        .nth(1)
+        .and_then(|r| r.split('`').next())
 }
 
 /// A key's name without its unit part (`arw_dps_per_rthz` -> `arw`): the words before the
