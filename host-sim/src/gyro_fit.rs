@@ -622,6 +622,7 @@ mod tests {
                     temp_c: Some(temp.iter().map(|&v| v as f32).collect()),
                     still: None,
                     true_rate_dps: None,
+                    holes: None,
                 }
             })
             .collect()

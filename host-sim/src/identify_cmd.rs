@@ -1,7 +1,7 @@
 //! `host-sim identify`: see [`crate::identify`].
 
 use crate::gyro::Gyro;
-use crate::identify::series::CsvFiles;
+use crate::identify::series::{report_holes, CsvFiles, RecordHoles};
 use crate::identify::{self, Act, DrlsFormArg, LevelInput, Options, Preset, TrainerKind};
 use crate::motion;
 use crate::nav::NavRecord;
@@ -197,7 +197,7 @@ pub fn options(a: &IdentifierArgs) -> Options {
 }
 
 /// Writes a report as pretty JSON, atomically (on stdout without a path), and prints its
-/// headline figures.
+/// headline ([`identify::Report::headline`]).
 pub fn write_report<T: serde::Serialize>(
     json: Option<&std::path::Path>,
     report: &T,
@@ -212,56 +212,12 @@ pub fn write_report<T: serde::Serialize>(
         })?,
         None => writeln!(std::io::stdout().lock(), "{text}").context("stdout: write failed")?,
     }
-    let f = |v: Option<f64>| v.map_or("null".to_string(), |x| format!("{x:.4}"));
-    let best_baseline = headline
-        .baselines
-        .iter()
-        .filter_map(|b| b.figures.e_truth.map(|e| (e, b.name)))
-        .min_by(|a, b| a.0.total_cmp(&b.0));
     eprintln!(
-        "e_rel {} e_truth {} (best baseline {}) rms_err_truth {} deg/h; {} training / {} validation records -> {}",
-        f(headline.e_rel),
-        f(headline.e_truth),
-        best_baseline.map_or("none".into(), |(e, n)| format!("{n} {e:.4}")),
-        f(headline.rms_err_truth_dph),
-        headline.train_records,
-        headline.validate_records,
+        "{} -> {}",
+        headline.headline(),
         json.map_or("stdout".to_string(), |j| j.display().to_string())
     );
     Ok(())
-}
-
-/// Reads each of `files` once for the gaps in its `t_s` ([`record::Holes`]) and prints one
-/// line on stderr for each record with gaps: count, the largest one's start (time, line) and
-/// length, the samples missing, the rate (from the steps that are not gaps, so a hole does
-/// not move it) and what identify does with them. A record with gaps is used as it is,
-/// none of its samples dropped or interpolated: the identifier and the bench fits take the
-/// samples as evenly spaced at that rate, so after a gap their time since power-on is
-/// behind `t_s` by the gap's length (said in the line). Returns every record's, for the JSON.
-fn scan_holes(files: &[PathBuf], opts: &ReadOptions) -> Result<Vec<HolesSummary>> {
-    let opts = ReadOptions {
-        optional_columns: false,
-        ..opts.clone()
-    };
-    let mut out = Vec::with_capacity(files.len());
-    for p in files {
-        let r = record::Record::read(p, &opts)?;
-        let h = r.holes();
-        let how = if h.irregular() {
-            "identify takes the samples as evenly spaced at that rate (the identifier and the bench fits assume uniform sampling), none dropped or interpolated".to_string()
-        } else {
-            format!(
-                "the identifier and the bench fits assume uniform sampling: identify takes the samples as evenly spaced at that rate, none dropped or interpolated, so after the gaps their time since power-on runs {:.3} s behind t_s and the window across the largest joins samples {} s apart (split the record at the gap if that matters)",
-                h.behind_s(),
-                h.largest.map_or(0.0, |g| (g.dt_s * 1e6).round() / 1e6)
-            )
-        };
-        if let Some(w) = h.warning(&r.name, &how) {
-            eprintln!("{w}");
-        }
-        out.push(HolesSummary::new(&r.name, &h));
-    }
-    Ok(out)
 }
 
 /// Runs the command.
@@ -292,9 +248,11 @@ pub fn run(a: &Args) -> Result<()> {
             record::refuse_overwrite(p, json)?;
         }
     }
-    let mut holes = scan_holes(&train.0, &train.1)?;
-    holes.extend(scan_holes(&validate.0, &validate.1)?);
     let report = identify::run(&options(&a.id), &train, &validate)?;
+    // Every record's gaps in `t_s`, from the reads that trained and scored on it.
+    let mut holes = train.holes()?;
+    holes.extend(validate.holes()?);
+    let holes = report_holes(&holes);
     /// The report with every record's gaps in `t_s`.
     #[derive(serde::Serialize)]
     struct WithHoles<'a> {
@@ -312,13 +270,17 @@ pub fn run(a: &Args) -> Result<()> {
     )
 }
 
-/// `--tune-on`: the vehicle records with truth, each at `image`'s sample rate.
-fn read_vehicles(image: &Image, paths: &[PathBuf]) -> Result<Vec<NavRecord>> {
-    CsvFiles::from_args(paths, &ReadOptions::default())?
-        .0
-        .iter()
-        .map(|p| Ok(crate::replay::motion::read_truth_csv(image, p)?.truth))
-        .collect()
+/// `--tune-on`: the vehicle records with truth, each at `image`'s sample rate, and each
+/// one's name and gaps in `t_s`.
+fn read_vehicles(image: &Image, paths: &[PathBuf]) -> Result<(Vec<NavRecord>, Vec<RecordHoles>)> {
+    let mut vehicles = Vec::new();
+    let mut holes = Vec::new();
+    for p in CsvFiles::from_args(paths, &ReadOptions::default())?.0 {
+        let r = crate::replay::motion::read_truth_csv(image, &p)?;
+        vehicles.push(r.truth);
+        holes.push((p.display().to_string(), r.holes));
+    }
+    Ok((vehicles, holes))
 }
 
 /// `--preset motion`: trains on the static records and writes the identifier image.
@@ -363,14 +325,6 @@ fn run_motion(a: &Args) -> Result<()> {
             );
         }
     }
-    let mut holes = scan_holes(&train.0, &train.1)?;
-    // Records with truth are read at the image's (the sensor's) rate when they lack `t_s`.
-    let truth_opts = ReadOptions {
-        rate_hz: Some(f64::from(sensor.config.sample_rate_hz)),
-        ..ReadOptions::default()
-    };
-    holes.extend(scan_holes(&validate, &truth_opts)?);
-    holes.extend(scan_holes(&tune_on, &truth_opts)?);
     let mut o = motion::TrainOptions::new(sensor.config);
     if let Some(w) = a.window_s {
         o.config.window_s = w;
@@ -379,6 +333,11 @@ fn run_motion(a: &Args) -> Result<()> {
         }
     }
     let trained = motion::train(&train, &o)?;
+    // Every record's gaps in `t_s` come from the read that loaded it: the calibration runs'
+    // here, the tune and validation vehicles' where they are read (records with truth at
+    // the image's rate, the sensor's, when they lack `t_s`); the JSON lists them in that
+    // order: runs, validation, tune.
+    let train_holes = report_holes(&train.holes()?);
     // What the calibration runs showed, beside the gyro file's; the image carries the fit.
     eprintln!(
         "{}",
@@ -388,10 +347,12 @@ fn run_motion(a: &Args) -> Result<()> {
         eprintln!("WARNING: {w}");
     }
     let mut image = trained.image;
+    let mut tune_holes = Vec::new();
     let tuning = if a.tune_on.is_empty() {
         None
     } else {
-        let vehicles = read_vehicles(&image, &a.tune_on)?;
+        let (vehicles, holes) = read_vehicles(&image, &a.tune_on)?;
+        tune_holes = report_holes(&holes);
         let (tuned, tuning) = motion::tune::tune(&image, &vehicles)?;
         eprintln!("{}", motion::tune::describe(&tuning));
         image = tuned;
@@ -402,6 +363,7 @@ fn run_motion(a: &Args) -> Result<()> {
         "{}",
         motion::show::text("model", &motion::show::describe(&image, &bytes))
     );
+    let mut validate_holes = Vec::new();
     let validation = if a.validate.is_empty() {
         None
     } else {
@@ -409,9 +371,20 @@ fn run_motion(a: &Args) -> Result<()> {
             .baseline_q_dps2
             .map(|q| (q, "--baseline-q-dps2".to_string()));
         let v = crate::replay::motion::score_records(&image, &a.validate, q)?;
+        let holes: Vec<RecordHoles> = v
+            .records
+            .iter()
+            .map(|r| (r.record.clone(), r.holes))
+            .collect();
+        validate_holes = report_holes(&holes);
         crate::replay::motion::print_validation(&v)?;
         Some(v)
     };
+    let holes: Vec<HolesSummary> = train_holes
+        .into_iter()
+        .chain(validate_holes)
+        .chain(tune_holes)
+        .collect();
     // What the firmware does with the image, said first; one that does not fit is not
     // written, nor the report, unless --force.
     let firmware = crate::firmware_fit::check_image(&image)?;
@@ -451,7 +424,7 @@ fn run_motion(a: &Args) -> Result<()> {
         save_gyro(p, &gyro, &image, &train.0)?;
     }
     eprintln!(
-        "drift filter: model fitted on {} calibration runs{} -> {}",
+        "drift filter: model fitted on {} calibration runs{} -> {}{}",
         train.0.len(),
         if tuning.is_some() {
             ", tuned on the tune vehicles"
@@ -461,7 +434,16 @@ fn run_motion(a: &Args) -> Result<()> {
         out.map_or(
             "no image written (--save-identifier FILE writes it)".to_string(),
             |o| o.display().to_string()
-        )
+        ),
+        validation
+            .as_ref()
+            .and_then(|v| v.headline.as_ref())
+            .map_or(String::new(), |h| format!(
+                "; over the {} {}: {}",
+                h.records,
+                h.records_are,
+                h.verdict_line()
+            ))
     );
     if let (true, Some(out)) = (forced, out) {
         eprintln!(

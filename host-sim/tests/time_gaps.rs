@@ -146,3 +146,136 @@ fn replay_reports_the_hole_and_how_it_integrates_across_it() {
         }
     }
 }
+
+/// `vehicle` records (truth columns) of the ecore2000 gyro, 300 s at 100 Hz, in `dir`: one
+/// per seed, named `v{seed}.csv`; with `hole`, the 1000 rows of 100.00 ..= 109.99 s are
+/// dropped (the step from line 10001, t_s 99.99 s, to line 10002, t_s 110 s).
+fn vehicle(dir: &Path, seed: u32, hole: bool) -> PathBuf {
+    let preset =
+        fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("gyros/ecore2000.toml"))
+            .expect("preset");
+    let head = preset.split("[motion]").next().expect("preset head");
+    let model = dir.join(format!("vehicle{seed}.toml"));
+    fs::write(
+        &model,
+        format!("{head}[motion]\nprofile = \"vehicle\"\n[motion.vehicle]\nalign_s = 60.0\n"),
+    )
+    .expect("write the model");
+    let full = dir.join(format!("full{seed}.csv"));
+    host_sim()
+        .args(["simulate", "--gyro"])
+        .arg(&model)
+        .args([
+            "--duration-s",
+            "300",
+            "--seed",
+            &seed.to_string(),
+            "--output",
+        ])
+        .arg(&full)
+        .assert()
+        .success();
+    let text = fs::read_to_string(&full).expect("simulated");
+    let mut out = String::new();
+    for (k, line) in text.lines().enumerate() {
+        // Line k + 1; data row k - 1 at t_s = (k - 1) / 100 s.
+        if !(hole && (10_001..11_001).contains(&k)) {
+            out += line;
+            out.push('\n');
+        }
+    }
+    let p = dir.join(format!("v{seed}.csv"));
+    fs::write(&p, out).expect("write the vehicle");
+    fs::remove_file(&full).expect("remove");
+    p
+}
+
+/// The gap lines on stderr: one per record with a hole, however often identify reads it.
+fn gap_lines(err: &str) -> Vec<&str> {
+    err.lines()
+        .filter(|l| l.contains("gap(s) in t_s"))
+        .collect()
+}
+
+/// `identify` reports the holes of every record it reads, each once, from the reads that
+/// train and score on them: with the motion preset the calibration runs, the validation
+/// and the tune vehicles (the JSON in that order); with level-trend (which reads its
+/// records several times) the training and validation records.
+#[test]
+fn identify_reports_the_holes_of_every_record_it_reads_once() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let d = dir.path();
+    let run = record_of(d, "run-hole.csv", true, 9000);
+    let even = record_of(d, "run-even.csv", false, 9000);
+    let (val_dir, tune_dir) = (d.join("val"), d.join("tune"));
+    fs::create_dir(&val_dir).expect("mkdir");
+    fs::create_dir(&tune_dir).expect("mkdir");
+    let val = vehicle(&val_dir, 21, true);
+    let tune = vehicle(&tune_dir, 22, true);
+    let out = d.join("motion.json");
+    let a = host_sim()
+        .args(["identify", "--preset", "motion", "--input"])
+        .arg(&run)
+        .arg(&even)
+        .arg("--validate")
+        .arg(&val)
+        .arg("--tune-on")
+        .arg(&tune)
+        .arg("--json")
+        .arg(&out)
+        .assert()
+        .success();
+    let err = stderr(&a);
+    let v = json(&out);
+    let holes = v["holes"].as_array().expect("holes");
+    let names: Vec<&str> = holes
+        .iter()
+        .map(|h| h["record"].as_str().expect("name"))
+        .collect();
+    let want: Vec<String> = [&run, &even, &val, &tune]
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    assert_eq!(names, want, "runs, validation, tune");
+    assert_holes_json(&holes[0]);
+    assert_eq!(holes[1]["count"], 0);
+    for h in [&holes[2], &holes[3]] {
+        assert_eq!(h["count"], 1, "{h}");
+        assert_eq!(h["samples_missing"], 1000, "{h}");
+        assert_eq!(h["largest_start_line"], 10_001, "{h}");
+        assert_eq!(h["largest_end_line"], 10_002, "{h}");
+    }
+    let lines = gap_lines(&err);
+    assert_eq!(lines.len(), 3, "{err}");
+    for p in [&run, &val, &tune] {
+        let n = lines
+            .iter()
+            .filter(|l| l.starts_with(&format!("{}: warning: 1 gap(s)", p.display())))
+            .count();
+        assert_eq!(n, 1, "{}:\n{err}", p.display());
+    }
+    assert_gap_line(&err, &run);
+
+    // level-trend: a hole in the training and in the validation record.
+    let val2 = record_of(d, "val-hole.csv", true, 9000);
+    let out2 = d.join("level.json");
+    let a = host_sim()
+        .args(["identify", "--preset", "level-trend", "--train"])
+        .arg(&run)
+        .arg("--validate")
+        .arg(&val2)
+        .arg("--json")
+        .arg(&out2)
+        .assert()
+        .success();
+    let err = stderr(&a);
+    let v = json(&out2);
+    let holes = v["holes"].as_array().expect("holes");
+    assert_eq!(holes.len(), 2);
+    assert_eq!(holes[0]["record"], run.display().to_string());
+    assert_eq!(holes[1]["record"], val2.display().to_string());
+    assert_holes_json(&holes[0]);
+    assert_holes_json(&holes[1]);
+    assert_eq!(gap_lines(&err).len(), 2, "{err}");
+    assert_gap_line(&err, &run);
+}

@@ -284,6 +284,48 @@ pub struct Report {
     pub definitions: &'static str,
 }
 
+impl Report {
+    /// The line `identify` (network presets) and `reproduce` print after the report: the
+    /// identifier's figures over every validation sample (the JSON's `e_rel`, `e_truth`,
+    /// `rms_err_truth_dph`), the records, and on e_truth the verdict against the best
+    /// baseline (the least `e_truth` of `baselines`): `fog wins` / `fog loses` / `fog ties`
+    /// ([`crate::replay::pooled`]'s words), the difference in %, the baseline's name.
+    pub fn headline(&self) -> String {
+        use crate::replay::pooled::{LOSES, TIES, WINS};
+        let f = |v: Option<f64>| v.map_or("null".to_string(), |x| format!("{x:.4}"));
+        let best = self
+            .baselines
+            .iter()
+            .filter_map(|b| b.figures.e_truth.map(|e| (e, b.name)))
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        let verdict = match (self.e_truth, best) {
+            (Some(id), Some((e, name))) => format!(
+                "{}: e_truth {id:.4} against {e:.4} for the best baseline ({:+.1} %), {name}",
+                if id < e {
+                    WINS
+                } else if id > e {
+                    LOSES
+                } else {
+                    TIES
+                },
+                100.0 * (id / e - 1.0)
+            ),
+            (None, _) => {
+                "no verdict: the identifier's e_truth is null (no truth, or it diverged)".into()
+            }
+            (Some(_), None) => "no verdict: no baseline has an e_truth".into(),
+        };
+        format!(
+            "{verdict}; e_rel {} e_truth {} rms_err_truth {} deg/h over {} training / {} validation records",
+            f(self.e_rel),
+            f(self.e_truth),
+            f(self.rms_err_truth_dph),
+            self.train_records,
+            self.validate_records,
+        )
+    }
+}
+
 const DEFINITIONS: &str = "y = identifier output for a sample before it trained on that sample; d = the record denoised in blocks of B from its start (db4, soft universal threshold); drift = the simulator's true drift_dps; scored from sample 2B of every validation record, the same samples for every estimator; e_rel = RMS(y-d)/RMS(d) (RMS(d) includes any constant bias, so e_rel falls as the bias grows); e_range = RMS(y-d)/(max d - min d); e_max = max|y-d|/(max d - min d); e_truth = RMS(y-drift)/RMS(drift); figures are null when an estimate was NaN or infinite (divergence).";
 
 /// Causal moving average of the last `w` samples (host-side baseline).

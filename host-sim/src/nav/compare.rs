@@ -257,15 +257,20 @@ fn opt(v: Option<f64>, digits: usize) -> String {
 }
 
 /// The table as text: headline first (the identifier's heading-error RMS against the best
-/// baseline), then one line per estimator, then the detector's rates.
+/// baseline, [`NO_COMPENSATION`] not a candidate), then one line per estimator, then the
+/// detector's rates.
 pub fn table(c: &Comparison) -> String {
     let mut o = String::new();
     if let Some((id, rest)) = c.rows.split_first() {
-        if let Some(best) = rest.iter().min_by(|a, b| {
-            a.scores
-                .heading_rms_deg
-                .total_cmp(&b.scores.heading_rms_deg)
-        }) {
+        if let Some(best) = rest
+            .iter()
+            .filter(|r| r.name != NO_COMPENSATION)
+            .min_by(|a, b| {
+                a.scores
+                    .heading_rms_deg
+                    .total_cmp(&b.scores.heading_rms_deg)
+            })
+        {
             o += &format!(
                 "heading error RMS: {} {:.4} deg, best causal baseline ({}) {:.4} deg ({:+.1} %)\n",
                 id.name,

@@ -15,7 +15,7 @@
 //! (`identify --preset motion --validate`, [`score_records`]) are read whole.
 
 use super::input::{self, Input};
-use super::pooled::Pooled;
+use super::pooled::{heading_rms, pool, Pooled};
 use super::stream::{self, InputFormat};
 use super::tally::Tally;
 use crate::identify::series::{CsvFiles, Records, Series};
@@ -148,6 +148,10 @@ pub struct MotionSummary {
     pub bytes: Option<BytesSummary>,
     /// Scores against the truth, identifier beside the baselines.
     pub scores: Option<nav::Comparison>,
+    /// The record's result, from `scores` ([`Pooled`] over this one record): the
+    /// identifier's heading-error RMS against each baseline's, the verdict against the best;
+    /// printed first.
+    pub result: Option<Pooled>,
     /// Scores over a set of test records beside this one (`host-sim demo`), when given.
     pub test_set: Option<TestSet>,
     /// How the image's two scales were tuned (`host-sim demo`), when they were.
@@ -180,37 +184,11 @@ impl TestSet {
     /// From per-record comparisons (the identifier first in each, as [`nav::compare`]
     /// writes them).
     pub fn new(records: String, tables: &[nav::Comparison]) -> Self {
-        let per: Vec<Vec<(String, f64)>> = tables
-            .iter()
-            .map(|t| {
-                t.rows
-                    .iter()
-                    .map(|r| (r.name.clone(), r.scores.heading_rms_deg))
-                    .collect()
-            })
-            .collect();
-        let mut mean: Vec<(String, f64)> = per
-            .first()
-            .map(|f| f.iter().map(|(n, _)| (n.clone(), 0.0)).collect())
-            .unwrap_or_default();
-        for rec in &per {
-            for (m, (_, v)) in mean.iter_mut().zip(rec) {
-                m.1 += v / per.len() as f64;
-            }
-        }
-        let identifier_best = per
-            .iter()
-            .filter(|rec| {
-                rec.split_first().is_some_and(|((_, id), rest)| {
-                    rest.iter()
-                        .filter(|(n, _)| n != nav::NO_COMPENSATION)
-                        .all(|(_, b)| id < b)
-                })
-            })
-            .count();
+        let per = heading_rms(tables);
+        let (mean, identifier_best) = pool(&per);
         Self {
             records,
-            headline: Pooled::new(&mean, per.len(), identifier_best),
+            headline: Pooled::new(&mean, per.len(), "test vehicles", identifier_best),
             heading_rms_deg: per,
             mean_heading_rms_deg: mean,
             identifier_best,
@@ -473,6 +451,10 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
     let hz = (1.0 / rec.sample_period_s()) as f32;
     let holes = rec.holes();
     let scores = cmp.map(Comparer::finish);
+    let result = scores.as_ref().and_then(|c| {
+        let (mean, below) = pool(&heading_rms([c]));
+        Pooled::new(&mean, 1, "record", below)
+    });
     let summary = MotionSummary {
         input: input.display().to_string(),
         format: rec.format.name(),
@@ -504,6 +486,7 @@ pub fn replay(input: &Path, output: &Path, o: &MotionOptions) -> Result<MotionOu
         holes_warning: holes.warning(&input.display().to_string(), &gap_treatment(&holes)),
         bytes: rec.bytes(),
         scores,
+        result,
         test_set: None,
         level_tuning: None,
         firmware: None,
@@ -559,9 +542,22 @@ pub fn noise_hint(k: f64, rate_scale: f64, builtin: bool) -> String {
     }
 }
 
-/// Prints the summary (and the score table) on stderr.
+/// The result line printed first when the record has truth ([`MotionSummary::result`]):
+/// `NAME: heading error RMS: fog loses: X deg against Y deg for the best baseline (+P %),
+/// BASELINE`.
+pub fn result_line(s: &MotionSummary) -> Option<String> {
+    s.result
+        .as_ref()
+        .map(|r| format!("{}: heading error RMS: {}", s.input, r.verdict_line()))
+}
+
+/// Prints the summary on stderr: the result first when the record has truth
+/// ([`result_line`]), then what the replay did, the warnings, and the score table.
 pub fn print_summary(s: &MotionSummary) -> Result<()> {
     let mut err = std::io::stderr().lock();
+    if let Some(line) = result_line(s) {
+        writeln!(err, "{line}")?;
+    }
     writeln!(
         err,
         "{}: {} rows ({}) through the drift filter ({}; fitted on {} calibration runs); sensor full scale {} deg/s, {} Hz, drift bound {:.1} deg/h; {} still; noise at rest learned {:.4} deg/sqrt(h) (image {:.4}); {} still windows, {} updates undone; max |drift| {:.2} deg/h; angle at the end raw {:.4} deg, compensated {:.4} deg -> {}",
@@ -631,6 +627,9 @@ pub struct RecordScores {
     pub record: String,
     /// Identifier and baselines.
     pub scores: nav::Comparison,
+    /// The gaps in its `t_s`, from the read that loaded it (the command reports them).
+    #[serde(skip)]
+    pub holes: record::Holes,
 }
 
 /// Scores over a set of validation records.
@@ -640,6 +639,9 @@ pub struct ValidationScores {
     pub records: Vec<RecordScores>,
     /// Mean heading-error RMS over the records per estimator, deg (rows' order).
     pub mean_heading_rms_deg: Vec<(String, f64)>,
+    /// The result: the means above against each baseline, the verdict, the count (none
+    /// without a baseline).
+    pub headline: Option<Pooled>,
 }
 
 /// A record with truth read whole (validation records: `identify --validate`).
@@ -650,6 +652,8 @@ pub struct TruthRecord {
     pub truth: NavRecord,
     /// The record has a `moving` column.
     pub moving_known: bool,
+    /// The gaps in its `t_s` ([`Record::holes`]).
+    pub holes: record::Holes,
 }
 
 /// The CSV record `p` at `image`'s sample rate, with its truth; refused, naming the file,
@@ -674,8 +678,10 @@ pub fn read_truth_csv(image: &Image, p: &Path) -> Result<TruthRecord> {
     image
         .check_rate(hz)
         .map_err(|e| anyhow!("{}: {e}", p.display()))?;
+    let series: Series = (&r).into();
     Ok(TruthRecord {
-        series: (&r).into(),
+        holes: series.holes.unwrap_or_else(|| r.holes()),
+        series,
         truth,
         moving_known: r.moving.is_some(),
     })
@@ -734,36 +740,34 @@ pub fn score_records(
         out.push(RecordScores {
             record: name.clone(),
             scores: c.table,
+            holes: r.holes,
         });
     }
-    let mut mean: Vec<(String, f64)> = Vec::new();
-    if let Some(first) = out.first() {
-        for (i, row) in first.scores.rows.iter().enumerate() {
-            let m = out
-                .iter()
-                .map(|r| r.scores.rows[i].scores.heading_rms_deg)
-                .sum::<f64>()
-                / out.len() as f64;
-            mean.push((row.name.clone(), m));
-        }
-    }
+    let (mean, below) = pool(&heading_rms(out.iter().map(|r| &r.scores)));
     Ok(ValidationScores {
+        headline: Pooled::new(&mean, out.len(), "validation records", below),
         records: out,
         mean_heading_rms_deg: mean,
     })
 }
 
-/// Prints validation scores on stderr: the mean heading-error RMS per estimator first, then
-/// each record's table.
+/// Prints validation scores on stderr: the result over every record first ([`Pooled::text`]:
+/// the mean heading-error RMS per estimator, the verdict against the best baseline, the
+/// count), then each record's table.
 pub fn print_validation(v: &ValidationScores) -> Result<()> {
     let mut err = std::io::stderr().lock();
-    writeln!(
-        err,
-        "mean heading error RMS over {} validation records:",
-        v.records.len()
-    )?;
-    for (name, m) in &v.mean_heading_rms_deg {
-        writeln!(err, "  {name:<50} {m:>10.4} deg")?;
+    match &v.headline {
+        Some(h) => write!(err, "{}", h.text())?,
+        None => {
+            writeln!(
+                err,
+                "mean heading error RMS over {} validation records:",
+                v.records.len()
+            )?;
+            for (name, m) in &v.mean_heading_rms_deg {
+                writeln!(err, "  {name:<50} {m:>10.4} deg")?;
+            }
+        }
     }
     for r in &v.records {
         writeln!(err, "{}:", r.record)?;

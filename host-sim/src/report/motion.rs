@@ -328,8 +328,9 @@ fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
         if let Some(h) = &t.headline {
             writeln!(
                 o,
-                "<p class=\"headline\">Result over {} test vehicles, pooled mean heading error RMS:<br><strong>{}</strong><br>{}</p>",
+                "<p class=\"headline\">Result over {} {}, pooled mean heading error RMS:<br><strong>{}</strong><br>{}</p>",
                 h.records,
+                esc(&h.records_are),
                 esc(&h.verdict_line()),
                 esc(&h.count_line())
             )?;
@@ -345,8 +346,19 @@ fn page(s: &MotionSummary, figs: &[(&str, String, String)]) -> Result<String> {
             esc(&s.input)
         )?;
     }
+    // A replay with truth: its result leads (the verdict printed first on stderr).
+    if let (None, Some(r)) = (&s.test_set, &s.result) {
+        writeln!(
+            o,
+            "<p class=\"headline\"><strong>heading error RMS: {}</strong></p>",
+            esc(&r.verdict_line())
+        )?;
+    }
     if let Some(c) = &s.scores {
-        o.push_str(&score_table_html(c, s.test_set.is_none())?);
+        o.push_str(&score_table_html(
+            c,
+            s.test_set.is_none() && s.result.is_none(),
+        )?);
     } else {
         writeln!(
             o,
