@@ -98,7 +98,7 @@ struct Family {
     model: String,
     fit: host_sim::gyro_fit::GyroFitReport,
     /// (link spread scale, Gauss-Markov scale, mean heading RMS on the tune vehicles).
-    tuning: Vec<(f32, f32, f64)>,
+    tuning: Vec<(f32, f32, f64, Option<f32>)>,
     vehicles: Vec<Vehicle>,
     static_e_truth: Vec<(String, f64)>,
 }
@@ -161,6 +161,44 @@ fn name(p: &Path) -> String {
 }
 
 /// Runs the filter over a record; `truth_flags`: the record's still truth as external flags.
+/// Exploration: `FOG_EXPLORE=key=scale,...` multiplies fitted model numbers (keys:
+/// linkmean, linksig, shupemean, shupesig, warmmean, warmsig, turnsig, gm, rrw).
+fn explore(m: &mut GyroModel) {
+    let Ok(spec) = std::env::var("FOG_EXPLORE") else {
+        return;
+    };
+    for kv in spec.split(',') {
+        let Some((k, v)) = kv.split_once('=') else {
+            continue;
+        };
+        let Ok(x) = v.parse::<f32>() else { continue };
+        match k {
+            "linkmean" => m.temp_dps_per_c.mean *= x,
+            "linksig" => m.temp_dps_per_c.sigma *= x,
+            "shupemean" => m.temp_rate_dps_per_c_per_s.mean *= x,
+            "shupesig" => m.temp_rate_dps_per_c_per_s.sigma *= x,
+            "warmmean" => m.warmup_dps.mean *= x,
+            "warmsig" => m.warmup_dps.sigma *= x,
+            "turnsig" => m.turn_on_dps.sigma *= x,
+            "gm" => m.markov.iter_mut().for_each(|t| t.sigma_dps *= x),
+            "rrw" => m.rrw_dps_per_s_rthz *= x,
+            "gmtau" => m.markov[0].tau_s = x,
+            "gm2" => {
+                m.markov[1] = fog_core::gyro_model::MarkovTerm {
+                    sigma_dps: m.markov[0].sigma_dps * x,
+                    tau_s: 300.0,
+                };
+                m.markov[2] = fog_core::gyro_model::MarkovTerm {
+                    sigma_dps: m.markov[0].sigma_dps * x,
+                    tau_s: 3000.0,
+                };
+            }
+            _ => eprintln!("FOG_EXPLORE: unknown key {k}"),
+        }
+    }
+    eprintln!("explored model: {m:?}");
+}
+
 fn run(
     model: GyroModel,
     cfg: DriftFilterConfig,
@@ -193,6 +231,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
     }
     let cal = calibration::measure(&runs)?;
     let (mut model, fit) = host_sim::gyro_fit::fit(&runs, &cal, 30.0 / 3600.0)?;
+    explore(&mut model);
     if let Some(k) = args.rrw_dph_rth {
         model.rrw_dps_per_s_rthz = k / 3600.0 / 60.0;
     }
@@ -260,7 +299,14 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
         tuning = t
             .grid
             .iter()
-            .map(|c| (c.link_scale, c.markov_scale, c.heading_rms_deg))
+            .map(|c| {
+                (
+                    c.link_scale,
+                    c.markov_scale,
+                    c.heading_rms_deg,
+                    c.markov_tau_s,
+                )
+            })
             .collect();
         model = tuned.model;
     }
@@ -423,6 +469,39 @@ fn true_model(csv: &Path, fitted: &GyroModel) -> Option<GyroModel> {
             m.temp_dps_per_c = fitted.temp_dps_per_c;
             m.temp_rate_dps_per_c_per_s = fitted.temp_rate_dps_per_c_per_s;
         }
+        Ok("family") => {
+            // The family's true distribution (a perfect calibration of the family), the
+            // unit's own noise: what no knowledge of the unit's own constants adds.
+            let fam = v.get("family")?;
+            let ff = |k: &str| fam.get(k).and_then(Value::as_f64);
+            let scale = f("turn_on_sigma_dph")? / 5.0;
+            let sd_u = |half: f64| half / 3f64.sqrt();
+            m.turn_on_dps.mean = 0.0;
+            m.turn_on_dps.sigma =
+                ((sd_u(50.0 * scale).powi(2) + (5.0 * scale).powi(2)).sqrt() * dph) as f32;
+            m.warmup_dps.mean = 0.0;
+            m.warmup_dps.sigma = ((sd_u(40.0).powi(2) + sd_u(5.0).powi(2)).sqrt() * dph) as f32;
+            m.warmup_tau_min_s = 100.0;
+            m.warmup_tau_max_s = 1500.0;
+            match (
+                ff("k1_dph_per_c"),
+                ff("shupe_dph_per_c_per_min"),
+                ff("link_unit_spread"),
+            ) {
+                (Some(k1), Some(sh), Some(sp)) => {
+                    m.temp_dps_per_c.mean = (k1 * dph) as f32;
+                    m.temp_dps_per_c.sigma = (sp * k1.abs() * dph) as f32;
+                    m.temp_rate_dps_per_c_per_s.mean = (sh * dph * 60.0) as f32;
+                    m.temp_rate_dps_per_c_per_s.sigma = (sp * sh.abs() * dph * 60.0) as f32;
+                }
+                _ => {
+                    m.temp_dps_per_c.mean = 0.0;
+                    m.temp_dps_per_c.sigma = (sd_u(0.05) * dph) as f32;
+                    m.temp_rate_dps_per_c_per_s.mean = 0.0;
+                    m.temp_rate_dps_per_c_per_s.sigma = (sd_u(0.5) * dph * 60.0) as f32;
+                }
+            }
+        }
         Ok("noise") => {
             m.markov = fitted.markov;
             m.rrw_dps_per_s_rthz = fitted.rrw_dps_per_s_rthz;
@@ -545,8 +624,12 @@ fn print_family(f: &Family) {
     );
     if let Some(best) = f.tuning.iter().min_by(|a, b| a.2.total_cmp(&b.2)) {
         println!(
-            "  tuned on the tune vehicles: link spread x{}, Gauss-Markov x{} ({:.3} deg there)",
-            best.0, best.1, best.2
+            "  tuned on the tune vehicles: link spread x{}, Gauss-Markov x{}{} ({:.3} deg there)",
+            best.0,
+            best.1,
+            best.3
+                .map_or(String::new(), |t| format!(" in one term of {t} s")),
+            best.2
         );
     }
     let vs: Vec<&Vehicle> = f.vehicles.iter().collect();
@@ -585,6 +668,10 @@ fn demo_family(cfg: DriftFilterConfig, args: &Args) -> Result<()> {
     }
     let cal = calibration::measure(&runs)?;
     let (mut model, fit) = host_sim::gyro_fit::fit(&runs, &cal, 30.0 / 3600.0)?;
+    explore(&mut model);
+    if let Some(k) = args.rrw_dph_rth {
+        model.rrw_dps_per_s_rthz = k / 3600.0 / 60.0;
+    }
     if args.no_links {
         model.temp_dps_per_c = Default::default();
         model.temp_rate_dps_per_c_per_s = Default::default();

@@ -4,13 +4,15 @@
 //! The calibration runs fit the model ([`crate::gyro_fit`]) but measure two things poorly:
 //! the unit-to-unit spread of the temperature links (a run's own link is confounded with its
 //! warm-up, so the runs' scatter overstates it) and the Gauss-Markov sigmas at the drift's
-//! long times (the runs' Allan taus end at an eighth of their length). Both are scaled here
-//! on a grid ([`LINK_SCALES`] x [`MARKOV_SCALES`], every pair), by the least mean heading RMS
+//! long times (the runs' Allan taus end at an eighth of their length), nor the terms'
+//! correlation time. They are scaled here on a grid ([`MARKOV_TAUS_S`] x [`LINK_SCALES`] x
+//! [`MARKOV_SCALES`], every triple), by the least mean heading RMS
 //! over the vehicles with the filter's own stillness test; the pick is what the image
 //! carries. Nothing is chosen on line.
 
 use crate::nav::{self, NavRecord};
 use anyhow::Result;
+use fog_core::gyro_model::{MarkovTerm, MAX_MARKOV};
 use fog_core::image::Image;
 use serde::Serialize;
 
@@ -18,6 +20,13 @@ use serde::Serialize;
 pub const LINK_SCALES: [f32; 4] = [0.1, 0.3, 0.6, 1.0];
 /// Scales of the Gauss-Markov sigmas tried (1: as fitted).
 pub const MARKOV_SCALES: [f32; 4] = [1.0, 2.0, 3.0, 5.0];
+/// Correlation times of the Gauss-Markov terms tried, s: `None` as fitted, else every
+/// term's variance in one term of this correlation time. The runs' Allan taus end at an
+/// eighth of their length, after their deterministic part took the slowest wander out:
+/// they cannot tell a 30-s term from flicker that lasts through a drive, and a correction
+/// learned at a stop that decays in 30 s of driving is lost when the drift is flicker
+/// (docs/drift-filter.md, the Gauss-Markov terms' correlation time).
+pub const MARKOV_TAUS_S: [Option<f32>; 2] = [None, Some(3000.0)];
 
 /// One grid point and its score.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -26,6 +35,8 @@ pub struct Candidate {
     pub link_scale: f32,
     /// Scale of the Gauss-Markov sigmas.
     pub markov_scale: f32,
+    /// Correlation time of the Gauss-Markov terms, s (`None`: as fitted).
+    pub markov_tau_s: Option<f32>,
     /// Mean heading RMS over the vehicles, deg.
     pub heading_rms_deg: f64,
 }
@@ -55,6 +66,23 @@ pub fn scaled(image: &Image, link_scale: f32, markov_scale: f32) -> Image {
     im
 }
 
+/// `image` with every Gauss-Markov term's variance in one term of correlation time `tau_s`
+/// (the total variance kept; `None`: unchanged).
+pub fn retimed(image: &Image, tau_s: Option<f32>) -> Image {
+    let mut im = *image;
+    if let Some(tau_s) = tau_s {
+        let var: f32 = im.model.markov.iter().map(|t| t.sigma_dps * t.sigma_dps).sum();
+        if var > 0.0 {
+            im.model.markov = [MarkovTerm::default(); MAX_MARKOV];
+            im.model.markov[0] = MarkovTerm {
+                sigma_dps: var.sqrt(),
+                tau_s,
+            };
+        }
+    }
+    im
+}
+
 /// Mean heading RMS, deg, of `image` over `val` (the filter's own test).
 pub fn mean_heading_rms(image: &Image, val: &[NavRecord]) -> Result<f64> {
     anyhow::ensure!(!val.is_empty(), "no vehicle record to score on");
@@ -69,14 +97,18 @@ pub fn mean_heading_rms(image: &Image, val: &[NavRecord]) -> Result<f64> {
 /// Tunes the two scales of `image` on `val` (module docs); returns the tuned image.
 pub fn tune(image: &Image, val: &[NavRecord]) -> Result<(Image, Tuning)> {
     let mut grid = Vec::new();
-    for &link_scale in &LINK_SCALES {
-        for &markov_scale in &MARKOV_SCALES {
-            let h = mean_heading_rms(&scaled(image, link_scale, markov_scale), val)?;
-            grid.push(Candidate {
-                link_scale,
-                markov_scale,
-                heading_rms_deg: h,
-            });
+    for &markov_tau_s in &MARKOV_TAUS_S {
+        let timed = retimed(image, markov_tau_s);
+        for &link_scale in &LINK_SCALES {
+            for &markov_scale in &MARKOV_SCALES {
+                let h = mean_heading_rms(&scaled(&timed, link_scale, markov_scale), val)?;
+                grid.push(Candidate {
+                    link_scale,
+                    markov_scale,
+                    markov_tau_s,
+                    heading_rms_deg: h,
+                });
+            }
         }
     }
     let picked = *grid
@@ -87,7 +119,11 @@ pub fn tune(image: &Image, val: &[NavRecord]) -> Result<(Image, Tuning)> {
     let at_grid_end = picked.link_scale == LINK_SCALES[0]
         || picked.markov_scale == MARKOV_SCALES[MARKOV_SCALES.len() - 1];
     Ok((
-        scaled(image, picked.link_scale, picked.markov_scale),
+        scaled(
+            &retimed(image, picked.markov_tau_s),
+            picked.link_scale,
+            picked.markov_scale,
+        ),
         Tuning {
             picked,
             grid,
@@ -100,10 +136,13 @@ pub fn tune(image: &Image, val: &[NavRecord]) -> Result<(Image, Tuning)> {
 /// One line on the pick.
 pub fn describe(t: &Tuning) -> String {
     format!(
-        "tuned on {} vehicle records: links' spread x{}, Gauss-Markov sigmas x{} (mean heading RMS {:.4} deg{})",
+        "tuned on {} vehicle records: links' spread x{}, Gauss-Markov sigmas x{}{} (mean heading RMS {:.4} deg{})",
         t.vehicles,
         t.picked.link_scale,
         t.picked.markov_scale,
+        t.picked
+            .markov_tau_s
+            .map_or(String::new(), |tau| format!(" in one term of {tau} s")),
         t.picked.heading_rms_deg,
         if t.at_grid_end {
             "; at the grid's end: the grid may not bracket the optimum"
