@@ -72,10 +72,10 @@ fn demo_writes_the_report() {
         serde_json::from_str(&fs::read_to_string(dir.join("summary.json")).expect("summary"))
             .expect("json");
     assert_eq!(s["rows"], 60_000);
-    // The model's two scales, tuned on the tune vehicles (never "validation": they are
-    // not the records the result is scored on).
+    // The model's two scales and the Gauss-Markov correlation time, tuned on the tune
+    // vehicles (never "validation": they are not the records the result is scored on).
     let tuning = &s["level_tuning"];
-    assert_eq!(tuning["grid"].as_array().expect("grid").len(), 16);
+    assert_eq!(tuning["grid"].as_array().expect("grid").len(), 32);
     finite(&tuning["picked"], "heading_rms_deg");
     assert!(
         stderr.contains("demo: tuned on 2 vehicle records:"),

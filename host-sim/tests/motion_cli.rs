@@ -700,17 +700,35 @@ fn tune_on_vehicles_scales_the_model() {
     let v: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(&json).expect("test")).expect("json");
     let grid = v["tuning"]["grid"].as_array().expect("grid");
-    assert_eq!(grid.len(), 16);
+    assert_eq!(grid.len(), 32);
     let rms = |c: &serde_json::Value| c["heading_rms_deg"].as_f64().expect("rms");
     let least = grid.iter().map(rms).fold(f64::INFINITY, f64::min);
     assert_eq!(rms(&v["tuning"]["picked"]), least);
     let scale = |k: &str| v["tuning"]["picked"][k].as_f64().expect("scale") as f32;
     let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("image");
     let plain = fog_core::image::Image::parse(&fs::read(&plain).expect("test")).expect("image");
-    assert_eq!(
-        image.model.markov[0].sigma_dps,
-        plain.model.markov[0].sigma_dps * scale("markov_scale")
-    );
+    // The Gauss-Markov terms as fitted, or their total variance in one term of the picked
+    // correlation time; then scaled.
+    match v["tuning"]["picked"]["markov_tau_s"].as_f64() {
+        None => assert_eq!(
+            image.model.markov[0].sigma_dps,
+            plain.model.markov[0].sigma_dps * scale("markov_scale")
+        ),
+        Some(tau) => {
+            let var: f32 = plain
+                .model
+                .markov
+                .iter()
+                .map(|t| t.sigma_dps * t.sigma_dps)
+                .sum();
+            assert_eq!(image.model.markov[0].tau_s, tau as f32);
+            assert_eq!(
+                image.model.markov[0].sigma_dps,
+                var.sqrt() * scale("markov_scale")
+            );
+            assert!(image.model.markov[1..].iter().all(|t| t.sigma_dps == 0.0));
+        }
+    }
     assert_eq!(
         image.model.temp_dps_per_c.sigma,
         plain.model.temp_dps_per_c.sigma * scale("link_scale")

@@ -603,8 +603,8 @@ fn family(fam: &Path, exe: &Path, extra: &[String], dir: &Path) -> Result<Family
         identify_tuning: id["tuning"].clone(),
         identify_tuning_text: id["tuning"]["picked"].as_object().map(|p| {
             format!(
-                "links' spread x{}, Gauss-Markov sigmas x{} ({} deg on the tune vehicles)",
-                p["link_scale"], p["markov_scale"], p["heading_rms_deg"]
+                "links' spread x{}, Gauss-Markov sigmas x{}, correlation time {} s (null: as fitted) ({} deg on the tune vehicles)",
+                p["link_scale"], p["markov_scale"], p["markov_tau_s"], p["heading_rms_deg"]
             )
         }),
         static_test,

@@ -71,7 +71,12 @@ pub fn scaled(image: &Image, link_scale: f32, markov_scale: f32) -> Image {
 pub fn retimed(image: &Image, tau_s: Option<f32>) -> Image {
     let mut im = *image;
     if let Some(tau_s) = tau_s {
-        let var: f32 = im.model.markov.iter().map(|t| t.sigma_dps * t.sigma_dps).sum();
+        let var: f32 = im
+            .model
+            .markov
+            .iter()
+            .map(|t| t.sigma_dps * t.sigma_dps)
+            .sum();
         if var > 0.0 {
             im.model.markov = [MarkovTerm::default(); MAX_MARKOV];
             im.model.markov[0] = MarkovTerm {
@@ -181,10 +186,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn scaled_changes_the_two_spreads_and_nothing_else() {
+    fn scaled_and_retimed_change_what_they_say_and_nothing_else() {
         let mut im = crate::motion::untrained(&fog_core::sensor::SensorConfig::ECORE_2000);
         im.model.temp_dps_per_c.sigma = 1e-4;
         im.model.temp_rate_dps_per_c_per_s.sigma = 2e-2;
+        im.model.markov[0] = MarkovTerm {
+            sigma_dps: 3e-4,
+            tau_s: 30.0,
+        };
+        im.model.markov[1] = MarkovTerm {
+            sigma_dps: 4e-4,
+            tau_s: 300.0,
+        };
         let s = scaled(&im, 0.5, 3.0);
         assert_eq!(s.model.temp_dps_per_c.sigma, 0.5e-4);
         assert_eq!(s.model.temp_rate_dps_per_c_per_s.sigma, 1e-2);
@@ -192,6 +205,18 @@ mod tests {
             s.model.markov[0].sigma_dps,
             3.0 * im.model.markov[0].sigma_dps
         );
+        let r = retimed(&im, Some(3000.0));
+        let var: f32 = im
+            .model
+            .markov
+            .iter()
+            .map(|t| t.sigma_dps * t.sigma_dps)
+            .sum();
+        assert!(var > 0.0);
+        assert_eq!(r.model.markov[0].tau_s, 3000.0);
+        assert_eq!(r.model.markov[0].sigma_dps, var.sqrt());
+        assert!(r.model.markov[1..].iter().all(|t| t.sigma_dps == 0.0));
+        assert_eq!(retimed(&im, None), im);
         let mut back = s;
         back.model.temp_dps_per_c = im.model.temp_dps_per_c;
         back.model.temp_rate_dps_per_c_per_s = im.model.temp_rate_dps_per_c_per_s;
