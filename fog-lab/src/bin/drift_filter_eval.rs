@@ -101,6 +101,8 @@ struct Family {
     tuning: Vec<(f32, f32, f64, Option<f32>)>,
     vehicles: Vec<Vehicle>,
     static_e_truth: Vec<(String, f64)>,
+    /// The limit's (each record's own model, every window still) e_truth per static record.
+    static_limit: Vec<f64>,
 }
 
 fn main() -> Result<()> {
@@ -377,6 +379,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
         });
     }
     let mut static_e_truth = Vec::new();
+    let mut static_limit = Vec::new();
     for p in files(&fam.join("static-test"))?.0 {
         let r = NavRecord::try_from(&Record::read(&p, &ReadOptions::default())?)?;
         let (d, st) = run(model, cfg, &r, false)?;
@@ -410,6 +413,9 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             );
         }
         static_e_truth.push((name(&p), e(&d)));
+        if let Some(tm) = true_model(&p, &model) {
+            static_limit.push(e(&run(tm, cfg, &r, true)?.0));
+        }
     }
     Ok(Family {
         family: fam.display().to_string(),
@@ -418,6 +424,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
         tuning,
         vehicles,
         static_e_truth,
+        static_limit,
     })
 }
 
@@ -639,9 +646,10 @@ fn print_family(f: &Family) {
     let undone: u32 = f.vehicles.iter().map(|v| v.undone).sum();
     println!("  windows still {still} of {windows}, updates undone {undone}");
     println!(
-        "  static e_truth mean {:.4} ({} records)",
+        "  static e_truth mean {:.4} ({} records); limit (own model, every window still) {:.4}",
         mean(f.static_e_truth.iter().map(|x| x.1)),
-        f.static_e_truth.len()
+        f.static_e_truth.len(),
+        mean(f.static_limit.iter().copied())
     );
 }
 
