@@ -125,37 +125,69 @@ fn bins(s: &Series) -> Bins {
     out
 }
 
-/// Least squares with a small ridge (collinear columns stay finite); `rows` of `K` values.
-fn least_squares<const K: usize>(rows: &[[f64; K]], y: &[f64]) -> Option<([f64; K], f64)> {
-    let mut a = [[0.0; K]; K];
-    let mut b = [0.0; K];
-    for (r, &v) in rows.iter().zip(y) {
-        for i in 0..K {
-            b[i] += r[i] * v;
-            for j in 0..K {
-                a[i][j] += r[i] * r[j];
+/// The normal equations `A x = b` of a least-squares fit, accumulated an equation at a time.
+struct NormalEquations {
+    a: Vec<Vec<f64>>,
+    b: Vec<f64>,
+}
+
+impl NormalEquations {
+    /// `k` unknowns, no equation yet.
+    fn new(k: usize) -> Self {
+        Self {
+            a: vec![vec![0.0; k]; k],
+            b: vec![0.0; k],
+        }
+    }
+
+    /// Dense `rows` with their targets `y`.
+    fn of_rows<const K: usize>(rows: &[[f64; K]], y: &[f64]) -> Self {
+        let mut ne = Self::new(K);
+        for (r, &v) in rows.iter().zip(y) {
+            let entries: Vec<(usize, f64)> = r.iter().copied().enumerate().collect();
+            ne.add(&entries, v, 1.0);
+        }
+        ne
+    }
+
+    /// Adds the equation `sum_i v_i x_i / scale = y` given by its `entries` `(i, v_i)` (the
+    /// others 0): `scale` 1 for a plain row; the measured value, with `y` 1, for a relative
+    /// one.
+    fn add(&mut self, entries: &[(usize, f64)], y: f64, scale: f64) {
+        for &(i, vi) in entries {
+            self.b[i] += vi * y / scale;
+            for &(j, vj) in entries {
+                self.a[i][j] += vi * vj / (scale * scale);
             }
         }
     }
-    for (i, row) in a.iter_mut().enumerate() {
-        row[i] += 1e-9 * row[i].abs() + 1e-15;
+
+    /// The solution ([`solve_dyn`]).
+    fn solve(&self) -> Option<Vec<f64>> {
+        self.solve_for(self.b.clone())
     }
-    let x = solve(a, b)?;
-    let sse = rows
-        .iter()
-        .zip(y)
-        .map(|(r, &v)| {
-            let f: f64 = r.iter().zip(&x).map(|(a, b)| a * b).sum();
-            (v - f) * (v - f)
-        })
-        .sum();
-    Some((x, sse))
+
+    /// The solution with a small ridge on the diagonal (collinear columns stay finite).
+    fn solve_ridged(&self) -> Option<Vec<f64>> {
+        let mut a = self.a.clone();
+        for (i, row) in a.iter_mut().enumerate() {
+            row[i] += 1e-9 * row[i].abs() + 1e-15;
+        }
+        solve_dyn(a, self.b.clone())
+    }
+
+    /// `A x = rhs` for another right-hand side (a unit one: a column of `A^-1`).
+    fn solve_for(&self, rhs: Vec<f64>) -> Option<Vec<f64>> {
+        solve_dyn(self.a.clone(), rhs)
+    }
 }
 
-/// `a x = b` for fixed sizes, by [`solve_dyn`].
-fn solve<const K: usize>(a: [[f64; K]; K], b: [f64; K]) -> Option<[f64; K]> {
-    let x = solve_dyn(a.iter().map(|r| r.to_vec()).collect(), b.to_vec())?;
-    x.try_into().ok()
+/// Least squares with a small ridge (collinear columns stay finite); `rows` of `K` values.
+fn least_squares<const K: usize>(rows: &[[f64; K]], y: &[f64]) -> Option<[f64; K]> {
+    NormalEquations::of_rows(rows, y)
+        .solve_ridged()?
+        .try_into()
+        .ok()
 }
 
 /// Sampling variances of the two link coefficients of a 4-column fit of `y`: the
@@ -176,19 +208,12 @@ fn sampling_var(rows: &[[f64; 4]], y: &[f64], x: &[f64; 4]) -> [f64; 2] {
         0.0
     };
     let s2 = sse / (n - 4.0).max(1.0) * (1.0 + rho) / (1.0 - rho);
-    let mut a = [[0.0; 4]; 4];
-    for r in rows {
-        for i in 0..4 {
-            for j in 0..4 {
-                a[i][j] += r[i] * r[j];
-            }
-        }
-    }
+    let ne = NormalEquations::of_rows(rows, y);
     let mut out = [f64::INFINITY; 2];
     for (o, k) in out.iter_mut().zip([2usize, 3]) {
-        let mut e = [0.0; 4];
+        let mut e = vec![0.0; 4];
         e[k] = 1.0;
-        if let Some(col) = solve(a, e) {
+        if let Some(col) = ne.solve_for(e) {
             *o = s2 * col[k];
         }
     }
@@ -218,8 +243,7 @@ fn pooled(
 ) -> Option<(Vec<[f64; 2]>, [f64; 2], f64)> {
     let r = binned.len();
     let k = 2 * r + if temperature { 2 } else { 0 };
-    let mut a = vec![vec![0.0; k]; k];
-    let mut rhs = vec![0.0; k];
+    let mut ne = NormalEquations::new(k);
     let row_of = |run: usize, x: &[f64; 4]| -> Vec<(usize, f64)> {
         let mut v = vec![(2 * run, x[0]), (2 * run + 1, x[1])];
         if temperature {
@@ -230,19 +254,10 @@ fn pooled(
     };
     for (run, b) in binned.iter().enumerate() {
         for (x, &y) in rows(b, tau_s, temperature).iter().zip(&b.y) {
-            let entries = row_of(run, x);
-            for &(i, vi) in &entries {
-                rhs[i] += vi * y;
-                for &(j, vj) in &entries {
-                    a[i][j] += vi * vj;
-                }
-            }
+            ne.add(&row_of(run, x), y, 1.0);
         }
     }
-    for (i, row) in a.iter_mut().enumerate() {
-        row[i] += 1e-9 * row[i].abs() + 1e-15;
-    }
-    let x = solve_dyn(a, rhs)?;
+    let x = ne.solve_ridged()?;
     let shared = if temperature {
         [x[2 * r], x[2 * r + 1]]
     } else {
@@ -316,19 +331,14 @@ fn fit_avar(points: &[(f64, f64)]) -> [f64; 2 + MAX_MARKOV] {
     for mask in 1u32..(1 << K) {
         let idx: Vec<usize> = (0..K).filter(|i| mask & (1 << i) != 0).collect();
         // Normal equations of the chosen columns, rows weighted by 1/avar.
-        let m = idx.len();
-        let mut a = vec![vec![0.0; m]; m];
-        let mut b = vec![0.0; m];
+        let mut ne = NormalEquations::new(idx.len());
         for &(tau, avar) in points {
             let f = basis(tau);
-            for (i, &ci) in idx.iter().enumerate() {
-                b[i] += f[ci] / avar;
-                for (j, &cj) in idx.iter().enumerate() {
-                    a[i][j] += f[ci] * f[cj] / (avar * avar);
-                }
-            }
+            let entries: Vec<(usize, f64)> =
+                idx.iter().enumerate().map(|(i, &ci)| (i, f[ci])).collect();
+            ne.add(&entries, 1.0, avar);
         }
-        let Some(x) = solve_dyn(a, b) else { continue };
+        let Some(x) = ne.solve() else { continue };
         if x.iter().any(|&v| v < 0.0) {
             continue;
         }
@@ -418,7 +428,7 @@ pub fn fit(
     let mut own: Vec<([f64; 4], [f64; 2])> = Vec::new();
     for (s, b) in runs.iter().zip(&binned) {
         let x_rows = rows(b, tau_w, temperature);
-        let Some((x, _)) = least_squares(&x_rows, &b.y) else {
+        let Some(x) = least_squares(&x_rows, &b.y) else {
             bail!("{}: the deterministic part cannot be fitted", s.name);
         };
         own.push((x, sampling_var(&x_rows, &b.y, &x)));
@@ -528,8 +538,7 @@ pub fn fit(
         q.sort_by(f64::total_cmp);
         q.get(q.len() / 2).copied().unwrap_or(0.0)
     };
-    let bound = (crate::motion::calibration::DRIFT_MARGIN * cal.drift_abs_max_dph / 3600.0)
-        .max(file_bound_dps);
+    let bound = crate::motion::calibration::drift_bound_dph(cal, file_bound_dps) / 3600.0;
     let model = GyroModel {
         sample_rate_hz: cal.rate_hz as f32,
         white_dps_rthz: (cal.noise_median_deg_rth / 60.0) as f32,

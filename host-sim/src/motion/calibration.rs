@@ -30,6 +30,13 @@ use serde::Serialize;
 /// The image's drift bound is at least this many times the largest |10-s mean drift| of
 /// the calibration runs (ASSUMED: 1.5, room for a unit beyond the runs' spread).
 pub const DRIFT_MARGIN: f64 = 1.5;
+
+/// The image's drift bound, deg/h: [`DRIFT_MARGIN`] times the runs' largest |drift|, at
+/// least the gyro file's bound `file_bound_dps`.
+pub fn drift_bound_dph(cal: &Calibration, file_bound_dps: f64) -> f64 {
+    (cal.drift_abs_max_dph * DRIFT_MARGIN).max(file_bound_dps * 3600.0)
+}
+
 /// A measured noise density this many times above or below the gyro file's is warned
 /// about (ASSUMED: 2; a family spreads 0.5x to 3x around its nominal).
 pub const DISAGREE_FACTOR: f64 = 2.0;
@@ -251,8 +258,7 @@ pub fn warnings(file: &SensorConfig, cal: &Calibration) -> Result<Vec<String>> {
             }
         }
     }
-    let bound_dph =
-        (cal.drift_abs_max_dph * DRIFT_MARGIN).max(f64::from(file.drift_bound_dps) * 3600.0);
+    let bound_dph = drift_bound_dph(cal, f64::from(file.drift_bound_dps));
     if cal.drift_abs_max_dph > f64::from(file.drift_bound_dps) * 3600.0 {
         warnings.push(format!(
             "drift reaches {:.1} deg/h in the runs, beyond the gyro file's bound {:.1} deg/h: the image's bound is {bound_dph:.1} deg/h ({DRIFT_MARGIN} x the runs')",

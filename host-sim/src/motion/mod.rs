@@ -208,17 +208,29 @@ pub fn filter_error_words(e: &fog_core::drift_filter::DriftFilterError) -> &'sta
 
 /// Runs `filter` over a record from power-on: one output per row.
 pub fn run(filter: &mut DriftFilter, s: &Series) -> Vec<DriftOutput> {
-    filter.restart();
-    (0..s.rate_dps.len())
-        .map(|k| {
+    run_rows(
+        filter,
+        s.rate_dps.iter().enumerate().map(|(k, &rate)| {
             let temp = s
                 .temp_c
                 .as_ref()
                 .and_then(|t| t.get(k).copied())
                 .unwrap_or(f32::NAN);
             let ext = s.still.as_ref().and_then(|v| v.get(k).copied().flatten());
-            push_row(filter, s.rate_dps[k], temp, ext)
-        })
+            (rate, temp, ext)
+        }),
+    )
+}
+
+/// Runs `filter` from power-on over `rows`, each `(rate_dps, temp_c, external_still)` as
+/// [`push_row`] takes them: one output per row.
+pub fn run_rows(
+    filter: &mut DriftFilter,
+    rows: impl IntoIterator<Item = (f32, f32, Option<bool>)>,
+) -> Vec<DriftOutput> {
+    filter.restart();
+    rows.into_iter()
+        .map(|(rate_dps, temp_c, ext)| push_row(filter, rate_dps, temp_c, ext))
         .collect()
 }
 

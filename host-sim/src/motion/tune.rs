@@ -167,18 +167,21 @@ pub fn run_image(image: &Image, rec: &NavRecord) -> Result<(Vec<f64>, Vec<bool>)
         rec.rate_dps.len() == rec.len() && rec.temp_c.as_ref().is_none_or(|t| t.len() == rec.len()),
         "record columns of different lengths"
     );
-    let (mut drift, mut still) = (Vec::with_capacity(rec.len()), Vec::with_capacity(rec.len()));
-    for (k, &rate) in rec.rate_dps.iter().enumerate() {
-        let temp = rec
-            .temp_c
-            .as_ref()
-            .and_then(|t| t.get(k))
-            .map_or(f32::NAN, |&t| t as f32);
-        let o = f.push(rate as f32, temp, None);
-        drift.push(o.map_or(0.0, |o| f64::from(o.drift_dps)));
-        still.push(o.is_ok_and(|o| o.still));
-    }
-    Ok((drift, still))
+    let out = super::run_rows(
+        &mut f,
+        rec.rate_dps.iter().enumerate().map(|(k, &rate)| {
+            let temp = rec
+                .temp_c
+                .as_ref()
+                .and_then(|t| t.get(k))
+                .map_or(f32::NAN, |&t| t as f32);
+            (rate as f32, temp, None)
+        }),
+    );
+    Ok((
+        out.iter().map(|o| f64::from(o.drift_dps)).collect(),
+        out.iter().map(|o| o.still).collect(),
+    ))
 }
 
 #[cfg(test)]
