@@ -7,14 +7,12 @@
 //! baseline are recomputed here from the JSON's per-record figures. (`demo`'s:
 //! `demo_cli.rs`, `demo_leads_with_the_pooled_result_of_its_json`.)
 
-use assert_cmd::Command;
 use serde_json::Value;
 use std::fs;
 use std::path::Path;
 
-fn host_sim() -> Command {
-    Command::cargo_bin("host-sim").expect("binary built")
-}
+mod common;
+use common::{host_sim, simulate, vehicle_gyro};
 
 fn stderr(a: &assert_cmd::assert::Assert) -> String {
     String::from_utf8_lossy(&a.get_output().stderr).to_string()
@@ -35,33 +33,6 @@ fn agrees(printed: f64, exact: f64, decimals: i32, what: &str) {
         (printed - exact).abs() <= half,
         "{what}: printed {printed}, JSON {exact}"
     );
-}
-
-/// `simulate --gyro MODEL --duration-s S --seed K --output OUT`.
-fn simulate(model: &str, duration_s: u32, seed: u32, out: &Path) {
-    host_sim()
-        .args(["simulate", "--gyro", model, "--duration-s"])
-        .arg(duration_s.to_string())
-        .arg("--seed")
-        .arg(seed.to_string())
-        .arg("--output")
-        .arg(out)
-        .assert()
-        .success();
-}
-
-/// The ecore2000 gyro as a vehicle (60 s alignment, stops, drives, turns): records with
-/// truth (`true_rate_dps`, `drift_dps`, `moving`).
-fn vehicle_model(d: &Path) -> String {
-    let preset =
-        fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("gyros/ecore2000.toml"))
-            .expect("preset");
-    // The preset's [motion] table is its last; the vehicle profile replaces it.
-    let head = preset.split("[motion]").next().expect("preset head");
-    let toml = format!("{head}[motion]\nprofile = \"vehicle\"\n[motion.vehicle]\nalign_s = 60.0\n");
-    let model = d.join("vehicle.toml");
-    fs::write(&model, toml).expect("write the model");
-    model.to_str().expect("utf-8 path").to_string()
 }
 
 /// What the per-record figures of the JSON say (one `scores` table per record, the
@@ -192,7 +163,7 @@ fn after<'a>(line: &'a str, marker: &str) -> &'a str {
 fn replay_leads_with_the_result_of_its_json() {
     let dir = tempfile::tempdir().expect("tmp");
     let d = dir.path();
-    let model = vehicle_model(d);
+    let model = vehicle_gyro(d, "vehicle.toml");
     let rec = d.join("vehicle.csv");
     simulate(&model, 300, 31, &rec);
     let (j, rep) = (d.join("replay.json"), d.join("report"));
@@ -305,7 +276,7 @@ fn identify_validation_result_is_the_pooled_result_of_its_json() {
     for seed in [1, 2] {
         simulate("ecore2000", 120, seed, &runs.join(format!("run{seed}.csv")));
     }
-    let model = vehicle_model(d);
+    let model = vehicle_gyro(d, "vehicle.toml");
     for seed in [21, 22] {
         simulate(&model, 300, seed, &vehicles.join(format!("v{seed}.csv")));
     }

@@ -8,6 +8,8 @@ use assert_cmd::Command;
 use std::fs;
 use std::path::{Path, PathBuf};
 
+mod common;
+
 fn host_sim() -> Command {
     Command::cargo_bin("host-sim").expect("binary built")
 }
@@ -663,30 +665,11 @@ fn tune_on_vehicles_scales_the_model() {
     let d = dir.path();
     let train = train_dir(d);
     // Two 300-s vehicle records of the ecore2000 preset (alignment 60 s).
-    let preset =
-        fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("gyros/ecore2000.toml"))
-            .expect("preset");
-    // The preset's [motion] table is its last; the vehicle profile replaces it.
-    let head = preset.split("[motion]").next().expect("preset head");
-    let toml = format!("{head}[motion]\nprofile = \"vehicle\"\n[motion.vehicle]\nalign_s = 60.0\n");
-    let model = d.join("vehicle.toml");
-    fs::write(&model, toml).expect("test");
+    let model = common::vehicle_gyro(d, "vehicle.toml");
     let veh = d.join("vehicles");
     fs::create_dir(&veh).expect("test");
     for seed in [21u64, 22] {
-        host_sim()
-            .args(["simulate", "--gyro"])
-            .arg(&model)
-            .args([
-                "--duration-s",
-                "300",
-                "--seed",
-                &seed.to_string(),
-                "--output",
-            ])
-            .arg(veh.join(format!("v{seed}.csv")))
-            .assert()
-            .success();
+        common::simulate(&model, 300, seed, &veh.join(format!("v{seed}.csv")));
     }
     let img = d.join("tuned.fogi");
     let json = d.join("tuned.json");

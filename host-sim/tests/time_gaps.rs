@@ -7,6 +7,8 @@ use assert_cmd::Command;
 use std::fs;
 use std::path::{Path, PathBuf};
 
+mod common;
+
 fn host_sim() -> Command {
     Command::cargo_bin("host-sim").expect("binary built")
 }
@@ -151,30 +153,9 @@ fn replay_reports_the_hole_and_how_it_integrates_across_it() {
 /// per seed, named `v{seed}.csv`; with `hole`, the 1000 rows of 100.00 ..= 109.99 s are
 /// dropped (the step from line 10001, t_s 99.99 s, to line 10002, t_s 110 s).
 fn vehicle(dir: &Path, seed: u32, hole: bool) -> PathBuf {
-    let preset =
-        fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("gyros/ecore2000.toml"))
-            .expect("preset");
-    let head = preset.split("[motion]").next().expect("preset head");
-    let model = dir.join(format!("vehicle{seed}.toml"));
-    fs::write(
-        &model,
-        format!("{head}[motion]\nprofile = \"vehicle\"\n[motion.vehicle]\nalign_s = 60.0\n"),
-    )
-    .expect("write the model");
+    let model = common::vehicle_gyro(dir, &format!("vehicle{seed}.toml"));
     let full = dir.join(format!("full{seed}.csv"));
-    host_sim()
-        .args(["simulate", "--gyro"])
-        .arg(&model)
-        .args([
-            "--duration-s",
-            "300",
-            "--seed",
-            &seed.to_string(),
-            "--output",
-        ])
-        .arg(&full)
-        .assert()
-        .success();
+    common::simulate(&model, 300, u64::from(seed), &full);
     let text = fs::read_to_string(&full).expect("simulated");
     let mut out = String::new();
     for (k, line) in text.lines().enumerate() {

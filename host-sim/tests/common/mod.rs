@@ -1,0 +1,40 @@
+//! Helpers shared by the CLI tests (a test file that uses them declares `mod common;`).
+#![allow(dead_code)] // each test crate uses a part of them
+
+use assert_cmd::Command;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+/// The `host-sim` binary under test.
+pub fn host_sim() -> Command {
+    Command::cargo_bin("host-sim").expect("binary built")
+}
+
+/// The built-in ecore2000 gyro as a vehicle (60 s alignment, stops, drives, turns), written
+/// to `dir/name`: its records carry truth (`true_rate_dps`, `drift_dps`, `moving`).
+pub fn vehicle_gyro(dir: &Path, name: &str) -> PathBuf {
+    let preset =
+        fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("gyros/ecore2000.toml"))
+            .expect("preset");
+    // The preset's [motion] table is its last; the vehicle profile replaces it.
+    let head = preset.split("[motion]").next().expect("preset head");
+    let toml = format!("{head}[motion]\nprofile = \"vehicle\"\n[motion.vehicle]\nalign_s = 60.0\n");
+    let path = dir.join(name);
+    fs::write(&path, toml).expect("write the vehicle gyro");
+    path
+}
+
+/// `simulate --gyro GYRO --duration-s S --seed K --output OUT`, which must succeed.
+pub fn simulate(gyro: impl AsRef<std::ffi::OsStr>, duration_s: u32, seed: u64, out: &Path) {
+    host_sim()
+        .args(["simulate", "--gyro"])
+        .arg(gyro)
+        .arg("--duration-s")
+        .arg(duration_s.to_string())
+        .arg("--seed")
+        .arg(seed.to_string())
+        .arg("--output")
+        .arg(out)
+        .assert()
+        .success();
+}
