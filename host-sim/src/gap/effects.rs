@@ -150,6 +150,9 @@ pub struct Spec {
     pub warmup: Option<(f64, f64)>,
     /// Extra sinusoid: (amplitude deg/s, frequency Hz, phase rad).
     pub sine: Option<(f64, f64, f64)>,
+    /// The record's own colour: the white-noise term shaped above the effects' band
+    /// ([`super::colour`]); None: white.
+    pub colour: Option<std::sync::Arc<super::colour::Colour>>,
 }
 
 impl Spec {
@@ -178,6 +181,7 @@ impl Spec {
             dtemp_c_per_s: Default::default(),
             warmup: None,
             sine: None,
+            colour: None,
         }
     }
 
@@ -213,8 +217,28 @@ impl Spec {
     /// One simulated record on the real record's time span: (t_s, rate_dps, rate_dps less
     /// `g_base` times the reference rate).
     pub fn simulate(&self, real: &Rec, seed: u64, g_base: f64) -> Result<Sim> {
-        let mut sim = Simulator::new(&self.model, seed, 1.0 / real.dt_s)?;
         let t_end = real.t_s.last().copied().unwrap_or(0.0) + 0.5 * real.dt_s;
+        // With a colour the white term is drawn here, shaped, per sample slot (the
+        // simulator's own white noise is off); slots beyond the drawn ones (after many
+        // dropped samples) get white noise of the same level.
+        let white_dps = self.model.noise.arw_dps_per_rthz / real.dt_s.sqrt();
+        let shaped = match &self.colour {
+            Some(c) if white_dps > 0.0 && self.model.quantization.quantum_dps == 0.0 => {
+                let slots = (t_end / real.dt_s).ceil() as usize + 16;
+                let extra = (slots as f64 * self.model.faults.drop_probability * 2.0) as usize;
+                Some(c.shaped_white(white_dps, slots + extra, real.dt_s, seed))
+            }
+            _ => None,
+        };
+        let mut sim = match shaped {
+            Some(_) => {
+                let mut m = self.model.clone();
+                m.noise.arw_dps_per_rthz = 0.0;
+                Simulator::new(&m, seed, 1.0 / real.dt_s)?
+            }
+            None => Simulator::new(&self.model, seed, 1.0 / real.dt_s)?,
+        };
+        let mut spare = rand_pcg::Pcg64Mcg::new(u128::from(seed) | 1);
         let n = real.t_s.len() + 16;
         let (mut t, mut y, mut res) = (
             Vec::with_capacity(n),
@@ -228,6 +252,15 @@ impl Spec {
                 break;
             }
             let mut v = s.rate_dps;
+            if let Some(w) = &shaped {
+                v += match w.get(s.index as usize) {
+                    Some(x) => *x,
+                    None => white_dps * rand_distr::Distribution::<f64>::sample(
+                        &rand_distr::StandardNormal,
+                        &mut spare,
+                    ),
+                };
+            }
             let mut r_dps = 0.0;
             if real.ref_dps.is_some() || real.temp_c.is_some() {
                 while cursor + 1 < real.t_s.len() && real.t_s[cursor + 1] <= s.t_s {
