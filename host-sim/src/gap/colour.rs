@@ -243,3 +243,96 @@ impl Colour {
         buf.iter().take(n).map(|c| c.re / len as f64).collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    /// `n` samples at 100 Hz: white noise of sd 0.3 deg/s, through a two-pole resonator at
+    /// 20 Hz (`resonate`) or as it is.
+    fn record(n: usize, seed: u64, resonate: bool) -> Vec<f64> {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        let (r, w) = (0.9f64, std::f64::consts::TAU * 20.0 / 100.0);
+        let (a1, a2) = (2.0 * r * w.cos(), -r * r);
+        let (mut y1, mut y2) = (0.0, 0.0);
+        (0..n)
+            .map(|_| {
+                let e: f64 = StandardNormal.sample(&mut rng);
+                let e = 0.3 * e;
+                if !resonate {
+                    return e;
+                }
+                let y = e + a1 * y1 + a2 * y2;
+                y2 = y1;
+                y1 = y;
+                y
+            })
+            .collect()
+    }
+
+    fn white_model(sd_dps: f64, dt_s: f64) -> Noise {
+        Noise {
+            arw_dps_per_rthz: sd_dps * dt_s.sqrt(),
+            ..Default::default()
+        }
+    }
+
+    fn fit_of(y: &[f64]) -> (ColourFit, Layout) {
+        let dt = 0.01;
+        let t: Vec<f64> = (0..y.len()).map(|k| k as f64 * dt).collect();
+        let layout = Layout::new(&t, dt).expect("layout");
+        let ranges: Vec<(usize, usize)> = layout.ranges(&t).into_iter().step_by(2).collect();
+        let f = Colour::fit(
+            y,
+            &ranges,
+            &layout,
+            &white_model(0.3, dt),
+            &mut Fft::default(),
+        );
+        (f, layout)
+    }
+
+    /// White records keep the white baseline: the gate does not pass on any of 8.
+    #[test]
+    fn white_noise_keeps_a_white_baseline() {
+        for seed in 0..8 {
+            let (f, _) = fit_of(&record(60_000, 10 + seed, false));
+            assert!(f.colour.is_none(), "seed {seed}: gate {}", f.gate_sds);
+            assert!(f.gate_sds < GATE_SDS, "{}", f.gate_sds);
+        }
+    }
+
+    /// A resonance above the boundary is found, the gain is 1 (times the white level)
+    /// below the boundary, and the shaped white noise reproduces the record's PSD above
+    /// it within 15 % in every 1-Hz band from 4 to 49 Hz.
+    #[test]
+    fn a_resonance_is_fitted_and_reproduced() {
+        let y = record(60_000, 3, true);
+        let (f, layout) = fit_of(&y);
+        let c = f.colour.expect("the gate passes on a resonance");
+        assert!((c.boundary_hz - 4.0).abs() < 0.2, "{}", c.boundary_hz);
+        assert!(
+            (c.max_gain.1 - 20.0).abs() < 1.5,
+            "peak at {} Hz",
+            c.max_gain.1
+        );
+        let below: Vec<f64> = (0..40).map(|k| c.gain_at(k as f64 * 0.1)).collect();
+        assert!(below.iter().all(|g| *g == c.white_level), "{below:?}");
+        // The record's white level is its PSD below the boundary over 2 N^2.
+        let mut fft = Fft::default();
+        let all = [(0, y.len())];
+        let real = layout.welch(&y, &all, &mut fft);
+        let sim = c.shaped_white(0.3, y.len(), 0.01, 99);
+        let shaped = layout.welch(&sim, &all, &mut fft);
+        let df = layout.freq_hz(1);
+        for lo in 4..49 {
+            let band = |p: &[f64]| -> f64 {
+                let (a, b) = ((lo as f64 / df) as usize, ((lo + 1) as f64 / df) as usize);
+                p[a..b].iter().sum::<f64>()
+            };
+            let r = band(&shaped) / band(&real);
+            assert!((r - 1.0).abs() < 0.15, "{lo}-{} Hz: {r}", lo + 1);
+        }
+    }
+}

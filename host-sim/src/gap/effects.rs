@@ -255,10 +255,13 @@ impl Spec {
             if let Some(w) = &shaped {
                 v += match w.get(s.index as usize) {
                     Some(x) => *x,
-                    None => white_dps * rand_distr::Distribution::<f64>::sample(
-                        &rand_distr::StandardNormal,
-                        &mut spare,
-                    ),
+                    None => {
+                        white_dps
+                            * rand_distr::Distribution::<f64>::sample(
+                                &rand_distr::StandardNormal,
+                                &mut spare,
+                            )
+                    }
                 };
             }
             let mut r_dps = 0.0;
