@@ -60,15 +60,14 @@ pub struct Colour {
     pub boundary_hz: f64,
     /// Bin spacing of `power_gain`, Hz.
     pub df_hz: f64,
-    /// The white term's power in the reference band over the baseline's `2 N^2` (its ARW
-    /// fitted on the short-tau Allan variance, which the colour biases): the power gain
-    /// below the boundary.
+    /// The white term's power in the reference band over the fitted baseline's `2 N^2` (its
+    /// ARW fitted on the short-tau Allan variance, which the colour biases): the baseline's
+    /// ARW is multiplied by its square root, and kept when a candidate refits the noise.
     pub white_level: f64,
-    /// Power gain |H(f)|^2 at `k df_hz`, `k = 0 ..`: `white_level` below `boundary_hz`.
+    /// Power gain |H(f)|^2 at `k df_hz`, `k = 0 ..`: 1 below `boundary_hz`.
     #[serde(skip)]
     pub power_gain: Vec<f64>,
-    /// Smallest and largest power gain over `white_level` above the boundary, and where
-    /// (Hz).
+    /// Smallest and largest power gain above the boundary, and where (Hz).
     pub min_gain: (f64, f64),
     /// See `min_gain`.
     pub max_gain: (f64, f64),
@@ -135,7 +134,7 @@ impl Colour {
             detail,
         };
         let white = 2.0 * noise.arw_dps_per_rthz.powi(2);
-        if k_b + 2 * MEDIAN_BINS >= psd.len() || k_b <= k_r + 2 || !(white > 0.0) {
+        if k_b + 2 * MEDIAN_BINS >= psd.len() || k_b <= k_r + 2 || white.is_nan() || white <= 0.0 {
             return none(
                 f64::NAN,
                 "too few Welch bins above the boundary, or no white noise, to fit a shape".into(),
@@ -168,7 +167,7 @@ impl Colour {
         let n = cells.len() as f64;
         let chi2: f64 = cells.iter().map(|c| (c / sd).powi(2)).sum();
         let gate = (chi2 - n) / (2.0 * n).sqrt();
-        if !(gate > GATE_SDS) {
+        if gate.is_nan() || gate <= GATE_SDS {
             return none(
                 gate,
                 format!("the PSD above {boundary:.3} Hz departs from the baseline's by {gate:.1} sd (<= {GATE_SDS}): white baseline kept"),
@@ -178,19 +177,19 @@ impl Colour {
         // median of the record's PSD less the other terms over the white level.
         let shape: Vec<f64> = less.iter().map(|v| v / white).collect();
         let half = MEDIAN_BINS / 2;
-        let mut power_gain = vec![level; psd.len()];
+        let mut power_gain = vec![1.0; psd.len()];
         for (k, g) in power_gain.iter_mut().enumerate().skip(k_b) {
             let lo = k.saturating_sub(half);
             let hi = (k + half + 1).min(psd.len());
-            *g = median(&shape[lo..hi]).max(MIN_GAIN * level);
+            *g = (median(&shape[lo..hi]) / level).max(MIN_GAIN);
         }
         let (mut min_gain, mut max_gain) = ((f64::INFINITY, 0.0), (0.0, 0.0));
         for (k, &g) in power_gain.iter().enumerate().skip(k_b) {
-            if g / level < min_gain.0 {
-                min_gain = (g / level, k as f64 * df);
+            if g < min_gain.0 {
+                min_gain = (g, k as f64 * df);
             }
-            if g / level > max_gain.0 {
-                max_gain = (g / level, k as f64 * df);
+            if g > max_gain.0 {
+                max_gain = (g, k as f64 * df);
             }
         }
         ColourFit {
@@ -303,8 +302,7 @@ mod tests {
         }
     }
 
-    /// A resonance above the boundary is found, the gain is 1 (times the white level)
-    /// below the boundary, and the shaped white noise reproduces the record's PSD above
+    /// A resonance above the boundary is found, the gain is 1 below the boundary, and the shaped white noise reproduces the record's PSD above
     /// it within 15 % in every 1-Hz band from 4 to 49 Hz.
     #[test]
     fn a_resonance_is_fitted_and_reproduced() {
@@ -318,12 +316,12 @@ mod tests {
             c.max_gain.1
         );
         let below: Vec<f64> = (0..40).map(|k| c.gain_at(k as f64 * 0.1)).collect();
-        assert!(below.iter().all(|g| *g == c.white_level), "{below:?}");
+        assert!(below.iter().all(|g| *g == 1.0), "{below:?}");
         // The record's white level is its PSD below the boundary over 2 N^2.
         let mut fft = Fft::default();
         let all = [(0, y.len())];
         let real = layout.welch(&y, &all, &mut fft);
-        let sim = c.shaped_white(0.3, y.len(), 0.01, 99);
+        let sim = c.shaped_white(0.3 * c.white_level.sqrt(), y.len(), 0.01, 99);
         let shaped = layout.welch(&sim, &all, &mut fft);
         let df = layout.freq_hz(1);
         for lo in 4..49 {

@@ -593,6 +593,7 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
     let mut p = BTreeMap::new();
     let idx: Vec<usize> = ctx.fit_ranges.iter().flat_map(|&(a, b)| a..b).collect();
     let y: Vec<f64> = idx.iter().map(|&i| real.rate_dps[i]).collect();
+    let keep_white = spec.colour.is_some();
     let n = &mut spec.model.noise;
     let mut excluded = None;
     let t_rec = real.t_s.last().copied().unwrap_or(1.0) + dt;
@@ -623,7 +624,7 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             p.insert("fit_chi2".into(), chi2);
         }
         Effect::Markov => match short_joint_markov(ctx, t_rec) {
-            Some(m) => set_joint_markov(n, m, &mut p),
+            Some(m) => set_joint_markov(n, m, keep_white, &mut p),
             None => excluded = add_markov_grid(ctx, dt, t_rec, n, &mut p),
         },
         Effect::RateRamp => {
@@ -705,7 +706,8 @@ fn refit_noise(
     p: &mut Params,
 ) {
     if let Ok(m) = super::fit_baseline(less, layout, fit_ranges) {
-        take_noise_terms(&mut spec.model.noise, &m.noise, p);
+        let keep_white = spec.colour.is_some();
+        take_noise_terms(&mut spec.model.noise, &m.noise, keep_white, p);
     }
 }
 
@@ -723,9 +725,9 @@ fn short_joint_markov<'a>(ctx: &'a FitCtx, t_rec_s: f64) -> Option<&'a Model> {
 
 /// The `markov` candidate as the baseline refitted jointly with its Gauss-Markov term
 /// (`joint`): its noise terms replace the baseline's in `n`.
-fn set_joint_markov(n: &mut Noise, joint: &Model, p: &mut Params) {
+fn set_joint_markov(n: &mut Noise, joint: &Model, keep_white: bool, p: &mut Params) {
     let m = &joint.noise;
-    take_noise_terms(n, m, p);
+    take_noise_terms(n, m, keep_white, p);
     n.gm_sigma_dps = m.gm_sigma_dps;
     n.gm_tau_s = m.gm_tau_s;
     p.insert("gm_sigma_dps".into(), m.gm_sigma_dps);
@@ -741,9 +743,13 @@ pub const REFIT_KEYS: [&str; 3] = [
 ];
 
 /// Takes the noise terms N, B, K of `from` into `n` and reports them in `p`
-/// ([`REFIT_KEYS`]).
-fn take_noise_terms(n: &mut Noise, from: &Noise, p: &mut Params) {
-    n.arw_dps_per_rthz = from.arw_dps_per_rthz;
+/// ([`REFIT_KEYS`]); `keep_white`: N stays `n`'s (a baseline with the record's own colour
+/// reads its white level from the PSD below the colour's boundary, which a refit on the
+/// short-tau Allan variance the colour biases would undo).
+fn take_noise_terms(n: &mut Noise, from: &Noise, keep_white: bool, p: &mut Params) {
+    if !keep_white {
+        n.arw_dps_per_rthz = from.arw_dps_per_rthz;
+    }
     n.bias_instability_dps = from.bias_instability_dps;
     n.rrw_dps_per_s_rthz = from.rrw_dps_per_s_rthz;
     let values = [

@@ -710,7 +710,7 @@ impl Setup {
                 "fitted to the fit blocks: ARW, bias instability, rate random walk".to_string(),
             ),
         };
-        let mut base = Spec::from_model(&base_model, real.ref_dps.is_some());
+        let mut base_model = base_model;
         let colour_fit = match &o.colour {
             ColourMode::Fit if model.is_none() => Some(colour::Colour::fit(
                 &fitted_on.rate_dps,
@@ -721,6 +721,12 @@ impl Setup {
             )),
             _ => None,
         };
+        // A fitted colour sets the white level (the ARW read from the PSD below its
+        // boundary); the shape above it is relative to that level.
+        if let Some(c) = colour_fit.as_ref().and_then(|f| f.colour.as_ref()) {
+            base_model.noise.arw_dps_per_rthz *= c.white_level.sqrt();
+        }
+        let mut base = Spec::from_model(&base_model, real.ref_dps.is_some());
         base.colour = match (&o.colour, &colour_fit) {
             (ColourMode::Fixed(c), _) => c.clone(),
             (_, Some(f)) => f.colour.clone().map(std::sync::Arc::new),
