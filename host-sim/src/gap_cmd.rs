@@ -51,6 +51,10 @@ pub struct Args {
     /// `--rounds 1`: the first decision alone.
     #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=12))]
     pub rounds: u32,
+    /// Keep the fitted baseline's white noise white: no shaping by the record's own colour
+    /// above the effects' band (docs/gap.md, "Method" step 2; `colour` in the JSON).
+    #[arg(long)]
+    pub no_colour: bool,
 }
 
 /// Runs `gap`.
@@ -92,6 +96,11 @@ pub fn run(a: &Args) -> Result<()> {
     let mut o = gap::Options {
         seeds: a.simulations,
         task: !a.no_task,
+        colour: if a.no_colour {
+            gap::ColourMode::Off
+        } else {
+            gap::ColourMode::Fit
+        },
         ..Default::default()
     };
     if let Some(e) = &a.effects {

@@ -122,6 +122,7 @@ const VOCABULARY: &[(&str, Kind)] = &[
     ("--force", Kind::Switch),
     ("--quick", Kind::Switch),
     ("--no-task", Kind::Switch),
+    ("--no-colour", Kind::Switch),
     ("--undelayed-output", Kind::Switch),
     ("--help", Kind::Switch),
 ];

@@ -150,6 +150,9 @@ pub struct Spec {
     pub warmup: Option<(f64, f64)>,
     /// Extra sinusoid: (amplitude deg/s, frequency Hz, phase rad).
     pub sine: Option<(f64, f64, f64)>,
+    /// The record's own colour: the white-noise term shaped above the effects' band
+    /// ([`super::colour`]); None: white.
+    pub colour: Option<std::sync::Arc<super::colour::Colour>>,
 }
 
 impl Spec {
@@ -178,6 +181,7 @@ impl Spec {
             dtemp_c_per_s: Default::default(),
             warmup: None,
             sine: None,
+            colour: None,
         }
     }
 
@@ -213,8 +217,28 @@ impl Spec {
     /// One simulated record on the real record's time span: (t_s, rate_dps, rate_dps less
     /// `g_base` times the reference rate).
     pub fn simulate(&self, real: &Rec, seed: u64, g_base: f64) -> Result<Sim> {
-        let mut sim = Simulator::new(&self.model, seed, 1.0 / real.dt_s)?;
         let t_end = real.t_s.last().copied().unwrap_or(0.0) + 0.5 * real.dt_s;
+        // With a colour the white term is drawn here, shaped, per sample slot (the
+        // simulator's own white noise is off); slots beyond the drawn ones (after many
+        // dropped samples) get white noise of the same level.
+        let white_dps = self.model.noise.arw_dps_per_rthz / real.dt_s.sqrt();
+        let shaped = match &self.colour {
+            Some(c) if white_dps > 0.0 && self.model.quantization.quantum_dps == 0.0 => {
+                let slots = (t_end / real.dt_s).ceil() as usize + 16;
+                let extra = (slots as f64 * self.model.faults.drop_probability * 2.0) as usize;
+                Some(c.shaped_white(white_dps, slots + extra, real.dt_s, seed))
+            }
+            _ => None,
+        };
+        let mut sim = match shaped {
+            Some(_) => {
+                let mut m = self.model.clone();
+                m.noise.arw_dps_per_rthz = 0.0;
+                Simulator::new(&m, seed, 1.0 / real.dt_s)?
+            }
+            None => Simulator::new(&self.model, seed, 1.0 / real.dt_s)?,
+        };
+        let mut spare = rand_pcg::Pcg64Mcg::new(u128::from(seed) | 1);
         let n = real.t_s.len() + 16;
         let (mut t, mut y, mut res) = (
             Vec::with_capacity(n),
@@ -228,6 +252,18 @@ impl Spec {
                 break;
             }
             let mut v = s.rate_dps;
+            if let Some(w) = &shaped {
+                v += match w.get(s.index as usize) {
+                    Some(x) => *x,
+                    None => {
+                        white_dps
+                            * rand_distr::Distribution::<f64>::sample(
+                                &rand_distr::StandardNormal,
+                                &mut spare,
+                            )
+                    }
+                };
+            }
             let mut r_dps = 0.0;
             if real.ref_dps.is_some() || real.temp_c.is_some() {
                 while cursor + 1 < real.t_s.len() && real.t_s[cursor + 1] <= s.t_s {
@@ -557,6 +593,7 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
     let mut p = BTreeMap::new();
     let idx: Vec<usize> = ctx.fit_ranges.iter().flat_map(|&(a, b)| a..b).collect();
     let y: Vec<f64> = idx.iter().map(|&i| real.rate_dps[i]).collect();
+    let keep_white = spec.colour.is_some();
     let n = &mut spec.model.noise;
     let mut excluded = None;
     let t_rec = real.t_s.last().copied().unwrap_or(1.0) + dt;
@@ -587,7 +624,7 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             p.insert("fit_chi2".into(), chi2);
         }
         Effect::Markov => match short_joint_markov(ctx, t_rec) {
-            Some(m) => set_joint_markov(n, m, &mut p),
+            Some(m) => set_joint_markov(n, m, keep_white, &mut p),
             None => excluded = add_markov_grid(ctx, dt, t_rec, n, &mut p),
         },
         Effect::RateRamp => {
@@ -669,7 +706,8 @@ fn refit_noise(
     p: &mut Params,
 ) {
     if let Ok(m) = super::fit_baseline(less, layout, fit_ranges) {
-        take_noise_terms(&mut spec.model.noise, &m.noise, p);
+        let keep_white = spec.colour.is_some();
+        take_noise_terms(&mut spec.model.noise, &m.noise, keep_white, p);
     }
 }
 
@@ -687,9 +725,9 @@ fn short_joint_markov<'a>(ctx: &'a FitCtx, t_rec_s: f64) -> Option<&'a Model> {
 
 /// The `markov` candidate as the baseline refitted jointly with its Gauss-Markov term
 /// (`joint`): its noise terms replace the baseline's in `n`.
-fn set_joint_markov(n: &mut Noise, joint: &Model, p: &mut Params) {
+fn set_joint_markov(n: &mut Noise, joint: &Model, keep_white: bool, p: &mut Params) {
     let m = &joint.noise;
-    take_noise_terms(n, m, p);
+    take_noise_terms(n, m, keep_white, p);
     n.gm_sigma_dps = m.gm_sigma_dps;
     n.gm_tau_s = m.gm_tau_s;
     p.insert("gm_sigma_dps".into(), m.gm_sigma_dps);
@@ -705,9 +743,13 @@ pub const REFIT_KEYS: [&str; 3] = [
 ];
 
 /// Takes the noise terms N, B, K of `from` into `n` and reports them in `p`
-/// ([`REFIT_KEYS`]).
-fn take_noise_terms(n: &mut Noise, from: &Noise, p: &mut Params) {
-    n.arw_dps_per_rthz = from.arw_dps_per_rthz;
+/// ([`REFIT_KEYS`]); `keep_white`: N stays `n`'s (a baseline with the record's own colour
+/// reads its white level from the PSD below the colour's boundary, which a refit on the
+/// short-tau Allan variance the colour biases would undo).
+fn take_noise_terms(n: &mut Noise, from: &Noise, keep_white: bool, p: &mut Params) {
+    if !keep_white {
+        n.arw_dps_per_rthz = from.arw_dps_per_rthz;
+    }
     n.bias_instability_dps = from.bias_instability_dps;
     n.rrw_dps_per_s_rthz = from.rrw_dps_per_s_rthz;
     let values = [

@@ -23,6 +23,7 @@
 //! gap gives by chance); otherwise `none`.
 
 pub mod bench;
+pub mod colour;
 pub mod drift;
 pub mod effects;
 pub mod evidence;
@@ -223,6 +224,21 @@ pub struct Options {
     pub explicit: bool,
     /// Run the identification (task) comparison.
     pub task: bool,
+    /// The record's own colour above the effects' band ([`colour`]).
+    pub colour: ColourMode,
+}
+
+/// Whether the baseline's white-noise term is shaped by the record's own colour
+/// ([`colour`]).
+#[derive(Debug, Clone, Default)]
+pub enum ColourMode {
+    /// Fitted on the record when the baseline is (no `--gyro`); a user model stays as it is.
+    #[default]
+    Fit,
+    /// Never (`gap --no-colour`).
+    Off,
+    /// This shaping (the first round's, carried into the next rounds by `--rounds`).
+    Fixed(Option<std::sync::Arc<colour::Colour>>),
 }
 
 impl Default for Options {
@@ -233,6 +249,7 @@ impl Default for Options {
             effects: effects::ALL.to_vec(),
             explicit: false,
             task: true,
+            colour: ColourMode::Fit,
         }
     }
 }
@@ -380,6 +397,12 @@ pub struct Diagnosis {
     pub baseline: Model,
     /// Where the baseline comes from.
     pub baseline_source: String,
+    /// The record's own colour the baseline's white-noise term is shaped with
+    /// ([`colour`]; null: white).
+    pub colour: Option<colour::Colour>,
+    /// This diagnosis's colour fit (null when not fitted here: `--no-colour`, a user
+    /// model, or a later round carrying the first round's).
+    pub colour_fit: Option<colour::ColourFit>,
     /// Task comparison.
     pub task: Option<Task>,
     /// Full-record features.
@@ -658,6 +681,9 @@ struct Setup {
     fitted_on: Rec,
     /// Baseline spec.
     base: Spec,
+    /// The colour fit of this diagnosis (None: not fitted here: off, a user model, or the
+    /// first round's carried).
+    colour_fit: Option<colour::ColourFit>,
     /// The baseline's gain on the reference rate: 1 + its scale-factor error.
     g_base: f64,
     /// The record less `g_base` times its reference rate: what is compared.
@@ -684,7 +710,28 @@ impl Setup {
                 "fitted to the fit blocks: ARW, bias instability, rate random walk".to_string(),
             ),
         };
+        let mut base_model = base_model;
+        let colour_fit = match &o.colour {
+            ColourMode::Fit if model.is_none() => Some(colour::Colour::fit(
+                &fitted_on.rate_dps,
+                &split.fit_ranges,
+                &layout,
+                &base_model.noise,
+                &mut Fft::default(),
+            )),
+            _ => None,
+        };
+        // A fitted colour sets the white level (the ARW read from the PSD below its
+        // boundary); the shape above it is relative to that level.
+        if let Some(c) = colour_fit.as_ref().and_then(|f| f.colour.as_ref()) {
+            base_model.noise.arw_dps_per_rthz *= c.white_level.sqrt();
+        }
         let mut base = Spec::from_model(&base_model, real.ref_dps.is_some());
+        base.colour = match (&o.colour, &colour_fit) {
+            (ColourMode::Fixed(c), _) => c.clone(),
+            (_, Some(f)) => f.colour.clone().map(std::sync::Arc::new),
+            _ => None,
+        };
         let win = TestWindows::new(real);
         if let Some(d) = win.dtemp_c_per_s(&real.t_s) {
             base.dtemp_c_per_s = std::sync::Arc::new(d);
@@ -701,6 +748,7 @@ impl Setup {
             source,
             fitted_on,
             base,
+            colour_fit,
             g_base,
             resid: less_reference(real, g_base),
             seeds: (0..o.seeds as u64).map(|i| o.first_seed + i).collect(),
@@ -899,7 +947,13 @@ fn dedicated_tests(s: &Setup, sims: &BaseSims, bursty: bool, o: &Options) -> Tes
     // Gauss-Markov terms, whose ripple a Whittle Gauss-Markov term fits (the own benchmark's
     // bias-instability records were named markov); with a model the gap rule decides.
     let markov_test = if o.effects.contains(&Effect::Markov) && s.fitted_baseline {
-        whittle::MarkovTest::run(&real.rate_dps, real.dt_s, o.first_seed, line_hz)
+        whittle::MarkovTest::run(
+            &real.rate_dps,
+            real.dt_s,
+            o.first_seed,
+            line_hz,
+            s.base.colour.as_deref(),
+        )
     } else {
         None
     };
@@ -1602,6 +1656,8 @@ pub fn diagnose(
         tests: tests.all,
         baseline: s.base_model,
         baseline_source: s.source,
+        colour: s.base.colour.as_deref().cloned(),
+        colour_fit: s.colour_fit,
         task,
         features: feature_rows,
         definitions: DEFINITIONS,

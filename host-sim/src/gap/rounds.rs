@@ -336,6 +336,10 @@ pub fn run(
     for k in 1..=n {
         progress(k);
         let d = diagnose(&rec, time.clone(), model.as_ref(), &o)?;
+        // The first round's colour (fitted or not) shapes every later round's baseline.
+        if matches!(o.colour, super::ColourMode::Fit) {
+            o.colour = super::ColourMode::Fixed(d.colour.clone().map(std::sync::Arc::new));
+        }
         let named = Effect::parse_list(&d.effect)
             .ok()
             .and_then(|v| v.first().copied());

@@ -4,6 +4,7 @@
 //! (`rounds`, `unexplained`, `time`), rounded for reading.
 
 use super::rounds::Outcome;
+use super::Diagnosis;
 
 /// At most this many spike or hole times are listed (the JSON has them all).
 pub const MAX_TIMES: usize = 12;
@@ -37,6 +38,25 @@ fn times(t: &[f64]) -> String {
     s.join(", ")
 }
 
+/// What the baseline does with the record's own colour above the effects' band
+/// ([`super::colour`]), when it was fitted: the shaping or why it is white.
+pub fn colour_line(d: &Diagnosis) -> Option<String> {
+    match (&d.colour, &d.colour_fit) {
+        (Some(c), _) => Some(format!(
+            "  the model's white noise is shaped by the record's own colour above {} Hz (every round): white level x{}, power gain {} at {} Hz to {} at {} Hz (departure {} sd)",
+            num(c.boundary_hz),
+            num(c.white_level),
+            num(c.min_gain.0),
+            num(c.min_gain.1),
+            num(c.max_gain.0),
+            num(c.max_gain.1),
+            num(c.gate_sds)
+        )),
+        (None, Some(f)) => Some(format!("  the model's white noise stays white: {}", f.detail)),
+        _ => None,
+    }
+}
+
 /// The lines, without the record's name (the caller puts it first).
 pub fn lines(out: &Outcome) -> Vec<String> {
     let f = &out.first;
@@ -50,6 +70,7 @@ pub fn lines(out: &Outcome) -> Vec<String> {
             f.baseline_source
         ),
     ];
+    v.extend(colour_line(f));
     for r in &out.rounds {
         let need = r.null_shrink_95.map_or(0.0, |q| q.max(0.0));
         if r.effect == "none" {

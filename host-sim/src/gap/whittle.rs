@@ -147,7 +147,13 @@ fn fit_cols(b: &Binned, cols: &[&[f64]], fixed: &[f64], i: &[f64]) -> Fit {
 }
 
 impl Binned {
-    fn new(d: &[f64], dt_s: f64, t_total_s: f64, line_hz: Option<f64>) -> Option<Self> {
+    fn new(
+        d: &[f64],
+        dt_s: f64,
+        t_total_s: f64,
+        line_hz: Option<f64>,
+        colour: Option<&super::colour::Colour>,
+    ) -> Option<Self> {
         let n = d.len();
         if n < 64 {
             return None;
@@ -215,7 +221,7 @@ impl Binned {
                 let fk = k as f64 * df;
                 let wk = 4.0 * (std::f64::consts::PI * fk * dt_s).sin().powi(2);
                 acc[0] += buf[k].norm_sqr() * dt_s / (n as f64 * u);
-                acc[1] += wk;
+                acc[1] += wk * colour.map_or(1.0, |c| c.gain_at(fk));
                 acc[2] += wk / (std::f64::consts::TAU * fk);
                 acc[3] += dt_s * dt_s;
                 let om = std::f64::consts::TAU * fk * dt_s;
@@ -399,10 +405,16 @@ impl MarkovTest {
     /// Runs the test on the rate `y` (deg/s, sample period `dt_s`); deterministic (`seed`).
     /// `line_hz`: a spectral line found by the sinusoid test, whose ordinates are left out
     /// (a line is not a Gauss-Markov bump).
-    pub fn run(y: &[f64], dt_s: f64, seed: u64, line_hz: Option<f64>) -> Option<Self> {
+    pub fn run(
+        y: &[f64],
+        dt_s: f64,
+        seed: u64,
+        line_hz: Option<f64>,
+        colour: Option<&super::colour::Colour>,
+    ) -> Option<Self> {
         let d: Vec<f64> = y.windows(2).map(|w| w[1] - w[0]).collect();
         let t_total = y.len() as f64 * dt_s;
-        let b = Binned::new(&d, dt_s, t_total, line_hz)?;
+        let b = Binned::new(&d, dt_s, t_total, line_hz, colour)?;
         if b.gm.is_empty() {
             return None;
         }
@@ -516,10 +528,10 @@ mod tests {
     /// 1-T deviation, found with about its T.
     #[test]
     fn finds_a_gauss_markov_term_and_not_a_missing_one() {
-        let t = MarkovTest::run(&record(1, 0.0, 1.0), 0.01, 7, None).expect("test");
+        let t = MarkovTest::run(&record(1, 0.0, 1.0), 0.01, 7, None, None).expect("test");
         assert!(t.p_value > 0.01, "{t:?}");
         let sigma = 3.0 * 0.003 / 5f64.sqrt();
-        let t = MarkovTest::run(&record(2, sigma, 5.0), 0.01, 7, None).expect("test");
+        let t = MarkovTest::run(&record(2, sigma, 5.0), 0.01, 7, None, None).expect("test");
         assert!(t.p_value < 1e-4, "{t:?}");
         assert!((2.0..=12.0).contains(&t.gm_tau_s), "{t:?}");
         assert!((t.gm_sigma_dps / sigma - 1.0).abs() < 0.5, "{t:?}");

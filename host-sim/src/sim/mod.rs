@@ -30,7 +30,10 @@ mod model;
 pub mod motion;
 
 pub use family::{realize, Family};
-pub use markov::{flicker_adev, gm_avar, GaussMarkov, FLICKER_FLOOR, FLICKER_PER_DECADE};
+pub use markov::{
+    flicker_adev, flicker_times_s, flicker_unit_var, gm_avar, GaussMarkov, FLICKER_FLOOR,
+    FLICKER_PER_DECADE,
+};
 pub use model::{
     check_rate_hz, Bias, Faults, Model, Motion, Noise, QuantMode, Quantization, ScaleFactor,
     Temperature, Timing, EARTH_RATE_DPS, KEYS,

@@ -1,0 +1,108 @@
+//! `host-sim gap`: the fitted baseline reproduces the record's own colour above the
+//! effects' band (issue 43), and keeps white noise white.
+
+use assert_cmd::Command;
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+use std::io::Write;
+use std::path::Path;
+
+/// Writes `n` samples at 100 Hz: white noise of sd 0.3 deg/s, through a two-pole resonator
+/// at 20 Hz when `resonate` (a sensor's mechanical mode or digital filter).
+fn write_record(p: &Path, n: usize, seed: u64, resonate: bool) {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let (r, w) = (0.9f64, std::f64::consts::TAU * 20.0 / 100.0);
+    let (a1, a2) = (2.0 * r * w.cos(), -r * r);
+    let (mut y1, mut y2) = (0.0, 0.0);
+    let mut f = std::io::BufWriter::new(std::fs::File::create(p).expect("create"));
+    writeln!(f, "t_s,rate_dps").expect("write");
+    for i in 0..n {
+        let e: f64 = StandardNormal.sample(&mut rng);
+        let y = if resonate {
+            0.3 * e + a1 * y1 + a2 * y2
+        } else {
+            0.3 * e
+        };
+        y2 = y1;
+        y1 = y;
+        writeln!(f, "{},{y}", i as f64 * 0.01).expect("write");
+    }
+}
+
+/// Runs one round of `gap` on `p` (extra `args`): the JSON and stderr.
+fn gap(p: &Path, json: &Path, args: &[&str]) -> (serde_json::Value, String) {
+    let a = Command::cargo_bin("host-sim")
+        .expect("binary")
+        .args(["gap", "--simulations", "6", "--no-task", "--rounds", "1"])
+        .args(["--effects", "white_noise"])
+        .args(args)
+        .arg("--input")
+        .arg(p)
+        .arg("--json")
+        .arg(json)
+        .assert()
+        .success();
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    let v = serde_json::from_str(&std::fs::read_to_string(json).expect("json")).expect("parse");
+    (v, err)
+}
+
+/// The held-out `psd` group's gap and its null 95 % quantile.
+fn psd_gap(v: &serde_json::Value) -> (f64, f64) {
+    let g = v["group_gap_before"]["psd"].as_f64().expect("psd gap");
+    let mut nulls: Vec<f64> = v["null_group_gaps"]["psd"]
+        .as_array()
+        .expect("psd nulls")
+        .iter()
+        .filter_map(|x| x.as_f64())
+        .collect();
+    nulls.sort_by(f64::total_cmp);
+    (g, nulls[nulls.len() - 1])
+}
+
+/// A resonance at 20 Hz: with the colour the baseline's PSD reproduces it (the held-out
+/// PSD gap within twice the largest null's), without it (`--no-colour`, the old baseline)
+/// the PSD gap is more than 30 times that.
+#[test]
+fn the_record_s_own_colour_is_reproduced() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let p = dir.path().join("resonance.csv");
+    write_record(&p, 30_000, 5, true);
+    let (v, err) = gap(&p, &dir.path().join("colour.json"), &[]);
+    let c = &v["colour"];
+    assert!(c.is_object(), "no colour fitted: {}", v["colour_fit"]);
+    let boundary = c["boundary_hz"].as_f64().expect("boundary");
+    assert!((boundary - 4.0).abs() < 0.3, "boundary {boundary} Hz");
+    let peak_hz = c["max_gain"][1].as_f64().expect("peak");
+    assert!((peak_hz - 20.0).abs() < 1.5, "peak at {peak_hz} Hz");
+    assert!(
+        err.contains("white noise is shaped by the record's own colour above"),
+        "{err}"
+    );
+    let (with, null_with) = psd_gap(&v);
+    assert!(
+        with < 2.0 * null_with.max(1.0),
+        "psd gap {with} (null {null_with})"
+    );
+    let (v0, err0) = gap(&p, &dir.path().join("white.json"), &["--no-colour"]);
+    assert!(v0["colour"].is_null() && v0["colour_fit"].is_null());
+    assert!(!err0.contains("shaped"), "{err0}");
+    let (without, null_without) = psd_gap(&v0);
+    assert!(
+        without > 30.0 * 2.0 * null_without.max(1.0),
+        "psd gap without the colour {without} (null {null_without})"
+    );
+}
+
+/// White noise keeps a white baseline: the colour's gate does not pass, and says so.
+#[test]
+fn white_noise_stays_white() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let p = dir.path().join("white.csv");
+    write_record(&p, 30_000, 6, false);
+    let (v, err) = gap(&p, &dir.path().join("o.json"), &[]);
+    assert!(v["colour"].is_null(), "{}", v["colour"]);
+    let gate = v["colour_fit"]["gate_sds"].as_f64().expect("gate");
+    assert!(gate < 5.0, "gate {gate}");
+    assert!(err.contains("white noise stays white"), "{err}");
+}
