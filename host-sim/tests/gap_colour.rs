@@ -1,7 +1,7 @@
 //! `host-sim gap`: the fitted baseline reproduces the record's own colour above the
 //! effects' band (issue 43), and keeps white noise white.
 
-use assert_cmd::Command;
+mod common;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use std::io::Write;
@@ -31,20 +31,10 @@ fn write_record(p: &Path, n: usize, seed: u64, resonate: bool) {
 
 /// Runs one round of `gap` on `p` (extra `args`): the JSON and stderr.
 fn gap(p: &Path, json: &Path, args: &[&str]) -> (serde_json::Value, String) {
-    let a = Command::cargo_bin("host-sim")
-        .expect("binary")
-        .args(["gap", "--simulations", "6", "--no-task", "--rounds", "1"])
-        .args(["--effects", "white_noise"])
-        .args(args)
-        .arg("--input")
-        .arg(p)
-        .arg("--json")
-        .arg(json)
-        .assert()
-        .success();
-    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
-    let v = serde_json::from_str(&std::fs::read_to_string(json).expect("json")).expect("parse");
-    (v, err)
+    let mut all = vec!["--simulations", "6", "--no-task", "--rounds", "1"];
+    all.extend(["--effects", "white_noise"]);
+    all.extend_from_slice(args);
+    common::gap(p, json, &all)
 }
 
 /// The held-out `psd` group's gap and its null 95 % quantile.

@@ -2,27 +2,12 @@
 //! chance (never with a shrink <= 0), and the result is printed in short lines that agree
 //! with the JSON.
 
-use assert_cmd::Command;
 use host_sim::gap::summary::num;
 use std::io::{BufRead, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-/// Runs `host-sim gap ARGS --input P --json J`: (the JSON, stderr).
-fn gap(p: &Path, json: &Path, args: &[&str]) -> (serde_json::Value, String) {
-    let a = Command::cargo_bin("host-sim")
-        .expect("binary")
-        .arg("gap")
-        .args(args)
-        .arg("--input")
-        .arg(p)
-        .arg("--json")
-        .arg(json)
-        .assert()
-        .success();
-    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
-    let v = serde_json::from_str(&std::fs::read_to_string(json).expect("json")).expect("parse");
-    (v, err)
-}
+mod common;
+use common::gap;
 
 /// Every named round lowered the held-out gap: by more than the null's spread, with a
 /// shrink > 0 and > its null shrink's 95 %.

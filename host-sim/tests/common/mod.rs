@@ -38,3 +38,19 @@ pub fn simulate(gyro: impl AsRef<std::ffi::OsStr>, duration_s: u32, seed: u64, o
         .assert()
         .success();
 }
+
+/// `host-sim gap ARGS --input P --json J`, which must succeed: (the JSON, stderr).
+pub fn gap(p: &Path, json: &Path, args: &[&str]) -> (serde_json::Value, String) {
+    let a = host_sim()
+        .arg("gap")
+        .args(args)
+        .arg("--input")
+        .arg(p)
+        .arg("--json")
+        .arg(json)
+        .assert()
+        .success();
+    let err = String::from_utf8_lossy(&a.get_output().stderr).to_string();
+    let v = serde_json::from_str(&fs::read_to_string(json).expect("json")).expect("parse");
+    (v, err)
+}
