@@ -291,7 +291,7 @@ impl Report {
     /// baseline (the least `e_truth` of `baselines`): `fog wins` / `fog loses` / `fog ties`
     /// ([`crate::replay::pooled`]'s words), the difference in %, the baseline's name.
     pub fn headline(&self) -> String {
-        use crate::replay::pooled::{LOSES, TIES, WINS};
+        use crate::replay::pooled::{pct, verdict};
         let f = |v: Option<f64>| v.map_or("null".to_string(), |x| format!("{x:.4}"));
         let best = self
             .baselines
@@ -301,14 +301,8 @@ impl Report {
         let verdict = match (self.e_truth, best) {
             (Some(id), Some((e, name))) => format!(
                 "{}: e_truth {id:.4} against {e:.4} for the best baseline ({:+.1} %), {name}",
-                if id < e {
-                    WINS
-                } else if id > e {
-                    LOSES
-                } else {
-                    TIES
-                },
-                100.0 * (id / e - 1.0)
+                verdict(id, e),
+                pct(id, e)
             ),
             (None, _) => {
                 "no verdict: the identifier's e_truth is null (no truth, or it diverged)".into()

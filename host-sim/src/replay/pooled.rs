@@ -99,9 +99,21 @@ pub struct Pooled {
     pub below_every_baseline: usize,
 }
 
-/// `100 (a / b - 1)`.
-fn pct(a: f64, b: f64) -> f64 {
+/// `100 (a / b - 1)`: fog's figure `a` against a baseline's `b`, in %.
+pub fn pct(a: f64, b: f64) -> f64 {
     100.0 * (a / b - 1.0)
+}
+
+/// The verdict's words for fog's figure `fog` against the best baseline's `best` (lower is
+/// better): [`WINS`], [`LOSES`] or [`TIES`].
+pub fn verdict(fog: f64, best: f64) -> &'static str {
+    if fog < best {
+        WINS
+    } else if fog > best {
+        LOSES
+    } else {
+        TIES
+    }
 }
 
 impl Pooled {
@@ -120,13 +132,6 @@ impl Pooled {
             .iter()
             .filter(|(n, _)| n != nav::NO_COMPENSATION)
             .min_by(|a, b| a.1.total_cmp(&b.1))?;
-        let verdict = if id_mean < &best.1 {
-            WINS
-        } else if id_mean > &best.1 {
-            LOSES
-        } else {
-            TIES
-        };
         Some(Self {
             records,
             records_are: records_are.to_string(),
@@ -143,7 +148,7 @@ impl Pooled {
             best_baseline: best.0.clone(),
             best_baseline_mean_heading_rms_deg: best.1,
             difference_pct: pct(*id_mean, best.1),
-            verdict: verdict.to_string(),
+            verdict: verdict(*id_mean, best.1).to_string(),
             below_every_baseline,
         })
     }
