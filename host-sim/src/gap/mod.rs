@@ -1070,30 +1070,22 @@ pub const MIN_SHRINK: f64 = 0.0;
 /// the same fraction, the record's included (issue 44: `rate_random_walk` named for a
 /// shrink of 0.004 at a gap of 2,105).
 pub fn null_shrinks(defs: &[Def], base: &[Vec<f64>], cand: &[Vec<f64>]) -> Vec<f64> {
-    let others = |sims: &[Vec<f64>], j: usize| -> Vec<Vec<f64>> {
+    fn others(sims: &[Vec<f64>], j: usize) -> Vec<&Vec<f64>> {
         sims.iter()
             .enumerate()
             .filter(|(i, _)| *i != j)
-            .map(|(_, v)| v.clone())
+            .map(|(_, v)| v)
             .collect()
-    };
+    }
     (0..base.len().min(cand.len()))
         .filter_map(|j| {
-            let b = others(base, j);
-            let c = others(cand, j);
             let g0 = features::gap(
                 defs,
-                &features::zscores(
-                    &base[j],
-                    &features::stats(defs, &b.iter().collect::<Vec<_>>()),
-                ),
+                &features::zscores(&base[j], &features::stats(defs, &others(base, j))),
             );
             let g1 = features::gap(
                 defs,
-                &features::zscores(
-                    &base[j],
-                    &features::stats(defs, &c.iter().collect::<Vec<_>>()),
-                ),
+                &features::zscores(&base[j], &features::stats(defs, &others(cand, j))),
             );
             (g0 > 0.0 && g0.is_finite() && g1.is_finite()).then(|| 1.0 - g1 / g0)
         })
