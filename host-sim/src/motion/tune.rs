@@ -99,7 +99,8 @@ pub fn mean_heading_rms(image: &Image, val: &[NavRecord]) -> Result<f64> {
     Ok(sum / val.len() as f64)
 }
 
-/// Tunes the two scales of `image` on `val` (module docs); returns the tuned image.
+/// Tunes the two scales and the Gauss-Markov correlation time of `image` on `val` (module
+/// docs); returns the tuned image.
 pub fn tune(image: &Image, val: &[NavRecord]) -> Result<(Image, Tuning)> {
     let mut grid = Vec::new();
     for &markov_tau_s in &MARKOV_TAUS_S {
