@@ -163,8 +163,36 @@ fn name(p: &Path) -> String {
 }
 
 /// Runs the filter over a record; `truth_flags`: the record's still truth as external flags.
-/// Exploration: `FOG_EXPLORE=key=scale,...` multiplies fitted model numbers (keys:
-/// linkmean, linksig, shupemean, shupesig, warmmean, warmsig, turnsig, gm, rrw).
+/// The exploration options applied to a fitted model, in both the families' and the demo
+/// family's runs: [`explore`], then `--rrw-dph-rth`, `--markov-scale`, `--no-links`,
+/// `--warmup-scale`, `--warmup-tau-ratio` (each touches its own fields).
+fn adjust(model: &mut GyroModel, args: &Args) {
+    explore(model);
+    if let Some(k) = args.rrw_dph_rth {
+        model.rrw_dps_per_s_rthz = k / 3600.0 / 60.0;
+    }
+    if let Some(m) = args.markov_scale {
+        for t in &mut model.markov {
+            t.sigma_dps *= m;
+        }
+    }
+    if args.no_links {
+        model.temp_dps_per_c = Default::default();
+        model.temp_rate_dps_per_c_per_s = Default::default();
+    }
+    if let Some(m) = args.warmup_scale {
+        model.warmup_dps.sigma *= m;
+    }
+    if let Some(r) = args.warmup_tau_ratio {
+        let mid = (model.warmup_tau_min_s * model.warmup_tau_max_s).sqrt();
+        model.warmup_tau_min_s = mid / r;
+        model.warmup_tau_max_s = mid * r;
+    }
+}
+
+/// Exploration: `FOG_EXPLORE=key=scale,...` multiplies fitted model numbers the flags do
+/// not reach (keys: linkmean, linksig, shupemean, shupesig, warmmean, turnsig, gm, rrw;
+/// gmtau and gm2 set the Gauss-Markov terms' correlation times).
 fn explore(m: &mut GyroModel) {
     let Ok(spec) = std::env::var("FOG_EXPLORE") else {
         return;
@@ -180,7 +208,6 @@ fn explore(m: &mut GyroModel) {
             "shupemean" => m.temp_rate_dps_per_c_per_s.mean *= x,
             "shupesig" => m.temp_rate_dps_per_c_per_s.sigma *= x,
             "warmmean" => m.warmup_dps.mean *= x,
-            "warmsig" => m.warmup_dps.sigma *= x,
             "turnsig" => m.turn_on_dps.sigma *= x,
             "gm" => m.markov.iter_mut().for_each(|t| t.sigma_dps *= x),
             "rrw" => m.rrw_dps_per_s_rthz *= x,
@@ -233,27 +260,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
     }
     let cal = calibration::measure(&runs)?;
     let (mut model, fit) = host_sim::gyro_fit::fit(&runs, &cal, 30.0 / 3600.0)?;
-    explore(&mut model);
-    if let Some(k) = args.rrw_dph_rth {
-        model.rrw_dps_per_s_rthz = k / 3600.0 / 60.0;
-    }
-    if let Some(m) = args.markov_scale {
-        for t in &mut model.markov {
-            t.sigma_dps *= m;
-        }
-    }
-    if args.no_links {
-        model.temp_dps_per_c = Default::default();
-        model.temp_rate_dps_per_c_per_s = Default::default();
-    }
-    if let Some(m) = args.warmup_scale {
-        model.warmup_dps.sigma *= m;
-    }
-    if let Some(r) = args.warmup_tau_ratio {
-        let mid = (model.warmup_tau_min_s * model.warmup_tau_max_s).sqrt();
-        model.warmup_tau_min_s = mid / r;
-        model.warmup_tau_max_s = mid * r;
-    }
+    adjust(&mut model, args);
     if let Some(m) = args.prior_scale {
         model.temp_dps_per_c.sigma *= m;
         model.temp_rate_dps_per_c_per_s.sigma *= m;
@@ -676,27 +683,7 @@ fn demo_family(cfg: DriftFilterConfig, args: &Args) -> Result<()> {
     }
     let cal = calibration::measure(&runs)?;
     let (mut model, fit) = host_sim::gyro_fit::fit(&runs, &cal, 30.0 / 3600.0)?;
-    explore(&mut model);
-    if let Some(k) = args.rrw_dph_rth {
-        model.rrw_dps_per_s_rthz = k / 3600.0 / 60.0;
-    }
-    if args.no_links {
-        model.temp_dps_per_c = Default::default();
-        model.temp_rate_dps_per_c_per_s = Default::default();
-    }
-    if let Some(m) = args.markov_scale {
-        for t in &mut model.markov {
-            t.sigma_dps *= m;
-        }
-    }
-    if let Some(m) = args.warmup_scale {
-        model.warmup_dps.sigma *= m;
-    }
-    if let Some(r) = args.warmup_tau_ratio {
-        let mid = (model.warmup_tau_min_s * model.warmup_tau_max_s).sqrt();
-        model.warmup_tau_min_s = mid / r;
-        model.warmup_tau_max_s = mid * r;
-    }
+    adjust(&mut model, args);
     println!("== demo family: model {model:?}");
     println!(
         "  warm-up tau {:.0} s (terms {:?}); ADEV {:?}",
