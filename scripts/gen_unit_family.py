@@ -13,6 +13,9 @@ every drawn parameter, i.e. the truth, beside each CSV):
     DIR/vehicles-tune/vehicle-NN.csv   --n-vehicle-tune other units
     DIR/vehicles-test/vehicle-NN.csv   --n-vehicle-test other units
     (static-NN-rR.csv, power-on R, when --records-per-unit > 1)
+    DIR/unit-runs/vehicle-NN-rR.csv    --unit-runs K static calibration runs (power-ons R = 1..K)
+                                       of each vehicles-test unit NN: the user's own unit on the
+                                       bench before it is flown (power-on 0 is its vehicle record)
 Columns: t_s,rate_dps,temp_c,drift_dps,true_rate_dps,moving.
 
 Drawn per unit (dph = deg/h; uniform unless said):
@@ -308,6 +311,25 @@ def write_family(o):
         total / 1e6, time.time() - t0))
 
 
+def write_unit_runs(o):
+    """unit-runs/vehicle-NN-rR.csv: --unit-runs static power-ons (R = 1..K) of every
+    vehicles-test unit; the unit's draws are the ones of its vehicle record (power-on 0)."""
+    fam, units = build_family(o)
+    d = os.path.join(o.out, "unit-runs")
+    os.makedirs(d, exist_ok=True)
+    n = 0
+    for u in units:
+        if u["set"] != "vehicles-test":
+            continue
+        for rec in range(1, o.unit_runs + 1):
+            data, meta, _ = record(o, fam, u, "static", rec)
+            meta["unit_runs_of"] = "vehicles-test/vehicle-%02d.csv" % u["unit"]
+            g.write(os.path.join(d, "vehicle-%02d-r%d.csv" % (u["unit"], rec)), data, meta)
+            n += 1
+    print("unit-runs: %d static runs of %d vehicles-test units in %s" % (n, o.n_vehicle_test, d),
+          file=sys.stderr)
+
+
 def parser():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", help="family directory (refused if non-empty, unless --force)")
@@ -323,6 +345,10 @@ def parser():
     ap.add_argument("--records-per-unit", type=int, default=1, help="power-ons per unit")
     ap.add_argument("--turn-on-scale", type=float, default=1.0)
     ap.add_argument("--full-scale-dps", type=float, default=60.0)
+    ap.add_argument("--unit-runs", type=int, default=0,
+                    help="static calibration runs of each vehicles-test unit (unit-runs/)")
+    ap.add_argument("--unit-runs-only", action="store_true",
+                    help="write only unit-runs/ into an existing family made with the same options")
     ap.add_argument("--force", action="store_true", help="overwrite a non-empty --out")
     ap.add_argument("--self-check", action="store_true")
     return ap
@@ -423,6 +449,21 @@ def main():
         ap.error("need --records-per-unit >= 1, unit counts >= 0, --full-scale-dps > 0")
     if not (0 <= o.family_seed < 2 ** 32):
         ap.error("--family-seed must be within 0..2^32-1")
+    if o.unit_runs < 0:
+        ap.error("--unit-runs must be >= 0")
+    if o.unit_runs_only:
+        fj = os.path.join(o.out, "family.json")
+        if not os.path.isfile(fj):
+            ap.error("--unit-runs-only needs an existing family in --out (%s missing)" % fj)
+        with open(fj) as f:
+            made = json.load(f)["options"]
+        for k, v in made.items():
+            if k not in ("out", "unit_runs", "unit_runs_only") and getattr(o, k, v) != v:
+                ap.error("--unit-runs-only: option %s is %r here but %r in %s" % (k, getattr(o, k), v, fj))
+        if os.path.isdir(os.path.join(o.out, "unit-runs")) and not o.force:
+            ap.error("%s/unit-runs exists (use --force)" % o.out)
+        write_unit_runs(o)
+        return 0
     if os.path.isdir(o.out) and os.listdir(o.out):
         if not o.force:
             ap.error("%s exists and is not empty (use --force)" % o.out)
@@ -433,6 +474,8 @@ def main():
                     os.remove(os.path.join(d, fn))
     os.makedirs(o.out, exist_ok=True)
     write_family(o)
+    if o.unit_runs > 0:
+        write_unit_runs(o)
     return 0
 
 

@@ -394,14 +394,83 @@ pub fn fit(
     cal: &Calibration,
     file_bound_dps: f64,
 ) -> Result<(GyroModel, GyroFitReport)> {
+    fit_with(runs, cal, file_bound_dps, None).map(|(m, r, _)| (m, r))
+}
+
+/// The model of ONE unit from its own static `runs` (each a power-on) and its `family`'s
+/// model. The temperature links: the family's prior (mean, unit spread) and the runs' own
+/// estimate (the shared fit, its standard error from the scatter of each run's own fit)
+/// weighed by their precisions: a few runs of one unit tell a strong link well and cannot
+/// tell a weak one from the unit's warm-up (both follow the self-heating; measured, docs/
+/// drift-filter.md "The unit's own runs"). Then the runs' level and warm-up fitted again
+/// with the links held there, and [`personalize`]; the links' spread is the combination's
+/// (at least [`UNIT_SPREAD_FLOOR`] of the family's).
+pub fn fit_unit(
+    runs: &[Series],
+    cal: &Calibration,
+    file_bound_dps: f64,
+    family: &GyroModel,
+) -> Result<(GyroModel, GyroFitReport)> {
+    let (_, _, own) = fit_with(runs, cal, file_bound_dps, None)?;
+    let prior = [family.temp_dps_per_c, family.temp_rate_dps_per_c_per_s];
+    let mut links = prior;
+    if let Some(own) = own {
+        for ((l, p), (est, se)) in links.iter_mut().zip(&prior).zip(own) {
+            let pv = f64::from(p.sigma) * f64::from(p.sigma);
+            let ev = se * se;
+            if pv > 0.0 && ev > 0.0 {
+                let w = pv / (pv + ev);
+                *l = Spread {
+                    mean: (f64::from(p.mean) + w * (est - f64::from(p.mean))) as f32,
+                    sigma: (pv * ev / (pv + ev)).sqrt() as f32,
+                };
+            }
+        }
+    }
+    let held = [f64::from(links[0].mean), f64::from(links[1].mean)];
+    let (unit, report, _) = fit_with(runs, cal, file_bound_dps, Some(held))?;
+    let floor = |l: Spread, f: Spread| Spread {
+        mean: l.mean,
+        sigma: l.sigma.max(UNIT_SPREAD_FLOOR * f.sigma),
+    };
+    let mut m = personalize(family, &unit);
+    m.temp_dps_per_c = floor(links[0], prior[0]);
+    m.temp_rate_dps_per_c_per_s = floor(links[1], prior[1]);
+    Ok((m, report))
+}
+
+/// The shared links' estimate and standard error: `[(deg/s per deg C, se), (deg/s per
+/// deg C/s, se)]`.
+type LinkEstimate = [(f64, f64); 2];
+
+/// [`fit`], with the temperature links fitted (`None`) or held at `links` (deg/s per deg C,
+/// deg/s per deg C/s). Also the fitted links' [`LinkEstimate`] (when fitted): the standard
+/// error of the shared value from the scatter of each run's own fit, at least the runs'
+/// mean sampling error, over the number of runs.
+fn fit_with(
+    runs: &[Series],
+    cal: &Calibration,
+    file_bound_dps: f64,
+    links: Option<[f64; 2]>,
+) -> Result<(GyroModel, GyroFitReport, Option<LinkEstimate>)> {
     if runs.len() < 2 {
         bail!(
             "{} calibration run(s): the model's unit-to-unit spread needs at least 2",
             runs.len()
         );
     }
-    let temperature = runs.iter().all(|s| s.temp_c.is_some());
-    let binned: Vec<Bins> = runs.iter().map(bins).collect();
+    let has_temp = runs.iter().all(|s| s.temp_c.is_some());
+    let mut binned: Vec<Bins> = runs.iter().map(bins).collect();
+    // Held links: their part taken out of the means, the links not fitted.
+    let held = links.filter(|_| has_temp);
+    if let Some([c, c_rate]) = held {
+        for b in &mut binned {
+            for i in 0..b.y.len() {
+                b.y[i] -= c * b.temp_off[i] + c_rate * b.temp_rate[i];
+            }
+        }
+    }
+    let temperature = has_temp && held.is_none();
     if let Some((s, _)) = runs.iter().zip(&binned).find(|(_, b)| b.t_s.len() < 6) {
         bail!(
             "{}: shorter than 60 s, too short to fit a warm-up on",
@@ -423,7 +492,7 @@ pub fn fit(
     let Some((per_run, shared_fit, _)) = pooled(&binned, tau_w, temperature) else {
         bail!("the deterministic part cannot be fitted on the calibration runs");
     };
-    let shared = shared_fit;
+    let shared = held.unwrap_or(shared_fit);
     // Each run's own links (free), for their unit-to-unit spread around the shared ones.
     let mut own: Vec<([f64; 4], [f64; 2])> = Vec::new();
     for (s, b) in runs.iter().zip(&binned) {
@@ -433,6 +502,17 @@ pub fn fit(
         };
         own.push((x, sampling_var(&x_rows, &b.y, &x)));
     }
+    let estimate = temperature.then(|| {
+        let n = own.len() as f64;
+        let one = |k: usize| {
+            let v: Vec<f64> = own.iter().map(|o| o.0[k + 2]).collect();
+            let m = v.iter().sum::<f64>() / n;
+            let scatter = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0).max(1.0);
+            let sampling = own.iter().map(|o| o.1[k]).sum::<f64>() / n;
+            (shared[k], (scatter.max(sampling) / n).sqrt())
+        };
+        [one(0), one(1)]
+    });
     let coefs: Vec<(String, [f64; 4])> = runs
         .iter()
         .zip(&per_run)
@@ -578,9 +658,41 @@ pub fn fit(
                 (t, f.sqrt() * dph)
             })
             .collect(),
-        temperature,
+        temperature: has_temp,
     };
-    Ok((model, report))
+    Ok((model, report, estimate))
+}
+
+/// Least spread of a unit's own constant as a fraction of the family's
+/// ([`personalize`]): a few runs of one unit cannot show a spread reliably (ASSUMED 0.25;
+/// measured: docs/drift-filter.md "The unit's own runs").
+pub const UNIT_SPREAD_FLOOR: f32 = 0.25;
+
+/// The model of ONE unit: `unit` is the fit of that unit's own static runs (each a
+/// power-on; [`fit_unit`]), `family` the family's (fitted on other units' runs, maybe tuned
+/// on vehicles). The unit's runs give what they measure: its turn-on centre and power-on
+/// scatter, its warm-up (amplitude and time constant), its white noise and the drift bound
+/// it showed (the larger of both). From the family: the Gauss-Markov terms, the rate random
+/// walk (a few 30-min runs fit them worse than many) and the temperature links, mean and
+/// unit spread (a few runs of one unit cannot tell them from its warm-up; the filter adapts
+/// them within the spread on line). The unit's turn-on and warm-up spreads are at least
+/// [`UNIT_SPREAD_FLOOR`] of the family's.
+pub fn personalize(family: &GyroModel, unit: &GyroModel) -> GyroModel {
+    let floor = |u: Spread, f: Spread| Spread {
+        mean: u.mean,
+        sigma: u.sigma.max(UNIT_SPREAD_FLOOR * f.sigma),
+    };
+    GyroModel {
+        markov: family.markov,
+        rrw_dps_per_s_rthz: family.rrw_dps_per_s_rthz,
+        turn_on_dps: floor(unit.turn_on_dps, family.turn_on_dps),
+        warmup_dps: floor(unit.warmup_dps, family.warmup_dps),
+        temp_ref_c: family.temp_ref_c,
+        temp_dps_per_c: family.temp_dps_per_c,
+        temp_rate_dps_per_c_per_s: family.temp_rate_dps_per_c_per_s,
+        drift_bound_dps: unit.drift_bound_dps.max(family.drift_bound_dps),
+        ..*unit
+    }
 }
 
 #[cfg(test)]
@@ -589,7 +701,22 @@ mod tests {
 
     /// Runs of a family with a shared temperature link, per-run levels and warm-ups.
     fn family_runs(c_dps_per_c: f64) -> Vec<Series> {
-        let mut state = 12345u64;
+        runs_of(8, 12345, c_dps_per_c, |r| {
+            (
+                (r as f64 - 3.5) * 8.0,
+                if r % 2 == 0 { 20.0 } else { -15.0 },
+            )
+        })
+    }
+
+    /// `count` runs of link `c_dps_per_c`, run `r`'s (level, warm-up) deg/h from `lw`.
+    fn runs_of(
+        count: usize,
+        seed: u64,
+        c_dps_per_c: f64,
+        lw: impl Fn(usize) -> (f64, f64),
+    ) -> Vec<Series> {
+        let mut state = seed;
         let mut normal = move || {
             let mut u = || {
                 state = state
@@ -601,11 +728,11 @@ mod tests {
             (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
         };
         let dph = 1.0 / 3600.0;
-        (0..8)
+        (0..count)
             .map(|r| {
                 let fs = 10.0;
-                let level = (r as f64 - 3.5) * 8.0 * dph;
-                let warm = (if r % 2 == 0 { 20.0 } else { -15.0 }) * dph;
+                let (level, warm) = lw(r);
+                let (level, warm) = (level * dph, warm * dph);
                 let ambient = 5.0 + 4.0 * r as f64;
                 let n = (1800.0 * fs) as usize;
                 let t_s: Vec<f64> = (0..n).map(|k| k as f64 / fs).collect();
@@ -657,6 +784,40 @@ mod tests {
         // White noise 0.002 deg/s at 10 Hz: density 0.002 / sqrt(10).
         let n = f64::from(m.white_dps_rthz);
         assert!((n / (0.002 / 10f64.sqrt()) - 1.0).abs() < 0.05, "{n}");
+        assert!(m.is_valid());
+    }
+
+    #[test]
+    fn a_units_own_runs_give_its_warm_up_and_turn_on() {
+        // The family: 8 units (warm-ups +20 / -15 deg/h, link 1.5 deg/h/C). The unit: three
+        // power-ons with its own warm-up of +35 deg/h, levels near +30 deg/h, its link 10 %
+        // above the family's (strong: its runs tell it).
+        let dph = 1.0 / 3600.0;
+        let fam = family_runs(1.5 * dph);
+        let cal = crate::motion::calibration::measure(&fam).expect("measure");
+        let (family, _) = fit(&fam, &cal, 30.0 * dph).expect("family fit");
+        let unit = runs_of(3, 777, 1.65 * dph, |r| (30.0 + 2.0 * r as f64, 35.0));
+        let cal_u = crate::motion::calibration::measure(&unit).expect("measure");
+        let (m, _) = fit_unit(&unit, &cal_u, 30.0 * dph, &family).expect("unit fit");
+        let warm = f64::from(m.warmup_dps.mean) / dph;
+        assert!(
+            (warm / 35.0 - 1.0).abs() < 0.15,
+            "unit warm-up {warm} deg/h"
+        );
+        let fam_warm = f64::from(family.warmup_dps.mean) / dph;
+        assert!(
+            (fam_warm / 35.0 - 1.0).abs() > 0.5,
+            "family warm-up {fam_warm}"
+        );
+        let level = f64::from(m.turn_on_dps.mean) / dph;
+        assert!((level - 32.0).abs() < 3.0, "unit turn-on {level} deg/h");
+        let link = f64::from(m.temp_dps_per_c.mean) / dph;
+        assert!((link / 1.65 - 1.0).abs() < 0.15, "unit link {link} deg/h/C");
+        // Spreads at least the floor of the family's; noise terms the family's.
+        assert!(m.turn_on_dps.sigma >= UNIT_SPREAD_FLOOR * family.turn_on_dps.sigma);
+        assert!(m.warmup_dps.sigma >= UNIT_SPREAD_FLOOR * family.warmup_dps.sigma);
+        assert_eq!(m.markov, family.markov);
+        assert_eq!(m.rrw_dps_per_s_rthz, family.rrw_dps_per_s_rthz);
         assert!(m.is_valid());
     }
 

@@ -137,6 +137,12 @@ pub struct Args {
     /// (`--validate`).
     #[arg(long, num_args = 1..)]
     pub tune_on: Vec<PathBuf>,
+    /// `--preset motion`: static runs of the ONE unit the image is for, each from power-on
+    /// (files or folders; at least 2): after the family's fit on the calibration runs (and
+    /// `--tune-on`), the model is made that unit's: its turn-on, warm-up, white noise and
+    /// the links its runs tell, the family's noise terms (host_sim::gyro_fit::fit_unit).
+    #[arg(long, num_args = 1..)]
+    pub unit_runs: Vec<PathBuf>,
     /// `--preset motion`: the filter's window, s (default 2; fog_core::drift_filter).
     #[arg(long)]
     pub window_s: Option<f32>,
@@ -235,6 +241,9 @@ pub fn run(a: &Args) -> Result<()> {
     if !a.tune_on.is_empty() {
         anyhow::bail!("--tune-on needs --preset motion (the default)");
     }
+    if !a.unit_runs.is_empty() {
+        anyhow::bail!("--unit-runs needs --preset motion (the default)");
+    }
     if a.validate.is_empty() {
         anyhow::bail!(
             "--validate is required (the records it is scored on) by every preset but motion"
@@ -305,11 +314,17 @@ fn run_motion(a: &Args) -> Result<()> {
     } else {
         CsvFiles::from_args(&a.tune_on, &ReadOptions::default())?.0
     };
+    let unit_runs = if a.unit_runs.is_empty() {
+        None
+    } else {
+        Some(CsvFiles::from_args(&a.unit_runs, &a.record.options())?)
+    };
     let mut inputs: Vec<&std::path::Path> = train
         .0
         .iter()
         .chain(&validate)
         .chain(&tune_on)
+        .chain(unit_runs.iter().flat_map(|u| &u.0))
         .map(PathBuf::as_path)
         .collect();
     inputs.extend(gyro.path.as_deref());
@@ -357,6 +372,20 @@ fn run_motion(a: &Args) -> Result<()> {
         eprintln!("{}", motion::tune::describe(&tuning));
         image = tuned;
         Some(tuning)
+    };
+    // The one unit's own runs make the family's model that unit's.
+    let unit = match &unit_runs {
+        None => None,
+        Some(u) => {
+            let personal = motion::personalize(&image, u, &sensor.config)?;
+            eprintln!(
+                "unit: the model made the unit's on its {} own runs ({})",
+                u.0.len(),
+                personal.describe()
+            );
+            image = personal.image;
+            Some(personal)
+        }
     };
     let bytes = motion::image_bytes(&image)?;
     eprint!(
@@ -406,6 +435,7 @@ fn run_motion(a: &Args) -> Result<()> {
             "model": motion::show::describe(&image, &bytes),
             "validation": validation,
             "tuning": tuning,
+            "unit": unit,
             "holes": holes,
             "firmware": firmware,
             "written_with_force": forced,

@@ -729,3 +729,83 @@ fn tune_on_vehicles_scales_the_model() {
         .stderr(predicates::str::contains("bare.csv: no truth"));
     assert!(!bad.exists());
 }
+
+#[test]
+fn unit_runs_make_the_image_that_units() {
+    let dir = tempfile::tempdir().expect("test");
+    let d = dir.path();
+    let train = train_dir(d);
+    // Two power-ons of one unit of the family (its own warm-up and links).
+    let unit = d.join("unit");
+    fs::create_dir(&unit).expect("test");
+    for seed in [31u64, 32] {
+        host_sim()
+            .args(["simulate", "--gyro", "ecore2000", "--duration-s", "120"])
+            .args(["--seed", &seed.to_string(), "--unit-seed", "5"])
+            .args(["--unit-spread", "0.5", "--output"])
+            .arg(unit.join(format!("u{seed}.csv")))
+            .assert()
+            .success();
+    }
+    let family = d.join("family.fogi");
+    identify(&train, &[], &family).success();
+    let img = d.join("unit.fogi");
+    let json = d.join("unit.json");
+    let unit_s = unit.to_str().expect("utf-8 path");
+    identify(
+        &train,
+        &[
+            "--unit-runs",
+            unit_s,
+            "--json",
+            json.to_str().expect("utf-8"),
+        ],
+        &img,
+    )
+    .success()
+    .stderr(predicates::str::contains(
+        "unit: the model made the unit's on its 2 own runs",
+    ));
+    let v: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&json).expect("test")).expect("json");
+    assert_eq!(v["unit"]["runs"].as_array().expect("runs").len(), 2);
+    let image = fog_core::image::Image::parse(&fs::read(&img).expect("test")).expect("image");
+    let fam = fog_core::image::Image::parse(&fs::read(&family).expect("test")).expect("image");
+    // The turn-on is the unit's runs' mean level; the noise terms stay the family's.
+    let levels: Vec<f64> = v["unit"]["fit"]["runs"]
+        .as_array()
+        .expect("runs")
+        .iter()
+        .map(|r| r["level_dph"].as_f64().expect("level"))
+        .collect();
+    let mean = levels.iter().sum::<f64>() / levels.len() as f64;
+    let turn_on = f64::from(image.model.turn_on_dps.mean) * 3600.0;
+    assert!(
+        (turn_on - mean).abs() < 1e-3 * mean.abs().max(1.0),
+        "{turn_on} vs {mean}"
+    );
+    assert_ne!(image.model.turn_on_dps.mean, fam.model.turn_on_dps.mean);
+    assert_eq!(image.model.markov, fam.model.markov);
+    assert_eq!(image.trained_runs, fam.trained_runs + 2);
+    // One run of the unit is refused, naming the need; other presets refuse the flag.
+    let one = unit.join("u31.csv");
+    identify(
+        &train,
+        &["--unit-runs", one.to_str().expect("utf-8")],
+        &d.join("one.fogi"),
+    )
+    .failure()
+    .stderr(predicates::str::contains("at least 2"));
+    assert!(!d.join("one.fogi").exists());
+    host_sim()
+        .args(["identify", "--preset", "paper", "--input"])
+        .arg(train.join("a.csv"))
+        .args(["--validate"])
+        .arg(train.join("b.csv"))
+        .args(["--unit-runs", unit_s])
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains(
+            "--unit-runs needs --preset motion",
+        ));
+}

@@ -64,6 +64,7 @@ const VOCABULARY: &[(&str, Kind)] = &[
     ("--train", Kind::Read),
     ("--validate", Kind::Read),
     ("--tune-on", Kind::Read),
+    ("--unit-runs", Kind::Read),
     ("--identifier", Kind::Read),
     ("--gyro", Kind::Word),
     ("--output", Kind::Output),

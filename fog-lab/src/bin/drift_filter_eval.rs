@@ -74,6 +74,11 @@ struct Args {
     /// Print every vehicle.
     #[arg(long)]
     verbose: bool,
+    /// Also the per-unit calibration scenario: each test vehicle's model fitted on its own
+    /// unit's static runs (`unit-runs/vehicle-NN-r*.csv`, `gen_unit_family.py --unit-runs K`)
+    /// instead of the family's `train/`, the rest as the family's (tuning included).
+    #[arg(long)]
+    unit_runs: bool,
 }
 
 #[derive(Debug, Serialize)]
@@ -84,6 +89,8 @@ struct Vehicle {
     filter_truth_flags_deg: f64,
     /// The filter of the vehicle's own model (its sidecar's truth) with the truth's flags.
     limit_deg: Option<f64>,
+    /// The filter of the model fitted on the vehicle's own unit's static runs (`--unit-runs`).
+    unit_runs_deg: Option<f64>,
     still_windows: u32,
     windows: u32,
     undone: u32,
@@ -127,10 +134,11 @@ fn main() -> Result<()> {
         if args.verbose {
             for v in &f.vehicles {
                 println!(
-                    "    {} raw {:.3} limit {:.3} filter {:.3} truth-flags {:.3} product {:.3} still {}/{} undone {}",
+                    "    {} raw {:.3} limit {:.3} unit-runs {:.3} filter {:.3} truth-flags {:.3} product {:.3} still {}/{} undone {}",
                     v.record,
                     v.raw_deg,
                     v.limit_deg.unwrap_or(f64::NAN),
+                    v.unit_runs_deg.unwrap_or(f64::NAN),
                     v.filter_deg,
                     v.filter_truth_flags_deg,
                     v.today.first().map_or(f64::NAN, |t| t.1),
@@ -357,6 +365,12 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             Some(m) => Some(nav::score_drift(&r, &run(m, cfg, &r, true)?.0).heading_rms_deg),
             None => None,
         };
+        let unit_runs_deg = if args.unit_runs {
+            let um = unit_model(fam, &p, &model)?;
+            Some(nav::score_drift(&r, &run(um, cfg, &r, false)?.0).heading_rms_deg)
+        } else {
+            None
+        };
         if let Some(dir) = &args.dump {
             let mut text = String::from("t_s,drift_dps,estimate_dps,moving,temp_c\n");
             for k in (0..r.len()).step_by(100) {
@@ -377,6 +391,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             filter_deg: nav::score_drift(&r, &d).heading_rms_deg,
             filter_truth_flags_deg: nav::score_drift(&r, &dt).heading_rms_deg,
             limit_deg,
+            unit_runs_deg,
             still_windows: st.still_windows,
             windows: st.windows,
             undone: st.undone,
@@ -433,6 +448,51 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
         static_e_truth,
         static_limit,
     })
+}
+
+/// The model fitted on the vehicle's own unit's static runs (`unit-runs/STEM-r*.csv`; the
+/// first FOG_UNIT_RUNS_N of them when set), made the unit's by
+/// [`host_sim::gyro_fit::personalize`] with the (tuned) family model.
+fn unit_model(fam: &Path, vehicle: &Path, family: &GyroModel) -> Result<GyroModel> {
+    let stem = name(vehicle).trim_end_matches(".csv").to_string();
+    let dir = fam.join("unit-runs");
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .with_context(|| format!("{}: cannot list", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|q| {
+            let n = name(q);
+            n.starts_with(&format!("{stem}-r")) && n.ends_with(".csv")
+        })
+        .collect();
+    paths.sort();
+    if let Some(n) = std::env::var("FOG_UNIT_RUNS_N")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+    {
+        paths.truncate(n);
+    }
+    anyhow::ensure!(
+        paths.len() >= 2,
+        "{}: fewer than 2 runs of {stem}",
+        dir.display()
+    );
+    let csv = CsvFiles::from_args(&paths, &ReadOptions::default())?;
+    let mut runs = Vec::new();
+    for i in 0..paths.len() {
+        runs.push(csv.get(i)?);
+    }
+    let cal = calibration::measure(&runs)?;
+    // FOG_UNIT_NOISE=own: the unit's runs' fit alone (no family part).
+    // The family model comes with the exploration flags applied (adjust: not again).
+    let m = if std::env::var("FOG_UNIT_NOISE").as_deref() == Ok("own") {
+        host_sim::gyro_fit::fit(&runs, &cal, 30.0 / 3600.0)?.0
+    } else {
+        host_sim::gyro_fit::fit_unit(&runs, &cal, 30.0 / 3600.0, family)?.0
+    };
+    if std::env::var("FOG_UNIT_VERBOSE").is_ok() {
+        eprintln!("unit model {stem}: {m:?}");
+    }
+    Ok(m)
 }
 
 /// The vehicle's own model from the generator's sidecar (`RECORD.csv.json`), on `fitted`'s
@@ -557,6 +617,9 @@ fn columns(v: &Vehicle) -> Vec<(String, f64)> {
     if let Some(l) = v.limit_deg {
         c.push(("limit: true model".to_string(), l));
     }
+    if let Some(u) = v.unit_runs_deg {
+        c.push(("filter, own unit's runs".to_string(), u));
+    }
     for (n, x) in &v.today {
         if n != "none" && n != "no compensation" {
             c.push((n.clone(), *x));
@@ -614,6 +677,18 @@ fn report(vs: &[&Vehicle]) {
         limit_worse.len(),
         limit_worse
     );
+    if vs.iter().any(|v| v.unit_runs_deg.is_some()) {
+        let unit_worse: Vec<&str> = vs
+            .iter()
+            .filter(|v| v.unit_runs_deg.is_some_and(|l| l > v.raw_deg + 0.3))
+            .map(|v| v.record.as_str())
+            .collect();
+        println!(
+            "  filter on its own unit's runs worse than raw + 0.3 deg: {} {:?}",
+            unit_worse.len(),
+            unit_worse
+        );
+    }
     println!(
         "  drift bound reached where the true drift stays inside: {} {:?}",
         bound.len(),

@@ -121,6 +121,88 @@ pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
     })
 }
 
+/// What [`personalize`] returns: the unit's image and what its runs showed.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Personal {
+    /// The unit's image (the family's configuration, the unit's model).
+    #[serde(skip)]
+    pub image: Image,
+    /// The unit's runs.
+    pub runs: Vec<String>,
+    /// Their fit with the links held at the unit's ([`gyro_fit::fit_unit`]).
+    pub fit: GyroFitReport,
+    /// What they showed.
+    pub calibration: calibration::Calibration,
+    /// The unit's model (deg/h and s, as `model` in the report).
+    pub model: show::ImageInfo,
+}
+
+impl Personal {
+    /// One line: the unit's turn-on centre and scatter, warm-up, links.
+    pub fn describe(&self) -> String {
+        let m = &self.image.model;
+        let dph = 3600.0;
+        format!(
+            "turn-on {:+.2} +- {:.2} deg/h, warm-up {:+.2} +- {:.2} deg/h over {:.0}-{:.0} s, link {:+.4} +- {:.4} deg/h/C, rate link {:+.3} +- {:.3} deg/h per C/min",
+            m.turn_on_dps.mean * dph,
+            m.turn_on_dps.sigma * dph,
+            m.warmup_dps.mean * dph,
+            m.warmup_dps.sigma * dph,
+            m.warmup_tau_min_s,
+            m.warmup_tau_max_s,
+            m.temp_dps_per_c.mean * dph,
+            m.temp_dps_per_c.sigma * dph,
+            m.temp_rate_dps_per_c_per_s.mean * dph / 60.0,
+            m.temp_rate_dps_per_c_per_s.sigma * dph / 60.0,
+        )
+    }
+}
+
+/// The `family` image made ONE unit's on that unit's own static `records` (each from
+/// power-on; [`gyro_fit::fit_unit`]); the runs are checked as [`train`]'s.
+pub fn personalize(
+    family: &Image,
+    records: &dyn Records,
+    sensor: &SensorConfig,
+) -> Result<Personal> {
+    let runs: Vec<Series> = (0..records.len())
+        .map(|i| {
+            let s = records.get(i)?;
+            check_rate(&s, sensor)?;
+            check_full_scale(&s, sensor)?;
+            Ok(s)
+        })
+        .collect::<Result<_>>()?;
+    if runs.len() < 2 {
+        bail!(
+            "--unit-runs: {} run(s) of the unit; at least 2 (each from power-on)",
+            runs.len()
+        );
+    }
+    let cal = calibration::measure(&runs)?;
+    let (mut model, fit) = gyro_fit::fit_unit(
+        &runs,
+        &cal,
+        f64::from(sensor.drift_bound_dps),
+        &family.model,
+    )?;
+    model.sample_rate_hz = sensor.sample_rate_hz;
+    model.quantum_dps = sensor.quantum_dps;
+    let image = Image {
+        model,
+        trained_runs: family.trained_runs.saturating_add(runs.len() as u32),
+        ..*family
+    };
+    let bytes = image_bytes(&image)?;
+    Ok(Personal {
+        model: show::describe(&image, &bytes),
+        image,
+        runs: runs.iter().map(|s| s.name.clone()).collect(),
+        fit,
+        calibration: cal,
+    })
+}
+
 /// The image of the sensor's specification alone ([`GyroModel::for_sensor`]): the built-in
 /// default of `host-sim replay` without an image.
 pub fn untrained(sensor: &SensorConfig) -> Image {
