@@ -16,6 +16,7 @@ every drawn parameter, i.e. the truth, beside each CSV):
     DIR/unit-runs/vehicle-NN-rR.csv    --unit-runs K static calibration runs (power-ons R = 1..K)
                                        of each vehicles-test unit NN: the user's own unit on the
                                        bench before it is flown (power-on 0 is its vehicle record)
+    DIR/unit-runs/static-NN-rR.csv     the same for each static-test unit NN
 Columns: t_s,rate_dps,temp_c,drift_dps,true_rate_dps,moving.
 
 Drawn per unit (dph = deg/h; uniform unless said):
@@ -312,22 +313,28 @@ def write_family(o):
 
 
 def write_unit_runs(o):
-    """unit-runs/vehicle-NN-rR.csv: --unit-runs static power-ons (R = 1..K) of every
-    vehicles-test unit; the unit's draws are the ones of its vehicle record (power-on 0)."""
+    """unit-runs/{vehicle,static}-NN-rR.csv: --unit-runs static power-ons (R = 1..K) of every
+    vehicles-test and static-test unit; the unit's draws are the ones of its test record
+    (power-on 0). Files already there are kept (a folder made before static-test runs were
+    added gets only those)."""
     fam, units = build_family(o)
     d = os.path.join(o.out, "unit-runs")
     os.makedirs(d, exist_ok=True)
     n = 0
+    kinds = {"vehicles-test": "vehicle", "static-test": "static"}
     for u in units:
-        if u["set"] != "vehicles-test":
+        if u["set"] not in kinds:
             continue
+        stem = "%s-%02d" % (kinds[u["set"]], u["unit"])
         for rec in range(1, o.unit_runs + 1):
+            path = os.path.join(d, "%s-r%d.csv" % (stem, rec))
+            if os.path.exists(path) and os.path.exists(path + ".json"):
+                continue
             data, meta, _ = record(o, fam, u, "static", rec)
-            meta["unit_runs_of"] = "vehicles-test/vehicle-%02d.csv" % u["unit"]
-            g.write(os.path.join(d, "vehicle-%02d-r%d.csv" % (u["unit"], rec)), data, meta)
+            meta["unit_runs_of"] = "%s/%s.csv" % (u["set"], stem)
+            g.write(path, data, meta)
             n += 1
-    print("unit-runs: %d static runs of %d vehicles-test units in %s" % (n, o.n_vehicle_test, d),
-          file=sys.stderr)
+    print("unit-runs: %d static runs written in %s" % (n, d), file=sys.stderr)
 
 
 def parser():
@@ -460,8 +467,6 @@ def main():
         for k, v in made.items():
             if k not in ("out", "unit_runs", "unit_runs_only") and getattr(o, k, v) != v:
                 ap.error("--unit-runs-only: option %s is %r here but %r in %s" % (k, getattr(o, k), v, fj))
-        if os.path.isdir(os.path.join(o.out, "unit-runs")) and not o.force:
-            ap.error("%s/unit-runs exists (use --force)" % o.out)
         write_unit_runs(o)
         return 0
     if os.path.isdir(o.out) and os.listdir(o.out):

@@ -110,6 +110,8 @@ struct Family {
     static_e_truth: Vec<(String, f64)>,
     /// The limit's (each record's own model, every window still) e_truth per static record.
     static_limit: Vec<f64>,
+    /// e_truth per static record with the model of its own unit's runs (`--unit-runs`).
+    static_unit_runs: Vec<f64>,
 }
 
 fn main() -> Result<()> {
@@ -402,6 +404,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
     }
     let mut static_e_truth = Vec::new();
     let mut static_limit = Vec::new();
+    let mut static_unit_runs = Vec::new();
     for p in files(&fam.join("static-test"))?.0 {
         let r = NavRecord::try_from(&Record::read(&p, &ReadOptions::default())?)?;
         let (d, st) = run(model, cfg, &r, false)?;
@@ -438,6 +441,10 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
         if let Some(tm) = true_model(&p, &model) {
             static_limit.push(e(&run(tm, cfg, &r, true)?.0));
         }
+        if args.unit_runs {
+            let um = unit_model(fam, &p, &model)?;
+            static_unit_runs.push(e(&run(um, cfg, &r, false)?.0));
+        }
     }
     Ok(Family {
         family: fam.display().to_string(),
@@ -447,6 +454,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
         vehicles,
         static_e_truth,
         static_limit,
+        static_unit_runs,
     })
 }
 
@@ -733,6 +741,12 @@ fn print_family(f: &Family) {
         f.static_e_truth.len(),
         mean(f.static_limit.iter().copied())
     );
+    if !f.static_unit_runs.is_empty() {
+        println!(
+            "  static e_truth with the model of the unit's own runs {:.4}",
+            mean(f.static_unit_runs.iter().copied())
+        );
+    }
 }
 
 fn print_pooled(fs: &[Family]) {
