@@ -13,6 +13,16 @@ Every record (clean and injected) gets the same synthetic `temp_c` column (a war
 with time constant 600 s and a 1.5 C swing of period 900 s), so that the temperature link has
 a channel to be tied to; the sensors' own temperature is not used.
 
+With --dither the effect is added as a sensor whose own noise is much larger than its quantum
+would record it: the record's sample r is already on the lattice, r = Q(v) = v + e with e
+uniform and independent of the signal (v's noise spreads over many quanta: ADIS16405 sample
+standard deviation 0.35 deg/s = 7 quanta), so Q(v + x) = r + Q(x - e), which is r plus x
+rounded stochastically (up with probability frac(x / q), seeded). Without --dither (the
+default, the figures in docs/gap.md) the effect is rounded to the lattice deterministically,
+r + q round(x / q): a slow effect then enters as a staircase (a ramp of 30 s100 on ADIS run 4
+x is six jumps of 0.05 deg/s, 308 s apart), which no sensor whose noise dithers its quantum
+outputs.
+
 Effects, each sized from the clean record's own 100-s Allan deviation s100 (as the issue that
 asked for this benchmark sized them; --scale multiplies every size) and added to the rate
 before it is rounded again to the record's output quantum:
@@ -32,7 +42,7 @@ Scores, over the injected records (a name "of its own" is one the clean record a
   - unexplained: what the last round says stays unexplained (clean records).
 
   python3 scripts/gap_real_bench.py --out DIR [--bin target/release/host-sim] [--jobs 2]
-      [--rounds 4] [--scale 1.0] [--records adis4x,adis4z,...] [--effects rate_ramp,...]
+      [--rounds 4] [--scale 1.0] [--records adis4x,adis4z,...] [--effects rate_ramp,...] [--dither]
 
 Writes DIR/<record>-<effect>.csv, .json and .log, and DIR/summary.json; prints the table.
 """
@@ -218,6 +228,11 @@ def main():
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--seed", type=int, default=38001)
     ap.add_argument("--rescore", action="store_true", help="score the JSON already in --out, run nothing")
+    ap.add_argument(
+        "--dither",
+        action="store_true",
+        help="round the added effect stochastically (as a sensor whose noise dithers its quantum records it), not to the nearest count",
+    )
     a = ap.parse_args()
     if not os.path.isdir(REAL):
         print(f"SKIPPED: {REAL} is absent (real records are not in a user's clone)", file=sys.stderr)
@@ -239,7 +254,13 @@ def main():
         temp = temp_profile(t)
         for ei, effect in enumerate(["none"] + effects):
             add, truth = inject(effect, t, rate, temp, s100, a.scale, a.seed + 100 * ri + ei)
-            out = [round((r + x) / q) * q for r, x in zip(rate, add)] if effect != "none" else rate
+            if effect == "none":
+                out = rate
+            elif a.dither:
+                rng = random.Random(a.seed + 7919 + 100 * ri + ei)
+                out = [(round(r / q) + math.floor(x / q + rng.random())) * q for r, x in zip(rate, add)]
+            else:
+                out = [round((r + x) / q) * q for r, x in zip(rate, add)]
             base = os.path.join(a.out, f"{name}-{effect}")
             write_csv(base + ".csv", t, out, temp)
             truths[(name, effect)] = truth
@@ -306,6 +327,7 @@ def main():
         "effects": effects,
         "scale": a.scale,
         "rounds": a.rounds,
+        "dither": a.dither,
         "injected_right": [right, total],
         "injected_right_and_own_effects_the_same": [same_own, total],
         "records_with_an_effect_named_twice": [twice, len(results)],

@@ -226,6 +226,12 @@ pub struct Options {
     pub task: bool,
     /// The record's own colour above the effects' band ([`colour`]).
     pub colour: ColourMode,
+    /// A fitted baseline (no model given) rounds its output to this quantum, deg/s: the
+    /// quantization an earlier round named against it (`--rounds`). The baseline's noise
+    /// terms and colour are still fitted to the record, and a candidate still refits them,
+    /// so an effect the first fit took for noise (a line for flicker) is not frozen into
+    /// the model; its own terms may then be named (raised), as against a model.
+    pub fitted_quantum_dps: Option<f64>,
 }
 
 /// Whether the baseline's white-noise term is shaped by the record's own colour
@@ -250,6 +256,7 @@ impl Default for Options {
             explicit: false,
             task: true,
             colour: ColourMode::Fit,
+            fitted_quantum_dps: None,
         }
     }
 }
@@ -673,6 +680,12 @@ struct Setup {
     win: TestWindows,
     /// The baseline was fitted to the record (no user model).
     fitted_baseline: bool,
+    /// Fitted, and no quantum of an earlier round in it ([`Options::fitted_quantum_dps`]):
+    /// its own terms are not named and the markov test runs. In the rounds after a
+    /// quantization the baseline is fitted again but otherwise taken as the first round's
+    /// baseline taken as the model was: its own terms may be named (raised), and the gap
+    /// rule decides `markov`.
+    plain_fit: bool,
     /// Baseline model.
     base_model: Model,
     /// Where it comes from.
@@ -707,10 +720,17 @@ impl Setup {
             Some(m) => (m.clone(), "user model (--gyro)".to_string()),
             None => (
                 fit_baseline(&fitted_on, &layout, &split.fit_ranges)?,
-                "fitted to the fit blocks: ARW, bias instability, rate random walk".to_string(),
+                match o.fitted_quantum_dps {
+                    Some(q) => format!("fitted to the fit blocks: ARW, bias instability, rate random walk; rounded to {q:.6e} deg/s"),
+                    None => "fitted to the fit blocks: ARW, bias instability, rate random walk".to_string(),
+                },
             ),
         };
         let mut base_model = base_model;
+        if let (None, Some(q)) = (model, o.fitted_quantum_dps) {
+            base_model.quantization.quantum_dps = q;
+            base_model.quantization.mode = crate::sim::QuantMode::Round;
+        }
         let colour_fit = match &o.colour {
             ColourMode::Fit if model.is_none() => Some(colour::Colour::fit(
                 &fitted_on.rate_dps,
@@ -744,6 +764,7 @@ impl Setup {
             split,
             win,
             fitted_baseline: model.is_none(),
+            plain_fit: model.is_none() && o.fitted_quantum_dps.is_none(),
             base_model,
             source,
             fitted_on,
@@ -946,7 +967,7 @@ fn dedicated_tests(s: &Setup, sims: &BaseSims, bursty: bool, o: &Options) -> Tes
     // Only against a fitted baseline: a user model's flicker is the simulator's bank of
     // Gauss-Markov terms, whose ripple a Whittle Gauss-Markov term fits (the own benchmark's
     // bias-instability records were named markov); with a model the gap rule decides.
-    let markov_test = if o.effects.contains(&Effect::Markov) && s.fitted_baseline {
+    let markov_test = if o.effects.contains(&Effect::Markov) && s.plain_fit {
         whittle::MarkovTest::run(
             &real.rate_dps,
             real.dt_s,
@@ -1048,7 +1069,7 @@ fn fit_ctx<'a>(s: &'a Setup, raw: &'a Rec, sims: &BaseSims, bursty: bool) -> Fit
             features::median(&sims.missing),
         ),
         bursty,
-        joint_markov: if s.fitted_baseline {
+        joint_markov: if s.plain_fit {
             fit_baseline_terms(&s.fitted_on, layout, fit_ranges, true).ok()
         } else {
             None
@@ -1223,7 +1244,10 @@ fn quantization_test(candidates: &[Candidate], base: &Spec) -> Option<evidence::
 
 /// Against a fitted baseline, its own terms (white noise, bias instability, random walk)
 /// are fitted to the record: "the model lacks white noise" would only say the fit failed.
-/// They are scored but not named.
+/// They are scored but not named; in the rounds after a quantization named against it
+/// ([`Options::fitted_quantum_dps`]) they may be named, as against the first round's
+/// baseline taken as the model (a term its Allan fit left out, e.g. the flicker of
+/// ADIS16405 run 4 x, raised).
 fn exclude_baseline_terms(candidates: &mut [Candidate]) {
     for c in candidates.iter_mut() {
         if c.excluded.is_none()
@@ -1586,7 +1610,7 @@ pub fn diagnose(
         &mut fft,
     )?;
     tests.all.extend(quantization_test(&candidates, &s.base));
-    if s.fitted_baseline {
+    if s.plain_fit {
         exclude_baseline_terms(&mut candidates);
     }
     exclude_failed_tests(&mut candidates, &tests.all);

@@ -43,7 +43,7 @@ fn times(t: &[f64]) -> String {
 pub fn colour_line(d: &Diagnosis) -> Option<String> {
     match (&d.colour, &d.colour_fit) {
         (Some(c), _) => Some(format!(
-            "  the model's white noise is shaped by the record's own colour above {} Hz (every round): white level x{}, power gain {} at {} Hz to {} at {} Hz (departure {} sd)",
+            "  the model's white noise is shaped by the record's own colour above {} Hz (round 1; fitted again while the baseline is): white level x{}, power gain {} at {} Hz to {} at {} Hz (departure {} sd)",
             num(c.boundary_hz),
             num(c.white_level),
             num(c.min_gain.0),
