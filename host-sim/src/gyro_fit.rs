@@ -429,13 +429,9 @@ pub fn fit_unit(
     }
     let held = [f64::from(links[0].mean), f64::from(links[1].mean)];
     let (unit, report, _) = fit_with(runs, cal, file_bound_dps, Some(held))?;
-    let floor = |l: Spread, f: Spread| Spread {
-        mean: l.mean,
-        sigma: l.sigma.max(UNIT_SPREAD_FLOOR * f.sigma),
-    };
     let mut m = personalize(family, &unit);
-    m.temp_dps_per_c = floor(links[0], prior[0]);
-    m.temp_rate_dps_per_c_per_s = floor(links[1], prior[1]);
+    m.temp_dps_per_c = floored(links[0], prior[0]);
+    m.temp_rate_dps_per_c_per_s = floored(links[1], prior[1]);
     Ok((m, report))
 }
 
@@ -668,6 +664,14 @@ fn fit_with(
 /// measured: docs/drift-filter.md "The unit's own runs").
 pub const UNIT_SPREAD_FLOOR: f32 = 0.25;
 
+/// A unit's `spread` with its sigma at least [`UNIT_SPREAD_FLOOR`] of the family's.
+fn floored(spread: Spread, family: Spread) -> Spread {
+    Spread {
+        mean: spread.mean,
+        sigma: spread.sigma.max(UNIT_SPREAD_FLOOR * family.sigma),
+    }
+}
+
 /// The model of ONE unit: `unit` is the fit of that unit's own static runs (each a
 /// power-on; [`fit_unit`]), `family` the family's (fitted on other units' runs, maybe tuned
 /// on vehicles). The unit's runs give what they measure: its turn-on centre and power-on
@@ -678,15 +682,11 @@ pub const UNIT_SPREAD_FLOOR: f32 = 0.25;
 /// them within the spread on line). The unit's turn-on and warm-up spreads are at least
 /// [`UNIT_SPREAD_FLOOR`] of the family's.
 pub fn personalize(family: &GyroModel, unit: &GyroModel) -> GyroModel {
-    let floor = |u: Spread, f: Spread| Spread {
-        mean: u.mean,
-        sigma: u.sigma.max(UNIT_SPREAD_FLOOR * f.sigma),
-    };
     GyroModel {
         markov: family.markov,
         rrw_dps_per_s_rthz: family.rrw_dps_per_s_rthz,
-        turn_on_dps: floor(unit.turn_on_dps, family.turn_on_dps),
-        warmup_dps: floor(unit.warmup_dps, family.warmup_dps),
+        turn_on_dps: floored(unit.turn_on_dps, family.turn_on_dps),
+        warmup_dps: floored(unit.warmup_dps, family.warmup_dps),
         temp_ref_c: family.temp_ref_c,
         temp_dps_per_c: family.temp_dps_per_c,
         temp_rate_dps_per_c_per_s: family.temp_rate_dps_per_c_per_s,

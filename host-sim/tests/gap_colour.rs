@@ -7,24 +7,33 @@ use rand_distr::{Distribution, StandardNormal};
 use std::io::Write;
 use std::path::Path;
 
-/// Writes `n` samples at 100 Hz: white noise of sd 0.3 deg/s, through a two-pole resonator
-/// at 20 Hz when `resonate` (a sensor's mechanical mode or digital filter).
-fn write_record(p: &Path, n: usize, seed: u64, resonate: bool) {
+/// `n` samples of white noise of sd 0.3 deg/s, through a two-pole resonator at 20 Hz (of
+/// a 100-Hz rate) when `resonate` (a sensor's mechanical mode or digital filter).
+fn noise(n: usize, seed: u64, resonate: bool) -> Vec<f64> {
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
     let (r, w) = (0.9f64, std::f64::consts::TAU * 20.0 / 100.0);
     let (a1, a2) = (2.0 * r * w.cos(), -r * r);
     let (mut y1, mut y2) = (0.0, 0.0);
+    (0..n)
+        .map(|_| {
+            let e: f64 = StandardNormal.sample(&mut rng);
+            let y = if resonate {
+                0.3 * e + a1 * y1 + a2 * y2
+            } else {
+                0.3 * e
+            };
+            y2 = y1;
+            y1 = y;
+            y
+        })
+        .collect()
+}
+
+/// Writes `n` samples at 100 Hz of [`noise`].
+fn write_record(p: &Path, n: usize, seed: u64, resonate: bool) {
     let mut f = std::io::BufWriter::new(std::fs::File::create(p).expect("create"));
     writeln!(f, "t_s,rate_dps").expect("write");
-    for i in 0..n {
-        let e: f64 = StandardNormal.sample(&mut rng);
-        let y = if resonate {
-            0.3 * e + a1 * y1 + a2 * y2
-        } else {
-            0.3 * e
-        };
-        y2 = y1;
-        y1 = y;
+    for (i, y) in noise(n, seed, resonate).into_iter().enumerate() {
         writeln!(f, "{},{y}", i as f64 * 0.01).expect("write");
     }
 }
@@ -100,17 +109,9 @@ fn white_noise_stays_white() {
 /// Writes `n` samples at 100 Hz: resonated white noise (as [`write_record`]) plus a line of
 /// `amp_dps` at 0.37 Hz, rounded to 0.05 deg/s (the ADIS16405's counts).
 fn write_quantized_line(p: &Path, n: usize, seed: u64, amp_dps: f64) {
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-    let (r, w) = (0.9f64, std::f64::consts::TAU * 20.0 / 100.0);
-    let (a1, a2) = (2.0 * r * w.cos(), -r * r);
-    let (mut y1, mut y2) = (0.0, 0.0);
     let mut f = std::io::BufWriter::new(std::fs::File::create(p).expect("create"));
     writeln!(f, "t_s,rate_dps").expect("write");
-    for i in 0..n {
-        let e: f64 = StandardNormal.sample(&mut rng);
-        let y = 0.3 * e + a1 * y1 + a2 * y2;
-        y2 = y1;
-        y1 = y;
+    for (i, y) in noise(n, seed, true).into_iter().enumerate() {
         let t = i as f64 * 0.01;
         let v = y + amp_dps * (std::f64::consts::TAU * 0.37 * t + 0.4).sin();
         writeln!(f, "{t},{}", (v / 0.05).round() * 0.05).expect("write");

@@ -636,6 +636,15 @@ fn columns(v: &Vehicle) -> Vec<(String, f64)> {
     c
 }
 
+/// The records on which `deg` (a column of the vehicle, when it has one) is worse than
+/// the raw gyro's heading RMS plus 0.3 deg.
+fn worse_than_raw<'a>(vs: &[&'a Vehicle], deg: impl Fn(&Vehicle) -> Option<f64>) -> Vec<&'a str> {
+    vs.iter()
+        .filter(|v| deg(v).is_some_and(|d| d > v.raw_deg + 0.3))
+        .map(|v| v.record.as_str())
+        .collect()
+}
+
 fn report(vs: &[&Vehicle]) {
     let cols = columns(vs[0]);
     println!(
@@ -660,11 +669,7 @@ fn report(vs: &[&Vehicle]) {
             vs.len()
         );
     }
-    let worse: Vec<&str> = vs
-        .iter()
-        .filter(|v| v.filter_deg > v.raw_deg + 0.3)
-        .map(|v| v.record.as_str())
-        .collect();
+    let worse = worse_than_raw(vs, |v| Some(v.filter_deg));
     let bound: Vec<&str> = vs
         .iter()
         .filter(|v| v.bound_reached_inside)
@@ -675,22 +680,14 @@ fn report(vs: &[&Vehicle]) {
         worse.len(),
         worse
     );
-    let limit_worse: Vec<&str> = vs
-        .iter()
-        .filter(|v| v.limit_deg.is_some_and(|l| l > v.raw_deg + 0.3))
-        .map(|v| v.record.as_str())
-        .collect();
+    let limit_worse = worse_than_raw(vs, |v| v.limit_deg);
     println!(
         "  limit (true model) worse than raw + 0.3 deg: {} {:?}",
         limit_worse.len(),
         limit_worse
     );
     if vs.iter().any(|v| v.unit_runs_deg.is_some()) {
-        let unit_worse: Vec<&str> = vs
-            .iter()
-            .filter(|v| v.unit_runs_deg.is_some_and(|l| l > v.raw_deg + 0.3))
-            .map(|v| v.record.as_str())
-            .collect();
+        let unit_worse = worse_than_raw(vs, |v| v.unit_runs_deg);
         println!(
             "  filter on its own unit's runs worse than raw + 0.3 deg: {} {:?}",
             unit_worse.len(),

@@ -75,6 +75,19 @@ pub fn check_full_scale(s: &Series, sensor: &SensorConfig) -> Result<()> {
     Ok(())
 }
 
+/// Every record of `records` read and checked as a static calibration run of `sensor`
+/// (its rate, nothing beyond its full scale).
+fn static_runs(records: &dyn Records, sensor: &SensorConfig) -> Result<Vec<Series>> {
+    (0..records.len())
+        .map(|i| {
+            let s = records.get(i)?;
+            check_rate(&s, sensor)?;
+            check_full_scale(&s, sensor)?;
+            Ok(s)
+        })
+        .collect()
+}
+
 /// What [`train`] returns.
 #[derive(Debug, Clone)]
 pub struct Trained {
@@ -91,14 +104,7 @@ pub struct Trained {
 /// Fits the gyro model on `records` (each static, from power-on) and returns its image. The
 /// records are read once and held in memory.
 pub fn train(records: &dyn Records, o: &TrainOptions) -> Result<Trained> {
-    let all: Vec<Series> = (0..records.len())
-        .map(|i| {
-            let s = records.get(i)?;
-            check_rate(&s, &o.sensor)?;
-            check_full_scale(&s, &o.sensor)?;
-            Ok(s)
-        })
-        .collect::<Result<_>>()?;
+    let all = static_runs(records, &o.sensor)?;
     // The unit is never the datasheet: what the runs show is what the model holds.
     let cal = calibration::measure(&all)?;
     let calibration_warnings = calibration::warnings(&o.sensor, &cal)?;
@@ -165,14 +171,7 @@ pub fn personalize(
     records: &dyn Records,
     sensor: &SensorConfig,
 ) -> Result<Personal> {
-    let runs: Vec<Series> = (0..records.len())
-        .map(|i| {
-            let s = records.get(i)?;
-            check_rate(&s, sensor)?;
-            check_full_scale(&s, sensor)?;
-            Ok(s)
-        })
-        .collect::<Result<_>>()?;
+    let runs = static_runs(records, sensor)?;
     if runs.len() < 2 {
         bail!(
             "--unit-runs: {} run(s) of the unit; at least 2 (each from power-on)",
