@@ -1128,11 +1128,19 @@ pub fn shrinks_enough(c: &Candidate, gap_before: f64, spread: f64) -> bool {
 }
 
 /// A candidate that does not lower the held-out gap by more than chance
-/// ([`shrinks_enough`]) is never named, by its test or by the gap rule.
-fn exclude_no_shrink(candidates: &mut [Candidate], gaps: &Gaps) {
+/// ([`shrinks_enough`]) is never named by the gap rule; one whose dedicated test passed
+/// (its own significance) needs only a shrink above its own null shrink
+/// ([`shrink_threshold`]).
+fn exclude_no_shrink(candidates: &mut [Candidate], gaps: &Gaps, tests: &[evidence::Test]) {
     let spread = gaps.g95 - gaps.g50;
     for c in candidates.iter_mut() {
-        if c.gap_after.is_some() && !shrinks_enough(c, gaps.before, spread) {
+        let passed = tests.iter().any(|t| t.effect == c.effect && t.passed);
+        let enough = if passed {
+            c.shrink.is_some_and(|s| s > shrink_threshold(c))
+        } else {
+            shrinks_enough(c, gaps.before, spread)
+        };
+        if c.gap_after.is_some() && !enough {
             let why = format!(
                 "it lowers the held-out gap by {:.3} (shrink {:.3}): not more than both the null's spread {spread:.3} (null_gap_95 - null_gap_median) and a shrink of {:.3} (the larger of 0 and the 95 % of the shrink it gives the baseline's own simulations)",
                 gaps.before - c.gap_after.unwrap_or(f64::NAN),
@@ -1616,7 +1624,7 @@ pub fn diagnose(
     exclude_failed_tests(&mut candidates, &tests.all);
     size_from_count_tests(&mut candidates, &tests.all, real.rate_dps.len());
     exclude_zero_size(&mut candidates);
-    exclude_no_shrink(&mut candidates, &gaps);
+    exclude_no_shrink(&mut candidates, &gaps, &tests.all);
     let choice = choose(&candidates, &tests, &gaps);
     let Named {
         effect,
