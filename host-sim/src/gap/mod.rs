@@ -1127,6 +1127,12 @@ pub fn shrinks_enough(c: &Candidate, gap_before: f64, spread: f64) -> bool {
         && c.gap_after.is_some_and(|a| gap_before - a > spread)
 }
 
+/// A candidate whose dedicated test passed lowers the gap enough when its shrink exceeds
+/// its own null shrink ([`shrink_threshold`]): the test is its significance.
+fn passed_test_shrinks(c: &Candidate) -> bool {
+    c.shrink.is_some_and(|s| s > shrink_threshold(c))
+}
+
 /// A candidate that does not lower the held-out gap by more than chance
 /// ([`shrinks_enough`]) is never named by the gap rule; one whose dedicated test passed
 /// (its own significance) needs only a shrink above its own null shrink
@@ -1136,7 +1142,7 @@ fn exclude_no_shrink(candidates: &mut [Candidate], gaps: &Gaps, tests: &[evidenc
     for c in candidates.iter_mut() {
         let passed = tests.iter().any(|t| t.effect == c.effect && t.passed);
         let enough = if passed {
-            c.shrink.is_some_and(|s| s > shrink_threshold(c))
+            passed_test_shrinks(c)
         } else {
             shrinks_enough(c, gaps.before, spread)
         };
@@ -1342,7 +1348,6 @@ struct Choice<'c> {
 /// exceeds [`OVERRIDE_RATIO`] times `g95` and its shrink beats the tested one's by 0.5
 /// (never a passed temperature test with [`OVERRIDE_SPARES_TEMPERATURE`]).
 fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice<'c> {
-    let spread = gaps.g95 - gaps.g50;
     let by_gap = |a: &&Candidate, b: &&Candidate| {
         a.gap_after
             .unwrap_or(f64::INFINITY)
@@ -1368,7 +1373,7 @@ fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice
     let quantization_first = !zero_size(Effect::Quantization)
         && candidates
             .iter()
-            .any(|c| c.effect == Effect::Quantization && shrinks_enough(c, gaps.before, spread))
+            .any(|c| c.effect == Effect::Quantization && passed_test_shrinks(c))
         && tests
             .all
             .iter()
@@ -1383,7 +1388,7 @@ fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice
         .filter(|t| {
             candidates
                 .iter()
-                .any(|c| c.effect == t.effect && shrinks_enough(c, gaps.before, spread))
+                .any(|c| c.effect == t.effect && passed_test_shrinks(c))
         })
         .max_by(|a, b| (a.z / a.threshold).total_cmp(&(b.z / b.threshold)))
         .and_then(|t| {
