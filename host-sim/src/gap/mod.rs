@@ -1127,12 +1127,26 @@ pub fn shrinks_enough(c: &Candidate, gap_before: f64, spread: f64) -> bool {
         && c.gap_after.is_some_and(|a| gap_before - a > spread)
 }
 
+/// A candidate whose dedicated test passed lowers the gap enough when its shrink exceeds
+/// its own null shrink ([`shrink_threshold`]): the test is its significance.
+fn passed_test_shrinks(c: &Candidate) -> bool {
+    c.shrink.is_some_and(|s| s > shrink_threshold(c))
+}
+
 /// A candidate that does not lower the held-out gap by more than chance
-/// ([`shrinks_enough`]) is never named, by its test or by the gap rule.
-fn exclude_no_shrink(candidates: &mut [Candidate], gaps: &Gaps) {
+/// ([`shrinks_enough`]) is never named by the gap rule; one whose dedicated test passed
+/// (its own significance) needs only a shrink above its own null shrink
+/// ([`shrink_threshold`]).
+fn exclude_no_shrink(candidates: &mut [Candidate], gaps: &Gaps, tests: &[evidence::Test]) {
     let spread = gaps.g95 - gaps.g50;
     for c in candidates.iter_mut() {
-        if c.gap_after.is_some() && !shrinks_enough(c, gaps.before, spread) {
+        let passed = tests.iter().any(|t| t.effect == c.effect && t.passed);
+        let enough = if passed {
+            passed_test_shrinks(c)
+        } else {
+            shrinks_enough(c, gaps.before, spread)
+        };
+        if c.gap_after.is_some() && !enough {
             let why = format!(
                 "it lowers the held-out gap by {:.3} (shrink {:.3}): not more than both the null's spread {spread:.3} (null_gap_95 - null_gap_median) and a shrink of {:.3} (the larger of 0 and the 95 % of the shrink it gives the baseline's own simulations)",
                 gaps.before - c.gap_after.unwrap_or(f64::NAN),
@@ -1334,7 +1348,6 @@ struct Choice<'c> {
 /// exceeds [`OVERRIDE_RATIO`] times `g95` and its shrink beats the tested one's by 0.5
 /// (never a passed temperature test with [`OVERRIDE_SPARES_TEMPERATURE`]).
 fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice<'c> {
-    let spread = gaps.g95 - gaps.g50;
     let by_gap = |a: &&Candidate, b: &&Candidate| {
         a.gap_after
             .unwrap_or(f64::INFINITY)
@@ -1360,7 +1373,7 @@ fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice
     let quantization_first = !zero_size(Effect::Quantization)
         && candidates
             .iter()
-            .any(|c| c.effect == Effect::Quantization && shrinks_enough(c, gaps.before, spread))
+            .any(|c| c.effect == Effect::Quantization && passed_test_shrinks(c))
         && tests
             .all
             .iter()
@@ -1375,7 +1388,7 @@ fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice
         .filter(|t| {
             candidates
                 .iter()
-                .any(|c| c.effect == t.effect && shrinks_enough(c, gaps.before, spread))
+                .any(|c| c.effect == t.effect && passed_test_shrinks(c))
         })
         .max_by(|a, b| (a.z / a.threshold).total_cmp(&(b.z / b.threshold)))
         .and_then(|t| {
@@ -1616,7 +1629,7 @@ pub fn diagnose(
     exclude_failed_tests(&mut candidates, &tests.all);
     size_from_count_tests(&mut candidates, &tests.all, real.rate_dps.len());
     exclude_zero_size(&mut candidates);
-    exclude_no_shrink(&mut candidates, &gaps);
+    exclude_no_shrink(&mut candidates, &gaps, &tests.all);
     let choice = choose(&candidates, &tests, &gaps);
     let Named {
         effect,
