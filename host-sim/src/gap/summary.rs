@@ -86,15 +86,26 @@ pub fn lines(out: &Outcome) -> Vec<String> {
                     })
             ));
         } else {
+            let (fall, spread) = (
+                r.gap_before - r.gap_after,
+                r.null_gap_95 - r.null_gap_median,
+            );
+            // A name by its passed dedicated test is not asked for a fall above the spread.
+            let versus = if fall > spread { ">" } else { "<=" };
+            let by_test = if fall > spread {
+                ""
+            } else {
+                " (its test passed)"
+            };
             v.push(format!(
-                "round {}: {} named; gap {} -> {} (null 95 % {}): falls {} > null spread {}, shrink {} > {} needed",
+                "round {}: {} named; gap {} -> {} (null 95 % {}): falls {} {versus} null spread {}{by_test}, shrink {} > {} needed",
                 r.round,
                 r.effect,
                 num(r.gap_before),
                 num(r.gap_after),
                 num(r.null_gap_95),
-                num(r.gap_before - r.gap_after),
-                num(r.null_gap_95 - r.null_gap_median),
+                num(fall),
+                num(spread),
                 num(r.shrink),
                 num(need)
             ));
