@@ -13,15 +13,15 @@ Every record (clean and injected) gets the same synthetic `temp_c` column (a war
 with time constant 600 s and a 1.5 C swing of period 900 s), so that the temperature link has
 a channel to be tied to; the sensors' own temperature is not used.
 
-With --dither the effect is added as a sensor whose own noise is much larger than its quantum
-would record it: the record's sample r is already on the lattice, r = Q(v) = v + e with e
-uniform and independent of the signal (v's noise spreads over many quanta: ADIS16405 sample
-standard deviation 0.35 deg/s = 7 quanta), so Q(v + x) = r + Q(x - e), which is r plus x
-rounded stochastically (up with probability frac(x / q), seeded). Without --dither (the
-default, the figures in docs/gap.md) the effect is rounded to the lattice deterministically,
-r + q round(x / q): a slow effect then enters as a staircase (a ramp of 30 s100 on ADIS run 4
-x is six jumps of 0.05 deg/s, 308 s apart), which no sensor whose noise dithers its quantum
-outputs.
+The effect is added as a sensor whose own noise is much larger than its quantum would record
+it (the default, dithered): the record's sample r is already on the lattice, r = Q(v) = v + e
+with e uniform and independent of the signal (v's noise spreads over many quanta: ADIS16405
+sample standard deviation 0.35 deg/s = 7 quanta), so Q(v + x) = r + Q(x - e), which is r plus
+x rounded stochastically (up with probability frac(x / q), seeded). With --no-dither (the
+injection of the figures before issue 43's dithered default) the effect is rounded to the
+lattice deterministically, r + q round(x / q): a slow effect then enters as a staircase (a
+ramp of 30 s100 on ADIS run 4 x is six jumps of 0.05 deg/s, 308 s apart), which no sensor
+whose noise dithers its quantum outputs. `--dither` is accepted and is the default.
 
 Effects, each sized from the clean record's own 100-s Allan deviation s100 (as the issue that
 asked for this benchmark sized them; --scale multiplies every size) and added to the rate
@@ -42,9 +42,10 @@ Scores, over the injected records (a name "of its own" is one the clean record a
   - unexplained: what the last round says stays unexplained (clean records).
 
   python3 scripts/gap_real_bench.py --out DIR [--bin target/release/host-sim] [--jobs 2]
-      [--rounds 4] [--scale 1.0] [--records adis4x,adis4z,...] [--effects rate_ramp,...] [--dither]
+      [--rounds 4] [--scale 1.0] [--records adis4x,adis4z,...] [--effects rate_ramp,...] [--no-dither]
 
-Writes DIR/<record>-<effect>.csv, .json and .log, and DIR/summary.json; prints the table.
+Writes DIR/<record>-<effect>.csv, .json and .log, and DIR/summary.json (with "dither": true or
+false); prints the scores, and per effect how many records are right.
 """
 import argparse
 import concurrent.futures as cf
@@ -230,8 +231,9 @@ def main():
     ap.add_argument("--rescore", action="store_true", help="score the JSON already in --out, run nothing")
     ap.add_argument(
         "--dither",
-        action="store_true",
-        help="round the added effect stochastically (as a sensor whose noise dithers its quantum records it), not to the nearest count",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="round the added effect stochastically, as a sensor whose noise dithers its quantum records it (the default); --no-dither rounds it to the nearest count (a slow effect enters as a staircase)",
     )
     a = ap.parse_args()
     if not os.path.isdir(REAL):
@@ -246,6 +248,11 @@ def main():
     for x in effects:
         if x not in EFFECTS:
             sys.exit(f"unknown effect {x}; known: {', '.join(EFFECTS)}")
+    prev = os.path.join(a.out, "summary.json")
+    if a.rescore and os.path.exists(prev):
+        was = json.load(open(prev)).get("dither", False)
+        if was != a.dither:
+            sys.exit(f"{prev}: its records were injected {'with' if was else 'without'} dither; rescore with {'--dither' if was else '--no-dither'}")
     jobs, truths = [], {}
     for ri, name in enumerate(names):
         t, rate, q = read_record(name)
@@ -262,7 +269,8 @@ def main():
             else:
                 out = [round((r + x) / q) * q for r, x in zip(rate, add)]
             base = os.path.join(a.out, f"{name}-{effect}")
-            write_csv(base + ".csv", t, out, temp)
+            if not a.rescore:  # --rescore reads what an earlier run wrote, never rewrites it
+                write_csv(base + ".csv", t, out, temp)
             truths[(name, effect)] = truth
             jobs.append((name, effect, base))
         print(f"{name}: {len(t)} samples, {t[-1]:.0f} s, quantum {q:.5g} deg/s, s100 {s100 * 3600:.2f} deg/h", file=sys.stderr)
@@ -338,11 +346,15 @@ def main():
         "rows": rows,
     }
     json.dump(summary, open(os.path.join(a.out, "summary.json"), "w"), indent=1)
+    print(f"injection: {'dithered (stochastic rounding)' if a.dither else 'rounded to the nearest count (--no-dither)'}")
     print(f"injected effect named, others the record's own: {right}/{total}")
     print(f"... and every one of the record's own effects named too: {same_own}/{total}")
     print(f"records with an effect named twice: {twice}/{len(results)}")
     print(f"named effects with zero fitted size: {zero}")
     print(f"true parameters inside the 95 % intervals: {in_ci}/{named_right} rightly named (with intervals)")
+    for e in effects:
+        rs = [r for r in rows if r["effect"] == e and "right" in r]
+        print(f"  {e}: right {sum(r['right'] for r in rs)}/{len(rs)}, named at all {sum(e in r['named'] for r in rs)}/{len(rs)}")
     for n in names:
         print(f"  {n}: own effects {sorted(own[n])}")
     return 0
