@@ -77,6 +77,7 @@ pub struct GyroFitReport {
     pub temperature: bool,
 }
 
+#[derive(Clone)]
 struct Bins {
     t_s: Vec<f64>,
     y: Vec<f64>,
@@ -277,6 +278,123 @@ fn pooled(
     Some((per_run, shared, sse))
 }
 
+/// Least power-on scatter of one unit's level the random-effects fit assumes, deg/s
+/// (ASSUMED 1 deg/h: a few runs cannot show a smaller one reliably).
+const POWER_ON_FLOOR_DPS: f64 = 1.0 / 3600.0;
+
+/// Least number of one unit's runs whose levels are taken to tell its link
+/// ([`unit_links`]): their scatter around the centre and the link needs a degree of
+/// freedom left (with 2 runs the link fits both levels exactly; measured: docs/
+/// drift-filter.md "The unit's own runs").
+const MIN_RUNS_FOR_LEVELS: usize = 3;
+
+/// ONE unit's runs at warm-up time constant `tau_s`: per run a warm-up amplitude, the links
+/// shared, and each run's level the unit's centre plus a power-on deviation of standard
+/// deviation `power_on_dps` (a random effect: a penalty row per run; `None`: one shared
+/// level). Runs at different ambient temperatures then tell the temperature link from their
+/// levels, which free per-run levels ([`pooled`]) absorb. Returns the links `[c, c']`, the
+/// runs' mean residuals (their level deviations from the centre plus what the fit leaves),
+/// and the bins' residual variance.
+fn unit_random_effects(
+    binned: &[Bins],
+    tau_s: f64,
+    power_on_dps: Option<f64>,
+    bin_var: f64,
+) -> Option<([f64; 2], Vec<f64>, f64)> {
+    let r = binned.len();
+    // Unknowns: per run [b_r, a_r], then c, c', centre.
+    let k = 2 * r + 3;
+    let centre = 2 * r + 2;
+    let mut ne = NormalEquations::new(k);
+    for (run, b) in binned.iter().enumerate() {
+        let level = if power_on_dps.is_some() {
+            2 * run
+        } else {
+            centre
+        };
+        for (x, &y) in rows(b, tau_s, true).iter().zip(&b.y) {
+            ne.add(
+                &[
+                    (level, x[0]),
+                    (2 * run + 1, x[1]),
+                    (2 * r, x[2]),
+                    (2 * r + 1, x[3]),
+                ],
+                y,
+                1.0,
+            );
+        }
+        match power_on_dps {
+            // (b_r - centre) / sigma_p = 0 on the scale of a bin's residual.
+            Some(sp) => ne.add(&[(2 * run, 1.0), (centre, -1.0)], 0.0, sp / bin_var.sqrt()),
+            None => ne.add(&[(2 * run, 1.0)], 0.0, 1.0),
+        }
+    }
+    let x = ne.solve_ridged()?;
+    let mut sse = 0.0;
+    let mut n = 0usize;
+    let mut means = Vec::with_capacity(r);
+    for (run, b) in binned.iter().enumerate() {
+        let level = if power_on_dps.is_some() {
+            x[2 * run]
+        } else {
+            x[centre]
+        };
+        let mut sum = 0.0;
+        let rs = rows(b, tau_s, true);
+        for (row, &y) in rs.iter().zip(&b.y) {
+            let f = level * row[0]
+                + x[2 * run + 1] * row[1]
+                + x[2 * r] * row[2]
+                + x[2 * r + 1] * row[3];
+            sse += (y - f) * (y - f);
+            sum += y - f + level - x[centre];
+            n += 1;
+        }
+        means.push(sum / rs.len().max(1) as f64);
+    }
+    let var = sse / (n as f64 - k as f64).max(1.0);
+    Some(([x[2 * r], x[2 * r + 1]], means, var))
+}
+
+/// The links of ONE unit from its own runs ([`unit_random_effects`]): a first fit with one
+/// shared level gives the runs' level deviations, whose scatter (at least
+/// [`POWER_ON_FLOOR_DPS`]) is the power-on deviation of the second fit. Standard errors by
+/// the jackknife over runs (each run left out in turn). `None` with fewer than
+/// [`MIN_RUNS_FOR_LEVELS`] runs (the caller then takes the runs' free-level estimate).
+fn unit_links(binned: &[Bins], tau_s: f64) -> Option<LinkEstimate> {
+    let once = |bs: &[Bins]| -> Option<[f64; 2]> {
+        let (_, means, var) = unit_random_effects(bs, tau_s, None, 1.0)?;
+        let n = means.len() as f64;
+        let m = means.iter().sum::<f64>() / n;
+        // Degrees of freedom: the runs less the centre and the link their levels fit.
+        let scatter = means.iter().map(|d| (d - m) * (d - m)).sum::<f64>() / (n - 2.0).max(1.0);
+        let sp = scatter.sqrt().max(POWER_ON_FLOOR_DPS);
+        Some(unit_random_effects(bs, tau_s, Some(sp), var)?.0)
+    };
+    let n = binned.len();
+    if n < MIN_RUNS_FOR_LEVELS {
+        return None;
+    }
+    let all = once(binned)?;
+    let mut leave: Vec<[f64; 2]> = Vec::with_capacity(n);
+    for i in 0..n {
+        let rest: Vec<Bins> = binned
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != i)
+            .map(|(_, b)| b.clone())
+            .collect();
+        leave.push(once(&rest)?);
+    }
+    let nf = n as f64;
+    let se = |k: usize| {
+        let m = leave.iter().map(|l| l[k]).sum::<f64>() / nf;
+        ((nf - 1.0) / nf * leave.iter().map(|l| (l[k] - m) * (l[k] - m)).sum::<f64>()).sqrt()
+    };
+    Some([(all[0], se(0)), (all[1], se(1))])
+}
+
 /// The spread of a per-unit constant around `mean` from per-run estimates `v` and their
 /// sampling variances `se2` (method of moments: the estimates' scatter less what their
 /// own error explains, at least 0).
@@ -399,10 +517,10 @@ pub fn fit(
 
 /// The model of ONE unit from its own static `runs` (each a power-on) and its `family`'s
 /// model. The temperature links: the family's prior (mean, unit spread) and the runs' own
-/// estimate (the shared fit, its standard error from the scatter of each run's own fit)
-/// weighed by their precisions: a few runs of one unit tell a strong link well and cannot
-/// tell a weak one from the unit's warm-up (both follow the self-heating; measured, docs/
-/// drift-filter.md "The unit's own runs"). Then the runs' level and warm-up fitted again
+/// estimate (`unit_links`: the runs' levels as the unit's centre plus a power-on
+/// deviation, so runs at different ambient temperatures tell the link from their levels
+/// where the self-heating and the warm-up look alike within a run; its standard error by the
+/// jackknife over runs) weighed by their precisions. Then the runs' level and warm-up fitted again
 /// with the links held there, and [`personalize`]; the links' spread is the combination's
 /// (at least [`UNIT_SPREAD_FLOOR`] of the family's).
 pub fn fit_unit(
@@ -411,7 +529,13 @@ pub fn fit_unit(
     file_bound_dps: f64,
     family: &GyroModel,
 ) -> Result<(GyroModel, GyroFitReport)> {
-    let (_, _, own) = fit_with(runs, cal, file_bound_dps, None)?;
+    let (_, free_report, free_links) = fit_with(runs, cal, file_bound_dps, None)?;
+    let own = if runs.iter().all(|s| s.temp_c.is_some()) {
+        let binned: Vec<Bins> = runs.iter().map(bins).collect();
+        unit_links(&binned, free_report.warmup_tau_s).or(free_links)
+    } else {
+        None
+    };
     let prior = [family.temp_dps_per_c, family.temp_rate_dps_per_c_per_s];
     let mut links = prior;
     if let Some(own) = own {
@@ -709,12 +833,25 @@ mod tests {
         })
     }
 
-    /// `count` runs of link `c_dps_per_c`, run `r`'s (level, warm-up) deg/h from `lw`.
+    /// `count` runs of link `c_dps_per_c`, run `r`'s (level, warm-up) deg/h from `lw`;
+    /// warm-up time constant 400 s, self-heating 8 C with time constant 900 s.
     fn runs_of(
         count: usize,
         seed: u64,
         c_dps_per_c: f64,
         lw: impl Fn(usize) -> (f64, f64),
+    ) -> Vec<Series> {
+        runs_with(count, seed, c_dps_per_c, lw, 900.0)
+    }
+
+    /// [`runs_of`] with the self-heating's time constant `thermal_tau_s`; run `r` starts
+    /// at an ambient of 5 + 4 r deg C.
+    fn runs_with(
+        count: usize,
+        seed: u64,
+        c_dps_per_c: f64,
+        lw: impl Fn(usize) -> (f64, f64),
+        thermal_tau_s: f64,
     ) -> Vec<Series> {
         let mut state = seed;
         let mut normal = move || {
@@ -738,7 +875,7 @@ mod tests {
                 let t_s: Vec<f64> = (0..n).map(|k| k as f64 / fs).collect();
                 let temp: Vec<f64> = t_s
                     .iter()
-                    .map(|t| ambient + 8.0 * (1.0 - (-t / 900.0).exp()))
+                    .map(|t| ambient + 8.0 * (1.0 - (-t / thermal_tau_s).exp()))
                     .collect();
                 let rate: Vec<f32> = t_s
                     .iter()
@@ -796,7 +933,9 @@ mod tests {
         let fam = family_runs(1.5 * dph);
         let cal = crate::motion::calibration::measure(&fam).expect("measure");
         let (family, _) = fit(&fam, &cal, 30.0 * dph).expect("family fit");
-        let unit = runs_of(3, 777, 1.65 * dph, |r| (30.0 + 2.0 * r as f64, 35.0));
+        // Power-on levels scattered, not trending with the runs' ambient (5, 9, 13 C): a
+        // level rising with the ambient is a larger link.
+        let unit = runs_of(3, 777, 1.65 * dph, |r| (30.0 + [0.0, 2.0, -1.0][r], 35.0));
         let cal_u = crate::motion::calibration::measure(&unit).expect("measure");
         let (m, _) = fit_unit(&unit, &cal_u, 30.0 * dph, &family).expect("unit fit");
         let warm = f64::from(m.warmup_dps.mean) / dph;
@@ -810,7 +949,7 @@ mod tests {
             "family warm-up {fam_warm}"
         );
         let level = f64::from(m.turn_on_dps.mean) / dph;
-        assert!((level - 32.0).abs() < 3.0, "unit turn-on {level} deg/h");
+        assert!((level - 30.3).abs() < 3.0, "unit turn-on {level} deg/h");
         let link = f64::from(m.temp_dps_per_c.mean) / dph;
         assert!((link / 1.65 - 1.0).abs() < 0.15, "unit link {link} deg/h/C");
         // Spreads at least the floor of the family's; noise terms the family's.
@@ -818,6 +957,29 @@ mod tests {
         assert!(m.warmup_dps.sigma >= UNIT_SPREAD_FLOOR * family.warmup_dps.sigma);
         assert_eq!(m.markov, family.markov);
         assert_eq!(m.rrw_dps_per_s_rthz, family.rrw_dps_per_s_rthz);
+        assert!(m.is_valid());
+    }
+
+    #[test]
+    fn a_units_link_is_told_from_its_warm_up_by_its_levels() {
+        // The unit's warm-up and self-heating share their time constant (400 s): within a
+        // run the link and the warm-up look alike. Its four power-ons start 4 C apart
+        // (5..17 C), their levels scatter by 1.5 deg/h around 30 deg/h: the levels carry
+        // the link (3 deg/h/C, twice the family's mean, inside its wide prior).
+        let dph = 1.0 / 3600.0;
+        let fam = family_runs(1.5 * dph);
+        let cal = crate::motion::calibration::measure(&fam).expect("measure");
+        let (mut family, _) = fit(&fam, &cal, 30.0 * dph).expect("family fit");
+        family.temp_dps_per_c = Spread {
+            mean: (1.5 * dph) as f32,
+            sigma: (1.5 * dph) as f32,
+        };
+        let power_on = [1.0, -2.0, 1.5, -0.5];
+        let unit = runs_with(4, 4242, 3.0 * dph, |r| (30.0 + power_on[r], 25.0), 400.0);
+        let cal_u = crate::motion::calibration::measure(&unit).expect("measure");
+        let (m, _) = fit_unit(&unit, &cal_u, 30.0 * dph, &family).expect("unit fit");
+        let link = f64::from(m.temp_dps_per_c.mean) / dph;
+        assert!((link / 3.0 - 1.0).abs() < 0.15, "unit link {link} deg/h/C");
         assert!(m.is_valid());
     }
 

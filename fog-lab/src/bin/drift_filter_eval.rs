@@ -55,7 +55,8 @@ struct Args {
     /// Exploration: multiply the temperature links' spreads.
     #[arg(long)]
     prior_scale: Option<f32>,
-    /// Write each vehicle's `t_s,drift_dps,estimate_dps,moving` here (every 100th sample).
+    /// Write each vehicle's `t_s,drift_dps,estimate_dps,moving,temp_c,unit_estimate_dps`
+    /// here (every 100th sample; the last column with `--unit-runs`).
     #[arg(long)]
     dump: Option<PathBuf>,
     /// Exploration: the warm-up time constant's range as this factor around the fit's.
@@ -367,23 +368,29 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             Some(m) => Some(nav::score_drift(&r, &run(m, cfg, &r, true)?.0).heading_rms_deg),
             None => None,
         };
-        let unit_runs_deg = if args.unit_runs {
+        let unit_estimate = if args.unit_runs {
             let um = unit_model(fam, &p, &model)?;
-            Some(nav::score_drift(&r, &run(um, cfg, &r, false)?.0).heading_rms_deg)
+            Some(run(um, cfg, &r, false)?.0)
         } else {
             None
         };
+        let unit_runs_deg = unit_estimate
+            .as_ref()
+            .map(|u| nav::score_drift(&r, u).heading_rms_deg);
         if let Some(dir) = &args.dump {
-            let mut text = String::from("t_s,drift_dps,estimate_dps,moving,temp_c\n");
+            let mut text =
+                String::from("t_s,drift_dps,estimate_dps,moving,temp_c,unit_estimate_dps\n");
             for k in (0..r.len()).step_by(100) {
                 let temp = r.temp_c.as_ref().map_or(f64::NAN, |t| t[k]);
+                let unit = unit_estimate.as_ref().map_or(f64::NAN, |u| u[k]);
                 text += &format!(
-                    "{},{},{},{},{}\n",
+                    "{},{},{},{},{},{}\n",
                     r.t_s[k],
                     r.drift_dps[k],
                     d[k],
                     u8::from(r.moving[k]),
-                    temp
+                    temp,
+                    unit
                 );
             }
             std::fs::write(dir.join(format!("{rec}.dump.csv")), text)?;
