@@ -636,3 +636,98 @@ fn a_passed_test_names_a_line_whose_gap_fall_is_within_the_spread() {
         "shrink above its own null"
     );
 }
+
+/// A passed count test whose outliers or holes all lie in the held-out blocks sizes its
+/// candidate before the candidate is simulated: the candidate's simulations carry the
+/// spikes or holes, and the held-out gap they leave is not the baseline's. Sized only after
+/// the simulations (main 582aa99), the candidate's simulations had none: its `gap_after`
+/// equalled `gap_before` exactly, shrink 0.000, and a record with its count test passed at
+/// z 10 or 16.7 was named `none` (fresh set 9570001: `spikes-9577001`, 3 outliers, held-out
+/// gap 154,623; `dropouts-9578005`, 5 missing slots). The record is the project's
+/// simulator's white noise and flicker (0.06 deg/sqrt(h), 1.5 deg/h) at 50 Hz for 1200 s;
+/// 3 spikes of 0.2 deg/s (about 28 standard deviations of the white noise), or 5 dropped
+/// samples, are put in the held-out blocks 2, 4 and 6 (of six 200-s blocks) alone.
+#[test]
+fn a_count_test_sizes_its_candidate_before_it_is_simulated() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let gyro = dir.path().join("white.toml");
+    std::fs::write(
+        &gyro,
+        "sample_rate_hz = 50.0\narw_deg_per_rth = 0.06\nbias_instability_dph = 1.5\n",
+    )
+    .expect("gyro file");
+    let sim = dir.path().join("sim.csv");
+    Command::cargo_bin("host-sim")
+        .expect("binary")
+        .args(["simulate", "--duration-s", "1200", "--seed", "3", "--gyro"])
+        .arg(&gyro)
+        .arg("--output")
+        .arg(&sim)
+        .assert()
+        .success();
+    let text = std::fs::read_to_string(&sim).expect("simulated record");
+    let rows: Vec<(f64, f64)> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let mut f = l.split(',');
+            let t: f64 = f.next().expect("t_s").parse().expect("t_s");
+            let r: f64 = f.next().expect("rate_dps").parse().expect("rate_dps");
+            (t, r)
+        })
+        .collect();
+    // Sample indices in the held-out blocks (50 Hz: 200 s is 10,000 samples).
+    let spikes = [15_000_usize, 35_017, 55_031];
+    let dropped = [15_000_usize, 15_500, 35_017, 55_031, 55_500];
+    for (effect, expect_test) in [("spikes", 3.0), ("dropouts", 5.0)] {
+        let p = dir.path().join(format!("{effect}.csv"));
+        write_csv(
+            &p,
+            rows.iter()
+                .enumerate()
+                .filter_map(|(i, &(t, r))| match effect {
+                    "spikes" if spikes.contains(&i) => Some(format!("{t},{}", r + 0.2)),
+                    "dropouts" if dropped.contains(&i) => None,
+                    _ => Some(format!("{t},{r}")),
+                }),
+            "t_s,rate_dps",
+        );
+        let v = gap_json(
+            &p,
+            &dir.path().join(format!("{effect}.json")),
+            &["--no-task", "--rounds", "1"],
+        );
+        let test = v["tests"]
+            .as_array()
+            .expect("tests")
+            .iter()
+            .find(|t| t["effect"] == effect)
+            .expect("count test");
+        assert_eq!(test["passed"], true, "{effect}: {test}");
+        assert_eq!(
+            test["statistic"].as_f64(),
+            Some(expect_test),
+            "{effect}: {test}"
+        );
+        let cand = v["candidates"]
+            .as_array()
+            .expect("candidates")
+            .iter()
+            .find(|c| c["effect"] == effect)
+            .expect("candidate");
+        assert_eq!(
+            cand["params"]["excess_count"].as_f64(),
+            Some(expect_test),
+            "{effect}: sized by its count test, the fit blocks have none: {cand}"
+        );
+        let before = v["gap_before"].as_f64().expect("gap_before");
+        let after = cand["gap_after"].as_f64().expect("gap_after");
+        // Main's defect: the candidate's simulations were the baseline's, after == before.
+        assert!(
+            after < before,
+            "{effect}: the candidate's simulations carry the effect: gap {before} -> {after}"
+        );
+        assert_eq!(v["effect"], effect, "{effect}: decision {}", v["decision"]);
+        assert!(v["shrink"].as_f64().expect("shrink") > 0.0);
+    }
+}

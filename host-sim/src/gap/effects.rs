@@ -318,6 +318,20 @@ fn interp(t: &[f64], v: &[f64], i: usize, x: f64) -> f64 {
     v[i] + w * (v[i + 1] - v[i])
 }
 
+/// What a passed count test says of its effect's size on the whole record (the outliers or
+/// holes may all lie in the held-out blocks, where the fit on the fit blocks cannot see
+/// them; fresh sets 9530001 and 9570001).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CountSizes {
+    /// Samples in the record.
+    pub samples: usize,
+    /// `spikes` test passed: outliers beyond the simulations' mean, and the median size of
+    /// the record's outliers (deg/s).
+    pub spikes: Option<(f64, f64)>,
+    /// `dropouts` test passed: missing slots beyond the simulations' mean.
+    pub dropouts: Option<f64>,
+}
+
 /// What the fits need from the fit blocks.
 pub struct FitCtx<'a> {
     /// The real record, rate less the baseline's view of the reference rate.
@@ -340,6 +354,9 @@ pub struct FitCtx<'a> {
     pub spike_size_dps: f64,
     /// Missing slots on the fit blocks: real, median of the baseline simulations.
     pub missing: (f64, f64),
+    /// Sizes from the passed count tests on the whole record, for a `spikes` or `dropouts`
+    /// candidate whose fit on the fit blocks finds none ([`CountSizes`]).
+    pub count_sizes: CountSizes,
     /// Time stamps are bursty (gaps are not measurable).
     pub bursty: bool,
     /// ln-spread (seed-to-seed standard deviation of ln AVAR) of the baseline simulations
@@ -657,7 +674,11 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
                 ));
             }
             let slots = idx.len() as f64 + ctx.missing.0;
-            let extra = (ctx.missing.0 - ctx.missing.1).max(0.0) / slots.max(1.0);
+            let mut extra = (ctx.missing.0 - ctx.missing.1).max(0.0) / slots.max(1.0);
+            if let Some(excess) = ctx.count_sizes.dropouts.filter(|_| extra == 0.0) {
+                extra = excess / ctx.count_sizes.samples.max(1) as f64;
+                p.insert("excess_count".into(), excess);
+            }
             let f = &mut spec.model.faults;
             f.drop_probability = (f.drop_probability + extra).min(0.5);
             p.insert("drop_probability".into(), extra);
@@ -850,18 +871,29 @@ fn add_temperature(spec: &mut Spec, beta: &[f64], tref_c: f64, p: &mut Params) {
 
 /// The `spikes` candidate: the fit blocks' spikes beyond the baseline simulations' (per fit
 /// sample, `n_fit` samples) added to the spike probability (at most 0.5), at the real
-/// spikes' median size when there are any.
+/// spikes' median size when there are any. When the fit blocks have none beyond the
+/// simulations' and the count test passed on the whole record, its outliers size the
+/// candidate instead: their excess per sample of the record, at their median size
+/// (`excess_count` in `p`). The simulations then carry the spikes the test found; sized
+/// only after they were simulated, they had none and the candidate's shrink was exactly 0
+/// (fresh set 9570001, `spikes-9577001`: 3 outliers, z 10, held-out gap 154,623 unchanged).
 fn add_spikes(f: &mut Faults, ctx: &FitCtx, n_fit: usize, p: &mut Params) {
     let nfit = n_fit.max(1) as f64;
-    let extra = (ctx.spikes.0 - ctx.spikes.1).max(0.0) / nfit;
+    let mut extra = (ctx.spikes.0 - ctx.spikes.1).max(0.0) / nfit;
+    let mut size_dps = ctx.spike_size_dps;
+    if let Some((excess, test_size_dps)) = ctx.count_sizes.spikes.filter(|_| extra == 0.0) {
+        extra = excess / ctx.count_sizes.samples.max(1) as f64;
+        size_dps = test_size_dps;
+        p.insert("excess_count".into(), excess);
+    }
     f.spike_probability = (f.spike_probability + extra).min(0.5);
-    f.spike_amplitude_dps = if ctx.spike_size_dps > 0.0 {
-        ctx.spike_size_dps
+    f.spike_amplitude_dps = if size_dps > 0.0 {
+        size_dps
     } else {
         f.spike_amplitude_dps
     };
     p.insert("spike_probability".into(), extra);
-    p.insert("spike_amplitude_dps".into(), ctx.spike_size_dps);
+    p.insert("spike_amplitude_dps".into(), size_dps);
 }
 
 /// The Gauss-Markov term that fits the fit blocks' AVAR and their long-lag drift variogram

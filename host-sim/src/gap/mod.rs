@@ -1071,6 +1071,7 @@ fn fit_ctx<'a>(s: &'a Setup, raw: &'a Rec, sims: &BaseSims, bursty: bool) -> Fit
             effects::missing_slots(&real.t_s, fit_ranges, real.dt_s),
             features::median(&sims.missing),
         ),
+        count_sizes: effects::CountSizes::default(),
         bursty,
         joint_markov: if s.plain_fit {
             fit_baseline_terms(&s.fitted_on, layout, fit_ranges, true).ok()
@@ -1301,27 +1302,31 @@ fn exclude_failed_tests(candidates: &mut [Candidate], tests: &[evidence::Test]) 
 }
 
 /// A passed count test (`spikes`: outliers, `dropouts`: missing slots, counted on the whole
-/// record) sizes its candidate when the candidate's fit on the fit blocks found none: the
+/// record) sizes its candidate when the candidate's fit on the fit blocks finds none: the
 /// outliers or holes may all lie in the held-out blocks (fresh set 9530001: spikes-9537008,
 /// 3 outliers, and dropouts-9538005, 5 missing slots, both fitted 0 and so left unnamed).
-/// The size is the count beyond the simulations' mean per sample, the count in
-/// `excess_count`.
-fn size_from_count_tests(candidates: &mut [Candidate], tests: &[evidence::Test], samples: usize) {
-    for c in candidates.iter_mut() {
-        let key = match c.effect {
-            Effect::Spikes => "spike_probability",
-            Effect::Dropouts => "drop_probability",
-            _ => continue,
-        };
-        let Some(t) = tests.iter().find(|t| t.effect == c.effect && t.passed) else {
-            continue;
-        };
-        let excess = t.statistic - t.null_mean;
-        if excess > 0.0 && samples > 0 && c.effect.fitted_size_is_zero(c.params.as_ref()) {
-            let p = c.params.get_or_insert_with(BTreeMap::new);
-            p.insert(key.into(), excess / samples as f64);
-            p.insert("excess_count".into(), excess);
-        }
+/// The size is the count beyond the simulations' mean per sample (`excess_count` in the
+/// candidate's `params`), a spike's the median size of the record's outliers. It is set
+/// before the candidates are simulated ([`effects::FitCtx::count_sizes`]), so that their
+/// simulations carry it: set after, the simulations had none and the shrink was exactly 0
+/// (fresh set 9570001: spikes-9577001, z 10, and dropouts-9578005, z 16.7, named `none`).
+fn count_sizes(s: &Setup, tests: &[evidence::Test]) -> effects::CountSizes {
+    let excess = |e: Effect| {
+        tests
+            .iter()
+            .find(|t| t.effect == e && t.passed)
+            .map(|t| t.statistic - t.null_mean)
+            .filter(|x| *x > 0.0)
+    };
+    let real = &s.resid.rate_dps;
+    effects::CountSizes {
+        samples: real.len(),
+        spikes: excess(Effect::Spikes).and_then(|x| {
+            let (_, sizes) =
+                effects::outliers(real, &[(0, real.len())], evidence::SPIKE_TEST_SIGMAS);
+            (!sizes.is_empty()).then(|| (x, features::median(&sizes)))
+        }),
+        dropouts: excess(Effect::Dropouts),
     }
 }
 
@@ -1626,6 +1631,7 @@ pub fn diagnose(
     let mut tests = dedicated_tests(&s, &sims, time.bursty, o);
     let (where_, feature_rows) = full_record(&s.defs_all, &real_out.all, &sims.outs);
     let mut ctx = fit_ctx(&s, real, &sims, time.bursty);
+    ctx.count_sizes = count_sizes(&s, &tests.all);
     let base_scores: Vec<Vec<f64>> = sims.outs.iter().map(|o| o.score.clone()).collect();
     let (mut candidates, curves_by) = score_candidates(
         &s,
@@ -1641,7 +1647,6 @@ pub fn diagnose(
         exclude_baseline_terms(&mut candidates);
     }
     exclude_failed_tests(&mut candidates, &tests.all);
-    size_from_count_tests(&mut candidates, &tests.all, real.rate_dps.len());
     exclude_zero_size(&mut candidates);
     exclude_no_shrink(&mut candidates, &gaps, &tests.all);
     let choice = choose(&candidates, &tests, &gaps);
