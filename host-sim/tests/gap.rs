@@ -558,6 +558,33 @@ fn a_record_that_turns_is_said_not_static() {
     assert!(gap::not_static(&rec).is_some());
 }
 
+/// `host-sim simulate` of the gyro file `gyro_toml` for 1200 s with `seed`, written under
+/// `dir`: its `(t_s, rate_dps)` rows alone (the simulator's truth columns would give the
+/// answer away).
+fn simulated_rate(dir: &std::path::Path, gyro_toml: &str, seed: &str) -> Vec<(f64, f64)> {
+    let gyro = dir.join(format!("gyro-{seed}.toml"));
+    std::fs::write(&gyro, gyro_toml).expect("gyro file");
+    let sim = dir.join(format!("sim-{seed}.csv"));
+    Command::cargo_bin("host-sim")
+        .expect("binary")
+        .args(["simulate", "--duration-s", "1200", "--seed", seed, "--gyro"])
+        .arg(&gyro)
+        .arg("--output")
+        .arg(&sim)
+        .assert()
+        .success();
+    let text = std::fs::read_to_string(&sim).expect("simulated record");
+    text.lines()
+        .skip(1)
+        .map(|l| {
+            let mut f = l.split(',');
+            let t: f64 = f.next().expect("t_s").parse().expect("t_s");
+            let r: f64 = f.next().expect("rate_dps").parse().expect("rate_dps");
+            (t, r)
+        })
+        .collect()
+}
+
 /// A plainly visible line whose dedicated test passes is named although the held-out gap
 /// falls by less than the null's spread (`null_gap_95 - null_gap_median`): the test is its
 /// significance, and its shrink is above its own null shrink. Before, the spread rule was
@@ -570,32 +597,17 @@ fn a_record_that_turns_is_said_not_static() {
 #[test]
 fn a_passed_test_names_a_line_whose_gap_fall_is_within_the_spread() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let gyro = dir.path().join("line.toml");
-    std::fs::write(
-        &gyro,
+    let rows = simulated_rate(
+        dir.path(),
         "sample_rate_hz = 50.0\narw_deg_per_rth = 0.06\nbias_instability_dph = 1.5\n\
          rrw_dph_per_rth = 0.5\n[noise]\nsine_amplitude_dph = 2.35\nsine_freq_hz = 0.37\n\
          sine_phase_deg = 20.0\n",
-    )
-    .expect("gyro file");
-    let sim = dir.path().join("sim.csv");
-    Command::cargo_bin("host-sim")
-        .expect("binary")
-        .args(["simulate", "--duration-s", "1200", "--seed", "2", "--gyro"])
-        .arg(&gyro)
-        .arg("--output")
-        .arg(&sim)
-        .assert()
-        .success();
-    // The rate alone (the simulator's truth columns would give the answer away).
-    let text = std::fs::read_to_string(&sim).expect("simulated record");
+        "2",
+    );
     let p = dir.path().join("line.csv");
     write_csv(
         &p,
-        text.lines().skip(1).map(|l| {
-            let mut f = l.split(',');
-            format!("{},{}", f.next().expect("t_s"), f.next().expect("rate_dps"))
-        }),
+        rows.iter().map(|(t, r)| format!("{t},{r}")),
         "t_s,rate_dps",
     );
     let v = gap_json(
@@ -650,32 +662,11 @@ fn a_passed_test_names_a_line_whose_gap_fall_is_within_the_spread() {
 #[test]
 fn a_count_test_sizes_its_candidate_before_it_is_simulated() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let gyro = dir.path().join("white.toml");
-    std::fs::write(
-        &gyro,
+    let rows = simulated_rate(
+        dir.path(),
         "sample_rate_hz = 50.0\narw_deg_per_rth = 0.06\nbias_instability_dph = 1.5\n",
-    )
-    .expect("gyro file");
-    let sim = dir.path().join("sim.csv");
-    Command::cargo_bin("host-sim")
-        .expect("binary")
-        .args(["simulate", "--duration-s", "1200", "--seed", "3", "--gyro"])
-        .arg(&gyro)
-        .arg("--output")
-        .arg(&sim)
-        .assert()
-        .success();
-    let text = std::fs::read_to_string(&sim).expect("simulated record");
-    let rows: Vec<(f64, f64)> = text
-        .lines()
-        .skip(1)
-        .map(|l| {
-            let mut f = l.split(',');
-            let t: f64 = f.next().expect("t_s").parse().expect("t_s");
-            let r: f64 = f.next().expect("rate_dps").parse().expect("rate_dps");
-            (t, r)
-        })
-        .collect();
+        "3",
+    );
     // Sample indices in the held-out blocks (50 Hz: 200 s is 10,000 samples).
     let spikes = [15_000_usize, 35_017, 55_031];
     let dropped = [15_000_usize, 15_500, 35_017, 55_031, 55_500];
