@@ -305,13 +305,17 @@ fn unit_random_effects(
     // Unknowns: per run [b_r, a_r], then c, c', centre.
     let k = 2 * r + 3;
     let centre = 2 * r + 2;
-    let mut ne = NormalEquations::new(k);
-    for (run, b) in binned.iter().enumerate() {
-        let level = if power_on_dps.is_some() {
+    // The unknown run `run`'s level is read from.
+    let level_of = |run: usize| {
+        if power_on_dps.is_some() {
             2 * run
         } else {
             centre
-        };
+        }
+    };
+    let mut ne = NormalEquations::new(k);
+    for (run, b) in binned.iter().enumerate() {
+        let level = level_of(run);
         for (x, &y) in rows(b, tau_s, true).iter().zip(&b.y) {
             ne.add(
                 &[
@@ -335,11 +339,7 @@ fn unit_random_effects(
     let mut n = 0usize;
     let mut means = Vec::with_capacity(r);
     for (run, b) in binned.iter().enumerate() {
-        let level = if power_on_dps.is_some() {
-            x[2 * run]
-        } else {
-            x[centre]
-        };
+        let level = x[level_of(run)];
         let mut sum = 0.0;
         let rs = rows(b, tau_s, true);
         for (row, &y) in rs.iter().zip(&b.y) {
@@ -512,7 +512,7 @@ pub fn fit(
     cal: &Calibration,
     file_bound_dps: f64,
 ) -> Result<(GyroModel, GyroFitReport)> {
-    fit_with(runs, cal, file_bound_dps, None).map(|(m, r, _)| (m, r))
+    fit_with(runs, cal, file_bound_dps, None)
 }
 
 /// The model of ONE unit from its own static `runs` (each a power-on) and its `family`'s
@@ -529,10 +529,14 @@ pub fn fit_unit(
     file_bound_dps: f64,
     family: &GyroModel,
 ) -> Result<(GyroModel, GyroFitReport)> {
-    let (_, free_report, free_links) = fit_with(runs, cal, file_bound_dps, None)?;
     let own = if runs.iter().all(|s| s.temp_c.is_some()) {
         let binned: Vec<Bins> = runs.iter().map(bins).collect();
-        unit_links(&binned, free_report.warmup_tau_s).or(free_links)
+        check_runs(runs, &binned)?;
+        let tau_w = warmup_tau(&binned, true)?;
+        match unit_links(&binned, tau_w) {
+            Some(l) => Some(l),
+            None => Some(free_links(runs, &binned, tau_w)?),
+        }
     } else {
         None
     };
@@ -552,7 +556,7 @@ pub fn fit_unit(
         }
     }
     let held = [f64::from(links[0].mean), f64::from(links[1].mean)];
-    let (unit, report, _) = fit_with(runs, cal, file_bound_dps, Some(held))?;
+    let (unit, report) = fit_with(runs, cal, file_bound_dps, Some(held))?;
     let mut m = personalize(family, &unit);
     m.temp_dps_per_c = floored(links[0], prior[0]);
     m.temp_rate_dps_per_c_per_s = floored(links[1], prior[1]);
@@ -563,22 +567,86 @@ pub fn fit_unit(
 /// deg C/s, se)]`.
 type LinkEstimate = [(f64, f64); 2];
 
-/// [`fit`], with the temperature links fitted (`None`) or held at `links` (deg/s per deg C,
-/// deg/s per deg C/s). Also the fitted links' [`LinkEstimate`] (when fitted): the standard
-/// error of the shared value from the scatter of each run's own fit, at least the runs'
-/// mean sampling error, over the number of runs.
-fn fit_with(
-    runs: &[Series],
-    cal: &Calibration,
-    file_bound_dps: f64,
-    links: Option<[f64; 2]>,
-) -> Result<(GyroModel, GyroFitReport, Option<LinkEstimate>)> {
+/// Refuses fewer than 2 runs and a run shorter than 60 s (6 bins).
+fn check_runs(runs: &[Series], binned: &[Bins]) -> Result<()> {
     if runs.len() < 2 {
         bail!(
             "{} calibration run(s): the model's unit-to-unit spread needs at least 2",
             runs.len()
         );
     }
+    if let Some((s, _)) = runs.iter().zip(binned).find(|(_, b)| b.t_s.len() < 6) {
+        bail!(
+            "{}: shorter than 60 s, too short to fit a warm-up on",
+            s.name
+        );
+    }
+    Ok(())
+}
+
+/// The warm-up time constant: least residual of [`pooled`] summed over the runs, on a log
+/// grid 30..3000 s.
+fn warmup_tau(binned: &[Bins], temperature: bool) -> Result<f64> {
+    let mut best: Option<(f64, f64)> = None;
+    for i in 0..=24 {
+        let tau = 30.0 * 100f64.powf(i as f64 / 24.0);
+        let sse = pooled(binned, tau, temperature).map_or(f64::INFINITY, |p| p.2);
+        if best.is_none_or(|(_, e)| sse < e) {
+            best = Some((tau, sse));
+        }
+    }
+    match best {
+        Some((tau, _)) => Ok(tau),
+        None => bail!("no warm-up time constant fits the calibration runs"),
+    }
+}
+
+/// Each run's own fit at `tau_w` (level, warm-up and, with `temperature`, its own links)
+/// and the sampling variances of its links.
+fn own_fits(
+    runs: &[Series],
+    binned: &[Bins],
+    tau_w: f64,
+    temperature: bool,
+) -> Result<Vec<([f64; 4], [f64; 2])>> {
+    let mut own = Vec::with_capacity(runs.len());
+    for (s, b) in runs.iter().zip(binned) {
+        let x_rows = rows(b, tau_w, temperature);
+        let Some(x) = least_squares(&x_rows, &b.y) else {
+            bail!("{}: the deterministic part cannot be fitted", s.name);
+        };
+        own.push((x, sampling_var(&x_rows, &b.y, &x)));
+    }
+    Ok(own)
+}
+
+/// The links shared by the runs with free levels ([`pooled`] at `tau_w`) and their standard
+/// error from the scatter of each run's own fit, at least the runs' mean sampling error,
+/// over the number of runs.
+fn free_links(runs: &[Series], binned: &[Bins], tau_w: f64) -> Result<LinkEstimate> {
+    let Some((_, shared, _)) = pooled(binned, tau_w, true) else {
+        bail!("the deterministic part cannot be fitted on the calibration runs");
+    };
+    let own = own_fits(runs, binned, tau_w, true)?;
+    let n = own.len() as f64;
+    let one = |k: usize| {
+        let v: Vec<f64> = own.iter().map(|o| o.0[k + 2]).collect();
+        let m = v.iter().sum::<f64>() / n;
+        let scatter = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0).max(1.0);
+        let sampling = own.iter().map(|o| o.1[k]).sum::<f64>() / n;
+        (shared[k], (scatter.max(sampling) / n).sqrt())
+    };
+    Ok([one(0), one(1)])
+}
+
+/// [`fit`], with the temperature links fitted (`None`) or held at `links` (deg/s per deg C,
+/// deg/s per deg C/s).
+fn fit_with(
+    runs: &[Series],
+    cal: &Calibration,
+    file_bound_dps: f64,
+    links: Option<[f64; 2]>,
+) -> Result<(GyroModel, GyroFitReport)> {
     let has_temp = runs.iter().all(|s| s.temp_c.is_some());
     let mut binned: Vec<Bins> = runs.iter().map(bins).collect();
     // Held links: their part taken out of the means, the links not fitted.
@@ -591,48 +659,14 @@ fn fit_with(
         }
     }
     let temperature = has_temp && held.is_none();
-    if let Some((s, _)) = runs.iter().zip(&binned).find(|(_, b)| b.t_s.len() < 6) {
-        bail!(
-            "{}: shorter than 60 s, too short to fit a warm-up on",
-            s.name
-        );
-    }
-    // Warm-up time constant: least residual summed over the runs.
-    let mut best: Option<(f64, f64)> = None;
-    for i in 0..=24 {
-        let tau = 30.0 * 100f64.powf(i as f64 / 24.0);
-        let sse = pooled(&binned, tau, temperature).map_or(f64::INFINITY, |p| p.2);
-        if best.is_none_or(|(_, e)| sse < e) {
-            best = Some((tau, sse));
-        }
-    }
-    let Some((tau_w, _)) = best else {
-        bail!("no warm-up time constant fits the calibration runs");
-    };
+    check_runs(runs, &binned)?;
+    let tau_w = warmup_tau(&binned, temperature)?;
     let Some((per_run, shared_fit, _)) = pooled(&binned, tau_w, temperature) else {
         bail!("the deterministic part cannot be fitted on the calibration runs");
     };
     let shared = held.unwrap_or(shared_fit);
     // Each run's own links (free), for their unit-to-unit spread around the shared ones.
-    let mut own: Vec<([f64; 4], [f64; 2])> = Vec::new();
-    for (s, b) in runs.iter().zip(&binned) {
-        let x_rows = rows(b, tau_w, temperature);
-        let Some(x) = least_squares(&x_rows, &b.y) else {
-            bail!("{}: the deterministic part cannot be fitted", s.name);
-        };
-        own.push((x, sampling_var(&x_rows, &b.y, &x)));
-    }
-    let estimate = temperature.then(|| {
-        let n = own.len() as f64;
-        let one = |k: usize| {
-            let v: Vec<f64> = own.iter().map(|o| o.0[k + 2]).collect();
-            let m = v.iter().sum::<f64>() / n;
-            let scatter = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0).max(1.0);
-            let sampling = own.iter().map(|o| o.1[k]).sum::<f64>() / n;
-            (shared[k], (scatter.max(sampling) / n).sqrt())
-        };
-        [one(0), one(1)]
-    });
+    let own = own_fits(runs, &binned, tau_w, temperature)?;
     let coefs: Vec<(String, [f64; 4])> = runs
         .iter()
         .zip(&per_run)
@@ -780,7 +814,7 @@ fn fit_with(
             .collect(),
         temperature: has_temp,
     };
-    Ok((model, report, estimate))
+    Ok((model, report))
 }
 
 /// Least spread of a unit's own constant as a fraction of the family's
