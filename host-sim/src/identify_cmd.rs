@@ -362,6 +362,7 @@ fn run_motion(a: &Args) -> Result<()> {
         eprintln!("WARNING: {w}");
     }
     let mut image = trained.image;
+    let fitted_markov = image.model.markov;
     let mut tune_holes = Vec::new();
     let tuning = if a.tune_on.is_empty() {
         None
@@ -377,7 +378,7 @@ fn run_motion(a: &Args) -> Result<()> {
     let unit = match &unit_runs {
         None => None,
         Some(u) => {
-            let personal = motion::personalize(&image, u, &sensor.config)?;
+            let personal = motion::personalize(&image, &fitted_markov, u, &sensor.config)?;
             eprintln!(
                 "unit: the model made the unit's on its {} own runs ({})",
                 u.0.len(),

@@ -303,6 +303,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
     // baselines): the links' prior spread and the Gauss-Markov sigmas scaled, by the least
     // mean heading RMS with the filter's own test. Skipped when a scale is given.
     let mut tuning = Vec::new();
+    let untuned = model;
     if args.prior_scale.is_none() && args.markov_scale.is_none() {
         let tune: Vec<NavRecord> = files(&fam.join("vehicles-tune"))?
             .0
@@ -369,7 +370,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             None => None,
         };
         let unit_estimate = if args.unit_runs {
-            let um = unit_model(fam, &p, &model)?;
+            let um = unit_model(fam, &p, &unit_family(&model, &untuned))?;
             Some(run(um, cfg, &r, false)?.0)
         } else {
             None
@@ -449,7 +450,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             static_limit.push(e(&run(tm, cfg, &r, true)?.0));
         }
         if args.unit_runs {
-            let um = unit_model(fam, &p, &model)?;
+            let um = unit_model(fam, &p, &unit_family(&model, &untuned))?;
             static_unit_runs.push(e(&run(um, cfg, &r, false)?.0));
         }
     }
@@ -463,6 +464,17 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
         static_limit,
         static_unit_runs,
     })
+}
+
+/// The family model a unit is made from (as `identify --tune-on --unit-runs`,
+/// [`host_sim::motion::personalize`]): the tuned one with the Gauss-Markov terms as fitted.
+/// Exploration: FOG_UNIT_TUNED_GM=1 keeps the tuned ones (before that choice).
+fn unit_family(tuned: &GyroModel, untuned: &GyroModel) -> GyroModel {
+    let mut m = *tuned;
+    if std::env::var("FOG_UNIT_TUNED_GM").is_err() {
+        m.markov = untuned.markov;
+    }
+    m
 }
 
 /// The model fitted on the vehicle's own unit's static runs (`unit-runs/STEM-r*.csv`; the

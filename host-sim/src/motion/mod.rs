@@ -20,7 +20,7 @@ use crate::identify::series::{Records, Series};
 use crate::record;
 use anyhow::{anyhow, bail, Context, Result};
 use fog_core::drift_filter::{DriftFilter, DriftFilterConfig, DriftOutput};
-use fog_core::gyro_model::GyroModel;
+use fog_core::gyro_model::{GyroModel, MarkovTerm, MAX_MARKOV};
 use fog_core::image::{Image, IMAGE_LEN};
 use fog_core::sensor::SensorConfig;
 use std::io::Write;
@@ -165,9 +165,14 @@ impl Personal {
 }
 
 /// The `family` image made ONE unit's on that unit's own static `records` (each from
-/// power-on; [`gyro_fit::fit_unit`]); the runs are checked as [`train`]'s.
+/// power-on; [`gyro_fit::fit_unit`]); the runs are checked as [`train`]'s. The unit keeps
+/// the family's Gauss-Markov terms as fitted (`fitted_markov`, the trained image's), not
+/// as `--tune-on` scaled them: the tuning picks them for the family image on other units'
+/// vehicles, where they also carry the errors of the family's constants, which the unit's
+/// own runs remove (measured: docs/drift-filter.md "The unit's own runs").
 pub fn personalize(
     family: &Image,
+    fitted_markov: &[MarkovTerm; MAX_MARKOV],
     records: &dyn Records,
     sensor: &SensorConfig,
 ) -> Result<Personal> {
@@ -179,11 +184,15 @@ pub fn personalize(
         );
     }
     let cal = calibration::measure(&runs)?;
+    let family_model = GyroModel {
+        markov: *fitted_markov,
+        ..family.model
+    };
     let (mut model, fit) = gyro_fit::fit_unit(
         &runs,
         &cal,
         f64::from(sensor.drift_bound_dps),
-        &family.model,
+        &family_model,
     )?;
     model.sample_rate_hz = sensor.sample_rate_hz;
     model.quantum_dps = sensor.quantum_dps;
@@ -396,5 +405,27 @@ mod tests {
         // At the end the drift is the bias (1e-3 deg/s) within 2 deg/h.
         let last = out.last().expect("rows").drift_dps;
         assert!((last - 1e-3).abs() < 2.0 / 3600.0, "{}", last * 3600.0);
+    }
+
+    #[test]
+    fn a_unit_keeps_the_fitted_gauss_markov_terms_not_the_tuned_ones() {
+        let family = Synthetic(vec![10.0, 12.0, 8.0, 11.0, 9.0]);
+        let t = train(&family, &TrainOptions::new(SensorConfig::ECORE_2000)).expect("train");
+        let term = |sigma_dph: f32| MarkovTerm {
+            sigma_dps: sigma_dph / 3600.0,
+            tau_s: 30.0,
+        };
+        let fitted = [term(1.0), MarkovTerm::default(), MarkovTerm::default()];
+        // As `--tune-on` might leave them: scaled x3.
+        let mut tuned = t.image;
+        tuned.model.markov = [term(3.0), MarkovTerm::default(), MarkovTerm::default()];
+        let unit = Synthetic(vec![20.0, 21.0, 19.0]);
+        let p = personalize(&tuned, &fitted, &unit, &SensorConfig::ECORE_2000).expect("unit");
+        assert_eq!(p.image.model.markov, fitted);
+        assert_eq!(
+            p.image.model.rrw_dps_per_s_rthz,
+            tuned.model.rrw_dps_per_s_rthz
+        );
+        assert_eq!(p.runs.len(), 3);
     }
 }
