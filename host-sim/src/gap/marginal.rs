@@ -204,9 +204,14 @@ impl Marginal {
         if !(k.is_finite() && se.is_finite() && se > 0.0 && var > 0.0) {
             return none("too few values to measure the record's kurtosis".into());
         }
+        if k > 0.0 {
+            return none(format!(
+                "excess kurtosis {k:.3} +- {se:.3}: heavy tails are never absorbed"
+            ));
+        }
         if k >= -MIN_PLATYKURTOSIS || gate <= GATE_SDS {
             return none(format!(
-                "excess kurtosis {k:.3} +- {se:.3} is not below -{MIN_PLATYKURTOSIS} by more than {GATE_SDS} sd (heavy tails are never absorbed)"
+                "excess kurtosis {k:.3} +- {se:.3} ({gate:.1} sd below 0): the map needs more than {GATE_SDS} sd and below -{MIN_PLATYKURTOSIS}"
             ));
         }
         if q_of_sd.is_nan() || q_of_sd > MAX_QUANTUM_OF_SD {
