@@ -51,8 +51,9 @@ pub struct Args {
     /// `--rounds 1`: the first decision alone.
     #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=12))]
     pub rounds: u32,
-    /// Keep the fitted baseline's white noise white: no shaping by the record's own colour
-    /// above the effects' band (docs/gap.md, "Method" step 2; `colour` in the JSON).
+    /// Keep the fitted baseline's white noise white and Gaussian: no shaping by the record's
+    /// own colour above the effects' band, no map to its own platykurtic distribution
+    /// (docs/gap.md, "Method" step 2; `colour` and `marginal` in the JSON).
     #[arg(long)]
     pub no_colour: bool,
 }

@@ -220,6 +220,17 @@ impl Colour {
         g[k] + w * (g[k + 1] - g[k])
     }
 
+    /// The shaped term's variance over the white term's: the gain's mean over the bins of
+    /// [`Colour::shaped_white`]'s transform for `n` samples of period `dt_s`.
+    pub fn variance_gain(&self, n: usize, dt_s: f64) -> f64 {
+        let len = n.max(2).next_power_of_two();
+        let df = 1.0 / (len as f64 * dt_s);
+        (0..len)
+            .map(|j| self.gain_at(j.min(len - j) as f64 * df))
+            .sum::<f64>()
+            / len as f64
+    }
+
     /// `n` samples of white noise of standard deviation `sigma_dps` shaped by the gain,
     /// sample period `dt_s`, from `seed`'s own stream.
     pub fn shaped_white(&self, sigma_dps: f64, n: usize, dt_s: f64, seed: u64) -> Vec<f64> {

@@ -153,6 +153,9 @@ pub struct Spec {
     /// The record's own colour: the white-noise term shaped above the effects' band
     /// ([`super::colour`]); None: white.
     pub colour: Option<std::sync::Arc<super::colour::Colour>>,
+    /// The record's own platykurtic value distribution: the white-noise term's marginal
+    /// map ([`super::marginal`]); None: Gaussian.
+    pub marginal: Option<std::sync::Arc<super::marginal::Marginal>>,
 }
 
 impl Spec {
@@ -182,6 +185,7 @@ impl Spec {
             warmup: None,
             sine: None,
             colour: None,
+            marginal: None,
         }
     }
 
@@ -218,15 +222,24 @@ impl Spec {
     /// `g_base` times the reference rate).
     pub fn simulate(&self, real: &Rec, seed: u64, g_base: f64) -> Result<Sim> {
         let t_end = real.t_s.last().copied().unwrap_or(0.0) + 0.5 * real.dt_s;
-        // With a colour the white term is drawn here, shaped, per sample slot (the
-        // simulator's own white noise is off); slots beyond the drawn ones (after many
-        // dropped samples) get white noise of the same level.
+        // With a colour or a marginal map the white term is drawn here, shaped and mapped,
+        // per sample slot (the simulator's own white noise is off); slots beyond the drawn
+        // ones (after many dropped samples) get white noise of the same level (mapped).
         let white_dps = self.model.noise.arw_dps_per_rthz / real.dt_s.sqrt();
-        let shaped = match &self.colour {
-            Some(c) if white_dps > 0.0 && self.model.quantization.quantum_dps == 0.0 => {
+        let own_white = self.colour.is_some() || self.marginal.is_some();
+        let marginal = self.marginal.as_deref();
+        let shaped = match own_white {
+            true if white_dps > 0.0 && self.model.quantization.quantum_dps == 0.0 => {
                 let slots = (t_end / real.dt_s).ceil() as usize + 16;
                 let extra = (slots as f64 * self.model.faults.drop_probability * 2.0) as usize;
-                Some(c.shaped_white(white_dps, slots + extra, real.dt_s, seed))
+                Some(super::marginal::white_term(
+                    self.colour.as_deref(),
+                    marginal,
+                    white_dps,
+                    slots + extra,
+                    real.dt_s,
+                    seed,
+                ))
             }
             _ => None,
         };
@@ -256,11 +269,11 @@ impl Spec {
                 v += match w.get(s.index as usize) {
                     Some(x) => *x,
                     None => {
-                        white_dps
-                            * rand_distr::Distribution::<f64>::sample(
-                                &rand_distr::StandardNormal,
-                                &mut spare,
-                            )
+                        let z = rand_distr::Distribution::<f64>::sample(
+                            &rand_distr::StandardNormal,
+                            &mut spare,
+                        );
+                        white_dps * marginal.map_or(z, |m| m.map(z))
                     }
                 };
             }
@@ -966,7 +979,16 @@ fn scale_factor(real: &Rec, idx: &[usize]) -> std::result::Result<f64, String> {
 /// distinct values, refined by the mean of the steps that are one quantum; `Err(why)` when
 /// the values are not on a lattice.
 fn quantum(ctx: &FitCtx, idx: &[usize]) -> std::result::Result<f64, String> {
-    let mut v: Vec<f64> = idx.iter().map(|&i| ctx.raw[i]).collect();
+    let v: Vec<f64> = idx.iter().map(|&i| ctx.raw[i]).collect();
+    lattice_step(&v)
+}
+
+/// The lattice step of `values` (their output quantum): the smallest difference of distinct
+/// values, refined as the mean of the differences that are one step; an error when 5 % or
+/// more of the differences are off its multiples.
+pub fn lattice_step(values: &[f64]) -> std::result::Result<f64, String> {
+    let n = values.len();
+    let mut v = values.to_vec();
     v.sort_by(f64::total_cmp);
     v.dedup();
     let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
@@ -984,7 +1006,7 @@ fn quantum(ctx: &FitCtx, idx: &[usize]) -> std::result::Result<f64, String> {
         return Err(format!(
             "values are not on a lattice ({} distinct in {} samples)",
             v.len(),
-            idx.len()
+            n
         ));
     }
     // Refine: mean step of the differences that are one quantum.

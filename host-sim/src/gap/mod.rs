@@ -31,6 +31,7 @@ pub mod drift;
 pub mod effects;
 pub mod evidence;
 pub mod features;
+pub mod marginal;
 pub mod plain;
 pub mod report;
 pub mod rounds;
@@ -227,7 +228,8 @@ pub struct Options {
     pub explicit: bool,
     /// Run the identification (task) comparison.
     pub task: bool,
-    /// The record's own colour above the effects' band ([`colour`]).
+    /// The record's own colour above the effects' band ([`colour`]) and its platykurtic
+    /// value distribution ([`marginal`]).
     pub colour: ColourMode,
     /// A fitted baseline (no model given) rounds its output to this quantum, deg/s: the
     /// quantization an earlier round named against it (`--rounds`). The baseline's noise
@@ -238,16 +240,20 @@ pub struct Options {
 }
 
 /// Whether the baseline's white-noise term is shaped by the record's own colour
-/// ([`colour`]).
+/// ([`colour`]) and mapped to its own platykurtic value distribution ([`marginal`]).
 #[derive(Debug, Clone, Default)]
 pub enum ColourMode {
     /// Fitted on the record when the baseline is (no `--gyro`); a user model stays as it is.
     #[default]
     Fit,
-    /// Never (`gap --no-colour`).
+    /// Never: the white term is white and Gaussian (`gap --no-colour`).
     Off,
-    /// This shaping (the first round's, carried into the next rounds by `--rounds`).
-    Fixed(Option<std::sync::Arc<colour::Colour>>),
+    /// This shaping and this map (the round's whose baseline became the model, carried into
+    /// the next rounds by `--rounds`).
+    Fixed(
+        Option<std::sync::Arc<colour::Colour>>,
+        Option<std::sync::Arc<marginal::Marginal>>,
+    ),
 }
 
 impl Default for Options {
@@ -413,6 +419,11 @@ pub struct Diagnosis {
     /// This diagnosis's colour fit (null when not fitted here: `--no-colour`, a user
     /// model, or a later round carrying the first round's).
     pub colour_fit: Option<colour::ColourFit>,
+    /// The record's own platykurtic value distribution the baseline's white-noise term is
+    /// mapped to ([`marginal`]; null: Gaussian).
+    pub marginal: Option<marginal::Marginal>,
+    /// This diagnosis's marginal fit (null when not fitted here, as `colour_fit`).
+    pub marginal_fit: Option<marginal::MarginalFit>,
     /// Task comparison.
     pub task: Option<Task>,
     /// Full-record features.
@@ -700,6 +711,8 @@ struct Setup {
     /// The colour fit of this diagnosis (None: not fitted here: off, a user model, or the
     /// first round's carried).
     colour_fit: Option<colour::ColourFit>,
+    /// The marginal fit of this diagnosis (None: not fitted here, as `colour_fit`).
+    marginal_fit: Option<marginal::MarginalFit>,
     /// The baseline's gain on the reference rate: 1 + its scale-factor error.
     g_base: f64,
     /// The record less `g_base` times its reference rate: what is compared.
@@ -751,8 +764,31 @@ impl Setup {
         }
         let mut base = Spec::from_model(&base_model, real.ref_dps.is_some());
         base.colour = match (&o.colour, &colour_fit) {
-            (ColourMode::Fixed(c), _) => c.clone(),
+            (ColourMode::Fixed(c, _), _) => c.clone(),
             (_, Some(f)) => f.colour.clone().map(std::sync::Arc::new),
+            _ => None,
+        };
+        // The white term's marginal, against its variance as simulated (after the colour).
+        let marginal_fit = match &o.colour {
+            ColourMode::Fit if model.is_none() => {
+                let n = real.t_s.len();
+                let gain = base
+                    .colour
+                    .as_ref()
+                    .map_or(1.0, |c| c.variance_gain(n, real.dt_s));
+                let white_var = base_model.noise.arw_dps_per_rthz.powi(2) / real.dt_s * gain;
+                Some(marginal::Marginal::fit(
+                    &fitted_on.rate_dps,
+                    &real.rate_dps,
+                    &split.fit_ranges,
+                    white_var,
+                ))
+            }
+            _ => None,
+        };
+        base.marginal = match (&o.colour, &marginal_fit) {
+            (ColourMode::Fixed(_, m), _) => m.clone(),
+            (_, Some(f)) => f.marginal.clone().map(std::sync::Arc::new),
             _ => None,
         };
         let win = TestWindows::new(real);
@@ -773,6 +809,7 @@ impl Setup {
             fitted_on,
             base,
             colour_fit,
+            marginal_fit,
             g_base,
             resid: less_reference(real, g_base),
             seeds: (0..o.seeds as u64).map(|i| o.first_seed + i).collect(),
@@ -1706,6 +1743,8 @@ pub fn diagnose(
         baseline_source: s.source,
         colour: s.base.colour.as_deref().cloned(),
         colour_fit: s.colour_fit,
+        marginal: s.base.marginal.as_deref().cloned(),
+        marginal_fit: s.marginal_fit,
         task,
         features: feature_rows,
         definitions: DEFINITIONS,

@@ -346,6 +346,7 @@ pub fn run(
         // colour of the round whose baseline becomes the model shapes it in every later
         // round.
         let colour_now = d.colour.clone().map(std::sync::Arc::new);
+        let marginal_now = d.marginal.clone().map(std::sync::Arc::new);
         let named = Effect::parse_list(&d.effect)
             .ok()
             .and_then(|v| v.first().copied());
@@ -384,7 +385,7 @@ pub fn run(
                 }
                 Some(m2) => {
                     if model.is_none() && matches!(o.colour, super::ColourMode::Fit) {
-                        o.colour = super::ColourMode::Fixed(colour_now);
+                        o.colour = super::ColourMode::Fixed(colour_now, marginal_now);
                     }
                     model = Some(m2);
                 }

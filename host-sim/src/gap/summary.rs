@@ -57,6 +57,30 @@ pub fn colour_line(d: &Diagnosis) -> Option<String> {
     }
 }
 
+/// What the baseline does with the record's own value distribution
+/// ([`super::marginal`]), when it was fitted: the map, or why the white term stays Gaussian
+/// (only said when the record is platykurtic beyond the simulations' spread, 4 standard
+/// errors).
+pub fn marginal_line(d: &Diagnosis) -> Option<String> {
+    match (&d.marginal, &d.marginal_fit) {
+        (Some(m), _) => Some(format!(
+            "  the model's white noise has the record's own platykurtic distribution: a random-phase sinusoid of {} of its variance plus a Gaussian (white term's excess kurtosis {}); the record's {} +- {} ({} sd below 0; quantum {} of its sd, white share {})",
+            num(m.rho),
+            num(m.white_excess_kurtosis),
+            num(m.excess_kurtosis),
+            num(m.se),
+            num(m.gate_sds),
+            num(m.quantum_of_sd),
+            num(m.white_share)
+        )),
+        (None, Some(f)) if f.gate_sds.abs() > 4.0 => Some(format!(
+            "  the model's white noise stays Gaussian: {}",
+            f.detail
+        )),
+        _ => None,
+    }
+}
+
 /// The lines, without the record's name (the caller puts it first).
 pub fn lines(out: &Outcome) -> Vec<String> {
     let f = &out.first;
@@ -71,6 +95,7 @@ pub fn lines(out: &Outcome) -> Vec<String> {
         ),
     ];
     v.extend(colour_line(f));
+    v.extend(marginal_line(f));
     for r in &out.rounds {
         let need = r.null_shrink_95.map_or(0.0, |q| q.max(0.0));
         if r.effect == "none" {
