@@ -1001,12 +1001,9 @@ mod tests {
         assert!(m.is_valid());
     }
 
-    #[test]
-    fn a_units_link_is_told_from_its_warm_up_by_its_levels() {
-        // The unit's warm-up and self-heating share their time constant (400 s): within a
-        // run the link and the warm-up look alike. Its four power-ons start 4 C apart
-        // (5..17 C), their levels scatter by 1.5 deg/h around 30 deg/h: the levels carry
-        // the link (3 deg/h/C, twice the family's mean, inside its wide prior).
+    /// The family fitted on [`family_runs`] of link 1.5 deg/h per C, its link's prior set
+    /// wide: mean 1.5, spread 1.5 deg/h per C.
+    fn family_of_wide_link() -> GyroModel {
         let dph = 1.0 / 3600.0;
         let fam = family_runs(1.5 * dph);
         let cal = crate::motion::calibration::measure(&fam).expect("measure");
@@ -1015,6 +1012,17 @@ mod tests {
             mean: (1.5 * dph) as f32,
             sigma: (1.5 * dph) as f32,
         };
+        family
+    }
+
+    #[test]
+    fn a_units_link_is_told_from_its_warm_up_by_its_levels() {
+        // The unit's warm-up and self-heating share their time constant (400 s): within a
+        // run the link and the warm-up look alike. Its four power-ons start 4 C apart
+        // (5..17 C), their levels scatter by 1.5 deg/h around 30 deg/h: the levels carry
+        // the link (3 deg/h/C, twice the family's mean, inside its wide prior).
+        let dph = 1.0 / 3600.0;
+        let family = family_of_wide_link();
         let power_on = [1.0, -2.0, 1.5, -0.5];
         let unit = runs_with(4, 4242, 3.0 * dph, |r| (30.0 + power_on[r], 25.0), 400.0);
         let cal_u = crate::motion::calibration::measure(&unit).expect("measure");
@@ -1034,13 +1042,7 @@ mod tests {
         // power-on leaves it to the rate link to explain how the runs' early drifts differ
         // with their self-heating.
         let dph = 1.0 / 3600.0;
-        let fam = family_runs(1.5 * dph);
-        let cal = crate::motion::calibration::measure(&fam).expect("measure");
-        let (mut family, _) = fit(&fam, &cal, 30.0 * dph).expect("family fit");
-        family.temp_dps_per_c = Spread {
-            mean: (1.5 * dph) as f32,
-            sigma: (1.5 * dph) as f32,
-        };
+        let mut family = family_of_wide_link();
         family.temp_rate_dps_per_c_per_s = Spread {
             mean: 0.0,
             sigma: (20.0 * dph * 60.0) as f32,
