@@ -409,20 +409,10 @@ impl Layout {
             / nt.max(1) as f64;
         f.push(ms2.max(1e-300).ln());
         // Distribution.
-        let mut r = Vec::with_capacity(all.len());
-        for &(lo, hi) in &chosen {
-            let n = hi - lo;
-            for k in 0..DIST_WINDOWS {
-                let (a, b) = (lo + n * k / DIST_WINDOWS, lo + n * (k + 1) / DIST_WINDOWS);
-                let m = mean(&y[a..b]);
-                r.extend(y[a..b].iter().map(|x| x - m));
-            }
-        }
+        let r: Vec<f64> = dist_windows(y, &chosen).concat();
         let sigma = robust_sigma(&r);
         let n = r.len().max(1) as f64;
-        let m2 = r.iter().map(|x| x * x).sum::<f64>() / n;
-        let m4 = r.iter().map(|x| x.powi(4)).sum::<f64>() / n;
-        f.push(if m2 > 0.0 { m4 / (m2 * m2) - 3.0 } else { 0.0 });
+        f.push(excess_kurtosis(&r));
         f.push(r.iter().filter(|x| x.abs() > 5.0 * sigma).count() as f64);
         f.push(r.iter().filter(|x| x.abs() > 10.0 * sigma).count() as f64);
         // KS distance on a fine histogram (bins of 0.01 sigma over +-8 sigma): O(n).
@@ -561,6 +551,33 @@ pub fn pooled_avar(
     acc.into_iter()
         .map(|(s, n)| (if n > 0 { s / n as f64 } else { f64::NAN }, n))
         .collect()
+}
+
+/// The `dist` features' residual of `y` on `ranges`: each range cut in [`DIST_WINDOWS`]
+/// windows, each less its mean; one vector per window.
+pub fn dist_windows(y: &[f64], ranges: &[(usize, usize)]) -> Vec<Vec<f64>> {
+    let mut out = Vec::with_capacity(ranges.len() * DIST_WINDOWS);
+    for &(lo, hi) in ranges {
+        let n = hi - lo;
+        for k in 0..DIST_WINDOWS {
+            let (a, b) = (lo + n * k / DIST_WINDOWS, lo + n * (k + 1) / DIST_WINDOWS);
+            let m = mean(&y[a..b]);
+            out.push(y[a..b].iter().map(|x| x - m).collect());
+        }
+    }
+    out
+}
+
+/// Excess kurtosis `m4 / m2^2 - 3` of values with mean 0 (0 when they are constant).
+pub fn excess_kurtosis(r: &[f64]) -> f64 {
+    let n = r.len().max(1) as f64;
+    let m2 = r.iter().map(|x| x * x).sum::<f64>() / n;
+    let m4 = r.iter().map(|x| x.powi(4)).sum::<f64>() / n;
+    if m2 > 0.0 {
+        m4 / (m2 * m2) - 3.0
+    } else {
+        0.0
+    }
 }
 
 /// Mean (0 when empty).

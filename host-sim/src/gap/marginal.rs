@@ -23,7 +23,7 @@
 //!
 //! # Fit and gate
 //! On the fit blocks only (the held-out blocks stay honest), with the `dist` features' own
-//! definition (values less their mean over [`DIST_WINDOWS`] windows per block): the record's
+//! definition (values less their mean over [`super::features::DIST_WINDOWS`] windows per block): the record's
 //! excess kurtosis `k` (pooled) and its standard error, the spread of the windows' own
 //! kurtoses over the square root of their number (robust to colour, where `24 / n` is not).
 //! The map is used only when all hold:
@@ -50,7 +50,7 @@
 //! baseline's (its ARW from the short-tau Allan variance).
 
 use super::colour::Colour;
-use super::features::DIST_WINDOWS;
+use super::features::{dist_windows, excess_kurtosis};
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::Serialize;
@@ -122,33 +122,6 @@ pub struct MarginalFit {
     pub white_share: f64,
     /// Why no map (empty when there is one).
     pub detail: String,
-}
-
-/// Excess kurtosis `m4 / m2^2 - 3` of values with mean 0 (0 when they are constant).
-fn excess_kurtosis(r: &[f64]) -> f64 {
-    let n = r.len().max(1) as f64;
-    let m2 = r.iter().map(|x| x * x).sum::<f64>() / n;
-    let m4 = r.iter().map(|x| x.powi(4)).sum::<f64>() / n;
-    if m2 > 0.0 {
-        m4 / (m2 * m2) - 3.0
-    } else {
-        0.0
-    }
-}
-
-/// The `dist` features' residual of `y` on `ranges`: each range cut in [`DIST_WINDOWS`]
-/// windows, each less its mean; one vector per window.
-pub fn dist_windows(y: &[f64], ranges: &[(usize, usize)]) -> Vec<Vec<f64>> {
-    let mut out = Vec::with_capacity(ranges.len() * DIST_WINDOWS);
-    for &(lo, hi) in ranges {
-        let n = hi - lo;
-        for k in 0..DIST_WINDOWS {
-            let (a, b) = (lo + n * k / DIST_WINDOWS, lo + n * (k + 1) / DIST_WINDOWS);
-            let m = super::features::mean(&y[a..b]);
-            out.push(y[a..b].iter().map(|x| x - m).collect());
-        }
-    }
-    out
 }
 
 /// The pooled excess kurtosis of `dist_windows` and its standard error from the spread of
