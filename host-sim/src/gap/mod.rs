@@ -950,6 +950,8 @@ struct Tests {
     drift: Option<drift::DriftTests>,
     /// The markov (Whittle) test's fit.
     markov: Option<whittle::MarkovTest>,
+    /// The line's frequency, Hz, when the sinusoid test passed.
+    line_hz: Option<f64>,
 }
 
 /// The rate less the model's own ramp and warm-up, deg/s: the drift tests look for drift
@@ -1025,6 +1027,7 @@ fn dedicated_tests(s: &Setup, sims: &BaseSims, bursty: bool, o: &Options) -> Tes
         all: tests,
         drift: drift_tests,
         markov: markov_test,
+        line_hz,
     }
 }
 
@@ -1116,6 +1119,8 @@ fn fit_ctx<'a>(s: &'a Setup, raw: &'a Rec, sims: &BaseSims, bursty: bool) -> Fit
             None
         },
         refit_layout: s.fitted_baseline.then_some(layout),
+        passed: Vec::new(),
+        line_hz: None,
     }
 }
 
@@ -1669,6 +1674,13 @@ pub fn diagnose(
     let (where_, feature_rows) = full_record(&s.defs_all, &real_out.all, &sims.outs);
     let mut ctx = fit_ctx(&s, real, &sims, time.bursty);
     ctx.count_sizes = count_sizes(&s, &tests.all);
+    ctx.passed = tests
+        .all
+        .iter()
+        .filter(|t| t.passed)
+        .map(|t| t.effect)
+        .collect();
+    ctx.line_hz = tests.line_hz;
     let base_scores: Vec<Vec<f64>> = sims.outs.iter().map(|o| o.score.clone()).collect();
     let (mut candidates, curves_by) = score_candidates(
         &s,
@@ -1838,4 +1850,89 @@ fn run_task(real: &Rec, sims: &[(Vec<f64>, Vec<f64>)]) -> Result<Task> {
         rms_err_real_dph: on_real.identifier.rms_err_d_dph,
         rms_err_sim_dph: on_sim.identifier.rms_err_d_dph,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+
+    /// 1800 s at 20 Hz: white noise of sd 0.3 deg/s, a warm-up of 0.05 deg/s (tau 200 s)
+    /// and a Gauss-Markov wander of sigma `wander_dps`, correlation time 3000 s: within a
+    /// 75-s quarter block far below the white noise (the fit blocks' Allan fit keeps no
+    /// K), at the held-out lags up to 1500 s above it (as real ADIS16405 run 4 x's).
+    fn warm_record(seed: u64, wander_dps: f64) -> Rec {
+        let (hz, n) = (20.0f64, 36_000);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        let a = (-1.0 / (hz * 3000.0)).exp();
+        let g0: f64 = StandardNormal.sample(&mut rng);
+        let mut g = wander_dps * g0;
+        let t_s: Vec<f64> = (0..n).map(|k| k as f64 / hz).collect();
+        let rate_dps = t_s
+            .iter()
+            .map(|&t| {
+                let (e, d): (f64, f64) = (
+                    StandardNormal.sample(&mut rng),
+                    StandardNormal.sample(&mut rng),
+                );
+                g = a * g + wander_dps * (1.0 - a * a).sqrt() * d;
+                0.05 * (-t / 200.0).exp() + g + 0.3 * e
+            })
+            .collect();
+        Rec {
+            name: "warm-up over a wander".into(),
+            t_s,
+            rate_dps,
+            temp_c: None,
+            ref_dps: None,
+            dt_s: 1.0 / hz,
+        }
+    }
+
+    /// The warm-up candidate's fit (`effects::fit`) with its test passed and not.
+    fn warmup_params(rec: &Rec, passed: bool) -> BTreeMap<String, f64> {
+        let o = Options {
+            seeds: 6,
+            task: false,
+            effects: vec![Effect::Warmup],
+            ..Options::default()
+        };
+        let s = Setup::new(rec, None, &o).expect("setup");
+        let sims = simulate_baseline(&s, false, &mut Fft::default()).expect("simulations");
+        let mut ctx = fit_ctx(&s, rec, &sims, false);
+        if passed {
+            ctx.passed = vec![Effect::Warmup];
+        }
+        match effects::fit(Effect::Warmup, &ctx).expect("fit") {
+            Fitted::Spec(_, p, _) => p,
+            Fitted::NotApplicable(why) => panic!("warm-up not fitted: {why}"),
+        }
+    }
+
+    /// A warm-up whose test passed carries the record's slow wander (`add_wander`): the
+    /// refit keeps no rate random walk (K 0, the wander unseen within a block), the passed
+    /// candidate's K is the wander's; a candidate whose test did not pass gets none (the
+    /// gap rule's candidates stay as they were).
+    #[test]
+    fn a_passed_warm_up_carries_the_record_s_wander() {
+        let rec = warm_record(13, 0.03);
+        let with = warmup_params(&rec, true);
+        let without = warmup_params(&rec, false);
+        let w = with["wander_rrw_dps_per_s_rthz"];
+        assert!(w > 1e-4, "{with:?}");
+        assert_eq!(without["refit_rrw_dps_per_s_rthz"], 0.0, "{without:?}");
+        assert!(
+            !without.contains_key("wander_rrw_dps_per_s_rthz"),
+            "{without:?}"
+        );
+        let (k_with, k_without) = (
+            with["refit_rrw_dps_per_s_rthz"],
+            without["refit_rrw_dps_per_s_rthz"],
+        );
+        assert!(
+            (k_with.powi(2) - k_without.powi(2) - w * w).abs() <= 1e-9 * k_with.powi(2).max(1e-30),
+            "{k_with} {k_without} {w}"
+        );
+    }
 }

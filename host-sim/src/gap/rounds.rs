@@ -68,6 +68,11 @@ pub struct Round {
     pub decision: String,
     /// How the effect enters the next round.
     pub applied: String,
+    /// Every candidate of the round: its fit, held-out shrink, null shrink and why it was
+    /// not named (round 1's are also the report's top-level `candidates`).
+    pub candidates: Vec<super::Candidate>,
+    /// The round's dedicated tests.
+    pub tests: Vec<super::evidence::Test>,
 }
 
 fn p(params: &Option<BTreeMap<String, f64>>, k: &str) -> f64 {
@@ -369,6 +374,8 @@ pub fn run(
             spike_times_s: Vec::new(),
             decision: d.decision.clone(),
             applied: String::new(),
+            candidates: d.candidates.clone(),
+            tests: d.tests.clone(),
         };
         if let Some(e) = named.filter(|_| k < n) {
             let base = model.clone().unwrap_or_else(|| d.baseline.clone());
