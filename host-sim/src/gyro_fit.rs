@@ -531,9 +531,9 @@ pub fn fit_unit(
     file_bound_dps: f64,
     family: &GyroModel,
 ) -> Result<(GyroModel, GyroFitReport)> {
+    let binned: Vec<Bins> = runs.iter().map(bins).collect();
+    check_runs(runs, &binned)?;
     let own = if runs.iter().all(|s| s.temp_c.is_some()) {
-        let binned: Vec<Bins> = runs.iter().map(bins).collect();
-        check_runs(runs, &binned)?;
         let tau_w = warmup_tau(&binned, true)?;
         match unit_links(&binned, tau_w) {
             Some(l) => Some(l),
@@ -558,7 +558,7 @@ pub fn fit_unit(
         }
     }
     let held = [f64::from(links[0].mean), f64::from(links[1].mean)];
-    let (unit, report) = fit_with(runs, cal, file_bound_dps, Some(held))?;
+    let (unit, report) = fit_binned(runs, binned, cal, file_bound_dps, Some(held))?;
     let mut m = personalize(family, &unit);
     m.temp_dps_per_c = floored(links[0], prior[0]);
     m.temp_rate_dps_per_c_per_s = floored(links[1], prior[1]);
@@ -649,8 +649,20 @@ fn fit_with(
     file_bound_dps: f64,
     links: Option<[f64; 2]>,
 ) -> Result<(GyroModel, GyroFitReport)> {
+    let binned: Vec<Bins> = runs.iter().map(bins).collect();
+    check_runs(runs, &binned)?;
+    fit_binned(runs, binned, cal, file_bound_dps, links)
+}
+
+/// [`fit_with`] on the runs' bins (`binned[i]` of `runs[i]`, checked by [`check_runs`]).
+fn fit_binned(
+    runs: &[Series],
+    mut binned: Vec<Bins>,
+    cal: &Calibration,
+    file_bound_dps: f64,
+    links: Option<[f64; 2]>,
+) -> Result<(GyroModel, GyroFitReport)> {
     let has_temp = runs.iter().all(|s| s.temp_c.is_some());
-    let mut binned: Vec<Bins> = runs.iter().map(bins).collect();
     // Held links: their part taken out of the means, the links not fitted.
     let held = links.filter(|_| has_temp);
     if let Some([c, c_rate]) = held {
@@ -661,7 +673,6 @@ fn fit_with(
         }
     }
     let temperature = has_temp && held.is_none();
-    check_runs(runs, &binned)?;
     let tau_w = warmup_tau(&binned, temperature)?;
     let Some((per_run, shared_fit, _)) = pooled(&binned, tau_w, temperature) else {
         bail!("the deterministic part cannot be fitted on the calibration runs");
