@@ -1361,6 +1361,28 @@ mod tests {
         assert_eq!(p.get(REFIT_KEYS[0]).copied(), Some(got));
     }
 
+    /// A record of `rate_dps` at `hz` and its fit blocks' sample ranges (0, 2, 4 of 6).
+    fn on_fit_blocks(
+        name: &str,
+        hz: f64,
+        t_s: Vec<f64>,
+        rate_dps: Vec<f64>,
+    ) -> (Rec, Vec<(usize, usize)>) {
+        let n = t_s.len();
+        let ranges = (0..3)
+            .map(|b| (2 * b * n / 6, (2 * b + 1) * n / 6))
+            .collect();
+        let real = Rec {
+            name: name.into(),
+            t_s,
+            rate_dps,
+            temp_c: None,
+            ref_dps: None,
+            dt_s: 1.0 / hz,
+        };
+        (real, ranges)
+    }
+
     /// A line over a strong random walk: the walk's low-frequency power is far above the
     /// line's bin, yet the fit finds the line (the bin furthest above its chunk's median),
     /// not a bin of the walk.
@@ -1381,17 +1403,7 @@ mod tests {
                 walk + 0.003 * (std::f64::consts::TAU * f * t).sin() + 0.01 * e
             })
             .collect();
-        let real = Rec {
-            name: "line over a walk".into(),
-            t_s,
-            rate_dps,
-            temp_c: None,
-            ref_dps: None,
-            dt_s: 1.0 / hz,
-        };
-        let ranges: Vec<(usize, usize)> = (0..3)
-            .map(|b| (2 * b * n / 6, (2 * b + 1) * n / 6))
-            .collect();
+        let (real, ranges) = on_fit_blocks("line over a walk", hz, t_s, rate_dps);
         let (f_hat, a_hat, _) = fit_sine(&real, &ranges, None);
         assert!((f_hat - f).abs() < 1e-3, "{f_hat} Hz");
         assert!((a_hat / 0.003 - 1.0).abs() < 0.2, "{a_hat}");
@@ -1415,17 +1427,7 @@ mod tests {
                     + 0.01 * e
             })
             .collect();
-        let real = Rec {
-            name: "two lines".into(),
-            t_s,
-            rate_dps,
-            temp_c: None,
-            ref_dps: None,
-            dt_s: 1.0 / hz,
-        };
-        let ranges: Vec<(usize, usize)> = (0..3)
-            .map(|b| (2 * b * n / 6, (2 * b + 1) * n / 6))
-            .collect();
+        let (real, ranges) = on_fit_blocks("two lines", hz, t_s, rate_dps);
         let (f_alone, _, _) = fit_sine(&real, &ranges, None);
         assert!((f_alone - f_strong).abs() < 1e-3, "{f_alone} Hz");
         // The test's frequency is its own bin's (2x padded over the record), a little off.
