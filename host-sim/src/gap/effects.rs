@@ -93,6 +93,16 @@ impl Effect {
         }
     }
 
+    /// A slow drift: the effects of the drift tests ([`super::drift`]: ramp, warm-up,
+    /// temperature link), nested and compared by likelihood, whose signal lies at the
+    /// lags of the record's own wander.
+    pub fn is_drift(self) -> bool {
+        matches!(
+            self,
+            Effect::RateRamp | Effect::Warmup | Effect::Temperature
+        )
+    }
+
     /// Whether `params` (a candidate's fit) give the effect a size of zero: every one of
     /// its [`Effect::size_keys`] present is exactly 0 (and at least one is present). Such an
     /// effect is never named: there is nothing of it to add or take away.
@@ -355,6 +365,8 @@ pub struct FitCtx<'a> {
     pub base: &'a Spec,
     /// Sample ranges of the fit blocks in the real record.
     pub fit_ranges: Vec<(usize, usize)>,
+    /// The fit blocks as a selection of the record's blocks.
+    pub fit_blocks: Vec<bool>,
     /// Averaging factors.
     pub ms: Vec<usize>,
     /// Real pooled AVAR on the fit blocks.
@@ -753,11 +765,7 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
             *v -= s;
         }
         refit_noise(&mut spec, &less, layout, &ctx.fit_ranges, &mut p);
-        let slow = matches!(
-            effect,
-            Effect::RateRamp | Effect::Warmup | Effect::Temperature
-        );
-        if slow && ctx.passed.contains(&effect) {
+        if effect.is_drift() && ctx.passed.contains(&effect) {
             add_wander(&mut spec, &less, ctx, layout, &mut p);
         }
     }
@@ -828,10 +836,7 @@ fn add_wander(
     layout: &super::features::Layout,
     p: &mut Params,
 ) {
-    let fit_blocks: Vec<bool> = (0..super::features::BLOCKS).map(|b| b % 2 == 0).collect();
-    let real_avar =
-        super::features::pooled_avar(&less.rate_dps, &ctx.fit_ranges, less.dt_s, &ctx.ms);
-    let real_drift = layout.drift_variogram(&less.t_s, &less.rate_dps, &fit_blocks);
+    let (real_avar, real_drift) = fit_block_curves(less, layout, &ctx.fit_ranges, &ctx.fit_blocks);
     let w = ctx.drift_window_s;
     let (c, _, _) = drift_fit_on(
         ctx,
@@ -845,6 +850,22 @@ fn add_wander(
     n.rrw_dps_per_s_rthz = (n.rrw_dps_per_s_rthz.powi(2) + c).sqrt();
     p.insert(REFIT_KEYS[2].into(), n.rrw_dps_per_s_rthz);
     p.insert("wander_rrw_dps_per_s_rthz".into(), c.sqrt());
+}
+
+/// The fit blocks' pooled AVAR (every averaging factor of `layout`) and drift variogram
+/// (every lag bin) of `rec`: what [`drift_fit`] compares with the baseline's simulations.
+/// `fit_ranges` are the fit blocks' sample ranges, `fit_blocks` the same as a selection of
+/// blocks.
+pub fn fit_block_curves(
+    rec: &Rec,
+    layout: &super::features::Layout,
+    fit_ranges: &[(usize, usize)],
+    fit_blocks: &[bool],
+) -> (Vec<(f64, usize)>, Vec<f64>) {
+    (
+        super::features::pooled_avar(&rec.rate_dps, fit_ranges, rec.dt_s, &layout.ms),
+        layout.drift_variogram(&rec.t_s, &rec.rate_dps, fit_blocks),
+    )
 }
 
 /// Parameters of a fitted effect, unit in the key.

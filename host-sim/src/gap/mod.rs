@@ -943,6 +943,7 @@ fn held_out_gaps(defs: &[Def], real_score: &[f64], outs: &[SimOut]) -> Gaps {
 
 /// The dedicated detection tests: their outcomes and the fits behind the drift and markov
 /// tests.
+#[derive(Default)]
 struct Tests {
     /// Every outcome.
     all: Vec<evidence::Test>,
@@ -1070,17 +1071,24 @@ fn column(rows: &[Vec<f64>], k: usize) -> Vec<f64> {
 
 /// The candidates' fit context: the fit blocks of the compared record (`raw`: the record as
 /// read) against the baseline simulations.
-fn fit_ctx<'a>(s: &'a Setup, raw: &'a Rec, sims: &BaseSims, bursty: bool) -> FitCtx<'a> {
+fn fit_ctx<'a>(
+    s: &'a Setup,
+    raw: &'a Rec,
+    sims: &BaseSims,
+    bursty: bool,
+    tests: &Tests,
+) -> FitCtx<'a> {
     let real = &s.resid;
     let layout = &s.layout;
     let fit_ranges = &s.split.fit_ranges;
+    let (real_avar, real_drift) = effects::fit_block_curves(real, layout, fit_ranges, &s.split.fit);
     let (spike_n, spike_sizes) = effects::spike_stats(&real.rate_dps, fit_ranges);
     let avar_col = |j: usize| -> Vec<f64> { sims.avars.iter().map(|a| a[j].0).collect() };
     let drift_bins = features::drift_pairs(&s.split.fit);
     let block_s = s.block_s();
     FitCtx {
         avar_ln_sd: (0..layout.ms.len()).map(|j| ln_sd(&avar_col(j))).collect(),
-        real_drift: layout.drift_variogram(&real.t_s, &real.rate_dps, &s.split.fit),
+        real_drift,
         sim_drift: (0..drift_bins.len())
             .map(|k| features::median(&column(&sims.drifts, k)))
             .collect(),
@@ -1096,8 +1104,9 @@ fn fit_ctx<'a>(s: &'a Setup, raw: &'a Rec, sims: &BaseSims, bursty: bool) -> Fit
         raw: &raw.rate_dps,
         base: &s.base,
         fit_ranges: fit_ranges.clone(),
+        fit_blocks: s.split.fit.clone(),
         ms: layout.ms.clone(),
-        real_avar: features::pooled_avar(&real.rate_dps, fit_ranges, real.dt_s, &layout.ms),
+        real_avar,
         sim_avar: (0..layout.ms.len())
             .map(|j| features::median(&avar_col(j)))
             .collect(),
@@ -1111,7 +1120,7 @@ fn fit_ctx<'a>(s: &'a Setup, raw: &'a Rec, sims: &BaseSims, bursty: bool) -> Fit
             effects::missing_slots(&real.t_s, fit_ranges, real.dt_s),
             features::median(&sims.missing),
         ),
-        count_sizes: effects::CountSizes::default(),
+        count_sizes: count_sizes(s, &tests.all),
         bursty,
         joint_markov: if s.plain_fit {
             fit_baseline_terms(&s.fitted_on, layout, fit_ranges, true).ok()
@@ -1119,8 +1128,13 @@ fn fit_ctx<'a>(s: &'a Setup, raw: &'a Rec, sims: &BaseSims, bursty: bool) -> Fit
             None
         },
         refit_layout: s.fitted_baseline.then_some(layout),
-        passed: Vec::new(),
-        line_hz: None,
+        passed: tests
+            .all
+            .iter()
+            .filter(|t| t.passed)
+            .map(|t| t.effect)
+            .collect(),
+        line_hz: tests.line_hz,
     }
 }
 
@@ -1412,8 +1426,6 @@ fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice
             .unwrap_or(f64::INFINITY)
             .total_cmp(&b.gap_after.unwrap_or(f64::INFINITY))
     };
-    let drift_rank =
-        |e: Effect| matches!(e, Effect::Temperature | Effect::Warmup | Effect::RateRamp);
     let drift_choice = tests.drift.as_ref().and_then(|d| d.pick(&tests.all));
     let drift_pick = tests
         .all
@@ -1440,7 +1452,7 @@ fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice
     let tested = tests
         .all
         .iter()
-        .filter(|t| t.passed && !drift_rank(t.effect))
+        .filter(|t| t.passed && !t.effect.is_drift())
         .chain(drift_pick)
         .filter(|t| !quantization_first || t.effect == Effect::Quantization)
         .filter(|t| !zero_size(t.effect))
@@ -1672,15 +1684,7 @@ pub fn diagnose(
     let gaps = held_out_gaps(&s.defs_score, &real_out.score, &sims.outs);
     let mut tests = dedicated_tests(&s, &sims, time.bursty, o);
     let (where_, feature_rows) = full_record(&s.defs_all, &real_out.all, &sims.outs);
-    let mut ctx = fit_ctx(&s, real, &sims, time.bursty);
-    ctx.count_sizes = count_sizes(&s, &tests.all);
-    ctx.passed = tests
-        .all
-        .iter()
-        .filter(|t| t.passed)
-        .map(|t| t.effect)
-        .collect();
-    ctx.line_hz = tests.line_hz;
+    let mut ctx = fit_ctx(&s, real, &sims, time.bursty, &tests);
     let base_scores: Vec<Vec<f64>> = sims.outs.iter().map(|o| o.score.clone()).collect();
     let (mut candidates, curves_by) = score_candidates(
         &s,
@@ -1900,7 +1904,7 @@ mod tests {
         };
         let s = Setup::new(rec, None, &o).expect("setup");
         let sims = simulate_baseline(&s, false, &mut Fft::default()).expect("simulations");
-        let mut ctx = fit_ctx(&s, rec, &sims, false);
+        let mut ctx = fit_ctx(&s, rec, &sims, false, &Tests::default());
         if passed {
             ctx.passed = vec![Effect::Warmup];
         }
