@@ -103,6 +103,29 @@ impl Effect {
         )
     }
 
+    /// A deterministic signal added to the rate: ramp, warm-up, line, temperature link,
+    /// scale-factor error (what [`Spec::signal_beyond`] returns).
+    pub fn adds_signal(self) -> bool {
+        matches!(
+            self,
+            Effect::RateRamp
+                | Effect::Warmup
+                | Effect::Temperature
+                | Effect::Sinusoid
+                | Effect::ScaleFactor
+        )
+    }
+
+    /// The held-out feature (`features::Layout::defs`' label) that counts this effect:
+    /// outliers for `spikes`, missing sample slots for `dropouts`.
+    pub fn count_feature(self) -> Option<&'static str> {
+        match self {
+            Effect::Spikes => Some("count_beyond_10sigma"),
+            Effect::Dropouts => Some("missing_slots"),
+            _ => None,
+        }
+    }
+
     /// Whether `params` (a candidate's fit) give the effect a size of zero: every one of
     /// its [`Effect::size_keys`] present is exactly 0 (and at least one is present). Such an
     /// effect is never named: there is nothing of it to add or take away.
@@ -747,15 +770,7 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
     // A deterministic candidate is fitted together with the baseline: the noise terms are
     // refitted with its signal taken out (a ramp, a warm-up, a line, a temperature link or
     // a scale-factor error that the first fit absorbed would otherwise be simulated twice).
-    let deterministic = matches!(
-        effect,
-        Effect::RateRamp
-            | Effect::Warmup
-            | Effect::Temperature
-            | Effect::Sinusoid
-            | Effect::ScaleFactor
-    );
-    if let (true, Some(layout)) = (deterministic, ctx.refit_layout) {
+    if let (true, Some(layout)) = (effect.adds_signal(), ctx.refit_layout) {
         let mut less = real.clone();
         for (v, s) in less
             .rate_dps

@@ -58,6 +58,9 @@ pub enum Group {
     /// Variogram of window means across the selected blocks (drift structure at lags up
     /// to the record length).
     Drift,
+    /// A candidate's own held-out check (`super::check`): not one of [`GROUPS`], in the gap
+    /// only where a candidate's features carry it.
+    Check,
 }
 
 /// The groups, in order.
@@ -696,9 +699,16 @@ pub fn zscores(x: &[f64], st: &[(f64, f64)]) -> Vec<f64> {
 
 /// The scalar gap: the largest over groups of the mean squared z-score in the group.
 pub fn gap(defs: &[Def], z: &[f64]) -> f64 {
+    let check: Vec<f64> = defs
+        .iter()
+        .zip(z)
+        .filter(|(d, _)| d.group == Group::Check)
+        .map(|(_, z)| z * z)
+        .collect();
     group_gaps(defs, z)
         .iter()
         .map(|g| g.1)
+        .chain((!check.is_empty()).then(|| mean(&check)))
         .filter(|v| v.is_finite())
         .fold(0.0, f64::max)
 }
