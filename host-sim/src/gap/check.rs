@@ -15,9 +15,13 @@
 //! record that holds the signal has `P` near `sqrt(sum (s - mean s)^2)`; one without it near
 //! 0, with a spread set by the noise at the signal's frequencies. Both are read from the
 //! candidate's own simulations: `P` is linear, so a simulation's `P` less the signal's own
-//! `P` at its samples is the `P` of its noise alone (ASSUMED: the candidate's refitted noise
-//! stands for the baseline's; the rounding of a quantized model is taken as linear, which
-//! holds where the noise spans several quanta).
+//! `P` at its samples is the `P` of a record without the candidate's signal (the baseline's
+//! deterministic part, the candidate's refitted noise and any wander it carries stay in).
+//! ASSUMED: the candidate's refitted noise stands for the baseline's; the rounding of a
+//! quantized model is taken as linear, which holds where the noise spans several quanta;
+//! the signal at a simulated sample is its value at the nearest real sample (off only next
+//! to a slot the real record lacks). A check whose simulations all give the same `P` (spread
+//! 0) has z 0: it changes nothing.
 //!
 //! A count effect's candidate (`spikes`, `dropouts`) whose test passed has its held-out
 //! count ([`super::effects::Effect::count_feature`]: outliers beyond 10 robust sigma,
@@ -29,7 +33,8 @@
 //! The feature joins the held-out gap as a group of its own (`check`) for that candidate
 //! only: its gap before is the larger of the baseline's and `z_before^2`, its gap after the
 //! larger of the candidate's and `z_after^2`, and its null shrink is computed the same way
-//! ([`super::null_shrinks`]), each baseline simulation taken as the record. Only for a
+//! ([`super::null_shrinks`]), each baseline simulation taken as the record with the check
+//! column of the candidate's simulation of the same seed less its signal. Only for a
 //! candidate whose dedicated test passed and that adds a signal (ramp, warm-up, temperature
 //! link, line, scale-factor error); a signal that lives only in the fit blocks (a warm-up of
 //! a short time constant) leaves `P` at noise and the check changes nothing.
@@ -50,7 +55,7 @@ pub fn def(count: bool) -> Def {
 
 /// `P` of `y` (times `t_s`) on `signal` (at the real record's times `real_t_s`, read at the
 /// nearest real sample) over the held-out blocks `score` of `layout` (module doc). 0 when
-/// the signal is flat on every held-out block.
+/// the signal is flat on every held-out block, or `y` and `t_s` differ in length.
 pub fn projection(
     layout: &Layout,
     score: &[bool],
@@ -59,6 +64,9 @@ pub fn projection(
     t_s: &[f64],
     y: &[f64],
 ) -> f64 {
+    if y.len() != t_s.len() {
+        return 0.0;
+    }
     let s_at = |t: f64| signal_at(real_t_s, signal, t);
     let (mut num, mut den) = (0.0, 0.0);
     for (b, &(lo, hi)) in layout.ranges(t_s).iter().enumerate() {

@@ -279,8 +279,9 @@ pub struct Candidate {
     /// Fitted parameters, unit in the key (null when skipped).
     pub params: Option<BTreeMap<String, f64>>,
     /// The held-out gap before it, where it is the candidate's own: with its held-out check
-    /// ([`check`]: a candidate that adds a signal and whose dedicated test passed) the
-    /// larger of the round's gap and the check's `z_before^2`; null: the round's gap.
+    /// ([`check`]: a passed test's candidate that adds a signal or counts outliers or
+    /// missing slots) the larger of the round's gap and the check's `z_before^2`; absent:
+    /// the round's gap.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gap_before: Option<f64>,
     /// The held-out check's z before and after the candidate ([`check`]).
@@ -446,7 +447,7 @@ pub struct Diagnosis {
     pub curves: Curves,
 }
 
-const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --gyro) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2. An effect is named only when its shrink (1 - gap_after/gap_before) > 0 and > null_shrink_95, the 95 % quantile of the shrink its simulations give the baseline's own simulations each taken as the record (a record without the effect). One whose dedicated test passed needs nothing more (the test is its significance); any other (the gap rule) also needs gap_before > 1.5 x null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others). A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
+const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --gyro) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2; a candidate whose dedicated test passed and that adds a signal or counts outliers or missing slots also has its held-out check (heldout_check_z: the held-out blocks' projection on its signal fitted on the fit blocks, or its held-out count) as a group of its own in its gap_before, gap_after and null shrink. An effect is named only when its shrink (1 - gap_after/gap_before) > 0 and > null_shrink_95, the 95 % quantile of the shrink its simulations give the baseline's own simulations each taken as the record (a record without the effect). One whose dedicated test passed needs nothing more (the test is its significance); any other (the gap rule) also needs gap_before > 1.5 x null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others). A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
 
 /// Per-simulation summary.
 struct SimOut {
@@ -1309,28 +1310,33 @@ fn score_candidates(
                         noise: col(base_scores),
                     });
                 }
-                let mut defs = s.defs_score.clone();
-                let mut real_c = real_score.to_vec();
-                let mut base_c = base_scores.to_vec();
+                // With the check, one more column (the last) in every score vector.
+                let mut defs = std::borrow::Cow::Borrowed(&s.defs_score[..]);
+                let mut real_c = std::borrow::Cow::Borrowed(real_score);
+                let mut base_c = std::borrow::Cow::Borrowed(base_scores);
                 if let Some(p) = &proj {
-                    defs.push(check::def(counted.is_some()));
-                    real_c.push(p.real);
-                    for (v, x) in base_c.iter_mut().zip(&p.noise) {
+                    defs.to_mut().push(check::def(counted.is_some()));
+                    real_c.to_mut().push(p.real);
+                    for (v, x) in base_c.to_mut().iter_mut().zip(&p.noise) {
                         v.push(*x);
                     }
                     for (v, x) in cand_scores.iter_mut().zip(&p.cand) {
                         v.push(*x);
                     }
                 }
-                let st_before = features::stats(&defs, &base_c.iter().collect::<Vec<_>>());
                 let st = features::stats(&defs, &cand_scores.iter().collect::<Vec<_>>());
-                let z_before = features::zscores(&real_c, &st_before);
                 let z_after = features::zscores(&real_c, &st);
-                let own_before = proj
-                    .as_ref()
-                    .map(|_| features::gap(&defs, &z_before).max(gap_before));
-                let before = own_before.unwrap_or(gap_before);
                 let after = features::gap(&defs, &z_after);
+                // The check's z before and after, and the candidate's own gap before (the
+                // features' part of it is the round's `gap_before`).
+                let check_z = proj.as_ref().map(|_| {
+                    let st0 = features::stats(&defs, &base_c.iter().collect::<Vec<_>>());
+                    let z_before = features::zscores(&real_c, &st0);
+                    let k = defs.len() - 1;
+                    (features::gap(&defs, &z_before), [z_before[k], z_after[k]])
+                });
+                let own_before = check_z.map(|(g, _)| g);
+                let before = own_before.unwrap_or(gap_before);
                 let nulls = null_shrinks(&defs, &base_c, &cand_scores);
                 curves_by.insert(
                     e,
@@ -1343,9 +1349,7 @@ fn score_candidates(
                     effect: e,
                     params: Some(params),
                     gap_before: own_before,
-                    heldout_check_z: proj
-                        .as_ref()
-                        .and_then(|_| Some([*z_before.last()?, *z_after.last()?])),
+                    heldout_check_z: check_z.map(|(_, z)| z),
                     gap_after: Some(after),
                     shrink: Some(1.0 - after / before),
                     null_shrink_95: Some(features::quantile(&nulls, 0.95))
@@ -1784,9 +1788,10 @@ pub fn diagnose(
     let best_effect = choice.best.map(|c| c.effect);
     let named = best_effect.filter(|_| effect != "none");
     // A candidate named with its held-out check is scored against its own gap before.
+    // (The gap rule's decision stays on the round's gap: its gate and fall are the features'.)
     let named_before = choice
         .best
-        .filter(|_| named.is_some())
+        .filter(|_| named.is_some() && choice.tested)
         .and_then(|c| c.gap_before)
         .unwrap_or(gaps.before);
     let mut params_ci95 = add_test_params(&mut params, named, &tests);
