@@ -53,31 +53,23 @@ pub fn def(count: bool) -> Def {
     }
 }
 
-/// `P` of `y` (times `t_s`) on `signal` (at the real record's times `real_t_s`, read at the
-/// nearest real sample) over the held-out blocks `score` of `layout` (module doc). 0 when
-/// the signal is flat on every held-out block, or `y` and `t_s` differ in length.
-pub fn projection(
-    layout: &Layout,
-    score: &[bool],
-    real_t_s: &[f64],
-    signal: &[f64],
-    t_s: &[f64],
-    y: &[f64],
-) -> f64 {
-    if y.len() != t_s.len() {
+/// `P` of `y` on `signal`, both at the samples of times `t_s`, over the held-out blocks
+/// `score` of `layout` (module doc). 0 when the signal is flat on every held-out block, or
+/// `signal` or `y` is not as long as `t_s`.
+pub fn projection(layout: &Layout, score: &[bool], t_s: &[f64], signal: &[f64], y: &[f64]) -> f64 {
+    if y.len() != t_s.len() || signal.len() != t_s.len() {
         return 0.0;
     }
-    let s_at = |t: f64| signal_at(real_t_s, signal, t);
     let (mut num, mut den) = (0.0, 0.0);
     for (b, &(lo, hi)) in layout.ranges(t_s).iter().enumerate() {
         if !score.get(b).copied().unwrap_or(false) || hi <= lo {
             continue;
         }
         let n = (hi - lo) as f64;
-        let s: Vec<f64> = t_s[lo..hi].iter().map(|&t| s_at(t)).collect();
+        let (s, y) = (&signal[lo..hi], &y[lo..hi]);
         let ms = s.iter().sum::<f64>() / n;
-        let my = y[lo..hi].iter().sum::<f64>() / n;
-        for (sv, yv) in s.iter().zip(&y[lo..hi]) {
+        let my = y.iter().sum::<f64>() / n;
+        for (sv, yv) in s.iter().zip(y) {
             num += (yv - my) * (sv - ms);
             den += (sv - ms) * (sv - ms);
         }
@@ -131,7 +123,7 @@ mod tests {
         let layout = Layout::new(&t, dt).expect("layout");
         let score = vec![false, true, false, true, false, true];
         let sig: Vec<f64> = t.iter().map(|&x| 0.02 * (6.0 * x).sin()).collect();
-        let own = projection(&layout, &score, &t, &sig, &t, &sig);
+        let own = projection(&layout, &score, &t, &sig, &sig);
         let norm = sig[..].iter().map(|v| v * v).sum::<f64>().sqrt() / 2f64.sqrt();
         assert!((own - norm).abs() < 0.05 * norm, "{own} vs {norm}");
         let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
@@ -145,9 +137,9 @@ mod tests {
                     sigma * e
                 })
                 .collect();
-            ps.push(projection(&layout, &score, &t, &sig, &t, &e));
+            ps.push(projection(&layout, &score, &t, &sig, &e));
             let y: Vec<f64> = e.iter().zip(&sig).map(|(a, b)| a + b).collect();
-            with.push(projection(&layout, &score, &t, &sig, &t, &y));
+            with.push(projection(&layout, &score, &t, &sig, &y));
         }
         let m = ps.iter().sum::<f64>() / ps.len() as f64;
         let sd = (ps.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (ps.len() - 1) as f64).sqrt();

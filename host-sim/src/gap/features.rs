@@ -699,24 +699,19 @@ pub fn zscores(x: &[f64], st: &[(f64, f64)]) -> Vec<f64> {
 
 /// The scalar gap: the largest over groups of the mean squared z-score in the group.
 pub fn gap(defs: &[Def], z: &[f64]) -> f64 {
-    let check: Vec<f64> = defs
-        .iter()
-        .zip(z)
-        .filter(|(d, _)| d.group == Group::Check)
-        .map(|(_, z)| z * z)
-        .collect();
     group_gaps(defs, z)
         .iter()
         .map(|g| g.1)
-        .chain((!check.is_empty()).then(|| mean(&check)))
         .filter(|v| v.is_finite())
         .fold(0.0, f64::max)
 }
 
-/// Per-group gaps, in [`GROUPS`] order.
+/// Per-group gaps, in [`GROUPS`] order, then [`Group::Check`]'s where `defs` hold it.
 pub fn group_gaps(defs: &[Def], z: &[f64]) -> Vec<(Group, f64)> {
+    let check = defs.iter().any(|d| d.group == Group::Check);
     GROUPS
         .iter()
+        .chain(check.then_some(&Group::Check))
         .map(|&g| {
             let v: Vec<f64> = defs
                 .iter()

@@ -1274,25 +1274,26 @@ fn score_candidates(
                 // and whose dedicated test passed.
                 let signal = (e.adds_signal() && ctx.passed.contains(&e))
                     .then(|| spec.signal_beyond(ctx.base, ctx.real));
-                let project = |t: &[f64], y: &[f64], sig: &[f64]| {
-                    check::projection(&s.layout, &s.split.score, &ctx.real.t_s, sig, t, y)
+                let project = |t: &[f64], sig: &[f64], y: &[f64]| {
+                    check::projection(&s.layout, &s.split.score, t, sig, y)
                 };
                 let mut proj = signal.as_ref().map(|sig| check::Projections {
-                    real: project(&s.resid.t_s, &s.resid.rate_dps, sig),
+                    real: project(&s.resid.t_s, sig, &s.resid.rate_dps),
                     ..Default::default()
                 });
                 let mut outs = Vec::new();
                 for &seed in &s.seeds {
                     let sim = spec.simulate(&s.resid, seed, s.g_base)?;
                     if let (Some(p), Some(sig)) = (proj.as_mut(), signal.as_ref()) {
+                        // The signal at the simulation's samples (its times may differ).
                         let own: Vec<f64> = sim
                             .t
                             .iter()
                             .map(|&t| check::signal_at(&ctx.real.t_s, sig, t))
                             .collect();
-                        let with = project(&sim.t, &sim.res, sig);
+                        let with = project(&sim.t, &own, &sim.res);
                         p.cand.push(with);
-                        p.noise.push(with - project(&sim.t, &own, sig));
+                        p.noise.push(with - project(&sim.t, &own, &own));
                     }
                     outs.push(analyse(&s.layout, &sim, &s.split.score, None, fft));
                 }
