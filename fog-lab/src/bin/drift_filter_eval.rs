@@ -789,6 +789,7 @@ fn demo_family(cfg: DriftFilterConfig, args: &Args) -> Result<()> {
     let cal = calibration::measure(&runs)?;
     let (mut model, fit) = host_sim::gyro_fit::fit(&runs, &cal, 30.0 / 3600.0)?;
     adjust(&mut model, args);
+    let untuned = model;
     println!("== demo family: model {model:?}");
     println!(
         "  warm-up tau {:.0} s (terms {:?}); ADEV {:?}",
@@ -826,7 +827,34 @@ fn demo_family(cfg: DriftFilterConfig, args: &Args) -> Result<()> {
     let q = nav::tune_gated_q(&tune, r_dps2, &nav::log_grid(1e-16, 1e-8, 4))
         .ok_or_else(|| anyhow::anyhow!("no tune vehicle"))?;
     let (mut own, mut truth, mut zaru, mut raw) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    for r in &test {
+    let mut unit_runs_deg = Vec::new();
+    let family = unit_family(&image.model, &untuned);
+    for (i, r) in test.iter().enumerate() {
+        if args.unit_runs {
+            // The test unit's own static runs: power-ons of the same unit (its constants
+            // from its unit seed), each with its own noise, turn-on and conditions.
+            let unit = VEHICLE_UNIT + i as u64;
+            let n_runs = std::env::var("FOG_UNIT_RUNS_N")
+                .ok()
+                .and_then(|v| v.parse::<u64>().ok())
+                .unwrap_or(4);
+            let mut unit_runs = Vec::new();
+            for k in 0..n_runs {
+                let seed = DEMO_UNIT_RUN_SEED + 100 * i as u64 + k;
+                let x = samples(&family_model(unit, false)?, seed, 1800.0)?;
+                unit_runs.push(Series {
+                    name: format!("demo unit {unit} seed {seed} (static)"),
+                    t_s: x.iter().map(|s| s.t_s).collect(),
+                    rate_dps: x.iter().map(|s| s.rate_dps as f32).collect(),
+                    drift_dps: Some(x.iter().map(|s| s.drift_dps as f32).collect()),
+                    temp_c: Some(x.iter().map(|s| s.temp_c as f32).collect()),
+                    ..Default::default()
+                });
+            }
+            let ucal = calibration::measure(&unit_runs)?;
+            let um = host_sim::gyro_fit::fit_unit(&unit_runs, &ucal, 30.0 / 3600.0, &family)?.0;
+            unit_runs_deg.push(nav::score_drift(r, &run(um, cfg, r, false)?.0).heading_rms_deg);
+        }
         own.push(nav::score_drift(r, &run(image.model, cfg, r, false)?.0).heading_rms_deg);
         truth.push(nav::score_drift(r, &run(image.model, cfg, r, true)?.0).heading_rms_deg);
         let mut g = nav::GatedKalman::new(q.q_dps2, r_dps2);
@@ -844,5 +872,30 @@ fn demo_family(cfg: DriftFilterConfig, args: &Args) -> Result<()> {
         m(&zaru),
         m(&raw)
     );
+    if !unit_runs_deg.is_empty() {
+        let du: Vec<f64> = unit_runs_deg
+            .iter()
+            .zip(&zaru)
+            .map(|(a, b)| a - b)
+            .collect();
+        let (mu, hu) = paired(&du);
+        let df: Vec<f64> = unit_runs_deg.iter().zip(&own).map(|(a, b)| a - b).collect();
+        let (mf, hf) = paired(&df);
+        let below = du.iter().filter(|&&v| v < 0.0).count();
+        let worse = unit_runs_deg
+            .iter()
+            .zip(&raw)
+            .filter(|(a, b)| **a > **b + 0.3)
+            .count();
+        println!(
+            "  the unit's own runs: filter {:.4} deg; minus gated with truth flags {mu:+.4} +- {hu:.4} (below it on {below} of {}); minus the family image {mf:+.4} +- {hf:.4}; worse than raw + 0.3 deg on {worse}",
+            m(&unit_runs_deg),
+            du.len()
+        );
+    }
     Ok(())
 }
+
+/// First seed of the demo test units' own static runs (`--demo-family --unit-runs`): apart
+/// from the training (101..), tune (201..) and test vehicles' seeds.
+const DEMO_UNIT_RUN_SEED: u64 = 70_000;
