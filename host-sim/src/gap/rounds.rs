@@ -24,7 +24,7 @@
 //! - `dropouts` cannot be undone: it leaves the vocabulary.
 //!
 //! A record changed under a model that rounds is rounded again to the model's quantum,
-//! stochastically (up with probability the fractional part, [`reround`]): to the nearest
+//! stochastically (up with probability the fractional part, `reround`): to the nearest
 //! count, a slow signal taken out leaves a sawtooth of up to half a quantum.
 
 use super::effects::Effect;
