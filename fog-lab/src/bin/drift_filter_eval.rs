@@ -841,15 +841,7 @@ fn demo_family(cfg: DriftFilterConfig, args: &Args) -> Result<()> {
             let mut unit_runs = Vec::new();
             for k in 0..n_runs {
                 let seed = DEMO_UNIT_RUN_SEED + 100 * i as u64 + k;
-                let x = samples(&family_model(unit, false)?, seed, 1800.0)?;
-                unit_runs.push(Series {
-                    name: format!("demo unit {unit} seed {seed} (static)"),
-                    t_s: x.iter().map(|s| s.t_s).collect(),
-                    rate_dps: x.iter().map(|s| s.rate_dps as f32).collect(),
-                    drift_dps: Some(x.iter().map(|s| s.drift_dps as f32).collect()),
-                    temp_c: Some(x.iter().map(|s| s.temp_c as f32).collect()),
-                    ..Default::default()
-                });
+                unit_runs.push(host_sim::demo::static_run(unit, seed, 1800.0)?);
             }
             let ucal = calibration::measure(&unit_runs)?;
             let um = host_sim::gyro_fit::fit_unit(&unit_runs, &ucal, 30.0 / 3600.0, &family)?.0;

@@ -149,18 +149,22 @@ impl Records for TrainingSet {
         self.n as usize
     }
     fn get(&self, i: usize) -> Result<Series> {
-        let unit = i as u64 + 1;
-        let seed = 101 + i as u64;
-        let x = samples(&family_model(unit, false)?, seed, self.duration_s)?;
-        Ok(Series {
-            name: format!("{PRESET} unit {unit} seed {seed} (static)"),
-            t_s: x.iter().map(|s| s.t_s).collect(),
-            rate_dps: x.iter().map(|s| s.rate_dps as f32).collect(),
-            drift_dps: Some(x.iter().map(|s| s.drift_dps as f32).collect()),
-            temp_c: Some(x.iter().map(|s| s.temp_c as f32).collect()),
-            ..Default::default()
-        })
+        static_run(i as u64 + 1, 101 + i as u64, self.duration_s)
     }
+}
+
+/// One static run of the family's unit `unit` (a power-on: its seed draws the noise,
+/// turn-on and conditions), `duration_s` at [`RATE_HZ`], with its drift and temperature.
+pub fn static_run(unit: u64, seed: u64, duration_s: f64) -> Result<Series> {
+    let x = samples(&family_model(unit, false)?, seed, duration_s)?;
+    Ok(Series {
+        name: format!("{PRESET} unit {unit} seed {seed} (static)"),
+        t_s: x.iter().map(|s| s.t_s).collect(),
+        rate_dps: x.iter().map(|s| s.rate_dps as f32).collect(),
+        drift_dps: Some(x.iter().map(|s| s.drift_dps as f32).collect()),
+        temp_c: Some(x.iter().map(|s| s.temp_c as f32).collect()),
+        ..Default::default()
+    })
 }
 
 fn write_csv(path: &Path, x: &[sim::Sample]) -> Result<()> {
