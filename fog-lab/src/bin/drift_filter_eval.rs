@@ -477,6 +477,13 @@ fn unit_family(tuned: &GyroModel, untuned: &GyroModel) -> GyroModel {
     m
 }
 
+/// How many of a unit's own runs to use (`FOG_UNIT_RUNS_N`), when set.
+fn unit_runs_n() -> Option<usize> {
+    std::env::var("FOG_UNIT_RUNS_N")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+}
+
 /// The model fitted on the vehicle's own unit's static runs (`unit-runs/STEM-r*.csv`; the
 /// first FOG_UNIT_RUNS_N of them when set), made the unit's by
 /// [`host_sim::gyro_fit::personalize`] with the (tuned) family model.
@@ -492,10 +499,7 @@ fn unit_model(fam: &Path, vehicle: &Path, family: &GyroModel) -> Result<GyroMode
         })
         .collect();
     paths.sort();
-    if let Some(n) = std::env::var("FOG_UNIT_RUNS_N")
-        .ok()
-        .and_then(|v| v.parse::<usize>().ok())
-    {
+    if let Some(n) = unit_runs_n() {
         paths.truncate(n);
     }
     anyhow::ensure!(
@@ -834,10 +838,7 @@ fn demo_family(cfg: DriftFilterConfig, args: &Args) -> Result<()> {
             // The test unit's own static runs: power-ons of the same unit (its constants
             // from its unit seed), each with its own noise, turn-on and conditions.
             let unit = VEHICLE_UNIT + i as u64;
-            let n_runs = std::env::var("FOG_UNIT_RUNS_N")
-                .ok()
-                .and_then(|v| v.parse::<u64>().ok())
-                .unwrap_or(4);
+            let n_runs = unit_runs_n().unwrap_or(4) as u64;
             let mut unit_runs = Vec::new();
             for k in 0..n_runs {
                 let seed = DEMO_UNIT_RUN_SEED + 100 * i as u64 + k;
