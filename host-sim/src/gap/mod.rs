@@ -1480,6 +1480,44 @@ struct Choice<'c> {
     best: Option<&'c Candidate>,
     /// It was chosen by its passed dedicated test (not overridden by the gap rule).
     tested: bool,
+    /// The gap rule's lowest-gap wander candidate that `best` was preferred to by
+    /// [`wander_tie`], if it was.
+    tied_with: Option<&'c Candidate>,
+}
+
+/// The order in which wander terms that tie under the gap rule are named (`wander_tie`):
+/// the rate random walk first (one parameter, and the conservative bound for a navigation
+/// budget: it grows without limit), then flicker (`bias_instability`), then the
+/// Gauss-Markov term's two parameters. Chosen on the real-noise benchmark
+/// (`scripts/gap_real_bench.py`, docs/gap.md "Real noise, known effect"): this order 89 of
+/// 105 right; `bias_instability` first 85 (replayed on an earlier run's JSONs, later rounds
+/// not re-run); `markov` first not measured.
+pub const WANDER_PREFERENCE: [Effect; 3] = [
+    Effect::RateRandomWalk,
+    Effect::BiasInstability,
+    Effect::Markov,
+];
+
+/// The wander term named when the gap rule's best candidate is one: every wander candidate
+/// left for the gap rule (not excluded) whose held-out gap lies within the null's spread
+/// (`g95 - g50`) of the best's, and whose own shrink is significant (more than that spread),
+/// ties with it; the first of them in [`WANDER_PREFERENCE`] is named. On a real record the
+/// slow wander is one of three shapes the held-out gap cannot tell apart at its length
+/// (ADIS16405 axes: RRW, flicker and GM within 0.1 of each other against a spread of 1-3),
+/// and which one wins moved with the dither of an injected effect's re-rounding.
+fn wander_tie<'c>(candidates: &'c [Candidate], best: &'c Candidate, gaps: &Gaps) -> &'c Candidate {
+    let rank = |e: Effect| WANDER_PREFERENCE.iter().position(|&w| w == e);
+    let Some(best_after) = best.gap_after.filter(|_| rank(best.effect).is_some()) else {
+        return best;
+    };
+    let spread = gaps.g95 - gaps.g50;
+    candidates
+        .iter()
+        .filter(|c| c.excluded.is_none())
+        .filter_map(|c| Some((c, rank(c.effect)?, c.gap_after?)))
+        .filter(|&(_, _, after)| after - best_after < spread && gaps.before - after > spread)
+        .min_by_key(|&(_, r, _)| r)
+        .map_or(best, |(c, _, _)| c)
 }
 
 /// Chooses the candidate. Among passed tests whose candidates lower the held-out gap
@@ -1553,9 +1591,13 @@ fn choose<'c>(candidates: &'c [Candidate], tests: &Tests, gaps: &Gaps) -> Choice
         _ => false,
     };
     let tested = if overridden { None } else { tested };
+    let tie = by_gap_rule.map(|b| wander_tie(candidates, b, gaps));
+    let tied_with =
+        by_gap_rule.filter(|b| tested.is_none() && tie.is_some_and(|t| !std::ptr::eq(t, *b)));
     Choice {
-        best: tested.or(by_gap_rule),
+        best: tested.or(tie),
         tested: tested.is_some(),
+        tied_with,
     }
 }
 
@@ -1575,7 +1617,18 @@ struct Named {
 fn decide(choice: &Choice, tests: &[evidence::Test], gaps: &Gaps) -> Named {
     match choice.best {
         Some(c) if choice.tested => tested_decision(c, tests, gaps.before),
-        Some(c) => gap_rule_decision(c, gaps),
+        Some(c) => {
+            let mut named = gap_rule_decision(c, gaps);
+            if let Some(t) = choice.tied_with.filter(|_| named.effect == c.effect.name()) {
+                named.decision.push_str(&format!(
+                    "; it ties with {} (held-out gap {:.3}, within null_gap_95 - null_gap_median = {:.3}), and the tie among wander terms names the first of rate_random_walk, bias_instability, markov",
+                    t.effect.name(),
+                    t.gap_after.unwrap_or(f64::NAN),
+                    gaps.g95 - gaps.g50
+                ));
+            }
+            named
+        }
         None => Named {
             effect: "none".to_string(),
             gap_after: gaps.before,
@@ -2022,6 +2075,86 @@ mod tests {
             (k_with.powi(2) - k_without.powi(2) - w * w).abs() <= 1e-9 * k_with.powi(2).max(1e-30),
             "{k_with} {k_without} {w}"
         );
+    }
+
+    /// A candidate of `effect` with held-out gap `after` of a round whose gap is 20.
+    fn candidate(effect: Effect, after: f64, excluded: bool) -> Candidate {
+        Candidate {
+            effect,
+            params: None,
+            gap_before: None,
+            heldout_check_z: None,
+            gap_after: Some(after),
+            shrink: Some(1.0 - after / 20.0),
+            null_shrink_95: None,
+            skipped: None,
+            excluded: excluded.then(|| "excluded for the test".to_string()),
+        }
+    }
+
+    /// Wander terms whose held-out gaps lie within the null's spread of the best one's tie,
+    /// and the first of [`WANDER_PREFERENCE`] among them is named, with the tie in the
+    /// decision; a wider margin, an excluded or an insignificant candidate, or a best
+    /// candidate that is no wander term leaves the gap rule's choice as it was.
+    #[test]
+    fn tied_wander_terms_name_the_preferred_one() {
+        let gaps = Gaps {
+            before: 20.0,
+            g50: 2.0,
+            g95: 5.0,
+            groups_before: BTreeMap::new(),
+            null_groups: BTreeMap::new(),
+        };
+        let tests = Tests::default();
+        let named = |cands: &[Candidate], g: &Gaps| {
+            let choice = choose(cands, &tests, g);
+            let n = decide(&choice, &[], g);
+            (n.effect, n.decision)
+        };
+        let bi = candidate(Effect::BiasInstability, 6.0, false);
+        let gm = candidate(Effect::Markov, 6.2, false);
+        let ramp = candidate(Effect::RateRamp, 10.0, false);
+        let tie = [
+            ramp.clone(),
+            gm.clone(),
+            candidate(Effect::RateRandomWalk, 8.9, false),
+            bi.clone(),
+        ];
+        let (effect, why) = named(&tie, &gaps);
+        assert_eq!(effect, "rate_random_walk", "{why}");
+        assert!(why.contains("ties with bias_instability"), "{why}");
+        let apart = [
+            gm.clone(),
+            candidate(Effect::RateRandomWalk, 9.1, false),
+            bi.clone(),
+        ];
+        let (effect, why) = named(&apart, &gaps);
+        assert_eq!(effect, "bias_instability", "{why}");
+        assert!(!why.contains("ties"), "{why}");
+        let excluded = [
+            candidate(Effect::RateRandomWalk, 6.5, true),
+            gm.clone(),
+            bi.clone(),
+        ];
+        assert_eq!(named(&excluded, &gaps).0, "bias_instability");
+        let gm_first = [candidate(Effect::BiasInstability, 7.0, false), gm.clone()];
+        assert_eq!(named(&gm_first, &gaps).0, "bias_instability");
+        // Significance is asked of the tied candidate itself: with a round gap of 10, a
+        // random walk at 7.5 shrinks it by 2.5 < 3.
+        let small = Gaps {
+            before: 10.0,
+            g50: 2.0,
+            g95: 5.0,
+            groups_before: BTreeMap::new(),
+            null_groups: BTreeMap::new(),
+        };
+        let weak = [candidate(Effect::RateRandomWalk, 7.5, false), bi.clone()];
+        assert_eq!(named(&weak, &small).0, "bias_instability");
+        let not_wander = [
+            candidate(Effect::RateRamp, 5.0, false),
+            candidate(Effect::RateRandomWalk, 6.0, false),
+        ];
+        assert_eq!(named(&not_wander, &gaps).0, "rate_ramp");
     }
 
     /// A line the whole-record test finds but the gap's broad features barely see (1800 s
