@@ -1500,7 +1500,7 @@ pub const WANDER_PREFERENCE: [Effect; 3] = [
 
 /// The wander term named when the gap rule's best candidate is one: every wander candidate
 /// left for the gap rule (not excluded) whose held-out gap lies within the null's spread
-/// (`g95 - g50`) of the best's, and whose own shrink is significant (more than that spread),
+/// (`g95 - g50`) of the best's, and that passes the gap rule's own test ([`shrinks_enough`]),
 /// ties with it; the first of them in [`WANDER_PREFERENCE`] is named. On a real record the
 /// slow wander is one of three shapes the held-out gap cannot tell apart at its length
 /// (ADIS16405 axes: RRW, flicker and GM within 0.1 of each other against a spread of 1-3),
@@ -1515,7 +1515,9 @@ fn wander_tie<'c>(candidates: &'c [Candidate], best: &'c Candidate, gaps: &Gaps)
         .iter()
         .filter(|c| c.excluded.is_none())
         .filter_map(|c| Some((c, rank(c.effect)?, c.gap_after?)))
-        .filter(|&(_, _, after)| after - best_after < spread && gaps.before - after > spread)
+        .filter(|&(c, _, after)| {
+            after - best_after < spread && shrinks_enough(c, gaps.before, spread)
+        })
         .min_by_key(|&(_, r, _)| r)
         .map_or(best, |(c, _, _)| c)
 }
@@ -1620,11 +1622,13 @@ fn decide(choice: &Choice, tests: &[evidence::Test], gaps: &Gaps) -> Named {
         Some(c) => {
             let mut named = gap_rule_decision(c, gaps);
             if let Some(t) = choice.tied_with.filter(|_| named.effect == c.effect.name()) {
+                let order: Vec<&str> = WANDER_PREFERENCE.iter().map(|e| e.name()).collect();
                 named.decision.push_str(&format!(
-                    "; it ties with {} (held-out gap {:.3}, within null_gap_95 - null_gap_median = {:.3}), and the tie among wander terms names the first of rate_random_walk, bias_instability, markov",
+                    "; it ties with {} (held-out gap {:.3}, within null_gap_95 - null_gap_median = {:.3}), and the tie among wander terms names the first of {}",
                     t.effect.name(),
                     t.gap_after.unwrap_or(f64::NAN),
-                    gaps.g95 - gaps.g50
+                    gaps.g95 - gaps.g50,
+                    order.join(", ")
                 ));
             }
             named
