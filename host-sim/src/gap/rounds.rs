@@ -20,7 +20,8 @@
 //!   baseline's own terms may then be named, as against a model, and the first effect that
 //!   enters the model makes that round's baseline (and colour) the model;
 //! - an effect that enters a fitted baseline (`rate_ramp`, the first `warmup`, `markov`)
-//!   brings the N, B, K its candidate was refitted with (`refit_*`);
+//!   brings the N, B, K its candidate was refitted with (`refit_*`), and `markov` without
+//!   the baseline's colour when its candidate dropped it (`colour_dropped`);
 //! - `dropouts` cannot be undone: it leaves the vocabulary.
 //!
 //! A record changed under a model that rounds is rounded again to the model's quantum,
@@ -201,9 +202,18 @@ fn apply(
             format!("model rounds to {:.6e} deg/s", m.quantization.quantum_dps)
         }
         Effect::Markov => {
-            take_refit_noise(&mut m, pr);
-            m.noise.gm_sigma_dps = p(pr, "gm_sigma_dps");
-            m.noise.gm_tau_s = p(pr, "gm_tau_s").max(1e-6);
+            // The candidate's own terms, as its held-out gap was scored (the reported
+            // `gm_*` are the whole-record Whittle fit's, whose B and K are not carried: with
+            // the candidate's N, B, K they make a model that was never scored).
+            let own = d
+                .candidates
+                .iter()
+                .find(|c| c.effect == e)
+                .and_then(|c| c.params.clone())
+                .or_else(|| pr.clone());
+            take_refit_noise(&mut m, &own);
+            m.noise.gm_sigma_dps = p(&own, "gm_sigma_dps");
+            m.noise.gm_tau_s = p(&own, "gm_tau_s").max(1e-6);
             format!(
                 "model has a Gauss-Markov term {:.4} deg/h, T {:.3} s",
                 m.noise.gm_sigma_dps * 3600.0,
@@ -383,8 +393,13 @@ pub fn run(
         // While the baseline is fitted to the record, so is its colour (a record that lost
         // a line or a temperature link is fitted again, against its refitted terms); the
         // colour of the round whose baseline becomes the model shapes it in every later
-        // round.
-        let colour_now = d.colour.clone().map(std::sync::Arc::new);
+        // round; a `markov` candidate that found the colour to be the baseline's misfit of
+        // its hump (`colour_dropped`) leaves none.
+        let colour_now = d
+            .colour
+            .clone()
+            .filter(|_| p(&d.params, super::effects::COLOUR_DROPPED) == 0.0)
+            .map(std::sync::Arc::new);
         let marginal_now = d.marginal.clone().map(std::sync::Arc::new);
         let named = Effect::parse_list(&d.effect)
             .ok()
