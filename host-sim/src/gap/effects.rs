@@ -718,13 +718,12 @@ pub fn fit(effect: Effect, ctx: &FitCtx) -> Result<Fitted> {
         }
         Effect::Markov => match short_joint_markov(ctx, t_rec) {
             Some(m) => {
-                if keep_white && colour_was_misfit(ctx, m) {
+                let dropped = keep_white && colour_was_misfit(ctx, m);
+                if dropped {
                     spec.colour = None;
-                    set_joint_markov(&mut spec.model.noise, m, false, &mut p);
                     p.insert(COLOUR_DROPPED.into(), 1.0);
-                } else {
-                    set_joint_markov(n, m, keep_white, &mut p);
                 }
+                set_joint_markov(n, m, keep_white && !dropped, &mut p);
             }
             None => excluded = add_markov_grid(ctx, dt, t_rec, n, &mut p),
         },
