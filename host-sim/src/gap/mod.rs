@@ -238,6 +238,9 @@ pub struct Options {
     /// so an effect the first fit took for noise (a line for flicker) is not frozen into
     /// the model; its own terms may then be named (raised), as against a model.
     pub fitted_quantum_dps: Option<f64>,
+    /// Regressors whose fit an earlier round took out of the record (`--rounds`: a
+    /// temperature link); every simulation has its own fit on them taken out too.
+    pub taken_out: Option<std::sync::Arc<effects::TakenOut>>,
 }
 
 /// Whether the baseline's white-noise term is shaped by the record's own colour
@@ -267,6 +270,7 @@ impl Default for Options {
             task: true,
             colour: ColourMode::Fit,
             fitted_quantum_dps: None,
+            taken_out: None,
         }
     }
 }
@@ -775,6 +779,7 @@ impl Setup {
             base_model.noise.arw_dps_per_rthz *= c.white_level.sqrt();
         }
         let mut base = Spec::from_model(&base_model, real.ref_dps.is_some());
+        base.taken_out = o.taken_out.clone();
         base.colour = match (&o.colour, &colour_fit) {
             (ColourMode::Fixed(c, _), _) => c.clone(),
             (_, Some(f)) => f.colour.clone().map(std::sync::Arc::new),

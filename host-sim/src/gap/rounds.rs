@@ -7,7 +7,9 @@
 //! - the other deterministic effects are subtracted from the record's rate with their fitted
 //!   parameters: `temperature` (coefficients times `temp_c - reference` and times its rate of change,
 //!   from 10-s windows as the drift test reads it), `sinusoid`, `scale_factor` (times the
-//!   reference rate);
+//!   reference rate); after a `temperature`, every later simulation has its own fit on the
+//!   link's regressors taken out too (`effects::TakenOut`: the fit took part of the
+//!   record's own slow wander with it);
 //! - `spikes`: samples beyond 6 robust sigma of the 5-point running median are replaced by
 //!   that median;
 //! - stochastic effects go into the model, which from then on is the user model of the next
@@ -142,20 +144,10 @@ fn apply(
             sub(&mut r, &|i| a * (-t[i] / tau).exp());
             format!("subtracted {:.3} deg/h exp(-t / {tau:.0} s)", a * 3600.0)
         }
-        Effect::Temperature => match &rec.temp_c {
-            Some(tc) => {
-                let t_total = rec.t_s.last().copied().unwrap_or(0.0) + rec.dt_s;
-                let w = super::drift::Windows::new(&rec.t_s, &rec.rate_dps, Some(tc), t_total);
+        Effect::Temperature => match temperature_columns(pr, rec) {
+            Some((cols, t_ref)) => {
                 let (k1, k2) = (p(pr, "bias_dps_per_c"), p(pr, "bias_dps_per_c_per_s"));
-                let t_ref = pr
-                    .as_ref()
-                    .and_then(|m| m.get("reference_c").copied())
-                    .unwrap_or_else(|| super::features::mean(tc));
-                let dtw = w.temp.map(|(_, d)| d).unwrap_or_default();
-                sub(&mut r, &|i| {
-                    let k = ((t[i] / w.w_s) as usize).min(dtw.len().saturating_sub(1));
-                    k1 * (tc[i] - t_ref) + k2 * dtw.get(k).copied().unwrap_or(0.0)
-                });
+                sub(&mut r, &|i| k1 * cols[0][i] + k2 * cols[1][i]);
                 format!(
                     "subtracted {:.4} deg/h/C (temp_c - {t_ref:.2} C) and {:.3} deg/h/(C/s) d temp_c/dt",
                     k1 * 3600.0,
@@ -245,6 +237,31 @@ fn apply(
     }
     let changed = m != *model;
     (r, changed.then_some(m), what)
+}
+
+/// The temperature link's two regressors on `rec`'s samples, as [`apply`] subtracts them:
+/// `temp_c - reference` and the 10-s windows' rate of change.
+/// Also the reference, deg C (the fit's, else the record's mean temperature).
+fn temperature_columns(
+    pr: &Option<BTreeMap<String, f64>>,
+    rec: &Rec,
+) -> Option<(Vec<Vec<f64>>, f64)> {
+    let tc = rec.temp_c.as_ref()?;
+    let t_total = rec.t_s.last().copied().unwrap_or(0.0) + rec.dt_s;
+    let w = super::drift::Windows::new(&rec.t_s, &rec.rate_dps, Some(tc), t_total);
+    let t_ref = pr
+        .as_ref()
+        .and_then(|m| m.get("reference_c").copied())
+        .unwrap_or_else(|| super::features::mean(tc));
+    let dtw = w.temp.map(|(_, d)| d).unwrap_or_default();
+    let c1 = tc.iter().map(|x| x - t_ref).collect();
+    let c2 = (0..rec.t_s.len())
+        .map(|i| {
+            let k = ((rec.t_s[i] / w.w_s) as usize).min(dtw.len().saturating_sub(1));
+            dtw.get(k).copied().unwrap_or(0.0)
+        })
+        .collect();
+    Some((vec![c1, c2], t_ref))
 }
 
 /// Seed of [`reround`]'s draws (fixed: the rounds are reproducible).
@@ -429,7 +446,7 @@ pub fn run(
         if let Some(e) = named.filter(|_| k < n) {
             let base = model.clone().unwrap_or_else(|| d.baseline.clone());
             let (r2, m2, what) = apply(e, &d, &rec, &base, &mut round.spike_times_s);
-            rec = r2;
+            let rec_before = std::mem::replace(&mut rec, r2);
             match m2 {
                 // Quantization named against a fitted baseline: the next round fits the
                 // baseline again, rounding to the quantum, so that its candidates still
@@ -446,6 +463,13 @@ pub fn run(
                     model = Some(m2);
                 }
                 None => {}
+            }
+            // A link taken out of the record is taken out of every later simulation too
+            // (`effects::TakenOut`).
+            if e == Effect::Temperature {
+                if let Some((cols, _)) = temperature_columns(&d.params, &rec_before) {
+                    o.taken_out = Some(std::sync::Arc::new(super::effects::TakenOut { cols }));
+                }
             }
             // Named once: it leaves the vocabulary (a second line, warm-up or Gauss-Markov
             // term is not looked for).
