@@ -969,13 +969,35 @@ fn add_wander(
     p: &mut Params,
 ) {
     let (real_avar, real_drift) = fit_block_curves(less, layout, &ctx.fit_ranges, &ctx.fit_blocks);
+    let reference = (&ctx.sim_avar[..], &ctx.sim_drift[..]);
+    add_rrw_beyond(
+        spec,
+        ctx,
+        reference,
+        (&real_avar, &real_drift),
+        less.dt_s,
+        p,
+    );
+}
+
+/// Adds to `spec`'s K the rate random walk that the fit blocks' AVAR and drift variogram
+/// (`real`) show beyond `reference` ([`drift_fit_on`]): `wander_rrw_dps_per_s_rthz` in
+/// `p`, and the new K as `refit_rrw_dps_per_s_rthz`.
+fn add_rrw_beyond(
+    spec: &mut Spec,
+    ctx: &FitCtx,
+    reference: (&[f64], &[f64]),
+    real: (&[(f64, usize)], &[f64]),
+    dt_s: f64,
+    p: &mut Params,
+) {
     let w = ctx.drift_window_s;
     let (c, _, _) = drift_fit_on(
         ctx,
-        (&ctx.sim_avar, &ctx.sim_drift),
-        &real_avar,
-        &real_drift,
-        less.dt_s,
+        reference,
+        real.0,
+        real.1,
+        dt_s,
         &|tau| tau / 3.0,
         &|l| rrw_variogram(l, w),
     );
@@ -1043,19 +1065,8 @@ fn markov_wander(spec: &mut Spec, ctx: &FitCtx, dt_s: f64, p: &mut Params) {
             sum / lags.len() as f64
         })
         .collect();
-    let (c, _, _) = drift_fit_on(
-        ctx,
-        (&avar, &drift),
-        &ctx.real_avar,
-        &ctx.real_drift,
-        dt_s,
-        &|tau| tau / 3.0,
-        &|l| rrw_variogram(l, w),
-    );
-    let n = &mut spec.model.noise;
-    n.rrw_dps_per_s_rthz = (n.rrw_dps_per_s_rthz.powi(2) + c).sqrt();
-    p.insert(REFIT_KEYS[2].into(), n.rrw_dps_per_s_rthz);
-    p.insert("wander_rrw_dps_per_s_rthz".into(), c.sqrt());
+    let real = (&ctx.real_avar[..], &ctx.real_drift[..]);
+    add_rrw_beyond(spec, ctx, (&avar, &drift), real, dt_s, p);
 }
 
 /// Parameter of a `markov` candidate that dropped the baseline's colour
