@@ -1496,7 +1496,11 @@ struct Choice<'c> {
 /// Gauss-Markov term's two parameters. Chosen on the real-noise benchmark
 /// (`scripts/gap_real_bench.py`, docs/gap.md "Real noise, known effect"): this order 89 of
 /// 105 right; `bias_instability` first 85 (replayed on an earlier run's JSONs, later rounds
-/// not re-run); `markov` first not measured.
+/// not re-run); `markov` first not measured. `markov` before `bias_instability`: 91 of 105
+/// (ADIS16405 run 4 y with a temperature link names the clean record's own `markov`; the
+/// only tie that flips), but `gap-bench --records-per-class 10 --classes
+/// markov,bias_instability,rate_random_walk,none` 32 of 40 against 35 (5 flicker records
+/// named `markov`): not kept.
 pub const WANDER_PREFERENCE: [Effect; 3] = [
     Effect::RateRandomWalk,
     Effect::BiasInstability,
