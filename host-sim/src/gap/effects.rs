@@ -192,9 +192,9 @@ pub struct Spec {
     /// The record's own platykurtic value distribution: the white-noise term's marginal
     /// map ([`super::marginal`]); None: Gaussian.
     pub marginal: Option<std::sync::Arc<super::marginal::Marginal>>,
-    /// Regressors an earlier round fitted on the fit blocks and took out of the record
-    /// (`gap --rounds`: a temperature link): each simulation has its own fit on them taken
-    /// out the same way ([`TakenOut`]).
+    /// Regressors whose fit an earlier round took out of the record (`gap --rounds`: a
+    /// temperature link): each simulation has its own fit on them, over all its samples,
+    /// taken out ([`TakenOut`]).
     pub taken_out: Option<std::sync::Arc<TakenOut>>,
 }
 

@@ -102,13 +102,15 @@ fn take_refit_noise(m: &mut Model, pr: &Option<BTreeMap<String, f64>>) {
 }
 
 /// Applies a named effect: the record for the next round, the model (if it changed) and
-/// what was done, in words.
+/// what was done, in words. A temperature link taken out of the record also sets
+/// `taken_out`, its regressors, to be taken out of every later simulation.
 fn apply(
     e: Effect,
     d: &Diagnosis,
     rec: &Rec,
     model: &Model,
     spike_times_s: &mut Vec<f64>,
+    taken_out: &mut Option<std::sync::Arc<super::effects::TakenOut>>,
 ) -> (Rec, Option<Model>, String) {
     let mut r = rec.clone();
     let mut m = model.clone();
@@ -148,6 +150,7 @@ fn apply(
             Some((cols, t_ref)) => {
                 let (k1, k2) = (p(pr, "bias_dps_per_c"), p(pr, "bias_dps_per_c_per_s"));
                 sub(&mut r, &|i| k1 * cols[0][i] + k2 * cols[1][i]);
+                *taken_out = Some(std::sync::Arc::new(super::effects::TakenOut { cols }));
                 format!(
                     "subtracted {:.4} deg/h/C (temp_c - {t_ref:.2} C) and {:.3} deg/h/(C/s) d temp_c/dt",
                     k1 * 3600.0,
@@ -240,8 +243,8 @@ fn apply(
 }
 
 /// The temperature link's two regressors on `rec`'s samples, as [`apply`] subtracts them:
-/// `temp_c - reference` and the 10-s windows' rate of change.
-/// Also the reference, deg C (the fit's, else the record's mean temperature).
+/// `temp_c - reference` and the 10-s windows' rate of change; and the reference, deg C
+/// (the fit's, else the record's mean temperature).
 fn temperature_columns(
     pr: &Option<BTreeMap<String, f64>>,
     rec: &Rec,
@@ -445,8 +448,9 @@ pub fn run(
         };
         if let Some(e) = named.filter(|_| k < n) {
             let base = model.clone().unwrap_or_else(|| d.baseline.clone());
-            let (r2, m2, what) = apply(e, &d, &rec, &base, &mut round.spike_times_s);
-            let rec_before = std::mem::replace(&mut rec, r2);
+            let spikes = &mut round.spike_times_s;
+            let (r2, m2, what) = apply(e, &d, &rec, &base, spikes, &mut o.taken_out);
+            rec = r2;
             match m2 {
                 // Quantization named against a fitted baseline: the next round fits the
                 // baseline again, rounding to the quantum, so that its candidates still
@@ -463,13 +467,6 @@ pub fn run(
                     model = Some(m2);
                 }
                 None => {}
-            }
-            // A link taken out of the record is taken out of every later simulation too
-            // (`effects::TakenOut`).
-            if e == Effect::Temperature {
-                if let Some((cols, _)) = temperature_columns(&d.params, &rec_before) {
-                    o.taken_out = Some(std::sync::Arc::new(super::effects::TakenOut { cols }));
-                }
             }
             // Named once: it leaves the vocabulary (a second line, warm-up or Gauss-Markov
             // term is not looked for).
