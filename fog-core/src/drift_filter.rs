@@ -28,11 +28,23 @@
 //!    without the half-difference test; the first window is presumed still (power-on: a
 //!    turn-on bias beyond the model's spread is learned there), the mean test applies
 //!    from the second;
-//! 3. a still window updates the filter; the update is held back one window: the output
-//!    uses the state before it until the next window passes, and when the next window fails
+//! 3. a still window updates the filter; the update is held back one window (but the
+//!    power-on window's, below): the output uses the state before it until the next window
+//!    passes, and when the next window fails
 //!    the filter returns to that state (one checkpoint, written once per window). Nothing is
 //!    learned from a window that failed. A window an external flag calls still is trusted:
 //!    its update is not held back.
+//!
+//! **Power-on.** The first window is presumed still (step 2), so the output does not wait
+//! for it: while it fills, each sample's drift is `h x` updated by the mean of the
+//! window's samples so far (`h P h' / (h P h' + v / n)` times the mean of `rate - h x`
+//! over its `n` samples, `v` the larger of the model's per-sample variance and the samples'
+//! own (a noisier unit, an idling engine), `h P h'` taken at its first sample; from the
+//! 8th sample on), and its window update is shown at once (it stays undoable: when the second
+//! window fails the output returns to the prior). Without it the output held the prior for
+//! two windows, the largest part of e_truth on a static record whose turn-on is far from
+//! the family's mean (`drift_filter_eval` on `scripts/gen_unit_family.py` families,
+//! `docs/drift-filter.md`). An external flag calling the window moving turns it off.
 //!
 //! Output per sample: `drift = h(t, T) x`, clamped to the model's drift bound, and the
 //! compensated rate `rate - drift`. Cost per sample: a few additions and multiplications;
@@ -189,6 +201,11 @@ pub struct DriftFilter {
     warm: [f32; MAX_WARMUP],
     /// The warm-up factors at the start of this window.
     warm_start: [f32; MAX_WARMUP],
+    /// Power-on window only: the sums of `rate - h x` and of its square over its samples
+    /// so far, and `h P h'` of the drift at its first sample (module docs, "Power-on").
+    power_on_resid: f32,
+    power_on_resid_sq: f32,
+    power_on_var: f32,
     /// Last valid temperature minus `T0` (0 before any).
     temp_off: f32,
     /// Previous window's mean temperature offset, and the temperature-rate estimate, C/s.
@@ -198,6 +215,14 @@ pub struct DriftFilter {
     still: bool,
     stats: DriftStats,
 }
+
+/// Samples of the power-on window before its mean moves the output (module docs,
+/// "Power-on"): their spread is estimated from them. ASSUMED: 8.
+const POWER_ON_MIN_SAMPLES: u32 = 8;
+
+/// The slowest vibration the power-on window's mean is assumed to average out, Hz (the
+/// window length's assumption: idling vibration > 5 Hz, [`DriftFilterConfig::window_s`]).
+const POWER_ON_VIBRATION_HZ: f32 = 5.0;
 
 /// Memory of the `R_W` average, windows.
 const R_MEMORY: f32 = 64.0;
@@ -215,6 +240,9 @@ enum Deferred {
         r: f32,
         r_sample: f32,
         trusted: bool,
+        /// The output takes the update at once (trusted, or the power-on window: presumed
+        /// still); an untrusted one stays undoable.
+        show: bool,
     },
     /// The next window failed: back to the checkpoint, predicted one window.
     Undo,
@@ -281,6 +309,9 @@ impl DriftFilter {
             ext_moving: false,
             warm: warm_at_power_on,
             warm_start: warm_at_power_on,
+            power_on_resid: 0.0,
+            power_on_resid_sq: 0.0,
+            power_on_var: 0.0,
             temp_off: 0.0,
             temp_prev: None,
             temp_rate: 0.0,
@@ -430,6 +461,7 @@ impl DriftFilter {
                 r,
                 r_sample,
                 trusted,
+                show,
             } => {
                 self.checkpoint = self.kf;
                 self.r_checkpoint = (self.r_sum, self.r_count);
@@ -438,7 +470,7 @@ impl DriftFilter {
                 // until the next window confirms it; a window the external flag calls
                 // still is the flag's (trusted: nothing to confirm or undo).
                 self.pending = !trusted;
-                if !self.pending {
+                if show {
                     self.set_out(*self.kf.x());
                 }
                 // R_W from the window's half-difference (an average with a fast start).
@@ -476,7 +508,14 @@ impl DriftFilter {
         if temp_c.is_finite() {
             self.temp_off = temp_c - self.model.temp_ref_c;
         }
-        let drift = self.model.clamp_drift(self.drift_now());
+        let predicted = self.drift_now();
+        let power_on = self.stats.windows == 0;
+        let correction = if power_on {
+            self.power_on_correction()
+        } else {
+            0.0
+        };
+        let drift = self.model.clamp_drift(predicted + correction);
         // The window's sums (the sample's own h before the warm-up factor moves on).
         let half = self.built.samples_per_window / 2;
         if self.in_window < half {
@@ -488,6 +527,11 @@ impl DriftFilter {
             *s += w;
         }
         self.sum_temp += self.temp_off;
+        if power_on {
+            let e = rate_dps - predicted;
+            self.power_on_resid += e;
+            self.power_on_resid_sq += e * e;
+        }
         match external_still {
             Some(true) => self.ext_still = true,
             Some(false) => self.ext_moving = true,
@@ -505,6 +549,45 @@ impl DriftFilter {
             compensated_dps: rate_dps - drift,
             still: external_still.unwrap_or(self.still),
         })
+    }
+
+    /// Power-on window only (module docs, "Power-on"): the drift's update by the mean of
+    /// this window's `n` samples so far, `h P h' / (h P h' + v / n) * mean(rate - h x)`,
+    /// `v` the larger of the model's per-sample variance and the samples' own; 0 for the
+    /// first [`POWER_ON_MIN_SAMPLES`] (`push` adds each sample's `rate - h x` after its
+    /// output), and once an external flag called the window moving.
+    fn power_on_correction(&mut self) -> f32 {
+        if self.ext_moving {
+            return 0.0;
+        }
+        let n = self.in_window as f32;
+        if self.in_window == 0 {
+            let mut h = [1.0; STATES];
+            h[WARMUP..TEMP].copy_from_slice(&self.warm);
+            h[TEMP] = self.temp_off;
+            h[TEMP_RATE] = self.temp_rate;
+            self.power_on_var = self.kf.observe_var(&h);
+            return 0.0;
+        }
+        if self.in_window < POWER_ON_MIN_SAMPLES {
+            return 0.0;
+        }
+        // The samples' own variance when above the model's (a noisier unit, vibration).
+        let mean = self.power_on_resid / n;
+        let spread = (self.power_on_resid_sq - n * mean * mean) / (n - 1.0);
+        let v = if spread > self.model.sample_var_dps2() {
+            spread
+        } else {
+            self.model.sample_var_dps2()
+        };
+        // Vibration is not white: the mean of a sinusoid of frequency f over t seconds keeps
+        // up to 1 / (pi f t)^2 of its variance, so the samples count as at most (pi f t)^2
+        // with f the slowest vibration the window assumes.
+        let t_s = n * self.model.sample_period_s();
+        let x = core::f32::consts::PI * POWER_ON_VIBRATION_HZ * t_s;
+        let n_eff = if x * x < n { x * x } else { n };
+        let s = self.power_on_var;
+        s / (s + v / n_eff) * mean
     }
 
     fn end_window(&mut self, half: u32) {
@@ -559,6 +642,7 @@ impl DriftFilter {
                 r,
                 r_sample: d * d / d_scale,
                 trusted: self.ext_still,
+                show: self.ext_still || self.stats.windows == 1,
             };
             self.stats.still_windows = self.stats.still_windows.saturating_add(1);
         } else if self.pending {
@@ -625,6 +709,39 @@ mod tests {
         );
         let s = f.stats();
         assert!(s.still_windows as f32 > 0.95 * s.windows as f32, "{s:?}");
+    }
+
+    #[test]
+    fn power_on_output_follows_the_first_window_and_is_undone_by_a_turn() {
+        // A noise-free unit at 100 deg/h (the prior: 0 +- about 39 deg/h).
+        let m = ecore_like();
+        let mut f = DriftFilter::new(m, DriftFilterConfig::default()).expect("test");
+        let w = f.window_samples() as usize;
+        let bias = 100.0 / 3600.0;
+        let dph2 = (1.0f64 / 3600.0).powi(2);
+        // h P h' at power-on: turn-on, the two Gauss-Markov terms, the warm-up (25 deg/h).
+        let s = (30.0f64.powi(2) + 1.0 + 1.5f64.powi(2) + 25.0f64.powi(2)) * dph2;
+        let v = f64::from(m.sample_var_dps2());
+        let first = f.push(bias as f32, 25.0, None).expect("test").drift_dps;
+        assert_eq!(first, 0.0, "no sample yet: the prior");
+        for n in 1..w {
+            let d = f64::from(f.push(bias as f32, 25.0, None).expect("test").drift_dps);
+            // From the 8th sample; the samples count as at most (pi 5 Hz t)^2.
+            let x = core::f64::consts::PI * 5.0 * n as f64 / f64::from(m.sample_rate_hz);
+            let n_eff = (x * x).min(n as f64);
+            let k = if n < 8 { 0.0 } else { s / (s + v / n_eff) };
+            assert!((d / bias - k).abs() < 0.01, "n {n}: {} vs {}", d / bias, k);
+        }
+        // The first window's update is shown at once.
+        let d = f.push(bias as f32, 25.0, None).expect("test").drift_dps;
+        assert!((f64::from(d) / bias - 1.0).abs() < 0.02, "{}", d * 3600.0);
+        // A turn in the second window: the output returns to the prior.
+        for _ in 1..w {
+            f.push((bias + 0.5) as f32, 25.0, None).expect("test");
+        }
+        let d = f.push(bias as f32, 25.0, None).expect("test").drift_dps;
+        assert!(d.abs() < 1.0 / 3600.0, "{}", d * 3600.0);
+        assert_eq!(f.stats().undone, 1);
     }
 
     #[test]
