@@ -9,3 +9,5 @@
 //!   vehicle with `unit_family`'s figures, with the limit (each vehicle's own model) and the
 //!   demo's family: `docs/drift-filter.md` rests on it.
 #![forbid(unsafe_code)]
+
+pub mod static_rw;

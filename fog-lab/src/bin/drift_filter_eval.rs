@@ -7,7 +7,9 @@
 //!    `vehicles-tune/` by `host_sim::motion::tune` (as `identify --tune-on`);
 //! 2. `vehicles-test/`: heading RMS of the drift filter with its own stillness test and,
 //!    as the detector's limit, with the truth's still flags; of no compensation;
-//! 3. `static-test/`: e_truth = RMS(estimate - drift) / RMS(drift);
+//! 3. `static-test/`: e_truth = RMS(estimate - drift) / RMS(drift); beside it the
+//!    random-walk baseline of `fog_lab::static_rw` with `q` picked on `train/` (the
+//!    calibration runs, by their truth) and on the static records themselves (an oracle);
 //! 4. when `DIR/today.json` exists (`unit_family --json DIR/today.json`): the same
 //!    vehicles' rows of the product and its baselines, paired per vehicle: mean difference
 //!    and its 95 % interval (Student t), per family and pooled over every family.
@@ -20,6 +22,7 @@ use anyhow::{Context, Result};
 use clap::Parser;
 use fog_core::drift_filter::{DriftFilter, DriftFilterConfig};
 use fog_core::gyro_model::GyroModel;
+use fog_lab::static_rw;
 use host_sim::identify::series::{CsvFiles, Records, Series};
 use host_sim::motion::calibration;
 use host_sim::nav::{self, NavRecord};
@@ -100,6 +103,17 @@ struct Vehicle {
     today: Vec<(String, f64)>,
 }
 
+/// The random-walk baseline at rest: every sample still, `r` each record's own, `q` picked
+/// on the calibration runs and, as an oracle, on the static records themselves.
+#[derive(Debug, Serialize)]
+struct StaticRw {
+    q_cal_dps2: f64,
+    /// e_truth per static record with `q_cal_dps2`.
+    e_truth_cal: Vec<f64>,
+    q_oracle_dps2: f64,
+    e_truth_oracle_mean: f64,
+}
+
 #[derive(Debug, Serialize)]
 struct Family {
     family: String,
@@ -113,6 +127,8 @@ struct Family {
     static_limit: Vec<f64>,
     /// e_truth per static record with the model of its own unit's runs (`--unit-runs`).
     static_unit_runs: Vec<f64>,
+    /// The random-walk baseline on the static records (`fog_lab::static_rw`).
+    static_rw: StaticRw,
 }
 
 fn main() -> Result<()> {
@@ -413,6 +429,18 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
     let mut static_e_truth = Vec::new();
     let mut static_limit = Vec::new();
     let mut static_unit_runs = Vec::new();
+    // The random-walk baseline's q, picked on the calibration runs (module docs, 3).
+    let mut cal_runs = Vec::new();
+    for p in files(&fam.join("train"))?.0 {
+        cal_runs.push(NavRecord::try_from(&Record::read(
+            &p,
+            &ReadOptions::default(),
+        )?)?);
+    }
+    let rw_q_cal = static_rw::pick_q(&cal_runs)
+        .with_context(|| format!("{}: no calibration run scores", fam.display()))?
+        .q_dps2;
+    let mut static_recs = Vec::new();
     for p in files(&fam.join("static-test"))?.0 {
         let r = NavRecord::try_from(&Record::read(&p, &ReadOptions::default())?)?;
         let (d, st) = run(model, cfg, &r, false)?;
@@ -453,7 +481,14 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             let um = unit_model(fam, &p, &unit_family(&model, &untuned))?;
             static_unit_runs.push(e(&run(um, cfg, &r, false)?.0));
         }
+        static_recs.push(r);
     }
+    let static_rw_cal: Vec<f64> = static_recs
+        .iter()
+        .map(|r| static_rw::e_truth(&static_rw::estimate(r, rw_q_cal), &r.drift_dps))
+        .collect();
+    let rw_oracle = static_rw::pick_q(&static_recs)
+        .with_context(|| format!("{}: no static record scores", fam.display()))?;
     Ok(Family {
         family: fam.display().to_string(),
         model: format!("{model:?}"),
@@ -463,6 +498,12 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
         static_e_truth,
         static_limit,
         static_unit_runs,
+        static_rw: StaticRw {
+            q_cal_dps2: rw_q_cal,
+            e_truth_cal: static_rw_cal,
+            q_oracle_dps2: rw_oracle.q_dps2,
+            e_truth_oracle_mean: rw_oracle.mean_e_truth,
+        },
     })
 }
 
@@ -767,6 +808,14 @@ fn print_family(f: &Family) {
             mean(f.static_unit_runs.iter().copied())
         );
     }
+    let rw = &f.static_rw;
+    println!(
+        "  static e_truth of a random-walk Kalman filter (every sample still, r each record's own): q from the calibration runs ({:.2e} (deg/s)^2/sample) {:.4}; q tuned on these records ({:.2e}) {:.4}",
+        rw.q_cal_dps2,
+        mean(rw.e_truth_cal.iter().copied()),
+        rw.q_oracle_dps2,
+        rw.e_truth_oracle_mean
+    );
 }
 
 fn print_pooled(fs: &[Family]) {

@@ -17,7 +17,7 @@
 //!    RMS(drift estimate - drift_dps) / RMS(drift_dps) computed here from the replay's
 //!    `drift_dps` column (no compensation: 1), and the fraction of samples its stillness
 //!    test flagged still. Beside it the plain random-walk Kalman filter with EVERY sample
-//!    still ([`GatedKalman`], all flags true) whose `r` is the record's `var(first
+//!    still ([`host_sim::nav::GatedKalman`], all flags true, `fog_lab::static_rw`) whose `r` is the record's `var(first
 //!    differences) / 2` (a user does not know the unit's white noise; the differences of a
 //!    static record give it, from the whole record, so this `r` is not causal) and whose `q`
 //!    is tuned ON THE VERY static-test records (log grid, least mean e_truth): the issue's
@@ -40,8 +40,9 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Parser;
+use fog_lab::static_rw::{self, diff_var_dps2, e_truth, STATIC_Q_GRID};
 use host_sim::identify::series::CsvFiles;
-use host_sim::nav::{self, GatedKalman, NavRecord, SelfCalConfig, SelfCalKalman};
+use host_sim::nav::{self, NavRecord, SelfCalConfig, SelfCalKalman};
 use host_sim::record::{ReadOptions, Record};
 use serde::Serialize;
 use serde_json::Value;
@@ -69,9 +70,6 @@ struct Args {
     identify_args: Vec<String>,
 }
 
-/// q grid of the all-still random-walk Kalman filter on the static-test records,
-/// (deg/s)^2 per sample: 1e-20..1e-6, 4 points per decade.
-const STATIC_Q_GRID: (f64, f64, usize) = (1e-20, 1e-6, 4);
 /// q grid of the self-calibrated gated Kalman filter on the tune vehicles: replay's grid
 /// for the gated Kalman (1e-18..1e-8, 2 per decade) widened to 1e-6 (a family with a strong
 /// temperature link picked 1e-8, that grid's end).
@@ -315,11 +313,6 @@ fn rms(x: impl Iterator<Item = f64>) -> f64 {
     (s / n.max(1) as f64).sqrt()
 }
 
-/// RMS(est - drift) / RMS(drift).
-fn e_truth(est_dps: &[f64], drift_dps: &[f64]) -> f64 {
-    rms(est_dps.iter().zip(drift_dps).map(|(e, d)| e - d)) / rms(drift_dps.iter().copied())
-}
-
 fn fraction(flags: &[bool]) -> f64 {
     flags.iter().filter(|&&s| s).count() as f64 / flags.len().max(1) as f64
 }
@@ -331,14 +324,6 @@ fn mean(v: impl Iterator<Item = f64>) -> f64 {
         n += 1;
     }
     s / n.max(1) as f64
-}
-
-/// `var(first differences) / 2` of the rate: the white noise per sample of a static record
-/// (a slow drift adds next to nothing to the differences).
-fn diff_var_dps2(rate: &[f64]) -> f64 {
-    let d: Vec<f64> = rate.windows(2).map(|w| w[1] - w[0]).collect();
-    let m = mean(d.iter().copied());
-    mean(d.iter().map(|x| (x - m) * (x - m))) / 2.0
 }
 
 /// Replays `rec` through `img`; returns the output CSV and JSON paths.
@@ -425,33 +410,15 @@ fn family(fam: &Path, exe: &Path, extra: &[String], dir: &Path) -> Result<Family
     }
     let g = STATIC_Q_GRID;
     let rs: Vec<f64> = recs.iter().map(|r| diff_var_dps2(&r.1.rate_dps)).collect();
-    let all_still = |r: &NavRecord| vec![true; r.len()];
-    let rw_run = |q: f64, i: usize| -> Vec<f64> {
-        let r = &recs[i].1;
-        nav::run(r, &mut GatedKalman::new(q, rs[i]), &all_still(r)).drift_est_dps
-    };
-    let grid = nav::log_grid(g.0, g.1, g.2);
-    let scored: Vec<(f64, f64)> = grid
-        .iter()
-        .map(|&q| {
-            let m = mean((0..recs.len()).map(|i| e_truth(&rw_run(q, i), &recs[i].1.drift_dps)));
-            (q, m)
-        })
-        .collect();
-    let best = scored
-        .iter()
-        .copied()
-        .filter(|p| p.1.is_finite())
-        .fold(None::<(f64, f64)>, |b, p| match b {
-            Some(b) if b.1 <= p.1 => Some(b),
-            _ => Some(p),
-        })
+    let truths: Vec<NavRecord> = recs.iter().map(|r| r.1.clone()).collect();
+    let picked = static_rw::pick_q(&truths)
         .ok_or_else(|| anyhow!("{}: no static-test score", stest.display()))?;
+    let rw_run = |q: f64, i: usize| -> Vec<f64> { static_rw::estimate(&recs[i].1, q) };
     let rw_q = QPick::new(
         &nav::Tuning {
-            q_dps2: best.0,
-            heading_rms_deg: best.1,
-            grid: scored,
+            q_dps2: picked.q_dps2,
+            heading_rms_deg: picked.mean_e_truth,
+            grid: picked.grid,
         },
         g,
     );
