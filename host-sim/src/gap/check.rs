@@ -85,13 +85,41 @@ pub fn projection(layout: &Layout, score: &[bool], t_s: &[f64], signal: &[f64], 
 /// real sample (0 for an empty record).
 pub fn signal_at(real_t_s: &[f64], signal: &[f64], t_s: f64) -> f64 {
     let i = real_t_s.partition_point(|&x| x < t_s);
-    let j = match i {
+    signal
+        .get(nearest(real_t_s, i, t_s))
+        .copied()
+        .unwrap_or(0.0)
+}
+
+/// `signal` (at the real record's times `real_t_s`) at each of `t_s`, as [`signal_at`]: one
+/// pass with a cursor while `t_s` rises (a simulation's times), a search where it falls.
+pub fn signal_at_each(real_t_s: &[f64], signal: &[f64], t_s: &[f64]) -> Vec<f64> {
+    let mut i = 0;
+    let mut prev = f64::NEG_INFINITY;
+    t_s.iter()
+        .map(|&t| {
+            if t < prev || t.is_nan() {
+                i = real_t_s.partition_point(|&x| x < t);
+            } else {
+                while i < real_t_s.len() && real_t_s[i] < t {
+                    i += 1;
+                }
+            }
+            prev = t;
+            signal.get(nearest(real_t_s, i, t)).copied().unwrap_or(0.0)
+        })
+        .collect()
+}
+
+/// The nearest of `real_t_s[i - 1]` and `real_t_s[i]` to `t_s`, `i` the first index whose
+/// time is not below `t_s` (ties to the later one).
+fn nearest(real_t_s: &[f64], i: usize, t_s: f64) -> usize {
+    match i {
         0 => 0,
         i if i >= real_t_s.len() => real_t_s.len().saturating_sub(1),
         i if (t_s - real_t_s[i - 1]) < (real_t_s[i] - t_s) => i - 1,
         i => i,
-    };
-    signal.get(j).copied().unwrap_or(0.0)
+    }
 }
 
 /// The check's values for one candidate: the real record's `P`, and per simulation of the
@@ -109,6 +137,21 @@ pub struct Projections {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn signal_at_each_is_signal_at_on_rising_falling_and_outside_times() {
+        let real: Vec<f64> = (0..50)
+            .map(|k| 0.1 * k as f64 + 0.003 * (k % 3) as f64)
+            .collect();
+        let sig: Vec<f64> = (0..50).map(|k| (k * k) as f64).collect();
+        let mut t: Vec<f64> = (0..200).map(|k| -0.3 + 0.029 * k as f64).collect();
+        t.extend([2.0, 1.05, 0.1, 7.0, 0.0, f64::NAN, 3.3]);
+        let each = signal_at_each(&real, &sig, &t);
+        for (k, &x) in t.iter().enumerate() {
+            assert_eq!(each[k], signal_at(&real, &sig, x), "t {x}");
+        }
+        assert_eq!(signal_at_each(&[], &[], &[1.0]), vec![0.0]);
+    }
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
 

@@ -386,10 +386,7 @@ impl TakenOut {
             .cols
             .iter()
             .map(|c| {
-                let v: Vec<f64> = t_s
-                    .iter()
-                    .map(|&t| super::check::signal_at(real_t_s, c, t))
-                    .collect();
+                let v = super::check::signal_at_each(real_t_s, c, t_s);
                 let m = v.iter().sum::<f64>() / v.len().max(1) as f64;
                 v.into_iter().map(|a| a - m).collect()
             })

@@ -1291,11 +1291,7 @@ fn score_candidates(
                     let sim = spec.simulate(&s.resid, seed, s.g_base)?;
                     if let (Some(p), Some(sig)) = (proj.as_mut(), signal.as_ref()) {
                         // The signal at the simulation's samples (its times may differ).
-                        let own: Vec<f64> = sim
-                            .t
-                            .iter()
-                            .map(|&t| check::signal_at(&ctx.real.t_s, sig, t))
-                            .collect();
+                        let own = check::signal_at_each(&ctx.real.t_s, sig, &sim.t);
                         let with = project(&sim.t, &own, &sim.res);
                         p.cand.push(with);
                         p.noise.push(with - project(&sim.t, &own, &own));
