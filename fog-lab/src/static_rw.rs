@@ -56,31 +56,17 @@ pub struct Picked {
     pub grid: Vec<(f64, f64)>,
 }
 
-/// The q of [`STATIC_Q_GRID`] with the least mean e_truth on `recs`. None when no record
-/// scores.
+/// The q of [`STATIC_Q_GRID`] with the least mean e_truth on `recs` ([`nav::least_mean`]:
+/// ties to the smaller q). None when no record or no q scores.
 pub fn pick_q(recs: &[NavRecord]) -> Option<Picked> {
     let g = STATIC_Q_GRID;
-    let grid: Vec<(f64, f64)> = nav::log_grid(g.0, g.1, g.2)
-        .into_iter()
-        .map(|q| {
-            let e: Vec<f64> = recs
-                .iter()
-                .map(|r| e_truth(&estimate(r, q), &r.drift_dps))
-                .collect();
-            (q, e.iter().sum::<f64>() / e.len().max(1) as f64)
-        })
-        .collect();
-    let best = grid.iter().copied().filter(|p| p.1.is_finite()).fold(
-        None::<(f64, f64)>,
-        |b, p| match b {
-            Some(b) if b.1 <= p.1 => Some(b),
-            _ => Some(p),
-        },
-    )?;
+    let t = nav::least_mean(recs, &nav::log_grid(g.0, g.1, g.2), |q, r| {
+        e_truth(&estimate(r, q), &r.drift_dps)
+    })?;
     Some(Picked {
-        q_dps2: best.0,
-        mean_e_truth: best.1,
-        grid,
+        q_dps2: t.q_dps2,
+        mean_e_truth: t.heading_rms_deg,
+        grid: t.grid,
     })
 }
 

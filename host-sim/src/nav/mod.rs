@@ -34,7 +34,7 @@ pub use compare::{
 pub use record::NavRecord;
 pub use score::{DetectorAcc, DetectorScores, HeadingAcc, NavScores, DPH_PER_DPS};
 pub use selfcal::{tune_selfcal_q, SelfCalConfig, SelfCalKalman};
-pub use tune::{log_grid, tune_gated_q, Tuning};
+pub use tune::{least_mean, log_grid, tune_gated_q, Tuning};
 
 /// One estimator's run over one record.
 #[derive(Debug, Clone)]

@@ -38,7 +38,7 @@ pub fn tune_gated_q(records: &[NavRecord], r_dps2: f64, q_grid: &[f64]) -> Optio
 /// The grid point of `q_grid` with the least mean `score(q, record)` over `records`; ties
 /// go to the smaller `q` (the first). None when the grid or the record set is empty or no
 /// grid point scores a finite value.
-pub(super) fn least_mean(
+pub fn least_mean(
     records: &[NavRecord],
     q_grid: &[f64],
     score: impl Fn(f64, &NavRecord) -> f64,
