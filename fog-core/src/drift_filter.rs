@@ -745,6 +745,24 @@ mod tests {
     }
 
     #[test]
+    fn vibration_at_power_on_does_not_move_the_output() {
+        // 1 kHz, an idling engine's 20 Hz at 0.1 deg/s from the first sample, no bias: a
+        // partial cycle's mean is no white-noise mean (module docs, "Power-on").
+        let mut m = ecore_like();
+        m.sample_rate_hz = 1000.0;
+        let mut f = DriftFilter::new(m, DriftFilterConfig::default()).expect("test");
+        let mut worst: f32 = 0.0;
+        for k in 0..f.window_samples() {
+            let t = k as f32 / m.sample_rate_hz;
+            let rate = 0.1 * libm::sinf(2.0 * core::f32::consts::PI * 20.0 * t);
+            let d = f.push(rate, 25.0, None).expect("test").drift_dps;
+            worst = worst.max(d.abs());
+        }
+        // 6.9 deg/h; the samples counted as white (every sample one): 150.
+        assert!(worst < 15.0 / 3600.0, "{} deg/h", worst * 3600.0);
+    }
+
+    #[test]
     fn a_turn_is_never_learnt() {
         // 60 s still at a 10 deg/h bias, then a 0.5 deg/s turn for 120 s, then still.
         let m = ecore_like();
