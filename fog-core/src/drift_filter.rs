@@ -37,10 +37,12 @@
 //!
 //! **Power-on.** The first window is presumed still (step 2), so the output does not wait
 //! for it: while it fills, each sample's drift is `h x` updated by the mean of the
-//! window's samples so far (`h P h' / (h P h' + v / n)` times the mean of `rate - h x`
+//! window's samples so far (`h P h' / (h P h' + v / n_eff)` times the mean of `rate - h x`
 //! over its `n` samples, `v` the larger of the model's per-sample variance and the samples'
-//! own (a noisier unit, an idling engine), `h P h'` taken at its first sample; from the
-//! 8th sample on), and its window update is shown at once (it stays undoable: when the second
+//! own (a noisier unit, an idling engine), the samples counted as `n_eff = min(n, (pi f
+//! t)^2)` after `t` seconds (a vibration of `f` >= 5 Hz, ASSUMED as for the window length,
+//! is no white noise: a partial cycle's mean keeps more of it), `h P h'` taken at its first
+//! sample; from the 8th sample on), and its window update is shown at once (it stays undoable: when the second
 //! window fails the output returns to the prior). Without it the output held the prior for
 //! two windows, the largest part of e_truth on a static record whose turn-on is far from
 //! the family's mean (`drift_filter_eval` on `scripts/gen_unit_family.py` families,
@@ -552,8 +554,9 @@ impl DriftFilter {
     }
 
     /// Power-on window only (module docs, "Power-on"): the drift's update by the mean of
-    /// this window's `n` samples so far, `h P h' / (h P h' + v / n) * mean(rate - h x)`,
-    /// `v` the larger of the model's per-sample variance and the samples' own; 0 for the
+    /// this window's `n` samples so far, `h P h' / (h P h' + v / n_eff) * mean(rate - h x)`,
+    /// `v` the larger of the model's per-sample variance and the samples' own, `n_eff` at
+    /// most `(pi f t)^2` ([`POWER_ON_VIBRATION_HZ`]); 0 for the
     /// first [`POWER_ON_MIN_SAMPLES`] (`push` adds each sample's `rate - h x` after its
     /// output), and once an external flag called the window moving.
     fn power_on_correction(&mut self) -> f32 {
