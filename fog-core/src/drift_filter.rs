@@ -42,8 +42,8 @@
 //! own (a noisier unit, an idling engine), the samples counted as `n_eff = min(n, (pi f
 //! t)^2)` after `t` seconds (a vibration of `f` >= 5 Hz, ASSUMED as for the window length,
 //! is no white noise: a partial cycle's mean keeps more of it), `h P h'` taken at its first
-//! sample; from the 8th sample on), and its window update is shown at once (it stays undoable: when the second
-//! window fails the output returns to the prior). Without it the output held the prior for
+//! sample; from the 8th sample on), and its window update is shown at once (it stays
+//! undoable: when the second window fails the output returns to the prior). Without it the output held the prior for
 //! two windows, the largest part of e_truth on a static record whose turn-on is far from
 //! the family's mean (`drift_filter_eval` on `scripts/gen_unit_family.py` families,
 //! `docs/drift-filter.md`). An external flag calling the window moving turns it off.

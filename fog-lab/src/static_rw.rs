@@ -34,15 +34,11 @@ pub fn diff_var_dps2(rate: &[f64]) -> f64 {
     d().map(|x| (x - m) * (x - m)).sum::<f64>() / n / 2.0
 }
 
-/// The baseline's drift estimate on `rec` with `q_dps2` (its own `r`).
-pub fn estimate(rec: &NavRecord, q_dps2: f64) -> Vec<f64> {
+/// The baseline's drift estimate on `rec` with `q_dps2` and `r_dps2` (the record's own:
+/// [`diff_var_dps2`]).
+pub fn estimate(rec: &NavRecord, q_dps2: f64, r_dps2: f64) -> Vec<f64> {
     let still = vec![true; rec.len()];
-    nav::run(
-        rec,
-        &mut GatedKalman::new(q_dps2, diff_var_dps2(&rec.rate_dps)),
-        &still,
-    )
-    .drift_est_dps
+    nav::run(rec, &mut GatedKalman::new(q_dps2, r_dps2), &still).drift_est_dps
 }
 
 /// A q picked on a grid.
@@ -58,10 +54,15 @@ pub struct Picked {
 
 /// The q of [`STATIC_Q_GRID`] with the least mean e_truth on `recs` ([`nav::least_mean`]:
 /// ties to the smaller q). None when no record or no q scores.
-pub fn pick_q(recs: &[NavRecord]) -> Option<Picked> {
+pub fn pick_q(recs: &[&NavRecord]) -> Option<Picked> {
     let g = STATIC_Q_GRID;
-    let t = nav::least_mean(recs, &nav::log_grid(g.0, g.1, g.2), |q, r| {
-        e_truth(&estimate(r, q), &r.drift_dps)
+    // Each record's own r, once.
+    let with_r: Vec<(&NavRecord, f64)> = recs
+        .iter()
+        .map(|r| (*r, diff_var_dps2(&r.rate_dps)))
+        .collect();
+    let t = nav::least_mean(&with_r, &nav::log_grid(g.0, g.1, g.2), |q, (rec, r)| {
+        e_truth(&estimate(rec, q, *r), &rec.drift_dps)
     })?;
     Some(Picked {
         q_dps2: t.q_dps2,

@@ -437,7 +437,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             &ReadOptions::default(),
         )?)?);
     }
-    let rw_q_cal = static_rw::pick_q(&cal_runs)
+    let rw_q_cal = static_rw::pick_q(&cal_runs.iter().collect::<Vec<_>>())
         .with_context(|| format!("{}: no calibration run scores", fam.display()))?
         .q_dps2;
     let mut static_recs = Vec::new();
@@ -452,15 +452,7 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
             }
             std::fs::write(dir.join(format!("{}.dump.csv", name(&p))), text)?;
         }
-        let e = |d: &[f64]| {
-            let num: f64 = d
-                .iter()
-                .zip(&r.drift_dps)
-                .map(|(a, b)| (a - b) * (a - b))
-                .sum();
-            let den: f64 = r.drift_dps.iter().map(|b| b * b).sum();
-            (num / den).sqrt()
-        };
+        let e = |d: &[f64]| static_rw::e_truth(d, &r.drift_dps);
         if args.verbose {
             let (dt, _) = run(model, cfg, &r, true)?;
             println!(
@@ -485,9 +477,12 @@ fn family(fam: &Path, cfg: DriftFilterConfig, args: &Args) -> Result<Family> {
     }
     let static_rw_cal: Vec<f64> = static_recs
         .iter()
-        .map(|r| static_rw::e_truth(&static_rw::estimate(r, rw_q_cal), &r.drift_dps))
+        .map(|r| {
+            let est = static_rw::estimate(r, rw_q_cal, static_rw::diff_var_dps2(&r.rate_dps));
+            static_rw::e_truth(&est, &r.drift_dps)
+        })
         .collect();
-    let rw_oracle = static_rw::pick_q(&static_recs)
+    let rw_oracle = static_rw::pick_q(&static_recs.iter().collect::<Vec<_>>())
         .with_context(|| format!("{}: no static record scores", fam.display()))?;
     Ok(Family {
         family: fam.display().to_string(),

@@ -17,8 +17,8 @@
 //!    RMS(drift estimate - drift_dps) / RMS(drift_dps) computed here from the replay's
 //!    `drift_dps` column (no compensation: 1), and the fraction of samples its stillness
 //!    test flagged still. Beside it the plain random-walk Kalman filter with EVERY sample
-//!    still ([`host_sim::nav::GatedKalman`], all flags true, `fog_lab::static_rw`) whose `r` is the record's `var(first
-//!    differences) / 2` (a user does not know the unit's white noise; the differences of a
+//!    still ([`host_sim::nav::GatedKalman`], all flags true, `fog_lab::static_rw`) whose
+//!    `r` is the record's `var(first differences) / 2` (a user does not know the unit's white noise; the differences of a
 //!    static record give it, from the whole record, so this `r` is not causal) and whose `q`
 //!    is tuned ON THE VERY static-test records (log grid, least mean e_truth): the issue's
 //!    goal is "the image's e_truth <= 0.10 and below the best random-walk Kalman filter
@@ -410,10 +410,10 @@ fn family(fam: &Path, exe: &Path, extra: &[String], dir: &Path) -> Result<Family
     }
     let g = STATIC_Q_GRID;
     let rs: Vec<f64> = recs.iter().map(|r| diff_var_dps2(&r.1.rate_dps)).collect();
-    let truths: Vec<NavRecord> = recs.iter().map(|r| r.1.clone()).collect();
+    let truths: Vec<&NavRecord> = recs.iter().map(|r| &r.1).collect();
     let picked = static_rw::pick_q(&truths)
         .ok_or_else(|| anyhow!("{}: no static-test score", stest.display()))?;
-    let rw_run = |q: f64, i: usize| -> Vec<f64> { static_rw::estimate(&recs[i].1, q) };
+    let rw_run = |q: f64, i: usize| -> Vec<f64> { static_rw::estimate(&recs[i].1, q, rs[i]) };
     let rw_q = QPick::new(
         &nav::Tuning {
             q_dps2: picked.q_dps2,

@@ -2109,7 +2109,8 @@ mod tests {
 
     /// Wander terms whose held-out gaps lie within the null's spread of the best one's tie,
     /// and the rate random walk among them is named, else the lower gap of flicker and
-    /// Gauss-Markov ([`WANDER_PREFERENCE`]), with the tie in the decision; a wider margin, an excluded or an insignificant candidate, or a best
+    /// Gauss-Markov ([`WANDER_PREFERENCE`]), with the tie in the decision; a wider margin,
+    /// an excluded or an insignificant candidate, or a best
     /// candidate that is no wander term leaves the gap rule's choice as it was.
     #[test]
     fn tied_wander_terms_name_the_preferred_one() {

@@ -38,10 +38,10 @@ pub fn tune_gated_q(records: &[NavRecord], r_dps2: f64, q_grid: &[f64]) -> Optio
 /// The grid point of `q_grid` with the least mean `score(q, record)` over `records`; ties
 /// go to the smaller `q` (the first). None when the grid or the record set is empty or no
 /// grid point scores a finite value.
-pub fn least_mean(
-    records: &[NavRecord],
+pub fn least_mean<R>(
+    records: &[R],
     q_grid: &[f64],
-    score: impl Fn(f64, &NavRecord) -> f64,
+    score: impl Fn(f64, &R) -> f64,
 ) -> Option<Tuning> {
     if records.is_empty() {
         return None;
