@@ -35,18 +35,25 @@
 //!    learned from a window that failed. A window an external flag calls still is trusted:
 //!    its update is not held back.
 //!
-//! **Power-on.** The first window is presumed still (step 2), so the output does not wait
-//! for it: while it fills, each sample's drift is `h x` updated by the mean of the
-//! window's samples so far (`h P h' / (h P h' + v / n_eff)` times the mean of `rate - h x`
-//! over its `n` samples, `v` the larger of the model's per-sample variance and the samples'
-//! own (a noisier unit, an idling engine), the samples counted as `n_eff = min(n, (pi f
-//! t)^2)` after `t` seconds (a vibration of `f` >= 5 Hz, ASSUMED as for the window length,
-//! is no white noise: a partial cycle's mean keeps more of it), `h P h'` taken at its first
-//! sample; from the 8th sample on), and its window update is shown at once (it stays
-//! undoable: when the second window fails the output returns to the prior). Without it the output held the prior for
-//! two windows, the largest part of e_truth on a static record whose turn-on is far from
-//! the family's mean (`drift_filter_eval` on `scripts/gen_unit_family.py` families,
-//! `docs/drift-filter.md`). An external flag calling the window moving turns it off.
+//! **The window so far.** The output does not wait for a window's end when the window
+//! before it was still (and at power-on, whose window is presumed still): while it fills,
+//! each sample's drift is `h x` updated by the mean of the window's samples so far
+//! (`h P h' / (h P h' + v / n_eff)` times the mean `m` of `rate - h x` over its `n`
+//! samples, `v` the larger of the model's per-sample variance and the samples' own (a
+//! noisier unit, an idling engine), the samples counted as `n_eff = min(n, (pi f t)^2)`
+//! after `t` seconds (a vibration of `f` >= 5 Hz, ASSUMED as for the window length, is no
+//! white noise: a partial cycle's mean keeps more of it), `h P h'` the filter's at the
+//! window's second sample; from the 8th sample on). After power-on the update applies only
+//! while the mean passes the stillness test of the samples so far,
+//! `m^2 < nis_limit (h P h' + v / n_eff)`: the correction is then at most
+//! `sqrt(nis_limit h P h')` (3 sigma of the filter's own drift), whatever the vehicle does;
+//! the start of a turn fails it and leaves `h x`. The power-on window's own update is shown
+//! at once (it stays undoable: when the second window fails the output returns to the
+//! prior); every later window's update is held back (step 3). Without it the output held
+//! the prior for two windows, the largest part of e_truth on a static record whose turn-on
+//! is far from the family's mean, and lagged a window behind at every stop
+//! (`drift_filter_eval` on `scripts/gen_unit_family.py` families, `docs/drift-filter.md`).
+//! An external flag calling the window moving turns it off.
 //!
 //! Output per sample: `drift = h(t, T) x`, clamped to the model's drift bound, and the
 //! compensated rate `rate - drift`. Cost per sample: a few additions and multiplications;
@@ -203,11 +210,11 @@ pub struct DriftFilter {
     warm: [f32; MAX_WARMUP],
     /// The warm-up factors at the start of this window.
     warm_start: [f32; MAX_WARMUP],
-    /// Power-on window only: the sums of `rate - h x` and of its square over its samples
-    /// so far, and `h P h'` of the drift at its first sample (module docs, "Power-on").
-    power_on_resid: f32,
-    power_on_resid_sq: f32,
-    power_on_var: f32,
+    /// The window so far (module docs): the sums of `rate - h x` and of its square over
+    /// its samples so far, and `h P h'` of the drift at its second sample.
+    so_far_resid: f32,
+    so_far_resid_sq: f32,
+    so_far_var: f32,
     /// Last valid temperature minus `T0` (0 before any).
     temp_off: f32,
     /// Previous window's mean temperature offset, and the temperature-rate estimate, C/s.
@@ -218,13 +225,13 @@ pub struct DriftFilter {
     stats: DriftStats,
 }
 
-/// Samples of the power-on window before its mean moves the output (module docs,
-/// "Power-on"): their spread is estimated from them. ASSUMED: 8.
-const POWER_ON_MIN_SAMPLES: u32 = 8;
+/// Samples of a window before its mean so far moves the output (module docs, "The window
+/// so far"): their spread is estimated from them. ASSUMED: 8.
+const SO_FAR_MIN_SAMPLES: u32 = 8;
 
-/// The slowest vibration the power-on window's mean is assumed to average out, Hz (the
-/// window length's assumption: idling vibration > 5 Hz, [`DriftFilterConfig::window_s`]).
-const POWER_ON_VIBRATION_HZ: f32 = 5.0;
+/// The slowest vibration a window's mean so far is assumed to average out, Hz (the window
+/// length's assumption: idling vibration > 5 Hz, [`DriftFilterConfig::window_s`]).
+const SO_FAR_VIBRATION_HZ: f32 = 5.0;
 
 /// Memory of the `R_W` average, windows.
 const R_MEMORY: f32 = 64.0;
@@ -311,9 +318,9 @@ impl DriftFilter {
             ext_moving: false,
             warm: warm_at_power_on,
             warm_start: warm_at_power_on,
-            power_on_resid: 0.0,
-            power_on_resid_sq: 0.0,
-            power_on_var: 0.0,
+            so_far_resid: 0.0,
+            so_far_resid_sq: 0.0,
+            so_far_var: 0.0,
             temp_off: 0.0,
             temp_prev: None,
             temp_rate: 0.0,
@@ -512,8 +519,9 @@ impl DriftFilter {
         }
         let predicted = self.drift_now();
         let power_on = self.stats.windows == 0;
-        let correction = if power_on {
-            self.power_on_correction()
+        let so_far = power_on || self.still;
+        let correction = if so_far {
+            self.so_far_correction(!power_on)
         } else {
             0.0
         };
@@ -529,10 +537,10 @@ impl DriftFilter {
             *s += w;
         }
         self.sum_temp += self.temp_off;
-        if power_on {
+        if so_far {
             let e = rate_dps - predicted;
-            self.power_on_resid += e;
-            self.power_on_resid_sq += e * e;
+            self.so_far_resid += e;
+            self.so_far_resid_sq += e * e;
         }
         match external_still {
             Some(true) => self.ext_still = true,
@@ -553,31 +561,35 @@ impl DriftFilter {
         })
     }
 
-    /// Power-on window only (module docs, "Power-on"): the drift's update by the mean of
-    /// this window's `n` samples so far, `h P h' / (h P h' + v / n_eff) * mean(rate - h x)`,
-    /// `v` the larger of the model's per-sample variance and the samples' own, `n_eff` at
-    /// most `(pi f t)^2` ([`POWER_ON_VIBRATION_HZ`]); 0 for the
-    /// first [`POWER_ON_MIN_SAMPLES`] (`push` adds each sample's `rate - h x` after its
-    /// output), and once an external flag called the window moving.
-    fn power_on_correction(&mut self) -> f32 {
+    /// A window after a still one, or the power-on window (module docs, "The window so
+    /// far"): the drift's update by the mean `m` of this window's `n` samples so far,
+    /// `h P h' / (h P h' + v / n_eff) * m`, `v` the larger of the model's per-sample variance
+    /// and the samples' own, `n_eff` at most `(pi f t)^2` ([`SO_FAR_VIBRATION_HZ`]); when
+    /// `gated`, 0 unless `m^2 < nis_limit (h P h' + v / n_eff)`. 0 for the first
+    /// [`SO_FAR_MIN_SAMPLES`] (`push` adds each sample's `rate - h x` after its output),
+    /// and once an external flag called the window moving.
+    fn so_far_correction(&mut self, gated: bool) -> f32 {
         if self.ext_moving {
             return 0.0;
         }
         let n = self.in_window as f32;
-        if self.in_window == 0 {
+        if self.in_window == 1 {
+            // At the second sample: the first one applied the last window's decision (the
+            // filter's state does not change again within the window); the update and this
+            // `O(81)` product fall on different pushes.
             let mut h = [1.0; STATES];
             h[WARMUP..TEMP].copy_from_slice(&self.warm);
             h[TEMP] = self.temp_off;
             h[TEMP_RATE] = self.temp_rate;
-            self.power_on_var = self.kf.observe_var(&h);
+            self.so_far_var = self.kf.observe_var(&h);
             return 0.0;
         }
-        if self.in_window < POWER_ON_MIN_SAMPLES {
+        if self.in_window < SO_FAR_MIN_SAMPLES {
             return 0.0;
         }
         // The samples' own variance when above the model's (a noisier unit, vibration).
-        let mean = self.power_on_resid / n;
-        let spread = (self.power_on_resid_sq - n * mean * mean) / (n - 1.0);
+        let mean = self.so_far_resid / n;
+        let spread = (self.so_far_resid_sq - n * mean * mean) / (n - 1.0);
         let v = if spread > self.model.sample_var_dps2() {
             spread
         } else {
@@ -587,10 +599,14 @@ impl DriftFilter {
         // up to 1 / (pi f t)^2 of its variance, so the samples count as at most (pi f t)^2
         // with f the slowest vibration the window assumes.
         let t_s = n * self.model.sample_period_s();
-        let x = core::f32::consts::PI * POWER_ON_VIBRATION_HZ * t_s;
+        let x = core::f32::consts::PI * SO_FAR_VIBRATION_HZ * t_s;
         let n_eff = if x * x < n { x * x } else { n };
-        let s = self.power_on_var;
-        s / (s + v / n_eff) * mean
+        let s = self.so_far_var;
+        let innovation_var = s + v / n_eff;
+        if gated && mean * mean >= self.cfg.nis_limit * innovation_var {
+            return 0.0;
+        }
+        s / innovation_var * mean
     }
 
     fn end_window(&mut self, half: u32) {
@@ -662,6 +678,8 @@ impl DriftFilter {
         self.sum_warm = [0.0; MAX_WARMUP];
         self.sum_temp = 0.0;
         self.in_window = 0;
+        self.so_far_resid = 0.0;
+        self.so_far_resid_sq = 0.0;
         self.ext_still = false;
         self.ext_moving = false;
         // The warm-up factors of the next window: the last window's start times one
@@ -750,7 +768,7 @@ mod tests {
     #[test]
     fn vibration_at_power_on_does_not_move_the_output() {
         // 1 kHz, an idling engine's 20 Hz at 0.1 deg/s from the first sample, no bias: a
-        // partial cycle's mean is no white-noise mean (module docs, "Power-on").
+        // partial cycle's mean is no white-noise mean (module docs, "The window so far").
         let mut m = ecore_like();
         m.sample_rate_hz = 1000.0;
         let mut f = DriftFilter::new(m, DriftFilterConfig::default()).expect("test");
@@ -763,6 +781,28 @@ mod tests {
         }
         // 6.9 deg/h; the samples counted as white (every sample one): 150.
         assert!(worst < 15.0 / 3600.0, "{} deg/h", worst * 3600.0);
+    }
+
+    #[test]
+    fn a_turn_after_a_stop_fails_the_window_so_far() {
+        // Noise-free at 10 deg/h for 60 s (a converged level), then 0.5 deg/s from a
+        // window's first sample: the window so far follows the window after a still one,
+        // but the turn's mean fails its test from the first samples on (module docs, "The
+        // window so far"); without the test the output would take k * 0.5 deg/s.
+        let m = ecore_like();
+        let mut f = DriftFilter::new(m, DriftFilterConfig::default()).expect("test");
+        let w = f.window_samples() as usize;
+        let bias = 10.0f32 / 3600.0;
+        let mut before = 0.0;
+        for _ in 0..(30 * w) {
+            before = f.push(bias, 25.0, None).expect("test").drift_dps;
+        }
+        let mut worst: f32 = 0.0;
+        for _ in 0..(10 * w) {
+            let o = f.push(bias + 0.5, 25.0, None).expect("test");
+            worst = worst.max((o.drift_dps - before).abs());
+        }
+        assert!(worst < 0.5 / 3600.0, "{} deg/h", worst * 3600.0);
     }
 
     #[test]
