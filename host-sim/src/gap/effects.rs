@@ -462,6 +462,9 @@ pub struct FitCtx<'a> {
     pub spike_size_dps: f64,
     /// Missing slots on the fit blocks: real, median of the baseline simulations.
     pub missing: (f64, f64),
+    /// Missing slots in the whole record: real, each baseline simulation's (the `dropouts`
+    /// check, [`super::check`]).
+    pub missing_all: (f64, Vec<f64>),
     /// Sizes from the passed count tests on the whole record, for a `spikes` or `dropouts`
     /// candidate whose fit on the fit blocks finds none ([`CountSizes`]).
     pub count_sizes: CountSizes,
@@ -1885,6 +1888,7 @@ mod tests {
             spikes: (0.0, 0.0),
             spike_size_dps: 0.0,
             missing: (0.0, 0.0),
+            missing_all: (0.0, Vec::new()),
             count_sizes: CountSizes::default(),
             bursty: false,
             avar_ln_sd: vec![0.1; layout.ms.len()],

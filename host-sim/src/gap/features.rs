@@ -105,6 +105,10 @@ pub fn drift_pairs(sel: &[bool]) -> Vec<DriftBin> {
 }
 
 /// What a feature is, with the range of tau (s), frequency (Hz) or time (s) it covers.
+/// Floor of a count feature's spread: one event (a count's spread is at least
+/// `sqrt(max(median, 1))`, the Poisson spread of a mean of at least 1).
+pub const COUNT_SD_FLOOR: f64 = 1.0;
+
 #[derive(Debug, Clone, Serialize)]
 pub struct Def {
     /// Group.
@@ -113,9 +117,9 @@ pub struct Def {
     pub label: String,
     /// Range covered: tau_s, freq_hz or time_s (none for the distribution).
     pub range: Option<(f64, f64)>,
-    /// Smallest spread used to normalise it (counts: Poisson, see `spread`).
+    /// Smallest spread used to normalise it (a count: beside its Poisson floor).
     pub floor: f64,
-    /// A count (spread at least sqrt(max(median, 1))).
+    /// A count (spread at least the larger of `sqrt(median)` and `floor`).
     pub count: bool,
 }
 
@@ -289,11 +293,11 @@ impl Layout {
             count,
         };
         d.push(dist("excess_kurtosis", 0.01, false));
-        d.push(dist("count_beyond_5sigma", 0.0, true));
-        d.push(dist("count_beyond_10sigma", 0.0, true));
+        d.push(dist("count_beyond_5sigma", COUNT_SD_FLOOR, true));
+        d.push(dist("count_beyond_10sigma", COUNT_SD_FLOOR, true));
         d.push(dist("ks_distance_to_normal", 0.001, false));
         d.push(dist("distinct_fraction_ln", 0.01, false));
-        d.push(dist("missing_slots", 0.0, true));
+        d.push(dist("missing_slots", COUNT_SD_FLOOR, true));
         let l = self.t_total_s / BLOCKS as f64;
         for ((lo, hi), _) in drift_pairs(sel) {
             d.push(Def {
@@ -673,7 +677,7 @@ fn stats_raw(defs: &[Def], sims: &[&Vec<f64>]) -> Vec<(f64, f64)> {
                 0.0
             };
             let floor = if defs[j].count {
-                med.max(1.0).sqrt()
+                med.max(0.0).sqrt().max(defs[j].floor)
             } else {
                 defs[j].floor
             };

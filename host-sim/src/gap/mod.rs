@@ -451,7 +451,7 @@ pub struct Diagnosis {
     pub curves: Curves,
 }
 
-const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --gyro) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2; a candidate whose dedicated test passed and that adds a signal or counts outliers or missing slots also has its held-out check (heldout_check_z: the held-out blocks' projection on its signal fitted on the fit blocks, or its held-out count) as a group of its own in its gap_before, gap_after and null shrink. An effect is named only when its shrink (1 - gap_after/gap_before) > 0 and > null_shrink_95, the 95 % quantile of the shrink its simulations give the baseline's own simulations each taken as the record (a record without the effect). One whose dedicated test passed needs nothing more (the test is its significance); any other (the gap rule) also needs gap_before > 1.5 x null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others). A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
+const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --gyro) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2; a candidate whose dedicated test passed and that adds a signal or counts outliers or missing slots also has its held-out check (heldout_check_z: the held-out blocks' projection on its signal fitted on the fit blocks, or its held-out count; for dropouts the whole record's missing slots, each half held out once: read from the time stamps, nothing fitted moves them) as a group of its own in its gap_before, gap_after and null shrink. An effect is named only when its shrink (1 - gap_after/gap_before) > 0 and > null_shrink_95, the 95 % quantile of the shrink its simulations give the baseline's own simulations each taken as the record (a record without the effect). One whose dedicated test passed needs nothing more (the test is its significance); any other (the gap rule) also needs gap_before > 1.5 x null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others). A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
 
 /// Per-simulation summary.
 struct SimOut {
@@ -1137,6 +1137,10 @@ fn fit_ctx<'a>(
             effects::missing_slots(&real.t_s, fit_ranges, real.dt_s),
             features::median(&sims.missing),
         ),
+        missing_all: (
+            effects::missing_slots(&real.t_s, &[(0, real.t_s.len())], real.dt_s),
+            sims.missing_all.clone(),
+        ),
         count_sizes: count_sizes(s, &tests.all),
         bursty,
         joint_markov: if s.plain_fit {
@@ -1287,8 +1291,18 @@ fn score_candidates(
                     ..Default::default()
                 });
                 let mut outs = Vec::new();
+                // `dropouts`: each simulation's missing slots in the whole record (module
+                // `check`).
+                let mut missing_all = Vec::new();
                 for &seed in &s.seeds {
                     let sim = spec.simulate(&s.resid, seed, s.g_base)?;
+                    if e == Effect::Dropouts {
+                        missing_all.push(effects::missing_slots(
+                            &sim.t,
+                            &[(0, sim.t.len())],
+                            ctx.real.dt_s,
+                        ));
+                    }
                     if let (Some(p), Some(sig)) = (proj.as_mut(), signal.as_ref()) {
                         // The signal at the simulation's samples (its times may differ).
                         let own = check::signal_at_each(&ctx.real.t_s, sig, &sim.t);
@@ -1299,17 +1313,29 @@ fn score_candidates(
                     outs.push(analyse(&s.layout, &sim, &s.split.score, None, fft));
                 }
                 let mut cand_scores: Vec<Vec<f64>> = outs.iter().map(|o| o.score.clone()).collect();
-                // A passed count test's candidate: its held-out count as the check.
+                // A passed count test's candidate: its held-out count as the check, the
+                // whole record's for `dropouts` (module `check`).
                 let counted = e
                     .count_feature()
                     .filter(|_| ctx.passed.contains(&e))
                     .and_then(|l| s.defs_score.iter().position(|d| d.label == l));
+                let mut count_floor = None;
                 if let (None, Some(i)) = (&proj, counted) {
                     let col = |v: &[Vec<f64>]| v.iter().map(|x| x[i]).collect();
-                    proj = Some(check::Projections {
-                        real: real_score[i],
-                        cand: col(&cand_scores),
-                        noise: col(base_scores),
+                    proj = Some(if e == Effect::Dropouts {
+                        count_floor = Some(evidence::DROPOUT_SD_FLOOR);
+                        check::Projections {
+                            real: ctx.missing_all.0,
+                            cand: missing_all,
+                            noise: ctx.missing_all.1.clone(),
+                        }
+                    } else {
+                        count_floor = Some(features::COUNT_SD_FLOOR);
+                        check::Projections {
+                            real: real_score[i],
+                            cand: col(&cand_scores),
+                            noise: col(base_scores),
+                        }
                     });
                 }
                 // With the check, one more column (the last) in every score vector.
@@ -1317,7 +1343,7 @@ fn score_candidates(
                 let mut real_c = std::borrow::Cow::Borrowed(real_score);
                 let mut base_c = std::borrow::Cow::Borrowed(base_scores);
                 if let Some(p) = &proj {
-                    defs.to_mut().push(check::def(counted.is_some()));
+                    defs.to_mut().push(check::def(count_floor));
                     real_c.to_mut().push(p.real);
                     for (v, x) in base_c.to_mut().iter_mut().zip(&p.noise) {
                         v.push(*x);
