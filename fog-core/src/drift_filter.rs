@@ -30,28 +30,32 @@
 //!    from the second;
 //! 3. a still window updates the filter; the update is held back one window (but the
 //!    power-on window's, below): the output uses the state before it until the next window
-//!    passes, and when the next window fails
+//!    passes (or while the next window's samples so far pass the test, below), and when
+//!    the next window fails
 //!    the filter returns to that state (one checkpoint, written once per window). Nothing is
 //!    learned from a window that failed. A window an external flag calls still is trusted:
 //!    its update is not held back.
 //!
 //! **The window so far.** The output does not wait for a window's end when the window
 //! before it was still (and at power-on, whose window is presumed still): while it fills,
-//! each sample's drift is `h x` updated by the mean of the window's samples so far
+//! each sample's drift is the filter's own `h x` (the last window's update included, which
+//! step 3 holds back) updated by the mean of the window's samples so far
 //! (`h P h' / (h P h' + v / n_eff)` times the mean `m` of `rate - h x` over its `n`
 //! samples, `v` the larger of the model's per-sample variance and the samples' own (a
-//! noisier unit, an idling engine), the samples counted as `n_eff = min(n, (pi f t)^2)`
-//! after `t` seconds (a vibration of `f` >= 5 Hz, ASSUMED as for the window length, is no
-//! white noise: a partial cycle's mean keeps more of it), `h P h'` the filter's at the
-//! window's second sample; from the 8th sample on). After power-on the update applies only
-//! while the mean passes the stillness test of the samples so far,
-//! `m^2 < nis_limit (h P h' + v / n_eff)`: the correction is then at most
-//! `sqrt(nis_limit h P h')` (3 sigma of the filter's own drift), whatever the vehicle does;
-//! the start of a turn fails it and leaves `h x`. The power-on window's own update is shown
-//! at once (it stays undoable: when the second window fails the output returns to the
-//! prior); every later window's update is held back (step 3). Without it the output held
-//! the prior for two windows, the largest part of e_truth on a static record whose turn-on
-//! is far from the family's mean, and lagged a window behind at every stop
+//! noisier unit, an idling engine),
+//! the samples counted as `n_eff = min(n, (pi f t)^2)` after `t` seconds (a vibration of
+//! `f` >= 5 Hz, ASSUMED as for the window length, is no white noise: a partial cycle's mean
+//! keeps more of it), `h P h'` the filter's at the window's second sample; from the 8th
+//! sample on; before it the held-back state's `h x`). After power-on both apply only while
+//! the mean passes the stillness test of the samples so far,
+//! `m^2 < nis_limit (h P h' + v / n_eff)`: the output is then at most the held-back update
+//! plus `sqrt(nis_limit h P h')` (3 sigma of the filter's own drift) from the held-back
+//! state, whatever the vehicle does; the start of a turn fails the test and returns the
+//! output to the held-back state, and the held-back update is still undone when the window
+//! fails. The power-on window's own update is shown at once (it stays undoable: when the
+//! second window fails the output returns to the prior). Without it the output held the
+//! prior for two windows, the largest part of e_truth on a static record whose turn-on is
+//! far from the family's mean, and lagged two windows behind at every stop
 //! (`drift_filter_eval` on `scripts/gen_unit_family.py` families, `docs/drift-filter.md`).
 //! An external flag calling the window moving turns it off.
 //!
@@ -452,12 +456,21 @@ impl DriftFilter {
 
     /// The drift at the next sample (deg/s, unclamped).
     fn drift_now(&self) -> f32 {
-        let x = &self.out_x;
-        let mut d = self.out_const;
+        self.drift_at(self.out_const, &self.out_x)
+    }
+
+    /// The drift at the next sample of state `x` whose constant part is `x_const`.
+    fn drift_at(&self, x_const: f32, x: &[f32; STATES]) -> f32 {
+        let mut d = x_const;
         for (a, w) in x[WARMUP..TEMP].iter().zip(&self.warm) {
             d += a * w;
         }
         d + x[TEMP] * self.temp_off + x[TEMP_RATE] * self.temp_rate
+    }
+
+    /// The drift at the next sample of state `x` (deg/s, unclamped).
+    fn drift_of(&self, x: &[f32; STATES]) -> f32 {
+        self.drift_at(Self::const_part(x), x)
     }
 
     /// Applies the last window's decision (module docs: the second half of its work).
@@ -520,12 +533,22 @@ impl DriftFilter {
         let predicted = self.drift_now();
         let power_on = self.stats.windows == 0;
         let so_far = power_on || self.still;
-        let correction = if so_far {
-            self.so_far_correction(!power_on)
+        let drift = if so_far {
+            // The filter's own state, the held-back update included (module docs, "The
+            // window so far").
+            let own = if self.pending {
+                self.drift_of(self.kf.x())
+            } else {
+                predicted
+            };
+            match self.so_far_correction(own - predicted, !power_on) {
+                Some(c) => own + c,
+                None => predicted,
+            }
         } else {
-            0.0
+            predicted
         };
-        let drift = self.model.clamp_drift(predicted + correction);
+        let drift = self.model.clamp_drift(drift);
         // The window's sums (the sample's own h before the warm-up factor moves on).
         let half = self.built.samples_per_window / 2;
         if self.in_window < half {
@@ -562,15 +585,17 @@ impl DriftFilter {
     }
 
     /// A window after a still one, or the power-on window (module docs, "The window so
-    /// far"): the drift's update by the mean `m` of this window's `n` samples so far,
-    /// `h P h' / (h P h' + v / n_eff) * m`, `v` the larger of the model's per-sample variance
-    /// and the samples' own, `n_eff` at most `(pi f t)^2` ([`SO_FAR_VIBRATION_HZ`]); when
-    /// `gated`, 0 unless `m^2 < nis_limit (h P h' + v / n_eff)`. 0 for the first
-    /// [`SO_FAR_MIN_SAMPLES`] (`push` adds each sample's `rate - h x` after its output),
-    /// and once an external flag called the window moving.
-    fn so_far_correction(&mut self, gated: bool) -> f32 {
+    /// far"): the update of the filter's own drift by the mean `m` of this window's `n`
+    /// samples so far, `m` taken against that drift (`shift`: it less the held-back output's
+    /// drift, against which `push` sums the samples), `h P h' / (h P h' + v / n_eff) * m`,
+    /// `v` the larger of the model's per-sample variance and the samples' own, `n_eff` at
+    /// most `(pi f t)^2` ([`SO_FAR_VIBRATION_HZ`]). `None` (the output keeps the held-back
+    /// state) for the first [`SO_FAR_MIN_SAMPLES`] (`push` adds each sample's residual after
+    /// its output), once an external flag called the window moving, and, when `gated`,
+    /// unless `m^2 < nis_limit (h P h' + v / n_eff)`.
+    fn so_far_correction(&mut self, shift: f32, gated: bool) -> Option<f32> {
         if self.ext_moving {
-            return 0.0;
+            return None;
         }
         let n = self.in_window as f32;
         if self.in_window == 1 {
@@ -582,14 +607,13 @@ impl DriftFilter {
             h[TEMP] = self.temp_off;
             h[TEMP_RATE] = self.temp_rate;
             self.so_far_var = self.kf.observe_var(&h);
-            return 0.0;
         }
         if self.in_window < SO_FAR_MIN_SAMPLES {
-            return 0.0;
+            return None;
         }
         // The samples' own variance when above the model's (a noisier unit, vibration).
-        let mean = self.so_far_resid / n;
-        let spread = (self.so_far_resid_sq - n * mean * mean) / (n - 1.0);
+        let mean_held = self.so_far_resid / n;
+        let spread = (self.so_far_resid_sq - n * mean_held * mean_held) / (n - 1.0);
         let v = if spread > self.model.sample_var_dps2() {
             spread
         } else {
@@ -603,10 +627,11 @@ impl DriftFilter {
         let n_eff = if x * x < n { x * x } else { n };
         let s = self.so_far_var;
         let innovation_var = s + v / n_eff;
+        let mean = mean_held - shift;
         if gated && mean * mean >= self.cfg.nis_limit * innovation_var {
-            return 0.0;
+            return None;
         }
-        s / innovation_var * mean
+        Some(s / innovation_var * mean)
     }
 
     fn end_window(&mut self, half: u32) {
