@@ -27,6 +27,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
+use fog_core::kalman::{DiagonalModel, Kalman};
 use host_sim::demo::{family_model, samples, VEHICLE_SEED, VEHICLE_UNIT};
 use host_sim::nav::{self, NavRecord};
 use host_sim::sim::{flicker_times_s, flicker_unit_var, realize};
@@ -51,44 +52,12 @@ struct Args {
     vehicles: u64,
 }
 
-/// A diagonal-transition Kalman filter over `n` states whose sum is observed.
-struct SumFilter {
-    phi: Vec<f64>,
-    q: Vec<f64>,
-    x: Vec<f64>,
-    p: Vec<Vec<f64>>,
-}
+/// States of the exact model's filter at most: the turn-on, the flicker bank's processes,
+/// the rate random walk, the Gauss-Markov term (absent ones stay 0: no variance, no noise).
+const MAX_STATES: usize = 24;
 
-impl SumFilter {
-    fn predict(&mut self) {
-        for (i, row) in self.p.iter_mut().enumerate() {
-            for (pij, fj) in row.iter_mut().zip(&self.phi) {
-                *pij *= self.phi[i] * fj;
-            }
-            row[i] += self.q[i];
-        }
-        for (x, f) in self.x.iter_mut().zip(&self.phi) {
-            *x *= f;
-        }
-    }
-
-    fn update(&mut self, z: f64, r: f64) {
-        let ph: Vec<f64> = self.p.iter().map(|row| row.iter().sum()).collect();
-        let s: f64 = ph.iter().sum::<f64>() + r;
-        let innov = z - self.x.iter().sum::<f64>();
-        for ((x, row), phi) in self.x.iter_mut().zip(self.p.iter_mut()).zip(&ph) {
-            let k = phi / s;
-            *x += k * innov;
-            for (pij, phj) in row.iter_mut().zip(&ph) {
-                *pij -= k * phj;
-            }
-        }
-    }
-
-    fn sum(&self) -> f64 {
-        self.x.iter().sum()
-    }
-}
+/// Every state observed with weight 1: the drift is their sum.
+const SUM: [f64; MAX_STATES] = [1.0; MAX_STATES];
 
 fn main() -> Result<()> {
     let args = Args::parse();
@@ -160,25 +129,26 @@ fn main() -> Result<()> {
             q.push(n.gm_sigma_dps.powi(2) * (1.0 - f * f));
             p0.push(n.gm_sigma_dps.powi(2));
         }
-        let k = phi.len();
-        let mut p = vec![vec![0.0; k]; k];
-        for (j, v) in p0.iter().enumerate() {
-            p[j][j] = *v;
+        if phi.len() > MAX_STATES {
+            bail!("vehicle {i}: {} states, at most {MAX_STATES}", phi.len());
         }
-        let mut kf = SumFilter {
-            phi,
-            q,
-            x: vec![0.0; k],
-            p,
+        let mut model_k = DiagonalModel {
+            phi: [1.0; MAX_STATES],
+            q: [0.0; MAX_STATES],
         };
+        let mut p0_k = [0.0; MAX_STATES];
+        model_k.phi[..phi.len()].copy_from_slice(&phi);
+        model_k.q[..q.len()].copy_from_slice(&q);
+        p0_k[..p0.len()].copy_from_slice(&p0);
+        let mut kf = Kalman::new([0.0; MAX_STATES], p0_k);
         let r = n.arw_dps_per_rthz.powi(2) / dt + m.quantization.quantum_dps.powi(2) / 12.0;
         let mut est = Vec::with_capacity(full.len());
         for (a, d) in full.iter().zip(&det_s) {
-            kf.predict();
+            kf.predict(&model_k);
             if !a.moving {
-                kf.update(a.rate_dps - a.true_rate_dps - d.drift_dps, r);
+                kf.update(&SUM, a.rate_dps - a.true_rate_dps - d.drift_dps, r);
             }
-            est.push(d.drift_dps + kf.sum());
+            est.push(d.drift_dps + kf.observe(&SUM));
         }
         let rec = NavRecord::from_samples(&full);
         let sc = nav::score_drift(&rec, &est);
@@ -186,19 +156,18 @@ fn main() -> Result<()> {
         limit.push(h);
         e_limit.push(sc.e_truth_dph.unwrap_or(f64::NAN));
         // The random walk of the demo's baseline q on the same measurements.
-        let mut rw = SumFilter {
-            phi: vec![1.0],
-            q: vec![RW_Q_DPS2],
-            x: vec![0.0],
-            p: vec![vec![RW_P0_DPS2]],
+        let walk_model = DiagonalModel {
+            phi: [1.0],
+            q: [RW_Q_DPS2],
         };
+        let mut rw = Kalman::new([0.0], [RW_P0_DPS2]);
         let mut rw_est = Vec::with_capacity(full.len());
         for a in &full {
-            rw.predict();
+            rw.predict(&walk_model);
             if !a.moving {
-                rw.update(a.rate_dps - a.true_rate_dps, RW_R_DPS2);
+                rw.update(&[1.0], a.rate_dps - a.true_rate_dps, RW_R_DPS2);
             }
-            rw_est.push(rw.sum());
+            rw_est.push(rw.x()[0]);
         }
         let sc_rw = nav::score_drift(&rec, &rw_est);
         let h_rw = sc_rw.heading_rms_deg;
