@@ -189,8 +189,10 @@ pub struct DriftFilter {
     kf: Kalman<STATES>,
     /// The state before the last still window's update (module docs, step 3).
     checkpoint: Kalman<STATES>,
+    /// The last still window's update is held back (module docs, step 3).
     pending: bool,
-    /// The state the output uses: the filter's without the pending update.
+    /// The held-back state: the filter's without the pending update, which the output uses
+    /// but while a window so far passes its test (module docs, "The window so far").
     out_x: [f32; STATES],
     /// `sum` of `out_x`'s level and Gauss-Markov terms (the drift's window-constant part).
     out_const: f32,
