@@ -42,10 +42,9 @@
 //! step 3 holds back) updated by the mean of the window's samples so far
 //! (`h P h' / (h P h' + v / n_eff)` times the mean `m` of `rate - h x` over its `n`
 //! samples, `v` the larger of the model's per-sample variance and the samples' own (a
-//! noisier unit, an idling engine),
-//! the samples counted as `n_eff = min(n, (pi f t)^2)` after `t` seconds (a vibration of
-//! `f` >= 5 Hz, ASSUMED as for the window length, is no white noise: a partial cycle's mean
-//! keeps more of it), `h P h'` the filter's at the window's second sample; from the 8th
+//! noisier unit, an idling engine), the samples counted as `n_eff = min(n, (pi f t)^2)`
+//! after `t` seconds (a vibration of `f` >= 5 Hz, ASSUMED as for the window length, is no
+//! white noise: a partial cycle's mean keeps more of it), `h P h'` the filter's at the window's second sample; from the 8th
 //! sample on; before it the held-back state's `h x`). After power-on both apply only while
 //! the mean passes the stillness test of the samples so far,
 //! `m^2 < nis_limit (h P h' + v / n_eff)`: the output is then at most the held-back update

@@ -970,6 +970,9 @@ struct Tests {
     markov: Option<whittle::MarkovTest>,
     /// The line's frequency, Hz, when the sinusoid test passed.
     line_hz: Option<f64>,
+    /// The real record's missing sample slots over the whole record (the dropouts test's
+    /// statistic, also when the test is not run).
+    missing_all: f64,
 }
 
 /// The rate less the model's own ramp and warm-up, deg/s: the drift tests look for drift
@@ -1046,6 +1049,7 @@ fn dedicated_tests(s: &Setup, sims: &BaseSims, bursty: bool, o: &Options) -> Tes
         drift: drift_tests,
         markov: markov_test,
         line_hz,
+        missing_all: real_missing_all,
     }
 }
 
@@ -1137,10 +1141,7 @@ fn fit_ctx<'a>(
             effects::missing_slots(&real.t_s, fit_ranges, real.dt_s),
             features::median(&sims.missing),
         ),
-        missing_all: (
-            effects::missing_slots(&real.t_s, &[(0, real.t_s.len())], real.dt_s),
-            sims.missing_all.clone(),
-        ),
+        missing_all: (tests.missing_all, sims.missing_all.clone()),
         count_sizes: count_sizes(s, &tests.all),
         bursty,
         joint_markov: if s.plain_fit {
@@ -1291,12 +1292,13 @@ fn score_candidates(
                     ..Default::default()
                 });
                 let mut outs = Vec::new();
-                // `dropouts`: each simulation's missing slots in the whole record (module
-                // `check`).
+                // `dropouts` whose test passed: each simulation's missing slots in the whole
+                // record (its check, module `check`).
+                let count_all = e == Effect::Dropouts && ctx.passed.contains(&e);
                 let mut missing_all = Vec::new();
                 for &seed in &s.seeds {
                     let sim = spec.simulate(&s.resid, seed, s.g_base)?;
-                    if e == Effect::Dropouts {
+                    if count_all {
                         missing_all.push(effects::missing_slots(
                             &sim.t,
                             &[(0, sim.t.len())],
@@ -1322,21 +1324,23 @@ fn score_candidates(
                 let mut count_floor = None;
                 if let (None, Some(i)) = (&proj, counted) {
                     let col = |v: &[Vec<f64>]| v.iter().map(|x| x[i]).collect();
-                    proj = Some(if e == Effect::Dropouts {
-                        count_floor = Some(evidence::DROPOUT_SD_FLOOR);
-                        check::Projections {
+                    let (p, floor) = if count_all {
+                        let p = check::Projections {
                             real: ctx.missing_all.0,
                             cand: missing_all,
                             noise: ctx.missing_all.1.clone(),
-                        }
+                        };
+                        (p, evidence::DROPOUT_SD_FLOOR)
                     } else {
-                        count_floor = Some(features::COUNT_SD_FLOOR);
-                        check::Projections {
+                        let p = check::Projections {
                             real: real_score[i],
                             cand: col(&cand_scores),
                             noise: col(base_scores),
-                        }
-                    });
+                        };
+                        (p, features::COUNT_SD_FLOOR)
+                    };
+                    proj = Some(p);
+                    count_floor = Some(floor);
                 }
                 // With the check, one more column (the last) in every score vector.
                 let mut defs = std::borrow::Cow::Borrowed(&s.defs_score[..]);
