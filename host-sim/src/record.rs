@@ -253,11 +253,78 @@ impl std::io::Read for GzFile {
     }
 }
 
+/// The input of [`Rows`], numbering the lines as the CSV reader pulls bytes through. The
+/// `csv` crate ends a record at `\n`, `\r\n` and a lone `\r` alike, but its
+/// `Position::line` advances on `\n` only (after a lone `\r` two records share a line), and
+/// its position of a record is where the previous one's terminator began: blank lines
+/// before the record are not counted. Here a line break is a `\r`, or a `\n` not right
+/// after a `\r` (a `\r\n` counts once, also across two reads), and a record's line is the
+/// line of its first byte: the first byte at or after the crate's position that is not a
+/// line break. Kept: the offset and line of each line whose first byte follows a break,
+/// dropped once a query passes them (queries come in increasing offset order; the reader
+/// reads ahead one buffer, so at most one buffer's lines are held).
+struct LineBreaks<R> {
+    inner: R,
+    /// Bytes pulled through so far.
+    read: u64,
+    /// Line breaks pulled through so far.
+    breaks: u64,
+    /// The last byte pulled through was `\r`.
+    after_cr: bool,
+    /// The last byte pulled through was a line break (or there was none).
+    after_break: bool,
+    /// `(offset, line)` of the first byte of each line not yet passed by a query.
+    starts: std::collections::VecDeque<(u64, u64)>,
+}
+
+impl<R> LineBreaks<R> {
+    fn new(inner: R) -> Self {
+        Self {
+            inner,
+            read: 0,
+            breaks: 0,
+            after_cr: false,
+            after_break: true,
+            starts: std::collections::VecDeque::new(),
+        }
+    }
+
+    /// The 1-based line of the first byte at or after offset `byte` that is not a line
+    /// break (the line after the last break when there is none yet).
+    fn line_of(&mut self, byte: u64) -> u64 {
+        while self.starts.front().is_some_and(|&(at, _)| at < byte) {
+            self.starts.pop_front();
+        }
+        self.starts
+            .front()
+            .map_or(self.breaks + 1, |&(_, line)| line)
+    }
+}
+
+impl<R: std::io::Read> std::io::Read for LineBreaks<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        for (i, &b) in buf.iter().take(n).enumerate() {
+            let is_break = b == b'\r' || b == b'\n';
+            if b == b'\r' || (b == b'\n' && !self.after_cr) {
+                self.breaks += 1;
+            } else if !is_break && self.after_break {
+                self.starts
+                    .push_back((self.read + i as u64, self.breaks + 1));
+            }
+            self.after_cr = b == b'\r';
+            self.after_break = is_break;
+        }
+        self.read += n as u64;
+        Ok(n)
+    }
+}
+
 /// A record read row by row: every row validated (finite numbers, `t_s` strictly
 /// increasing) as it comes.
 pub struct Rows<R: std::io::Read> {
     name: String,
-    rdr: csv::Reader<R>,
+    rdr: csv::Reader<LineBreaks<R>>,
     header: csv::StringRecord,
     cols: Columns,
     rate_column: String,
@@ -276,7 +343,7 @@ impl<R: std::io::Read> Rows<R> {
         }
         let mut rdr = csv::ReaderBuilder::new()
             .has_headers(true)
-            .from_reader(input);
+            .from_reader(LineBreaks::new(input));
         let header = rdr
             .headers()
             .map_err(|e| anyhow!("{name}:1: cannot read the header: {e}"))?
@@ -335,22 +402,41 @@ impl<R: std::io::Read> Rows<R> {
     /// The next row; `None` at the end of the file.
     pub fn next_row(&mut self) -> Result<Option<Row>> {
         let name = &self.name;
-        let reached = self.rdr.position().line();
-        let more = self.rdr.read_record(&mut self.rec).map_err(|e| match e.kind() {
-            // A read error has no position of its own: the line the reader had reached.
-            csv::ErrorKind::Io(io) => {
-                anyhow!("{name}:{reached}: read error at line {reached} (the lines before it were read): {io}")
+        let reached = self.rdr.position().byte();
+        let more = match self.rdr.read_record(&mut self.rec) {
+            Ok(more) => more,
+            Err(e) => {
+                let at = e.position().map_or(reached, |p| p.byte());
+                let line = self.rdr.get_mut().line_of(at);
+                // The csv error's own text would name its line as the crate counts them
+                // (`\n` only): the kinds a data row can raise are worded here.
+                return Err(match e.kind() {
+                    // A read error has no position of its own: the line the reader had reached.
+                    csv::ErrorKind::Io(io) => anyhow!(
+                        "{name}:{line}: read error at line {line} (the lines before it were read): {io}"
+                    ),
+                    csv::ErrorKind::UnequalLengths {
+                        expected_len, len, ..
+                    } => anyhow!(
+                        "{name}:{line}: the row has {len} fields, the header {expected_len}"
+                    ),
+                    csv::ErrorKind::Utf8 { err, .. } => anyhow!(
+                        "{name}:{line}: field {} is not valid UTF-8 (its byte {})",
+                        err.field() + 1,
+                        err.valid_up_to()
+                    ),
+                    _ => anyhow!("{name}:{line}: {e}"),
+                });
             }
-            _ => {
-                let line = e.position().map_or(reached, |p| p.line());
-                anyhow!("{name}:{line}: {e}")
-            }
-        })?;
+        };
         if !more {
             return Ok(None);
         }
         let rec = &self.rec;
-        let line = rec.position().map_or(self.index + 2, |p| p.line());
+        let line = match rec.position() {
+            Some(p) => self.rdr.get_mut().line_of(p.byte()),
+            None => self.index + 2,
+        };
         let num = |c: usize, what: &str| field(name, rec, c, what, line, true);
         let c = &self.cols;
         let t = match c.t_s {
@@ -468,7 +554,7 @@ pub struct Record {
     /// The external still flag per row (`None` where the cell is empty).
     pub still: Option<Vec<Option<bool>>>,
     /// `(row, line)` wherever a row's line is not the previous row's plus one (blank or
-    /// multi-line rows before it): [`Record::line`] without [`ReadOptions::keep_rows`].
+    /// multi-line rows before it): [`Record::line`].
     line_jumps: Vec<(usize, u64)>,
 }
 
@@ -724,11 +810,8 @@ impl Record {
         self.holes().period_s()
     }
 
-    /// Line of data row `i` (header = 1).
+    /// Line of data row `i` (header = 1), as [`Rows`] counts them (a lone `\r` ends a line).
     pub fn line(&self, i: usize) -> u64 {
-        if let Some(p) = self.rows.get(i).and_then(|r| r.position()) {
-            return p.line();
-        }
         let k = self.line_jumps.partition_point(|&(row, _)| row <= i);
         match k.checked_sub(1).map(|k| self.line_jumps[k]) {
             Some((row, line)) => line + (i - row) as u64,
@@ -1014,8 +1097,7 @@ mod tests {
         while let Some(row) = rows.next_row().expect("row") {
             lines.push(row.line);
         }
-        assert_eq!(lines.len(), 5);
-        assert_ne!(lines[4], 6, "blank lines are counted");
+        assert_eq!(lines, [2, 4, 5, 8, 9], "blank lines are counted");
         for keep_rows in [false, true] {
             let opts = ReadOptions {
                 keep_rows,
@@ -1027,6 +1109,68 @@ mod tests {
             let g = h.largest.expect("gap");
             assert_eq!((h.count, h.samples_missing), (1, 2));
             assert_eq!((g.start_line, g.line), (lines[2], lines[3]));
+        }
+    }
+
+    /// A lone `\r` ends a line as it ends a record (the `csv` crate counts `\n` only): each
+    /// row its own line, `\r\n` once, a gap across a lone `\r` between two lines, an
+    /// error after one at its own line (the fuzz target's crash of 2026-11-30).
+    #[test]
+    fn a_lone_carriage_return_ends_a_line() {
+        let d = ReadOptions::default();
+        let lines = |text: &str| -> Vec<u64> {
+            let mut rows = Rows::new("r.csv", text.as_bytes(), &d).expect("header");
+            let mut v = Vec::new();
+            while let Some(row) = rows.next_row().expect("row") {
+                v.push(row.line);
+            }
+            v
+        };
+        assert_eq!(lines("t_s,rate_dps\r0,1\r0.1,1\r0.2,1\r"), [2, 3, 4]);
+        assert_eq!(lines("t_s,rate_dps\r\n0,1\r\n0.1,1\r\n"), [2, 3]);
+        assert_eq!(
+            lines("t_s,rate_dps\n0,1\n0.1,1\r0.5,1\r\n\r\n0.6,1"),
+            [2, 3, 4, 6]
+        );
+        assert_eq!(
+            lines("t_s,rate_dps\n0,1\n\n\n1,2\r\n\r\n2,3\r\r3,4\n"),
+            [2, 5, 7, 9]
+        );
+        for keep_rows in [false, true] {
+            let opts = ReadOptions {
+                keep_rows,
+                ..ReadOptions::default()
+            };
+            let r = read("t_s,rate_dps\n0,1\n0.1,1\n0.2,1\r0.5,1\n0.6,1\n", &opts).expect("reads");
+            assert_eq!(
+                (0..5).map(|i| r.line(i)).collect::<Vec<_>>(),
+                [2, 3, 4, 5, 6]
+            );
+            let g = r.holes().largest.expect("gap");
+            assert_eq!((g.start_line, g.line), (4, 5));
+        }
+        assert!(err("t_s,rate_dps\r0,1\r0.1,x\r", &d)
+            .starts_with("r.csv:3: `rate_dps` is not a number"));
+        assert_eq!(
+            err("t_s,rate_dps\r0,1\r0.1,1,2\r", &d),
+            "r.csv:3: the row has 3 fields, the header 2"
+        );
+        // A CR-LF split across two reads counts once: every read one byte.
+        let text = b"t_s,rate_dps\r\n0,1\r\n0.1,1\r\n0.2,1,5\r\n";
+        let e = Record::from_reader("r.csv", OneByte(&text[..]), &d).expect_err("refused");
+        assert_eq!(
+            format!("{e:#}"),
+            "r.csv:4: the row has 3 fields, the header 2"
+        );
+    }
+
+    /// A reader that gives one byte per read.
+    struct OneByte<R>(R);
+
+    impl<R: std::io::Read> std::io::Read for OneByte<R> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            let n = buf.len().min(1);
+            self.0.read(&mut buf[..n])
         }
     }
 
