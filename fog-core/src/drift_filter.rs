@@ -44,10 +44,10 @@
 //! samples, `v` the larger of the model's per-sample variance and the samples' own (a
 //! noisier unit, an idling engine), the samples counted as `n_eff = min(n, (pi f t)^2)`
 //! after `t` seconds (a vibration of `f` >= 5 Hz, ASSUMED as for the window length, is no
-//! white noise: a partial cycle's mean keeps more of it), `h P h'` the filter's at the window's second sample; from the 8th
-//! sample on; before it the held-back state's `h x`). After power-on both apply only while
-//! the mean passes the stillness test of the samples so far,
-//! `m^2 < nis_limit (h P h' + v / n_eff)`: the output is then at most the held-back update
+//! white noise: a partial cycle's mean keeps more of it), `h P h'` the filter's at the
+//! window's second sample; from the 8th sample on; before it the held-back state's `h x`).
+//! After power-on both apply only while the mean passes the stillness test of the samples
+//! so far, `m^2 < nis_limit (h P h' + v / n_eff)`: the output is then at most the held-back update
 //! plus `sqrt(nis_limit h P h')` (3 sigma of the filter's own drift) from the held-back
 //! state, whatever the vehicle does; the start of a turn fails the test and returns the
 //! output to the held-back state, and the held-back update is still undone when the window
