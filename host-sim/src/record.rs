@@ -71,10 +71,16 @@ impl ReadOptions {
     }
 }
 
-/// The error for a column the header lacks: file, line 1, the column and the header.
-pub fn missing_column(name: &str, header: &csv::StringRecord, column: &str) -> anyhow::Error {
+/// The error for a column the header lacks: file, the header's line (1 unless blank lines
+/// come before it), the column and the header.
+pub fn missing_column(
+    name: &str,
+    header_line: u64,
+    header: &csv::StringRecord,
+    column: &str,
+) -> anyhow::Error {
     anyhow!(
-        "{name}:1: missing column `{column}` (the header has: {})",
+        "{name}:{header_line}: missing column `{column}` (the header has: {})",
         header.iter().collect::<Vec<_>>().join(", ")
     )
 }
@@ -94,19 +100,25 @@ struct Columns {
 
 impl Columns {
     /// Finds the columns `opts` asks for in `header`; refuses a missing required one.
-    fn resolve(name: &str, header: &csv::StringRecord, opts: &ReadOptions) -> Result<Self> {
+    fn resolve(
+        name: &str,
+        header_line: u64,
+        header: &csv::StringRecord,
+        opts: &ReadOptions,
+    ) -> Result<Self> {
         let col = |want: &str| header.iter().position(|h| h.trim() == want);
-        let need = |want: &str| col(want).ok_or_else(|| missing_column(name, header, want));
+        let need =
+            |want: &str| col(want).ok_or_else(|| missing_column(name, header_line, header, want));
         let t_s = match (col("t_s"), opts.rate_hz) {
             (Some(c), _) => Some(c),
             (None, Some(_)) => None,
             (None, None) => {
-                let e = missing_column(name, header, "t_s");
+                let e = missing_column(name, header_line, header, "t_s");
                 bail!("{e}; a record without time stamps needs its rate (--rate-hz)");
             }
         };
         let rate = col(&opts.rate_column).ok_or_else(|| {
-            let e = missing_column(name, header, &opts.rate_column);
+            let e = missing_column(name, header_line, header, &opts.rate_column);
             anyhow!("{e}; the rate is read from --rate-column")
         })?;
         let still = opts.still_column.as_deref().map(need).transpose()?;
@@ -326,6 +338,8 @@ pub struct Rows<R: std::io::Read> {
     name: String,
     rdr: csv::Reader<LineBreaks<R>>,
     header: csv::StringRecord,
+    /// The header's line: 1 unless blank lines come before it (the `csv` crate skips them).
+    header_line: u64,
     cols: Columns,
     rate_column: String,
     rate_scale: f64,
@@ -344,14 +358,29 @@ impl<R: std::io::Read> Rows<R> {
         let mut rdr = csv::ReaderBuilder::new()
             .has_headers(true)
             .from_reader(LineBreaks::new(input));
-        let header = rdr
-            .headers()
-            .map_err(|e| anyhow!("{name}:1: cannot read the header: {e}"))?
-            .clone();
+        let header = match rdr.headers() {
+            Ok(h) => h.clone(),
+            Err(e) => {
+                let line = rdr.get_mut().line_of(0);
+                // The crate's own text counts lines its way (see `LineBreaks`).
+                match e.kind() {
+                    csv::ErrorKind::Utf8 { err, .. } => bail!(
+                        "{name}:{line}: cannot read the header: field {} is not valid UTF-8 (its byte {})",
+                        err.field() + 1,
+                        err.valid_up_to()
+                    ),
+                    csv::ErrorKind::Io(io) => {
+                        bail!("{name}:{line}: cannot read the header: read error: {io}")
+                    }
+                    _ => bail!("{name}:{line}: cannot read the header: {e}"),
+                }
+            }
+        };
+        let header_line = rdr.get_mut().line_of(0);
         if header.is_empty() || (header.len() == 1 && header[0].is_empty()) {
             bail!("{name}: empty file (no header line)");
         }
-        let cols = Columns::resolve(name, &header, opts)?;
+        let cols = Columns::resolve(name, header_line, &header, opts)?;
         if let (None, Some(hz)) = (cols.t_s, opts.rate_hz) {
             if !(hz.is_finite() && hz > 0.0) {
                 bail!("--rate-hz {hz}: must be finite and > 0");
@@ -361,6 +390,7 @@ impl<R: std::io::Read> Rows<R> {
             name: name.to_string(),
             rdr,
             header,
+            header_line,
             cols,
             rate_column: opts.rate_column.clone(),
             rate_scale: opts.rate_scale,
@@ -374,6 +404,11 @@ impl<R: std::io::Read> Rows<R> {
     /// The header, as in the file.
     pub fn header(&self) -> &csv::StringRecord {
         &self.header
+    }
+
+    /// The header's line: 1 unless blank lines come before it.
+    pub fn header_line(&self) -> u64 {
+        self.header_line
     }
 
     /// The fields of the row [`Rows::next_row`] returned last, as in the file.
@@ -556,6 +591,8 @@ pub struct Record {
     /// `(row, line)` wherever a row's line is not the previous row's plus one (blank or
     /// multi-line rows before it): [`Record::line`].
     line_jumps: Vec<(usize, u64)>,
+    /// The header's line ([`Rows::header_line`]; 0 in a `Record::default()`).
+    header_line: u64,
 }
 
 /// A gap in time: no samples between line `start_line` and line `line`.
@@ -757,6 +794,7 @@ impl Record {
         let mut r = Self {
             name: name.to_string(),
             header: rows.header().clone(),
+            header_line: rows.header_line(),
             t_s_from_rate: c.t_s.is_none(),
             temp_c: c.temp_c.map(|_| Vec::new()),
             drift_dps: c.drift_dps.map(|_| Vec::new()),
@@ -798,7 +836,7 @@ impl Record {
 
     /// The error for a column this record lacks ([`missing_column`]).
     pub fn missing(&self, column: &str) -> anyhow::Error {
-        missing_column(&self.name, &self.header, column)
+        missing_column(&self.name, self.header_line.max(1), &self.header, column)
     }
 
     /// Sample period ([`Holes::period_s`]): the mean step with the gaps in `t_s` left out,
@@ -1161,6 +1199,37 @@ mod tests {
         assert_eq!(
             format!("{e:#}"),
             "r.csv:4: the row has 3 fields, the header 2"
+        );
+    }
+
+    #[test]
+    fn blank_lines_before_the_header_move_its_line() {
+        let d = ReadOptions::default();
+        assert_eq!(
+            err("\n\nt_s,gyro\n0,1\n", &d),
+            "r.csv:3: missing column `rate_dps` (the header has: t_s, gyro); the rate is read from --rate-column"
+        );
+        assert_eq!(
+            err("\r\n\rrate_dps\n1\n", &d),
+            "r.csv:3: missing column `t_s` (the header has: rate_dps); a record without time stamps needs its rate (--rate-hz)"
+        );
+        let r = read("\n\nt_s,rate_dps\n0,1\n\n0.1,2\n", &d).expect("read");
+        assert_eq!((r.line(0), r.line(1)), (4, 6));
+        assert_eq!(
+            format!("{:#}", r.missing("temp_c")),
+            "r.csv:3: missing column `temp_c` (the header has: t_s, rate_dps)"
+        );
+        assert!(err("\n\nt_s,rate_dps\n0,1\n0.1,x\n", &d)
+            .starts_with("r.csv:5: `rate_dps` is not a number"));
+        let e = Record::from_reader("r.csv", &b"\n\n\xfft_s,rate_dps\n0,1\n"[..], &d)
+            .expect_err("refused");
+        assert_eq!(
+            format!("{e:#}"),
+            "r.csv:3: cannot read the header: field 1 is not valid UTF-8 (its byte 0)"
+        );
+        assert_eq!(
+            format!("{:#}", Record::default().missing("t_s")),
+            ":1: missing column `t_s` (the header has: )"
         );
     }
 
