@@ -5,7 +5,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 
-step() { printf '\n==> %s\n' "$*" >&2; }
+# Each step says when it starts (seconds since the script started): where CI's time goes.
+step() { printf '\n==> [%d s] %s\n' "$SECONDS" "$*" >&2; }
 step "rustfmt"
 cargo fmt --all -- --check
 step "clippy (host workspace, -D warnings)"
@@ -54,3 +55,4 @@ step "fuzz: rustfmt, clippy -D warnings, every target ${FUZZ_SECONDS:-20} s"
   cargo clippy -q --release --locked -- -D warnings
 )
 bash scripts/fuzz.sh
+printf '\n==> [%d s] every check passed\n' "$SECONDS" >&2
