@@ -58,22 +58,54 @@ fi
 seconds=${FUZZ_SECONDS:-20}
 if [ $# -ge 1 ]; then TARGETS=("$1"); fi
 if [ $# -ge 2 ]; then seconds=$2; fi
-for t in "${TARGETS[@]}"; do
-  new="$CARGO_TARGET_DIR/fuzz-new/$t"
-  art="$CARGO_TARGET_DIR/fuzz-artifacts/$t"
+# Targets run side by side, one per core (FUZZ_JOBS, default the cores): each still gets
+# `seconds` of one core, the wall time is that of ceil(targets / jobs) runs.
+jobs=${FUZZ_JOBS:-$(nproc)}
+[ "$jobs" -ge 1 ] || jobs=1
+
+# One target's run: its log, its new inputs, its crash directory; the summary line in
+# $CARGO_TARGET_DIR/fuzz-$t.summary; fails on a crash.
+run_target() {
+  local t=$1
+  local new="$CARGO_TARGET_DIR/fuzz-new/$t"
+  local art="$CARGO_TARGET_DIR/fuzz-artifacts/$t"
+  local log="$CARGO_TARGET_DIR/fuzz-$t.log"
   mkdir -p "$new" "$art" "fuzz/corpus/$t"
-  log="$CARGO_TARGET_DIR/fuzz-$t.log"
+  local t0
   t0=$(ms)
   if ! "$bin_dir/$t" -max_total_time="$seconds" -max_len="${MAX_LEN[$t]}" -timeout=10 \
        -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$art/" \
        "$new" "fuzz/corpus/$t" >"$log" 2>&1; then
-    tail -n 60 "$log" >&2
-    echo "fuzz: $t FAILED (log $log, crash input in $art/)" >&2
-    exit 1
+    { tail -n 60 "$log"; echo "fuzz: $t FAILED (log $log, crash input in $art/)"; } \
+      >"$CARGO_TARGET_DIR/fuzz-$t.summary"
+    return 1
   fi
+  local runs cov
   runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -n 1)
   printf 'fuzz: %-11s %s runs in %s s, %s, corpus %s committed + %s new\n' "$t" "$runs" \
     "$(secs $(( $(ms) - t0 )))" "$cov" "$(ls "fuzz/corpus/$t" | wc -l)" \
-    "$(ls "$new" | wc -l)" >&2
+    "$(ls "$new" | wc -l)" >"$CARGO_TARGET_DIR/fuzz-$t.summary"
+}
+
+failed=0
+for (( k = 0; k < ${#TARGETS[@]}; k += jobs )); do
+  batch=("${TARGETS[@]:k:jobs}")
+  pids=()
+  for t in "${batch[@]}"; do
+    rm -f "$CARGO_TARGET_DIR/fuzz-$t.summary"
+    run_target "$t" &
+    pids+=($!)
+  done
+  for i in "${!batch[@]}"; do
+    wait "${pids[$i]}" || failed=1
+    sum="$CARGO_TARGET_DIR/fuzz-${batch[$i]}.summary"
+    if [ -f "$sum" ]; then
+      cat "$sum" >&2
+    else
+      echo "fuzz: ${batch[$i]} FAILED before it ran (log $CARGO_TARGET_DIR/fuzz-${batch[$i]}.log)" >&2
+      failed=1
+    fi
+  done
 done
+exit "$failed"
