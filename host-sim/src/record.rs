@@ -332,6 +332,16 @@ impl<R: std::io::Read> std::io::Read for LineBreaks<R> {
     }
 }
 
+/// `field K is not valid UTF-8 (its byte B)`: a record's invalid field, 1-based, and the
+/// byte within it where the invalid UTF-8 starts.
+fn utf8_words(err: &csv::Utf8Error) -> String {
+    format!(
+        "field {} is not valid UTF-8 (its byte {})",
+        err.field() + 1,
+        err.valid_up_to()
+    )
+}
+
 /// A record read row by row: every row validated (finite numbers, `t_s` strictly
 /// increasing) as it comes.
 pub struct Rows<R: std::io::Read> {
@@ -358,25 +368,23 @@ impl<R: std::io::Read> Rows<R> {
         let mut rdr = csv::ReaderBuilder::new()
             .has_headers(true)
             .from_reader(LineBreaks::new(input));
-        let header = match rdr.headers() {
-            Ok(h) => h.clone(),
-            Err(e) => {
-                let line = rdr.get_mut().line_of(0);
-                // The crate's own text counts lines its way (see `LineBreaks`).
-                match e.kind() {
-                    csv::ErrorKind::Utf8 { err, .. } => bail!(
-                        "{name}:{line}: cannot read the header: field {} is not valid UTF-8 (its byte {})",
-                        err.field() + 1,
-                        err.valid_up_to()
-                    ),
-                    csv::ErrorKind::Io(io) => {
-                        bail!("{name}:{line}: cannot read the header: read error: {io}")
-                    }
-                    _ => bail!("{name}:{line}: cannot read the header: {e}"),
-                }
-            }
-        };
+        let header = rdr.headers().cloned();
         let header_line = rdr.get_mut().line_of(0);
+        let header = header.map_err(|e| {
+            // The crate's own text counts lines its way (see `LineBreaks`).
+            match e.kind() {
+                csv::ErrorKind::Utf8 { err, .. } => {
+                    anyhow!(
+                        "{name}:{header_line}: cannot read the header: {}",
+                        utf8_words(err)
+                    )
+                }
+                csv::ErrorKind::Io(io) => {
+                    anyhow!("{name}:{header_line}: cannot read the header: read error: {io}")
+                }
+                _ => anyhow!("{name}:{header_line}: cannot read the header: {e}"),
+            }
+        })?;
         if header.is_empty() || (header.len() == 1 && header[0].is_empty()) {
             bail!("{name}: empty file (no header line)");
         }
@@ -455,11 +463,9 @@ impl<R: std::io::Read> Rows<R> {
                     } => anyhow!(
                         "{name}:{line}: the row has {len} fields, the header {expected_len}"
                     ),
-                    csv::ErrorKind::Utf8 { err, .. } => anyhow!(
-                        "{name}:{line}: field {} is not valid UTF-8 (its byte {})",
-                        err.field() + 1,
-                        err.valid_up_to()
-                    ),
+                    csv::ErrorKind::Utf8 { err, .. } => {
+                        anyhow!("{name}:{line}: {}", utf8_words(err))
+                    }
                     _ => anyhow!("{name}:{line}: {e}"),
                 });
             }
