@@ -6,7 +6,10 @@
 # - binutils-arm-none-eabi for the firmware's panic-path test;
 # - a C++ compiler (g++) for libFuzzer, built by the fuzz crate (scripts/fuzz.sh); its C
 #   compiler (cc) also builds the QEMU trace plugin of the cycle estimate
-#   (scripts/qemu-trace/fogtrace.c, built by fw-cycles).
+#   (scripts/qemu-trace/fogtrace.c, built by fw-cycles);
+# - NumPy for python3: the independent generators (scripts/gen_nav_records.py,
+#   scripts/gap_indep_gen.py, scripts/gen_unit_family.py) that the tests
+#   host-sim/tests/second_generator.rs and gap_indep.rs run (they fail under CI without it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -58,4 +61,13 @@ if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/
   SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null
+fi
+
+# NumPy for the independent generators (see the top). pip, not apt: Debian's python3-numpy
+# belongs to the system python, which may not be the python3 on the PATH.
+if command -v python3 >/dev/null 2>&1 && ! python3 -c "import numpy" >/dev/null 2>&1; then
+  echo "setup: installing numpy for $(command -v python3)" >&2
+  python3 -m pip install -q --disable-pip-version-check "numpy>=1.24,<3" 2>&1 \
+    | grep -v "Running pip as the 'root' user" >&2 || true
+  python3 -c "import numpy" || { echo "setup: numpy could not be installed" >&2; exit 1; }
 fi
