@@ -48,10 +48,20 @@ Scores, over the injected records (a name "of its own" is one the clean record a
   - unexplained: what the last round says stays unexplained (clean records).
 
   python3 scripts/gap_real_bench.py --out DIR [--bin target/release/host-sim] [--jobs 2]
-      [--rounds 4] [--scale 1.0] [--records adis4x,adis4z,...] [--effects rate_ramp,...] [--no-dither]
+      [--rounds 4] [--scale 1.0 | --scales 0.125,0.25,0.5,1] [--records adis4x,adis4z,...]
+      [--effects rate_ramp,...] [--no-dither]
 
 Writes DIR/<record>-<effect>.csv, .json and .log, and DIR/summary.json (with "dither": true or
 false); prints the scores, and per effect how many records are right.
+
+The power curve on real noise (--scales): the same records and injections (the same seeds:
+the points differ only by the size) at each scale, the clean records run once in DIR/, each
+scale's injected ones and its summary.json in DIR/scale-S/; prints per effect the records
+named right at each size and the size named right on 90 % of them (linear in log size
+between the two scales that bracket 90 %), and writes DIR/power.json. The sizes are in the
+benchmark's unit (x1: the plain sizes above, multiples of the record's own s100); the
+oracle's s90 of the simulated benchmark (docs/gap.md, "Oracle bound") is in that
+benchmark's units, sized from the simulated model's own terms, and is not converted.
 """
 import argparse
 import concurrent.futures as cf
@@ -226,86 +236,10 @@ def inside(r, truth):
     return (ok if checked else None), checked
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", required=True)
-    ap.add_argument("--bin", default=os.path.join(HERE, "..", "target", "release", "host-sim"))
-    ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--rounds", type=int, default=4)
-    ap.add_argument("--scale", type=float, default=1.0)
-    ap.add_argument("--records", default=",".join(RECORDS),
-                    help="comma list, or 'core' for the six record-axes of the earlier figures")
-    ap.add_argument("--effects", default=",".join(EFFECTS))
-    ap.add_argument("--seed", type=int, default=38001)
-    ap.add_argument("--rescore", action="store_true", help="score the JSON already in --out, run nothing")
-    ap.add_argument(
-        "--dither",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="round the added effect stochastically, as a sensor whose noise dithers its quantum records it (the default); --no-dither rounds it to the nearest count (a slow effect enters as a staircase)",
-    )
-    a = ap.parse_args()
-    if not os.path.isdir(REAL):
-        print(f"SKIPPED: {REAL} is absent (real records are not in a user's clone)", file=sys.stderr)
-        return 0
-    os.makedirs(a.out, exist_ok=True)
-    names = CORE if a.records == "core" else [x for x in a.records.split(",") if x]
-    effects = [x for x in a.effects.split(",") if x]
-    for x in names:
-        if x not in RECORDS:
-            sys.exit(f"unknown record {x}; known: {', '.join(RECORDS)}")
-    for x in effects:
-        if x not in EFFECTS:
-            sys.exit(f"unknown effect {x}; known: {', '.join(EFFECTS)}")
-    prev = os.path.join(a.out, "summary.json")
-    if a.rescore and os.path.exists(prev):
-        was = json.load(open(prev)).get("dither", False)
-        if was != a.dither:
-            sys.exit(f"{prev}: its records were injected {'with' if was else 'without'} dither; rescore with {'--dither' if was else '--no-dither'}")
-    jobs, truths = [], {}
-    # Seeds by a fixed order (the six earlier record-axes first), whatever --records holds.
-    order = CORE + [n for n in RECORDS if n not in CORE]
-    for name in names:
-        ri = order.index(name)
-        t, rate, q = read_record(name)
-        dt = (t[-1] - t[0]) / (len(t) - 1)
-        s100 = adev(rate, dt, 100.0)
-        temp = temp_profile(t)
-        for ei, effect in enumerate(["none"] + effects):
-            add, truth = inject(effect, t, rate, temp, s100, a.scale, a.seed + 100 * ri + ei)
-            if effect == "none":
-                out = rate
-            elif a.dither:
-                rng = random.Random(a.seed + 7919 + 100 * ri + ei)
-                out = [(round(r / q) + math.floor(x / q + rng.random())) * q for r, x in zip(rate, add)]
-            else:
-                out = [round((r + x) / q) * q for r, x in zip(rate, add)]
-            base = os.path.join(a.out, f"{name}-{effect}")
-            if not a.rescore:  # --rescore reads what an earlier run wrote, never rewrites it
-                write_csv(base + ".csv", t, out, temp)
-            truths[(name, effect)] = truth
-            jobs.append((name, effect, base))
-        print(f"{name}: {len(t)} samples, {t[-1]:.0f} s, quantum {q:.5g} deg/s, s100 {s100 * 3600:.2f} deg/h", file=sys.stderr)
-
-    results = {}
-    if a.rescore:
-        for n, e, b in jobs:
-            js = json.load(open(b + ".json")) if os.path.exists(b + ".json") else None
-            results[(n, e)] = (0 if js else 1, 0.0, js)
-        jobs = []
-    with cf.ThreadPoolExecutor(max_workers=a.jobs) as ex:
-        futs = {
-            ex.submit(run_gap, a.bin, b + ".csv", b + ".json", b + ".log", a.rounds): (n, e, b)
-            for n, e, b in jobs
-        }
-        for fut in cf.as_completed(futs):
-            n, e, b = futs[fut]
-            rc, secs = fut.result()
-            js = json.load(open(b + ".json")) if rc == 0 and os.path.exists(b + ".json") else None
-            results[(n, e)] = (rc, secs, js)
-            got = [r["effect"] for r in named_effects(js)] if js else f"rc {rc}"
-            print(f"{n}-{e}: {got} ({secs:.0f} s)", file=sys.stderr)
-
+def score(names, effects, scale, a, clean, injected, truths):
+    """Scores of one scale's injected records against the clean ones: the summary dict."""
+    results = dict(clean)
+    results.update(injected)
     rows, right, total, twice, zero, named_right, in_ci, same_own = [], 0, 0, 0, 0, 0, 0, 0
     own = {}
     for n in names:
@@ -342,10 +276,10 @@ def main():
                     named_right += 1
                     in_ci += bool(inn)
         rows.append(row)
-    summary = {
+    return {
         "records": names,
         "effects": effects,
-        "scale": a.scale,
+        "scale": scale,
         "rounds": a.rounds,
         "dither": a.dither,
         "injected_right": [right, total],
@@ -357,18 +291,169 @@ def main():
         "unexplained_clean": unexplained,
         "rows": rows,
     }
-    json.dump(summary, open(os.path.join(a.out, "summary.json"), "w"), indent=1)
-    print(f"injection: {'dithered (stochastic rounding)' if a.dither else 'rounded to the nearest count (--no-dither)'}")
-    print(f"injected effect named, others the record's own: {right}/{total}")
-    print(f"... and every one of the record's own effects named too: {same_own}/{total}")
-    print(f"records with an effect named twice: {twice}/{len(results)}")
-    print(f"named effects with zero fitted size: {zero}")
-    print(f"true parameters inside the 95 % intervals: {in_ci}/{named_right} rightly named (with intervals)")
-    for e in effects:
-        rs = [r for r in rows if r["effect"] == e and "right" in r]
+
+
+def print_summary(summary):
+    s = summary
+    print(f"injection: {'dithered (stochastic rounding)' if s['dither'] else 'rounded to the nearest count (--no-dither)'}, sizes x{s['scale']:g}")
+    print(f"injected effect named, others the record's own: {s['injected_right'][0]}/{s['injected_right'][1]}")
+    print(f"... and every one of the record's own effects named too: {s['injected_right_and_own_effects_the_same'][0]}/{s['injected_right_and_own_effects_the_same'][1]}")
+    print(f"records with an effect named twice: {s['records_with_an_effect_named_twice'][0]}/{s['records_with_an_effect_named_twice'][1]}")
+    print(f"named effects with zero fitted size: {s['named_with_zero_size']}")
+    print(f"true parameters inside the 95 % intervals: {s['true_inside_ci95_of_rightly_named'][0]}/{s['true_inside_ci95_of_rightly_named'][1]} rightly named (with intervals)")
+    for e in s["effects"]:
+        rs = [r for r in s["rows"] if r["effect"] == e and "right" in r]
         print(f"  {e}: right {sum(r['right'] for r in rs)}/{len(rs)}, named at all {sum(e in r['named'] for r in rs)}/{len(rs)}")
-    for n in names:
-        print(f"  {n}: own effects {sorted(own[n])}")
+    for n, v in s["own_effects"].items():
+        print(f"  {n}: own effects {v}")
+
+
+def s90(points):
+    """The size (x the benchmark's plain size) named right on 90 % of the records: linear in
+    log size between the two scales that bracket 0.9 (the first crossing from below); None
+    when no scale reaches 0.9; the smallest scale when it already does."""
+    pts = sorted(points)
+    if not pts or max(f for _, f in pts) < 0.9:
+        return None
+    if pts[0][1] >= 0.9:
+        return pts[0][0]
+    for (s0, f0), (s1, f1) in zip(pts, pts[1:]):
+        if f0 < 0.9 <= f1:
+            w = (0.9 - f0) / (f1 - f0)
+            return math.exp(math.log(s0) + w * (math.log(s1) - math.log(s0)))
+    return None
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--bin", default=os.path.join(HERE, "..", "target", "release", "host-sim"))
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--rounds", type=int, default=4)
+    ap.add_argument("--scale", type=float, default=1.0)
+    ap.add_argument(
+        "--scales",
+        help="comma list of size scales (e.g. 0.125,0.25,0.5,1): the power curve; each scale's "
+        "injected records in OUT/scale-S/, the clean ones once in OUT/, OUT/power.json",
+    )
+    ap.add_argument("--records", default=",".join(RECORDS),
+                    help="comma list, or 'core' for the six record-axes of the earlier figures")
+    ap.add_argument("--effects", default=",".join(EFFECTS))
+    ap.add_argument("--seed", type=int, default=38001)
+    ap.add_argument("--rescore", action="store_true", help="score the JSON already in --out, run nothing")
+    ap.add_argument(
+        "--dither",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="round the added effect stochastically, as a sensor whose noise dithers its quantum records it (the default); --no-dither rounds it to the nearest count (a slow effect enters as a staircase)",
+    )
+    a = ap.parse_args()
+    if not os.path.isdir(REAL):
+        print(f"SKIPPED: {REAL} is absent (real records are not in a user's clone)", file=sys.stderr)
+        return 0
+    try:
+        scales = [float(x) for x in a.scales.split(",") if x] if a.scales else [a.scale]
+    except ValueError:
+        sys.exit(f"--scales {a.scales!r}: not a comma list of numbers")
+    if not scales or any(not (x > 0.0 and math.isfinite(x)) for x in scales) or len(set(scales)) != len(scales):
+        sys.exit(f"--scales {a.scales!r}: sizes must be positive, finite and distinct")
+    curve = a.scales is not None
+    os.makedirs(a.out, exist_ok=True)
+    names = CORE if a.records == "core" else [x for x in a.records.split(",") if x]
+    effects = [x for x in a.effects.split(",") if x]
+    for x in names:
+        if x not in RECORDS:
+            sys.exit(f"unknown record {x}; known: {', '.join(RECORDS)}")
+    for x in effects:
+        if x not in EFFECTS:
+            sys.exit(f"unknown effect {x}; known: {', '.join(EFFECTS)}")
+    prev = os.path.join(a.out, "power.json" if curve else "summary.json")
+    if a.rescore and os.path.exists(prev):
+        was = json.load(open(prev)).get("dither", False)
+        if was != a.dither:
+            sys.exit(f"{prev}: its records were injected {'with' if was else 'without'} dither; rescore with {'--dither' if was else '--no-dither'}")
+    outdir = {sc: os.path.join(a.out, f"scale-{sc:g}") if curve else a.out for sc in scales}
+    for d in outdir.values():
+        os.makedirs(d, exist_ok=True)
+    clean_jobs, jobs, truths = [], {sc: [] for sc in scales}, {sc: {} for sc in scales}
+    # Seeds by a fixed order (the six earlier record-axes first), whatever --records holds;
+    # the same at every scale, so a curve's points differ only by the size.
+    order = CORE + [n for n in RECORDS if n not in CORE]
+    for name in names:
+        ri = order.index(name)
+        t, rate, q = read_record(name)
+        dt = (t[-1] - t[0]) / (len(t) - 1)
+        s100 = adev(rate, dt, 100.0)
+        temp = temp_profile(t)
+        base = os.path.join(a.out, f"{name}-none")
+        if not a.rescore:  # --rescore reads what an earlier run wrote, never rewrites it
+            write_csv(base + ".csv", t, rate, temp)
+        clean_jobs.append((name, "none", base))
+        for sc in scales:
+            for ei, effect in enumerate(effects, start=1):
+                add, truth = inject(effect, t, rate, temp, s100, sc, a.seed + 100 * ri + ei)
+                if a.dither:
+                    rng = random.Random(a.seed + 7919 + 100 * ri + ei)
+                    out = [(round(r / q) + math.floor(x / q + rng.random())) * q for r, x in zip(rate, add)]
+                else:
+                    out = [round((r + x) / q) * q for r, x in zip(rate, add)]
+                base = os.path.join(outdir[sc], f"{name}-{effect}")
+                if not a.rescore:
+                    write_csv(base + ".csv", t, out, temp)
+                truths[sc][(name, effect)] = truth
+                jobs[sc].append((name, effect, base))
+        print(f"{name}: {len(t)} samples, {t[-1]:.0f} s, quantum {q:.5g} deg/s, s100 {s100 * 3600:.2f} deg/h", file=sys.stderr)
+
+    def run_all(js_):
+        got_ = {}
+        if a.rescore:
+            for n, e, b in js_:
+                js = json.load(open(b + ".json")) if os.path.exists(b + ".json") else None
+                got_[b] = (0 if js else 1, 0.0, js)
+            return got_
+        with cf.ThreadPoolExecutor(max_workers=a.jobs) as ex:
+            futs = {
+                ex.submit(run_gap, a.bin, b + ".csv", b + ".json", b + ".log", a.rounds): (n, e, b)
+                for n, e, b in js_
+            }
+            for fut in cf.as_completed(futs):
+                n, e, b = futs[fut]
+                rc, secs = fut.result()
+                js = json.load(open(b + ".json")) if rc == 0 and os.path.exists(b + ".json") else None
+                got_[b] = (rc, secs, js)
+                shown = [r["effect"] for r in named_effects(js)] if js else f"rc {rc}"
+                print(f"{n}-{e}: {shown} ({secs:.0f} s)", file=sys.stderr)
+        return got_
+
+    # One pool for every record, keyed by file: the clean ones first (every scale scores
+    # against them).
+    got = run_all(clean_jobs + [j for sc in scales for j in jobs[sc]])
+    clean = {(n, e): got[b] for n, e, b in clean_jobs}
+    summaries = {}
+    for sc in scales:
+        injected = {(n, e): got[b] for n, e, b in jobs[sc]}
+        summaries[sc] = score(names, effects, sc, a, clean, injected, truths[sc])
+        json.dump(summaries[sc], open(os.path.join(outdir[sc], "summary.json"), "w"), indent=1)
+        if curve:
+            print(f"\n== sizes x{sc:g} ({outdir[sc]})")
+        print_summary(summaries[sc])
+    if curve:
+        power = {"records": names, "effects": effects, "rounds": a.rounds, "dither": a.dither, "scales": scales, "effect": {}}
+        print("\n== power on real noise: injected effect named right (no foreign name), per size")
+        print("| effect | " + " | ".join(f"x{sc:g}" for sc in scales) + " | size named right on 90 % |")
+        print("|---|" + "---|" * len(scales) + "---|")
+        for e in effects:
+            pts = []
+            cells = []
+            for sc in scales:
+                rs = [r for r in summaries[sc]["rows"] if r["effect"] == e and "right" in r]
+                k = sum(r["right"] for r in rs)
+                pts.append((sc, k / len(rs) if rs else 0.0))
+                cells.append(f"{k}/{len(rs)}")
+            x90 = s90(pts)
+            power["effect"][e] = {"right": {f"{sc:g}": c for sc, c in zip(scales, cells)}, "s90_scale": x90}
+            print(f"| {e} | " + " | ".join(cells) + f" | {'not reached' if x90 is None else f'x{x90:.3g}'} |")
+        json.dump(power, open(os.path.join(a.out, "power.json"), "w"), indent=1)
     return 0
 
 
