@@ -21,8 +21,12 @@ step "tests (host workspace, but the system tests)"
 cargo test --workspace --exclude fog-system-tests
 # The system tests (the firmware's hardware-in-the-loop tests under QEMU and its builds,
 # tests/tests/): a debug and a release run at once, each in parallel.
+# The system tests run the host-sim binary that step built (tests/src/lib.rs, host_sim):
+# their own `cargo build -p host-sim` unifies other features and builds it again.
+bin="${CARGO_TARGET_DIR:-target}/debug/host-sim"
+[ -x "$bin" ] || { echo "test-all: the workspace tests did not build $bin" >&2; exit 1; }
 step "system tests: debug and release runs at the same time"
-bash scripts/test-firmware-parallel.sh
+FOG_HOST_SIM_BIN="$(cd "$(dirname "$bin")" && pwd)/host-sim" bash scripts/test-firmware-parallel.sh
 # fog-firmware is its own workspace (defmt, cortex-m-rt): checked apart from the host crates. The STM32F407 board builds into its own target directory so
 # that switching boards does not rebuild the QEMU board's dependencies.
 step "fog-firmware: rustfmt, clippy -D warnings, build (QEMU mps2-an386, STM32F407 and its netduinoplus2 variant)"

@@ -4,14 +4,30 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
-/// The `host-sim` binary, built once per test process (so that `cargo test -p
-/// fog-system-tests` works alone, without relying on another package's build).
+/// The `host-sim` binary: the one `FOG_HOST_SIM_BIN` names, else built once per test
+/// process (so that `cargo test -p fog-system-tests` works alone, without relying on another
+/// package's build).
+///
+/// `scripts/test-all.sh` sets `FOG_HOST_SIM_BIN` to the binary its workspace test step
+/// built (`target/debug/host-sim`): `cargo build -p host-sim` unifies other features than
+/// `cargo test --workspace` and would build the crate a second time (docs/reliability.md,
+/// "CI time").
 ///
 /// # Panics
-/// If the build fails: a test cannot go on without the binary.
+/// If `FOG_HOST_SIM_BIN` names no file, or the build fails: a test cannot go on without
+/// the binary.
 pub fn host_sim() -> Command {
     static BIN: OnceLock<PathBuf> = OnceLock::new();
     let bin = BIN.get_or_init(|| {
+        if let Some(given) = std::env::var_os("FOG_HOST_SIM_BIN") {
+            let given = PathBuf::from(given);
+            assert!(
+                given.is_file(),
+                "FOG_HOST_SIM_BIN={} is not a file",
+                given.display()
+            );
+            return given;
+        }
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let status = Command::new(cargo)
             .args(["build", "-q", "-p", "host-sim", "--bin", "host-sim"])
