@@ -70,6 +70,7 @@ import json
 import math
 import os
 import random
+import statistics
 import subprocess
 import sys
 import time
@@ -92,6 +93,10 @@ RECORDS.update({f"mpu10{ax}": (MPU, f"g{ax}_dps", 0, 1.0 / 131.0) for ax in "xyz
 CORE = ["adis4x", "adis4z", "adis5x", "adis5z", "adis2y", "mpu10x"]
 MAX_S = 1800.0
 EFFECTS = ["rate_ramp", "warmup", "sinusoid", "temperature", "markov"]
+# The plain (x1) size in multiples of the record's s100, where the simulated benchmark sizes
+# the same quantity in its unit D: a ramp's change over the record, a warm-up's amplitude,
+# the RMS of the temperature-driven drift (scripts/gap_indep_gen.py).
+PLAIN_S100 = {"rate_ramp": 30.0, "warmup": 20.0, "temperature": 20.0}
 # The true parameters the report's keys hold, per effect.
 TRUE_KEYS = {
     "rate_ramp": ["rate_ramp_dps_per_s"],
@@ -376,6 +381,7 @@ def main():
     for d in outdir.values():
         os.makedirs(d, exist_ok=True)
     clean_jobs, jobs, truths = [], {sc: [] for sc in scales}, {sc: {} for sc in scales}
+    plain_in_d = {}
     # Seeds by a fixed order (the six earlier record-axes first), whatever --records holds;
     # the same at every scale, so a curve's points differ only by the size.
     order = CORE + [n for n in RECORDS if n not in CORE]
@@ -384,6 +390,10 @@ def main():
         t, rate, q = read_record(name)
         dt = (t[-1] - t[0]) / (len(t) - 1)
         s100 = adev(rate, dt, 100.0)
+        # The simulated benchmark's unit D (scripts/gap_indep_gen.py: the noise's Allan
+        # deviation at a sixth of the record), here the record's own.
+        d_blk = adev(rate, dt, t[-1] / 6.0)
+        plain_in_d[name] = {e: PLAIN_S100[e] * s100 / d_blk for e in PLAIN_S100}
         temp = temp_profile(t)
         base = os.path.join(a.out, f"{name}-none")
         if not a.rescore:  # --rescore reads what an earlier run wrote, never rewrites it
@@ -439,9 +449,12 @@ def main():
         print_summary(summaries[sc])
     if curve:
         power = {"records": names, "effects": effects, "rounds": a.rounds, "dither": a.dither, "scales": scales, "effect": {}}
+        power["plain_in_d"] = plain_in_d
         print("\n== power on real noise: injected effect named right (no foreign name), per size")
-        print("| effect | " + " | ".join(f"x{sc:g}" for sc in scales) + " | size named right on 90 % |")
-        print("|---|" + "---|" * len(scales) + "---|")
+        print("(in D: the size in the simulated benchmark's unit, the record's own Allan deviation at a")
+        print(" sixth of its length; x1's median over the records, and the 90 % size so converted)")
+        print("| effect | " + " | ".join(f"x{sc:g}" for sc in scales) + " | size named right on 90 % | x1 in D | 90 % size in D |")
+        print("|---|" + "---|" * len(scales) + "---|---|---|")
         for e in effects:
             pts = []
             cells = []
@@ -451,8 +464,17 @@ def main():
                 pts.append((sc, k / len(rs) if rs else 0.0))
                 cells.append(f"{k}/{len(rs)}")
             x90 = s90(pts)
-            power["effect"][e] = {"right": {f"{sc:g}": c for sc, c in zip(scales, cells)}, "s90_scale": x90}
-            print(f"| {e} | " + " | ".join(cells) + f" | {'not reached' if x90 is None else f'x{x90:.3g}'} |")
+            in_d = sorted(plain_in_d[n][e] for n in names) if e in PLAIN_S100 else []
+            med = statistics.median(in_d) if in_d else None
+            power["effect"][e] = {
+                "right": {f"{sc:g}": c for sc, c in zip(scales, cells)},
+                "s90_scale": x90,
+                "plain_in_d_median": med,
+                "s90_in_d": None if x90 is None or med is None else x90 * med,
+            }
+            d1 = "-" if med is None else f"{med:.3g} ({in_d[0]:.3g}-{in_d[-1]:.3g})"
+            d90 = "-" if med is None or x90 is None else f"{x90 * med:.3g}"
+            print(f"| {e} | " + " | ".join(cells) + f" | {'not reached' if x90 is None else f'x{x90:.3g}'} | {d1} | {d90} |")
         json.dump(power, open(os.path.join(a.out, "power.json"), "w"), indent=1)
     return 0
 
