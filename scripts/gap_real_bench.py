@@ -460,9 +460,12 @@ def main():
             cells = []
             for sc in scales:
                 rs = [r for r in summaries[sc]["rows"] if r["effect"] == e and "right" in r]
+                # A record gap refuses (e.g. the effect beyond its static test) is shown apart,
+                # not counted.
+                err = sum(1 for r in summaries[sc]["rows"] if r["effect"] == e and "error" in r)
                 k = sum(r["right"] for r in rs)
                 pts.append((sc, k / len(rs) if rs else 0.0))
-                cells.append(f"{k}/{len(rs)}")
+                cells.append(f"{k}/{len(rs)}" + (f" ({err} refused)" if err else ""))
             x90 = s90(pts)
             in_d = sorted(plain_in_d[n][e] for n in names) if e in PLAIN_S100 else []
             med = statistics.median(in_d) if in_d else None
