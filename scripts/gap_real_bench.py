@@ -58,10 +58,15 @@ The power curve on real noise (--scales): the same records and injections (the s
 the points differ only by the size) at each scale, the clean records run once in DIR/, each
 scale's injected ones and its summary.json in DIR/scale-S/; prints per effect the records
 named right at each size and the size named right on 90 % of them (linear in log size
-between the two scales that bracket 90 %), and writes DIR/power.json. The sizes are in the
-benchmark's unit (x1: the plain sizes above, multiples of the record's own s100); the
-oracle's s90 of the simulated benchmark (docs/gap.md, "Oracle bound") is in that
-benchmark's units, sized from the simulated model's own terms, and is not converted.
+between the two scales that bracket 90 %; "<=" when the smallest size already reaches it),
+and writes DIR/power.json (per effect and size: right, scored, refused as not static,
+failed). The sizes are in the benchmark's unit (x1: the plain sizes above, multiples of the
+record's own s100); for the ramp, the warm-up and the temperature link also in the unit D
+of the simulated benchmark (scripts/gap_indep_gen.py: the noise's Allan deviation at a
+sixth of the record; here the record's own), where the oracle's s90 (docs/gap.md, "Oracle
+bound") is stated; the line's and the Gauss-Markov term's units differ and are not
+converted. A record `gap` refuses (an effect beyond its static test) or that fails is
+shown apart and not counted.
 """
 import argparse
 import concurrent.futures as cf
@@ -216,6 +221,22 @@ def run_gap(binary, csv, js, log, rounds):
     return p.returncode, time.time() - t0
 
 
+def failure(log):
+    """The first line of `gap`'s error in `log` (empty when there is none or no log)."""
+    try:
+        with open(log) as f:
+            for line in f:
+                if line.lower().startswith("error:"):
+                    return line.strip()
+    except OSError:
+        pass
+    return ""
+
+
+# How `gap` says it refuses a record that is not static (an effect beyond its static test).
+NOT_STATIC = "not a static record"
+
+
 def named_effects(js):
     rounds = js.get("rounds") or []
     return [r for r in rounds if r.get("effect") not in (None, "none")]
@@ -248,12 +269,13 @@ def score(names, effects, scale, a, clean, injected, truths):
     rows, right, total, twice, zero, named_right, in_ci, same_own = [], 0, 0, 0, 0, 0, 0, 0
     own = {}
     for n in names:
-        rc, _, js = results[(n, "none")]
+        rc, _, js, _ = results[(n, "none")]
         own[n] = set(r["effect"] for r in named_effects(js)) if js else set()
     unexplained = {}
-    for (n, e), (rc, secs, js) in sorted(results.items()):
+    for (n, e), (rc, secs, js, why) in sorted(results.items()):
         if js is None:
-            rows.append({"record": n, "effect": e, "error": f"rc {rc}"})
+            rows.append({"record": n, "effect": e, "error": f"rc {rc}" + (f": {why}" if why else ""),
+                         "refused_not_static": NOT_STATIC in why})
             continue
         named = named_effects(js)
         names_ = [r["effect"] for r in named]
@@ -315,18 +337,19 @@ def print_summary(summary):
 
 def s90(points):
     """The size (x the benchmark's plain size) named right on 90 % of the records: linear in
-    log size between the two scales that bracket 0.9 (the first crossing from below); None
-    when no scale reaches 0.9; the smallest scale when it already does."""
-    pts = sorted(points)
+    log size between the two scales that bracket 0.9 (the first crossing from below), as
+    (size, "="); (smallest scale, "<=") when the smallest already reaches it; (None, "") when
+    no scale does. A point whose fraction is None (no record scored) is left out."""
+    pts = sorted((sc, f) for sc, f in points if f is not None)
     if not pts or max(f for _, f in pts) < 0.9:
-        return None
+        return None, ""
     if pts[0][1] >= 0.9:
-        return pts[0][0]
+        return pts[0][0], "<="
     for (s0, f0), (s1, f1) in zip(pts, pts[1:]):
         if f0 < 0.9 <= f1:
             w = (0.9 - f0) / (f1 - f0)
-            return math.exp(math.log(s0) + w * (math.log(s1) - math.log(s0)))
-    return None
+            return math.exp(math.log(s0) + w * (math.log(s1) - math.log(s0))), "="
+    return None, ""
 
 
 def main():
@@ -335,8 +358,9 @@ def main():
     ap.add_argument("--bin", default=os.path.join(HERE, "..", "target", "release", "host-sim"))
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--rounds", type=int, default=4)
-    ap.add_argument("--scale", type=float, default=1.0)
-    ap.add_argument(
+    size = ap.add_mutually_exclusive_group()
+    size.add_argument("--scale", type=float, default=1.0)
+    size.add_argument(
         "--scales",
         help="comma list of size scales (e.g. 0.125,0.25,0.5,1): the power curve; each scale's "
         "injected records in OUT/scale-S/, the clean ones once in OUT/, OUT/power.json",
@@ -356,13 +380,18 @@ def main():
     if not os.path.isdir(REAL):
         print(f"SKIPPED: {REAL} is absent (real records are not in a user's clone)", file=sys.stderr)
         return 0
-    try:
-        scales = [float(x) for x in a.scales.split(",") if x] if a.scales else [a.scale]
-    except ValueError:
-        sys.exit(f"--scales {a.scales!r}: not a comma list of numbers")
-    if not scales or any(not (x > 0.0 and math.isfinite(x)) for x in scales) or len(set(scales)) != len(scales):
-        sys.exit(f"--scales {a.scales!r}: sizes must be positive, finite and distinct")
     curve = a.scales is not None
+    if curve:
+        try:
+            scales = [float(x) for x in a.scales.split(",") if x.strip()]
+        except ValueError:
+            sys.exit(f"--scales {a.scales!r}: not a comma list of numbers")
+        if not scales or any(not (x > 0.0 and math.isfinite(x)) for x in scales):
+            sys.exit(f"--scales {a.scales!r}: sizes must be positive and finite, at least one")
+        if len(set(f"{x:g}" for x in scales)) != len(scales):
+            sys.exit(f"--scales {a.scales!r}: two sizes share a folder name (scale-S, S printed as %g)")
+    else:
+        scales = [a.scale]
     os.makedirs(a.out, exist_ok=True)
     names = CORE if a.records == "core" else [x for x in a.records.split(",") if x]
     effects = [x for x in a.effects.split(",") if x]
@@ -392,8 +421,9 @@ def main():
         s100 = adev(rate, dt, 100.0)
         # The simulated benchmark's unit D (scripts/gap_indep_gen.py: the noise's Allan
         # deviation at a sixth of the record), here the record's own.
-        d_blk = adev(rate, dt, t[-1] / 6.0)
-        plain_in_d[name] = {e: PLAIN_S100[e] * s100 / d_blk for e in PLAIN_S100}
+        if curve:
+            d_blk = adev(rate, dt, t[-1] / 6.0)
+            plain_in_d[name] = {e: PLAIN_S100[e] * s100 / d_blk if d_blk > 0.0 else None for e in PLAIN_S100}
         temp = temp_profile(t)
         base = os.path.join(a.out, f"{name}-none")
         if not a.rescore:  # --rescore reads what an earlier run wrote, never rewrites it
@@ -419,7 +449,7 @@ def main():
         if a.rescore:
             for n, e, b in js_:
                 js = json.load(open(b + ".json")) if os.path.exists(b + ".json") else None
-                got_[b] = (0 if js else 1, 0.0, js)
+                got_[b] = (0 if js else 1, 0.0, js, "" if js else failure(b + ".log"))
             return got_
         with cf.ThreadPoolExecutor(max_workers=a.jobs) as ex:
             futs = {
@@ -430,7 +460,7 @@ def main():
                 n, e, b = futs[fut]
                 rc, secs = fut.result()
                 js = json.load(open(b + ".json")) if rc == 0 and os.path.exists(b + ".json") else None
-                got_[b] = (rc, secs, js)
+                got_[b] = (rc, secs, js, "" if js else failure(b + ".log"))
                 shown = [r["effect"] for r in named_effects(js)] if js else f"rc {rc}"
                 print(f"{n}-{e}: {shown} ({secs:.0f} s)", file=sys.stderr)
         return got_
@@ -456,28 +486,34 @@ def main():
         print("| effect | " + " | ".join(f"x{sc:g}" for sc in scales) + " | size named right on 90 % | x1 in D | 90 % size in D |")
         print("|---|" + "---|" * len(scales) + "---|---|---|")
         for e in effects:
-            pts = []
-            cells = []
+            pts, cells, counts = [], [], {}
             for sc in scales:
-                rs = [r for r in summaries[sc]["rows"] if r["effect"] == e and "right" in r]
-                # A record gap refuses (e.g. the effect beyond its static test) is shown apart,
-                # not counted.
-                err = sum(1 for r in summaries[sc]["rows"] if r["effect"] == e and "error" in r)
+                rows = [r for r in summaries[sc]["rows"] if r["effect"] == e]
+                rs = [r for r in rows if "right" in r]
+                # A record gap refuses as not static (the effect beyond its static test) is
+                # shown apart, as is any other failure; neither is counted.
+                refused = sum(1 for r in rows if r.get("refused_not_static"))
+                failed = sum(1 for r in rows if "error" in r and not r.get("refused_not_static"))
                 k = sum(r["right"] for r in rs)
-                pts.append((sc, k / len(rs) if rs else 0.0))
-                cells.append(f"{k}/{len(rs)}" + (f" ({err} refused)" if err else ""))
-            x90 = s90(pts)
-            in_d = sorted(plain_in_d[n][e] for n in names) if e in PLAIN_S100 else []
+                pts.append((sc, k / len(rs) if rs else None))
+                note = ", ".join(x for x in (f"{refused} refused as not static" if refused else "",
+                                             f"{failed} failed" if failed else "") if x)
+                cells.append(f"{k}/{len(rs)}" + (f" ({note})" if note else ""))
+                counts[f"{sc:g}"] = {"right": k, "scored": len(rs), "refused_not_static": refused, "failed": failed}
+            x90, rel = s90(pts)
+            in_d = sorted(plain_in_d[n][e] for n in names if plain_in_d[n][e] is not None) if e in PLAIN_S100 else []
             med = statistics.median(in_d) if in_d else None
             power["effect"][e] = {
-                "right": {f"{sc:g}": c for sc, c in zip(scales, cells)},
+                "counts": counts,
                 "s90_scale": x90,
+                "s90_relation": rel,
                 "plain_in_d_median": med,
                 "s90_in_d": None if x90 is None or med is None else x90 * med,
             }
             d1 = "-" if med is None else f"{med:.3g} ({in_d[0]:.3g}-{in_d[-1]:.3g})"
-            d90 = "-" if med is None or x90 is None else f"{x90 * med:.3g}"
-            print(f"| {e} | " + " | ".join(cells) + f" | {'not reached' if x90 is None else f'x{x90:.3g}'} | {d1} | {d90} |")
+            d90 = "-" if med is None or x90 is None else f"{'<= ' if rel == '<=' else ''}{x90 * med:.3g}"
+            s90_text = "not reached" if x90 is None else f"{'<= ' if rel == '<=' else ''}x{x90:.3g}"
+            print(f"| {e} | " + " | ".join(cells) + f" | {s90_text} | {d1} | {d90} |")
         json.dump(power, open(os.path.join(a.out, "power.json"), "w"), indent=1)
     return 0
 

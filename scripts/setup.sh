@@ -7,9 +7,9 @@
 # - a C++ compiler (g++) for libFuzzer, built by the fuzz crate (scripts/fuzz.sh); its C
 #   compiler (cc) also builds the QEMU trace plugin of the cycle estimate
 #   (scripts/qemu-trace/fogtrace.c, built by fw-cycles);
-# - NumPy for python3: the independent generators (scripts/gen_nav_records.py,
-#   scripts/gap_indep_gen.py, scripts/gen_unit_family.py) that the tests
-#   host-sim/tests/second_generator.rs and gap_indep.rs run (they fail under CI without it).
+# - python3 with NumPy: the independent generators scripts/gen_nav_records.py and
+#   scripts/gap_indep_gen.py, which host-sim/tests/second_generator.rs and gap_indep.rs run
+#   (they fail without it when FOG_REQUIRE_NUMPY or CI is set; test-all.sh sets the first).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -63,11 +63,21 @@ if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null
 fi
 
-# NumPy for the independent generators (see the top). pip, not apt: Debian's python3-numpy
-# belongs to the system python, which may not be the python3 on the PATH.
-if command -v python3 >/dev/null 2>&1 && ! python3 -c "import numpy" >/dev/null 2>&1; then
-  echo "setup: installing numpy for $(command -v python3)" >&2
-  python3 -m pip install -q --disable-pip-version-check "numpy>=1.24,<3" 2>&1 \
-    | grep -v "Running pip as the 'root' user" >&2 || true
-  python3 -c "import numpy" || { echo "setup: numpy could not be installed" >&2; exit 1; }
+# NumPy for the independent generators (see the top): pip for the python3 on the PATH (a
+# pyenv or venv python); where pip refuses (PEP 668: a distribution's own python) or is
+# missing, Debian's python3-numpy, which serves /usr/bin/python3.
+has_numpy() { command -v python3 >/dev/null 2>&1 && python3 -c "import numpy" >/dev/null 2>&1; }
+if ! has_numpy; then
+  if command -v python3 >/dev/null 2>&1 && python3 -m pip --version >/dev/null 2>&1; then
+    echo "setup: installing numpy for $(command -v python3) with pip" >&2
+    python3 -m pip install -q --disable-pip-version-check "numpy>=1.24,<3" 2>&1 \
+      | grep -v "Running pip as the 'root' user" >&2 || true
+  fi
+  if ! has_numpy && command -v apt-get >/dev/null 2>&1; then
+    echo "setup: installing python3 and python3-numpy with apt-get" >&2
+    SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq python3 python3-numpy >/dev/null
+  fi
+  has_numpy || { echo "setup: python3 with numpy could not be installed ($(command -v python3 || echo 'no python3'))" >&2; exit 1; }
 fi

@@ -4,9 +4,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
-/// The `host-sim` binary: the one `FOG_HOST_SIM_BIN` names, else built once per test
-/// process (so that `cargo test -p fog-system-tests` works alone, without relying on another
-/// package's build).
+/// The `host-sim` binary: the one `FOG_HOST_SIM_BIN` names (an absolute path), else built
+/// once per test process (so that `cargo test -p fog-system-tests` works alone, without
+/// relying on another package's build).
 ///
 /// `scripts/test-all.sh` sets `FOG_HOST_SIM_BIN` to the binary its workspace test step
 /// built (`target/debug/host-sim`): `cargo build -p host-sim` unifies other features than
