@@ -8,16 +8,11 @@
 //! set by `scripts/test-all.sh`, or `CI` is set). The full benchmark is
 //! `scripts/gap_indep_bench.py` (docs/gap.md), not a CI test.
 
+mod common;
+
 use host_sim::gap::{self, Options};
 use std::path::Path;
 use std::process::Command;
-
-fn have_numpy() -> bool {
-    Command::new("python3")
-        .args(["-c", "import numpy"])
-        .output()
-        .is_ok_and(|o| o.status.success())
-}
 
 fn generate(dir: &Path, class: &str, seed: u64, strength: Option<f64>) -> std::path::PathBuf {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/gap_indep_gen.py");
@@ -55,12 +50,7 @@ fn named(path: &Path) -> String {
 
 #[test]
 fn independent_records_are_named() {
-    if !have_numpy() {
-        assert!(
-            std::env::var_os("FOG_REQUIRE_NUMPY").is_none() && std::env::var_os("CI").is_none(),
-            "python3 with numpy not found, and FOG_REQUIRE_NUMPY or CI is set: scripts/setup.sh installs it"
-        );
-        eprintln!("SKIP: python3 with numpy not found (pip install numpy)");
+    if !common::python_with_numpy("the independent-generator benchmark") {
         return;
     }
     let dir = tempfile::tempdir().expect("tempdir");

@@ -4,6 +4,8 @@
 //! `scripts/test-all.sh`, after `scripts/setup.sh` installed numpy) or `CI` is set: the
 //! independent generator is never skipped there.
 
+mod common;
+
 use host_sim::nav::{run, AlignmentBias, GatedKalman, NavRecord, NoCompensation};
 use host_sim::record::{ReadOptions, Record};
 use std::path::PathBuf;
@@ -13,25 +15,9 @@ fn script() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scripts/gen_nav_records.py")
 }
 
-fn python_with_numpy() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import numpy"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !ok {
-        assert!(
-            std::env::var_os("FOG_REQUIRE_NUMPY").is_none() && std::env::var_os("CI").is_none(),
-            "python3 with numpy not found, and FOG_REQUIRE_NUMPY or CI is set: scripts/setup.sh installs it"
-        );
-        eprintln!("SKIPPED: python3 with numpy not found; the second generator is not tested");
-    }
-    ok
-}
-
 #[test]
 fn second_generator_self_check() {
-    if !python_with_numpy() {
+    if !common::python_with_numpy("the second generator") {
         return;
     }
     let out = Command::new("python3")
@@ -48,7 +34,7 @@ fn second_generator_self_check() {
 
 #[test]
 fn second_generator_records_are_scored() {
-    if !python_with_numpy() {
+    if !common::python_with_numpy("the second generator") {
         return;
     }
     let dir = tempfile::tempdir().expect("tmp");

@@ -54,3 +54,22 @@ pub fn gap(p: &Path, json: &Path, args: &[&str]) -> (serde_json::Value, String) 
     let v = serde_json::from_str(&fs::read_to_string(json).expect("json")).expect("parse");
     (v, err)
 }
+
+/// Whether `python3` with NumPy runs here (the independent generators need it). When it
+/// does not: panics if `FOG_REQUIRE_NUMPY` (set by `scripts/test-all.sh` after
+/// `scripts/setup.sh` installed NumPy) or `CI` is set, else prints that `what` is not
+/// tested and returns false (the caller skips).
+pub fn python_with_numpy(what: &str) -> bool {
+    let ok = std::process::Command::new("python3")
+        .args(["-c", "import numpy"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !ok {
+        assert!(
+            std::env::var_os("FOG_REQUIRE_NUMPY").is_none() && std::env::var_os("CI").is_none(),
+            "python3 with numpy not found, and FOG_REQUIRE_NUMPY or CI is set: scripts/setup.sh installs it"
+        );
+        eprintln!("SKIPPED: python3 with numpy not found; {what} is not tested (scripts/setup.sh installs it)");
+    }
+    ok
+}
