@@ -237,6 +237,13 @@ def failure(log):
 NOT_STATIC = "not a static record"
 
 
+def outcome(base, rc, secs):
+    """One run's result, (rc, seconds, report or None, gap's error line): the report
+    BASE.json when rc is 0 and it exists, else the error its log BASE.log names."""
+    js = json.load(open(base + ".json")) if rc == 0 and os.path.exists(base + ".json") else None
+    return rc, secs, js, "" if js else failure(base + ".log")
+
+
 def named_effects(js):
     rounds = js.get("rounds") or []
     return [r for r in rounds if r.get("effect") not in (None, "none")]
@@ -352,6 +359,48 @@ def s90(points):
     return None, ""
 
 
+def power_curve(names, effects, scales, summaries, plain_in_d, a):
+    """Prints the power table (per effect and size: named right, refusals apart; the size
+    named right on 90 %; sizes in D) and returns what DIR/power.json holds."""
+    power = {"records": names, "effects": effects, "rounds": a.rounds, "dither": a.dither, "scales": scales,
+             "plain_in_d": plain_in_d, "effect": {}}
+    print("\n== power on real noise: injected effect named right (no foreign name), per size")
+    print("(in D: the size in the simulated benchmark's unit, the record's own Allan deviation at a")
+    print(" sixth of its length; x1's median over the records, and the 90 % size so converted)")
+    print("| effect | " + " | ".join(f"x{sc:g}" for sc in scales) + " | size named right on 90 % | x1 in D | 90 % size in D |")
+    print("|---|" + "---|" * len(scales) + "---|---|---|")
+    for e in effects:
+        pts, cells, counts = [], [], {}
+        for sc in scales:
+            rows = [r for r in summaries[sc]["rows"] if r["effect"] == e]
+            rs = [r for r in rows if "right" in r]
+            # A record gap refuses as not static (the effect beyond its static test) is
+            # shown apart, as is any other failure; neither is counted.
+            refused = sum(1 for r in rows if r.get("refused_not_static"))
+            failed = sum(1 for r in rows if "error" in r and not r.get("refused_not_static"))
+            k = sum(r["right"] for r in rs)
+            pts.append((sc, k / len(rs) if rs else None))
+            note = ", ".join(x for x in (f"{refused} refused as not static" if refused else "",
+                                         f"{failed} failed" if failed else "") if x)
+            cells.append(f"{k}/{len(rs)}" + (f" ({note})" if note else ""))
+            counts[f"{sc:g}"] = {"right": k, "scored": len(rs), "refused_not_static": refused, "failed": failed}
+        x90, rel = s90(pts)
+        in_d = sorted(plain_in_d[n][e] for n in names if plain_in_d[n][e] is not None) if e in PLAIN_S100 else []
+        med = statistics.median(in_d) if in_d else None
+        power["effect"][e] = {
+            "counts": counts,
+            "s90_scale": x90,
+            "s90_relation": rel,
+            "plain_in_d_median": med,
+            "s90_in_d": None if x90 is None or med is None else x90 * med,
+        }
+        d1 = "-" if med is None else f"{med:.3g} ({in_d[0]:.3g}-{in_d[-1]:.3g})"
+        d90 = "-" if med is None or x90 is None else f"{'<= ' if rel == '<=' else ''}{x90 * med:.3g}"
+        s90_text = "not reached" if x90 is None else f"{'<= ' if rel == '<=' else ''}x{x90:.3g}"
+        print(f"| {e} | " + " | ".join(cells) + f" | {s90_text} | {d1} | {d90} |")
+    return power
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", required=True)
@@ -448,8 +497,7 @@ def main():
         got_ = {}
         if a.rescore:
             for n, e, b in js_:
-                js = json.load(open(b + ".json")) if os.path.exists(b + ".json") else None
-                got_[b] = (0 if js else 1, 0.0, js, "" if js else failure(b + ".log"))
+                got_[b] = outcome(b, 0 if os.path.exists(b + ".json") else 1, 0.0)
             return got_
         with cf.ThreadPoolExecutor(max_workers=a.jobs) as ex:
             futs = {
@@ -458,9 +506,8 @@ def main():
             }
             for fut in cf.as_completed(futs):
                 n, e, b = futs[fut]
-                rc, secs = fut.result()
-                js = json.load(open(b + ".json")) if rc == 0 and os.path.exists(b + ".json") else None
-                got_[b] = (rc, secs, js, "" if js else failure(b + ".log"))
+                got_[b] = outcome(b, *fut.result())
+                rc, secs, js, _ = got_[b]
                 shown = [r["effect"] for r in named_effects(js)] if js else f"rc {rc}"
                 print(f"{n}-{e}: {shown} ({secs:.0f} s)", file=sys.stderr)
         return got_
@@ -478,42 +525,7 @@ def main():
             print(f"\n== sizes x{sc:g} ({outdir[sc]})")
         print_summary(summaries[sc])
     if curve:
-        power = {"records": names, "effects": effects, "rounds": a.rounds, "dither": a.dither, "scales": scales, "effect": {}}
-        power["plain_in_d"] = plain_in_d
-        print("\n== power on real noise: injected effect named right (no foreign name), per size")
-        print("(in D: the size in the simulated benchmark's unit, the record's own Allan deviation at a")
-        print(" sixth of its length; x1's median over the records, and the 90 % size so converted)")
-        print("| effect | " + " | ".join(f"x{sc:g}" for sc in scales) + " | size named right on 90 % | x1 in D | 90 % size in D |")
-        print("|---|" + "---|" * len(scales) + "---|---|---|")
-        for e in effects:
-            pts, cells, counts = [], [], {}
-            for sc in scales:
-                rows = [r for r in summaries[sc]["rows"] if r["effect"] == e]
-                rs = [r for r in rows if "right" in r]
-                # A record gap refuses as not static (the effect beyond its static test) is
-                # shown apart, as is any other failure; neither is counted.
-                refused = sum(1 for r in rows if r.get("refused_not_static"))
-                failed = sum(1 for r in rows if "error" in r and not r.get("refused_not_static"))
-                k = sum(r["right"] for r in rs)
-                pts.append((sc, k / len(rs) if rs else None))
-                note = ", ".join(x for x in (f"{refused} refused as not static" if refused else "",
-                                             f"{failed} failed" if failed else "") if x)
-                cells.append(f"{k}/{len(rs)}" + (f" ({note})" if note else ""))
-                counts[f"{sc:g}"] = {"right": k, "scored": len(rs), "refused_not_static": refused, "failed": failed}
-            x90, rel = s90(pts)
-            in_d = sorted(plain_in_d[n][e] for n in names if plain_in_d[n][e] is not None) if e in PLAIN_S100 else []
-            med = statistics.median(in_d) if in_d else None
-            power["effect"][e] = {
-                "counts": counts,
-                "s90_scale": x90,
-                "s90_relation": rel,
-                "plain_in_d_median": med,
-                "s90_in_d": None if x90 is None or med is None else x90 * med,
-            }
-            d1 = "-" if med is None else f"{med:.3g} ({in_d[0]:.3g}-{in_d[-1]:.3g})"
-            d90 = "-" if med is None or x90 is None else f"{'<= ' if rel == '<=' else ''}{x90 * med:.3g}"
-            s90_text = "not reached" if x90 is None else f"{'<= ' if rel == '<=' else ''}x{x90:.3g}"
-            print(f"| {e} | " + " | ".join(cells) + f" | {s90_text} | {d1} | {d90} |")
+        power = power_curve(names, effects, scales, summaries, plain_in_d, a)
         json.dump(power, open(os.path.join(a.out, "power.json"), "w"), indent=1)
     return 0
 
