@@ -6,7 +6,7 @@ Records (from ../shared/data/real, never copied into the repository; each cut to
 1800 s and written to --out), every static record long enough for the held-out split and
 every axis (21 record-axes; `--records core` gives the six of the figures before issue 43's
 benchmark grew: adis4x, adis4z, adis5x, adis5z, adis2y, mpu10x; injection seeds follow a
-fixed order, so a record's injections are the same whatever --records holds):
+fixed order, so a record's injections are the same whatever --records and --effects hold):
   - ADIS16405 (University of Calgary via SMAC-Group/imudata, CC BY-NC-SA 4.0), 100 Hz, output
     counts of 0.05 deg/s: runs 1-6, x, y and z (1800 s from t = 200 s, past run 4's handling
     bump at 117-119 s);
@@ -460,8 +460,9 @@ def main():
         os.makedirs(d, exist_ok=True)
     clean_jobs, jobs, truths = [], {sc: [] for sc in scales}, {sc: {} for sc in scales}
     plain_in_d = {}
-    # Seeds by a fixed order (the six earlier record-axes first), whatever --records holds;
-    # the same at every scale, so a curve's points differ only by the size.
+    # Seeds by a fixed order (the six earlier record-axes first, the effects as in EFFECTS),
+    # whatever --records and --effects hold; the same at every scale, so a curve's points
+    # differ only by the size.
     order = CORE + [n for n in RECORDS if n not in CORE]
     for name in names:
         ri = order.index(name)
@@ -479,7 +480,8 @@ def main():
             write_csv(base + ".csv", t, rate, temp)
         clean_jobs.append((name, "none", base))
         for sc in scales:
-            for ei, effect in enumerate(effects, start=1):
+            for effect in effects:
+                ei = EFFECTS.index(effect) + 1
                 add, truth = inject(effect, t, rate, temp, s100, sc, a.seed + 100 * ri + ei)
                 if a.dither:
                     rng = random.Random(a.seed + 7919 + 100 * ri + ei)
