@@ -220,10 +220,19 @@ fn rounds_name_two_effects_in_turn() {
         }),
         "t_s,rate_dps",
     );
+    let saved = dir.path().join("saved.toml");
     let v = gap_json(
         &p,
         &dir.path().join("rounds.json"),
-        &["--simulations", "6", "--no-task", "--rounds", "3"],
+        &[
+            "--simulations",
+            "6",
+            "--no-task",
+            "--rounds",
+            "3",
+            "--save-gyro",
+            saved.to_str().expect("path"),
+        ],
     );
     let rounds = v["rounds"].as_array().expect("rounds");
     let named: Vec<&str> = rounds.iter().filter_map(|r| r["effect"].as_str()).collect();
@@ -250,6 +259,16 @@ fn rounds_name_two_effects_in_turn() {
     assert!(
         lo < slope && slope < hi,
         "slope {slope} outside [{lo}, {hi}]"
+    );
+    // The ramp left the record in the rounds; the saved model holds it, as named.
+    let named = ramp["params"]["rate_ramp_dps_per_s"]
+        .as_f64()
+        .expect("ramp");
+    let g = host_sim::gyro::Gyro::load(&saved).expect("saved gyro");
+    let kept = g.model.noise.rate_ramp_dps_per_s;
+    assert!(
+        (kept - named).abs() <= 1e-5 * named.abs(),
+        "{kept} vs {named}"
     );
 }
 

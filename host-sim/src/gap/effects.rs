@@ -193,8 +193,8 @@ pub struct Spec {
     /// map ([`super::marginal`]); None: Gaussian.
     pub marginal: Option<std::sync::Arc<super::marginal::Marginal>>,
     /// Regressors whose fit an earlier round took out of the record (`gap --rounds`: a
-    /// temperature link): each simulation has its own fit on them, over all its samples,
-    /// taken out ([`TakenOut`]).
+    /// temperature link, a ramp): each simulation has its own fit on them, over all its
+    /// samples, taken out ([`TakenOut`]).
     pub taken_out: Option<std::sync::Arc<TakenOut>>,
 }
 
