@@ -261,6 +261,8 @@ fn rounds_name_two_effects_in_turn() {
         "slope {slope} outside [{lo}, {hi}]"
     );
     // The ramp left the record in the rounds; the saved model holds it, as named.
+    let applied = ramp["applied"].as_str().expect("applied");
+    assert!(applied.starts_with("subtracted a rate ramp"), "{applied}");
     let named = ramp["params"]["rate_ramp_dps_per_s"]
         .as_f64()
         .expect("ramp");

@@ -239,7 +239,7 @@ pub struct Options {
     /// the model; its own terms may then be named (raised), as against a model.
     pub fitted_quantum_dps: Option<f64>,
     /// Regressors whose fit an earlier round took out of the record (`--rounds`: a
-    /// temperature link); every simulation has its own fit on them taken out too.
+    /// temperature link, a ramp); every simulation has its own fit on them taken out too.
     pub taken_out: Option<std::sync::Arc<effects::TakenOut>>,
 }
 

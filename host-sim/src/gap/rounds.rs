@@ -7,7 +7,8 @@
 //! - `rate_ramp` leaves the record: its fitted slope, then the fit over all samples of what
 //!   is left (`less_ramp`), and every later simulation has its own fit on time taken out
 //!   too (`effects::TakenOut`), so the record and the simulations hold the same in-sample
-//!   residual; the model takes the N, B, K its candidate was refitted with;
+//!   residual (a link named later keeps the ramp's fit out of both); the model takes the
+//!   N, B, K its candidate was refitted with;
 //! - the other deterministic effects are subtracted from the record's rate with their fitted
 //!   parameters: `temperature` (coefficients times `temp_c - reference` and times its rate of change,
 //!   from 10-s windows as the drift test reads it), `sinusoid`, `scale_factor` (times the
@@ -106,8 +107,8 @@ fn take_refit_noise(m: &mut Model, pr: &Option<BTreeMap<String, f64>>) {
 }
 
 /// Applies a named effect: the record for the next round, the model (if it changed) and
-/// what was done, in words. A temperature link taken out of the record also sets
-/// `taken_out`, its regressors, to be taken out of every later simulation.
+/// what was done, in words. A temperature link or a ramp taken out of the record also adds
+/// its regressors to `taken_out`, to be taken out of every later simulation.
 fn apply(
     e: Effect,
     d: &Diagnosis,
@@ -130,13 +131,11 @@ fn apply(
         Effect::RateRamp => {
             take_refit_noise(&mut m, pr);
             let k = p(pr, "rate_ramp_dps_per_s");
-            let mut cols = taken_out
-                .as_ref()
-                .map(|x| x.cols.clone())
-                .unwrap_or_default();
-            cols.push(t.clone());
-            let out = super::effects::TakenOut { cols };
+            let out = taken_out_with(taken_out.as_deref(), vec![t.clone()]);
             less_ramp(&mut r.rate_dps, t, &out, k);
+            // The record has no slope left over its samples: a user model's own ramp (which
+            // the drift tests subtract first) goes out with it (`Outcome::ramp_out`).
+            m.noise.rate_ramp_dps_per_s = 0.0;
             *taken_out = Some(std::sync::Arc::new(out));
             format!(
                 "subtracted a rate ramp of {:.4} deg/h/h and the fit over all samples of what is left",
@@ -162,7 +161,13 @@ fn apply(
             Some((cols, t_ref)) => {
                 let (k1, k2) = (p(pr, "bias_dps_per_c"), p(pr, "bias_dps_per_c_per_s"));
                 sub(&mut r, &|i| k1 * cols[0][i] + k2 * cols[1][i]);
-                *taken_out = Some(std::sync::Arc::new(super::effects::TakenOut { cols }));
+                // A ramp taken out before stays out of the record (the link's regressors
+                // have a slope of their own) and of every later simulation.
+                if let Some(before) = taken_out.as_deref() {
+                    before.take_out(t, t, &mut r.rate_dps);
+                }
+                let out = taken_out_with(taken_out.as_deref(), cols);
+                *taken_out = Some(std::sync::Arc::new(out));
                 format!(
                     "subtracted {:.4} deg/h/C (temp_c - {t_ref:.2} C) and {:.3} deg/h/(C/s) d temp_c/dt",
                     k1 * 3600.0,
@@ -252,6 +257,17 @@ fn apply(
     }
     let changed = m != *model;
     (r, changed.then_some(m), what)
+}
+
+/// The regressors taken out so far (`before`, if any) and `new` after them: what every
+/// later simulation takes out of itself.
+fn taken_out_with(
+    before: Option<&super::effects::TakenOut>,
+    new: Vec<Vec<f64>>,
+) -> super::effects::TakenOut {
+    let mut cols = before.map(|x| x.cols.clone()).unwrap_or_default();
+    cols.extend(new);
+    super::effects::TakenOut { cols }
 }
 
 /// Takes a named ramp of `k_dps_per_s` out of `rate_dps` (at times `t_s`), then what is
@@ -361,8 +377,12 @@ pub struct Outcome {
     pub stopped: String,
     /// The model the last round simulated: the user's or the first round's fitted
     /// baseline, with every named effect that enters the model added (module docs); the
-    /// effects taken out of the record are not in it (`gap --save-gyro`).
+    /// effects taken out of the record are not in it (`gap --save-gyro` adds
+    /// [`Outcome::ramp_out_dps_per_s`] back).
     pub model: Model,
+    /// The ramp a named `rate_ramp` took out of the record, deg/s per s: the model's own
+    /// (a user model's) and the named one; 0 when none was named.
+    pub ramp_out_dps_per_s: f64,
 }
 
 /// The groups of `d` whose held-out gap exceeds their null 95 % quantile, largest ratio
@@ -434,6 +454,7 @@ pub fn run(
     let mut first = None;
     let mut last = None;
     let mut rounds = Vec::new();
+    let mut ramp_out_dps_per_s = 0.0;
     let n = n.max(1);
     for k in 1..=n {
         progress(k);
@@ -477,6 +498,10 @@ pub fn run(
         if let Some(e) = named.filter(|_| k < n) {
             let base = model.clone().unwrap_or_else(|| d.baseline.clone());
             let spikes = &mut round.spike_times_s;
+            if e == Effect::RateRamp {
+                ramp_out_dps_per_s +=
+                    base.noise.rate_ramp_dps_per_s + p(&d.params, "rate_ramp_dps_per_s");
+            }
             let (r2, m2, what) = apply(e, &d, &rec, &base, spikes, &mut o.taken_out);
             rec = r2;
             match m2 {
@@ -534,6 +559,7 @@ pub fn run(
     let model = model.unwrap_or_else(|| end.baseline.clone());
     Ok(Outcome {
         model,
+        ramp_out_dps_per_s,
         final_gap: end.gap_after,
         final_null_gap_95: end.null_gap_95,
         unexplained: unexplained_groups(end),
@@ -570,9 +596,11 @@ mod tests {
             "{}",
             coef(&t_s, &only_estimate)
         );
-        let out = super::super::effects::TakenOut {
-            cols: vec![earlier.clone(), t_s.clone()],
+        let before = super::super::effects::TakenOut {
+            cols: vec![earlier.clone()],
         };
+        let out = taken_out_with(Some(&before), vec![t_s.clone()]);
+        assert_eq!(out.cols, vec![earlier.clone(), t_s.clone()]);
         let mut less = rate.clone();
         less_ramp(&mut less, &t_s, &out, 0.8e-4);
         assert!(coef(&t_s, &less).abs() < 1e-12, "{}", coef(&t_s, &less));

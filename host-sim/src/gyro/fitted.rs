@@ -119,14 +119,7 @@ pub fn save_gap(
     model.sample_rate_hz = Some(model.sample_rate_hz.unwrap_or_else(|| rate_of(dt_s)));
     // A named ramp leaves the record in the rounds (the held-out comparison wants the
     // record's own in-sample residual), but the model holds a ramp term: it goes back in.
-    for r in out
-        .rounds
-        .iter()
-        .filter(|r| r.effect == "rate_ramp" && !r.applied.is_empty())
-    {
-        let k = r.params.as_ref().and_then(|p| p.get("rate_ramp_dps_per_s"));
-        model.noise.rate_ramp_dps_per_s += k.copied().unwrap_or(0.0);
-    }
+    model.noise.rate_ramp_dps_per_s += out.ramp_out_dps_per_s;
     let name = gyro.map_or_else(|| record_name(real), |g| g.name.clone());
     let source = gyro.map_or_else(
         || "the baseline gap fitted (ARW, bias instability, rate random walk)".to_string(),
@@ -155,7 +148,10 @@ pub fn save_gap(
             "of the record rather than put into the model, e.g. temperature, sinusoid, scale_factor,"
                 .into(),
         );
-        header.push("spikes, is not in this file: see the JSON's rounds).".into());
+        header.push(
+            "spikes, is not in this file: see the JSON's rounds; a ramp taken out is put back)."
+                .into(),
+        );
     }
     let parts = Parts {
         header,
