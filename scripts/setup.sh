@@ -13,6 +13,14 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# Debian packages, quietly, with sudo when not root.
+apt_install() {
+  local sudo=""
+  [ "$(id -u)" -ne 0 ] && sudo="sudo"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "$@" >/dev/null
+}
+
 channel=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
 # Only what is missing: `rustup toolchain install` on an installed toolchain reinstalls it,
 # and while it does, every concurrent build fails.
@@ -29,9 +37,7 @@ done
 
 if [ -d fog-firmware ] && ! command -v qemu-system-arm >/dev/null 2>&1; then
   echo "setup: installing qemu-system-arm" >&2
-  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq qemu-system-arm >/dev/null
+  apt_install qemu-system-arm
 fi
 
 # binutils for the Cortex-M (arm-none-eabi-objdump, -addr2line, -nm): the test that looks
@@ -39,18 +45,14 @@ fi
 if [ -d fog-firmware ] && ! command -v arm-none-eabi-objdump >/dev/null 2>&1 \
    && command -v apt-get >/dev/null 2>&1; then
   echo "setup: installing binutils-arm-none-eabi" >&2
-  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq binutils-arm-none-eabi >/dev/null
+  apt_install binutils-arm-none-eabi
 fi
 
 # A C++ compiler: libfuzzer-sys builds libFuzzer (scripts/fuzz.sh).
 if { ! command -v c++ >/dev/null 2>&1 || ! command -v cc >/dev/null 2>&1; } \
    && command -v apt-get >/dev/null 2>&1; then
   echo "setup: installing g++" >&2
-  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq g++ >/dev/null
+  apt_install g++
 fi
 
 # Headless Chromium for the test that opens the demo's index.html (it skips, saying why,
@@ -58,9 +60,7 @@ fi
 if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1 \
    && command -v apt-get >/dev/null 2>&1; then
   echo "setup: installing chromium" >&2
-  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null
+  apt_install chromium
 fi
 
 # NumPy for the independent generators (see the top): pip for the python3 on the PATH (a
@@ -75,9 +75,7 @@ if ! has_numpy; then
   fi
   if ! has_numpy && command -v apt-get >/dev/null 2>&1; then
     echo "setup: installing python3 and python3-numpy with apt-get" >&2
-    SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-    $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq python3 python3-numpy >/dev/null
+    apt_install python3 python3-numpy
   fi
   has_numpy || { echo "setup: python3 with numpy could not be installed ($(command -v python3 || echo 'no python3'))" >&2; exit 1; }
 fi
