@@ -108,7 +108,8 @@ fn take_refit_noise(m: &mut Model, pr: &Option<BTreeMap<String, f64>>) {
 
 /// Applies a named effect: the record for the next round, the model (if it changed) and
 /// what was done, in words. A temperature link or a ramp taken out of the record also adds
-/// its regressors to `taken_out`, to be taken out of every later simulation.
+/// its regressors to `taken_out`, to be taken out of every later simulation; a ramp adds
+/// itself and the model's own to `ramp_out_dps_per_s` ([`Outcome::ramp_out_dps_per_s`]).
 fn apply(
     e: Effect,
     d: &Diagnosis,
@@ -116,6 +117,7 @@ fn apply(
     model: &Model,
     spike_times_s: &mut Vec<f64>,
     taken_out: &mut Option<std::sync::Arc<super::effects::TakenOut>>,
+    ramp_out_dps_per_s: &mut f64,
 ) -> (Rec, Option<Model>, String) {
     let mut r = rec.clone();
     let mut m = model.clone();
@@ -134,7 +136,8 @@ fn apply(
             let out = taken_out_with(taken_out.as_deref(), vec![t.clone()]);
             less_ramp(&mut r.rate_dps, t, &out, k);
             // The record has no slope left over its samples: a user model's own ramp (which
-            // the drift tests subtract first) goes out with it (`Outcome::ramp_out`).
+            // the drift tests subtract first) goes out with it.
+            *ramp_out_dps_per_s += m.noise.rate_ramp_dps_per_s + k;
             m.noise.rate_ramp_dps_per_s = 0.0;
             *taken_out = Some(std::sync::Arc::new(out));
             format!(
@@ -498,11 +501,9 @@ pub fn run(
         if let Some(e) = named.filter(|_| k < n) {
             let base = model.clone().unwrap_or_else(|| d.baseline.clone());
             let spikes = &mut round.spike_times_s;
-            if e == Effect::RateRamp {
-                ramp_out_dps_per_s +=
-                    base.noise.rate_ramp_dps_per_s + p(&d.params, "rate_ramp_dps_per_s");
-            }
-            let (r2, m2, what) = apply(e, &d, &rec, &base, spikes, &mut o.taken_out);
+            let taken_out = &mut o.taken_out;
+            let ramp_out = &mut ramp_out_dps_per_s;
+            let (r2, m2, what) = apply(e, &d, &rec, &base, spikes, taken_out, ramp_out);
             rec = r2;
             match m2 {
                 // Quantization named against a fitted baseline: the next round fits the
