@@ -375,12 +375,25 @@ impl Spec {
 pub struct TakenOut {
     /// Regressor columns on the real record's samples.
     pub cols: Vec<Vec<f64>>,
+    /// Which column is time (a named ramp's), if one is.
+    pub time_col: Option<usize>,
 }
 
 impl TakenOut {
+    /// The slope a fit took out with the time column (`beta` from [`Self::take_out`]),
+    /// deg/s per s; 0 without a time column.
+    pub fn slope_dps_per_s(&self, beta: &[f64]) -> f64 {
+        self.time_col
+            .and_then(|j| beta.get(j))
+            .copied()
+            .unwrap_or(0.0)
+    }
+
     /// Takes the fit of `y` (at times `t_s`; the regressors read at the nearest sample of
-    /// `real_t_s`, each centred) out of `y`; nothing when the fit is singular.
-    pub fn take_out(&self, real_t_s: &[f64], t_s: &[f64], y: &mut [f64]) {
+    /// `real_t_s`, each centred) out of `y` and returns its coefficients, one per column in
+    /// `cols`' order (`y`'s unit per regressor unit); nothing taken out and `None` when the
+    /// fit is singular.
+    pub fn take_out(&self, real_t_s: &[f64], t_s: &[f64], y: &mut [f64]) -> Option<Vec<f64>> {
         let k = self.cols.len();
         let x: Vec<Vec<f64>> = self
             .cols
@@ -391,17 +404,16 @@ impl TakenOut {
                 v.into_iter().map(|a| a - m).collect()
             })
             .collect();
-        let Some(beta) = lstsq(y.len(), k, &mut |i, row| {
+        let beta = lstsq(y.len(), k, &mut |i, row| {
             for (j, r) in row.iter_mut().enumerate() {
                 *r = x[j][i];
             }
             y[i]
-        }) else {
-            return;
-        };
+        })?;
         for (i, v) in y.iter_mut().enumerate() {
             *v -= (0..k).map(|j| beta[j] * x[j][i]).sum::<f64>();
         }
+        Some(beta)
     }
 }
 
@@ -1939,6 +1951,7 @@ mod tests {
         let x2: Vec<f64> = real_t.iter().map(|t| (t / 37.0).cos()).collect();
         let taken = TakenOut {
             cols: vec![x1.clone(), x2.clone()],
+            time_col: None,
         };
         // The simulation's samples sit between the real ones (nearest: the real sample).
         let t: Vec<f64> = real_t.iter().map(|t| t + 0.3).collect();

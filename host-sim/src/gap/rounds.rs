@@ -61,6 +61,9 @@ pub struct Round {
     pub gap_after: f64,
     /// `1 - gap_after / gap_before`.
     pub shrink: f64,
+    /// The baseline's held-out gap per feature group (`gap_before` is the largest): which
+    /// features the record departs from the round's model in.
+    pub group_gap_before: BTreeMap<String, f64>,
     /// The round's null held-out gap (the model's own simulations scored against each
     /// other): median.
     pub null_gap_median: f64,
@@ -133,15 +136,16 @@ fn apply(
         Effect::RateRamp => {
             take_refit_noise(&mut m, pr);
             let k = p(pr, "rate_ramp_dps_per_s");
-            let out = taken_out_with(taken_out.as_deref(), vec![t.clone()]);
-            less_ramp(&mut r.rate_dps, t, &out, k);
+            let out = taken_out_with(taken_out.as_deref(), vec![], Some(t));
             // The record has no slope left over its samples: a user model's own ramp (which
-            // the drift tests subtract first) goes out with it.
-            *ramp_out_dps_per_s += m.noise.rate_ramp_dps_per_s + k;
+            // the drift tests subtract first) goes out with it, and so the model has none.
+            let slope = less_ramp(&mut r.rate_dps, t, &out, k);
+            *ramp_out_dps_per_s += slope;
             m.noise.rate_ramp_dps_per_s = 0.0;
             *taken_out = Some(std::sync::Arc::new(out));
             format!(
-                "subtracted a rate ramp of {:.4} deg/h/h and the fit over all samples of what is left",
+                "subtracted a rate ramp of {:.4} deg/h/h (the named {:.4}, then the fit over all samples of what is left)",
+                slope * 3600.0 * 3600.0,
                 k * 3600.0 * 3600.0
             )
         }
@@ -167,9 +171,10 @@ fn apply(
                 // A ramp taken out before stays out of the record (the link's regressors
                 // have a slope of their own) and of every later simulation.
                 if let Some(before) = taken_out.as_deref() {
-                    before.take_out(t, t, &mut r.rate_dps);
+                    let beta = before.take_out(t, t, &mut r.rate_dps).unwrap_or_default();
+                    *ramp_out_dps_per_s += before.slope_dps_per_s(&beta);
                 }
-                let out = taken_out_with(taken_out.as_deref(), cols);
+                let out = taken_out_with(taken_out.as_deref(), cols, None);
                 *taken_out = Some(std::sync::Arc::new(out));
                 format!(
                     "subtracted {:.4} deg/h/C (temp_c - {t_ref:.2} C) and {:.3} deg/h/(C/s) d temp_c/dt",
@@ -262,31 +267,47 @@ fn apply(
     (r, changed.then_some(m), what)
 }
 
-/// The regressors taken out so far (`before`, if any) and `new` after them: what every
-/// later simulation takes out of itself.
+/// The regressors taken out so far (`before`, if any) and `new` after them, and the time
+/// column `t_s` last when given and none is there yet (a second ramp would make the fit
+/// singular): what every later simulation takes out of itself.
 fn taken_out_with(
     before: Option<&super::effects::TakenOut>,
     new: Vec<Vec<f64>>,
+    t_s: Option<&[f64]>,
 ) -> super::effects::TakenOut {
     let mut cols = before.map(|x| x.cols.clone()).unwrap_or_default();
+    let mut time_col = before.and_then(|x| x.time_col);
     cols.extend(new);
-    super::effects::TakenOut { cols }
+    if let Some(t) = t_s.filter(|_| time_col.is_none()) {
+        time_col = Some(cols.len());
+        cols.push(t.to_vec());
+    }
+    super::effects::TakenOut { cols, time_col }
 }
 
 /// Takes a named ramp of `k_dps_per_s` out of `rate_dps` (at times `t_s`), then what is
 /// left of it as every later simulation has its own taken out: the least-squares fit over
-/// all samples on `out`'s regressors (`t_s` last, after any taken out before;
-/// [`super::effects::TakenOut`]). The record's held-out blocks then hold an in-sample
-/// residual as the simulations' do. Before, the ramp entered the model at the fit blocks'
-/// estimate, and the estimate's error, a slope over the whole record, was a slow wander
-/// the simulations lacked (real ADIS16405 run 6 y with a ramp of 30 times its 100-s Allan
-/// deviation, `scripts/gap_real_bench.py`: `bias_instability` named after the ramp, which
-/// the clean record does not name; now nothing).
-fn less_ramp(rate_dps: &mut [f64], t_s: &[f64], out: &super::effects::TakenOut, k_dps_per_s: f64) {
+/// all samples on `out`'s regressors (time among them, after any taken out before; each
+/// centred, so the record keeps the level the named ramp starts from, `mean - k mean(t)`;
+/// [`super::effects::TakenOut`]); returns the slope taken out, deg/s per s: `k` and the
+/// fit's slope, the record's whole slope beyond the earlier regressors (a user model's own
+/// ramp included; `k` alone when the fit is singular). The record's held-out blocks then
+/// hold an in-sample residual as the simulations' do. Before, the ramp entered the model
+/// at the fit blocks' estimate, and the estimate's error, a slope over the whole record,
+/// was a slow wander the simulations lacked (real ADIS16405 run 6 y with a ramp of 30 times
+/// its 100-s Allan deviation, `scripts/gap_real_bench.py`: `bias_instability` named after
+/// the ramp, which the clean record does not name; now nothing).
+fn less_ramp(
+    rate_dps: &mut [f64],
+    t_s: &[f64],
+    out: &super::effects::TakenOut,
+    k_dps_per_s: f64,
+) -> f64 {
     for (v, t) in rate_dps.iter_mut().zip(t_s) {
         *v -= k_dps_per_s * t;
     }
-    out.take_out(t_s, t_s, rate_dps);
+    let beta = out.take_out(t_s, t_s, rate_dps).unwrap_or_default();
+    k_dps_per_s + out.slope_dps_per_s(&beta)
 }
 
 /// The temperature link's two regressors on `rec`'s samples, as [`apply`] subtracts them:
@@ -485,6 +506,7 @@ pub fn run(
             gap_before: d.gap_before,
             gap_after: d.gap_after,
             shrink: d.shrink,
+            group_gap_before: d.group_gap_before.clone(),
             null_gap_median: d.null_gap_median,
             null_gap_95: d.null_gap_95,
             null_shrink_95: d
@@ -574,42 +596,61 @@ pub fn run(
 mod tests {
     use super::*;
 
-    /// A ramp taken out with a fit-block estimate 20 % short leaves no slope in the record:
-    /// its least-squares slope over all samples is 0 afterwards, where the estimate's
-    /// subtraction alone leaves the 20 %; a regressor taken out before stays out.
+    /// A ramp taken out with a named slope 20 % short, after a regressor taken out before (a
+    /// temperature link's): the record keeps no slope and none of the earlier regressor over
+    /// all samples (where the named slope's subtraction alone leaves the 20 %), keeps the
+    /// level the named ramp starts from, and the slope returned is the record's (1e-4 deg/s
+    /// per s, within its noise's 1e-7); a second ramp adds no second time column (the fit
+    /// would be singular).
     #[test]
     fn a_taken_out_ramp_leaves_no_slope_over_all_samples() {
         let n = 6_000;
         let t_s: Vec<f64> = (0..n).map(|i| i as f64 * 0.1).collect();
         let earlier: Vec<f64> = t_s.iter().map(|t| (t / 97.0).sin()).collect();
         let rate: Vec<f64> = (0..n)
-            .map(|i| 1e-4 * t_s[i] + 0.01 * (((i * 7919) % 101) as f64 / 50.0 - 1.0))
+            .map(|i| {
+                2.0 + 1e-4 * t_s[i]
+                    + 0.3 * earlier[i]
+                    + 0.01 * (((i * 7919) % 101) as f64 / 50.0 - 1.0)
+            })
             .collect();
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / n as f64;
         let coef = |x: &[f64], y: &[f64]| -> f64 {
-            let m = x.iter().sum::<f64>() / n as f64;
+            let m = mean(x);
             let xc: Vec<f64> = x.iter().map(|v| v - m).collect();
             xc.iter().zip(y).map(|(a, b)| a * b).sum::<f64>()
                 / xc.iter().map(|a| a * a).sum::<f64>()
         };
-        let only_estimate: Vec<f64> = (0..n).map(|i| rate[i] - 0.8e-4 * t_s[i]).collect();
-        assert!(
-            (coef(&t_s, &only_estimate) - 0.2e-4).abs() < 0.02e-4,
-            "{}",
-            coef(&t_s, &only_estimate)
-        );
         let before = super::super::effects::TakenOut {
             cols: vec![earlier.clone()],
+            time_col: None,
         };
-        let out = taken_out_with(Some(&before), vec![t_s.clone()]);
+        let out = taken_out_with(Some(&before), vec![], Some(&t_s));
         assert_eq!(out.cols, vec![earlier.clone(), t_s.clone()]);
+        assert_eq!(out.time_col, Some(1));
+        // The named slope 20 % short: the estimate's subtraction alone leaves the 20 %.
+        let k = 0.8e-4;
+        let only_estimate: Vec<f64> = (0..n)
+            .map(|i| rate[i] - 0.3 * earlier[i] - k * t_s[i])
+            .collect();
+        assert!((coef(&t_s, &only_estimate) - 0.2e-4).abs() < 0.02e-4);
         let mut less = rate.clone();
-        less_ramp(&mut less, &t_s, &out, 0.8e-4);
+        let slope = less_ramp(&mut less, &t_s, &out, k);
+        assert!((slope - 1e-4).abs() < 1e-7, "{slope}");
         assert!(coef(&t_s, &less).abs() < 1e-12, "{}", coef(&t_s, &less));
         assert!(
             coef(&earlier, &less).abs() < 1e-9,
             "{}",
             coef(&earlier, &less)
         );
+        // The level the named ramp starts from.
+        let level = mean(&rate) - k * mean(&t_s);
+        assert!((mean(&less) - level).abs() < 1e-9, "{}", mean(&less));
+        let again = taken_out_with(Some(&out), vec![], Some(&t_s));
+        assert_eq!(again.cols.len(), 2);
+        assert_eq!(again.time_col, Some(1));
+        let mut twice = less.clone();
+        assert!(less_ramp(&mut twice, &t_s, &again, 0.0).abs() < 1e-12);
     }
 
     /// A record on a lattice of 0.05 deg/s with a slow signal of 20 quanta taken out: the
