@@ -109,13 +109,25 @@ fn take_refit_noise(m: &mut Model, pr: &Option<BTreeMap<String, f64>>) {
     }
 }
 
-/// Applies a named effect: the record for the next round, the model (if it changed) and
+/// The parameters a named effect `e` is applied with: the diagnosis's, but for `markov` the
+/// candidate's own terms, as its held-out gap was scored (the reported `gm_*` are the
+/// whole-record Whittle fit's, whose B and K are not carried: with the candidate's N, B, K
+/// they make a model that was never scored).
+fn applied_params(e: Effect, d: &Diagnosis) -> Option<BTreeMap<String, f64>> {
+    let own = (e == Effect::Markov)
+        .then(|| d.candidates.iter().find(|c| c.effect == e))
+        .flatten()
+        .and_then(|c| c.params.clone());
+    own.or_else(|| d.params.clone())
+}
+
+/// Applies a named effect with its parameters `pr` ([`applied_params`]): the record for the next round, the model (if it changed) and
 /// what was done, in words. A temperature link or a ramp taken out of the record also adds
 /// its regressors to `taken_out`, to be taken out of every later simulation; a ramp adds
 /// itself and the model's own to `ramp_out_dps_per_s` ([`Outcome::ramp_out_dps_per_s`]).
 fn apply(
     e: Effect,
-    d: &Diagnosis,
+    pr: &Option<BTreeMap<String, f64>>,
     rec: &Rec,
     model: &Model,
     spike_times_s: &mut Vec<f64>,
@@ -124,7 +136,6 @@ fn apply(
 ) -> (Rec, Option<Model>, String) {
     let mut r = rec.clone();
     let mut m = model.clone();
-    let pr = &d.params;
     // `r` is a copy: the signals read `rec`'s columns directly.
     let sub = |r: &mut Rec, f: &dyn Fn(usize) -> f64| {
         for (i, v) in r.rate_dps.iter_mut().enumerate() {
@@ -222,18 +233,10 @@ fn apply(
             format!("model rounds to {:.6e} deg/s", m.quantization.quantum_dps)
         }
         Effect::Markov => {
-            // The candidate's own terms, as its held-out gap was scored (the reported
-            // `gm_*` are the whole-record Whittle fit's, whose B and K are not carried: with
-            // the candidate's N, B, K they make a model that was never scored).
-            let own = d
-                .candidates
-                .iter()
-                .find(|c| c.effect == e)
-                .and_then(|c| c.params.clone())
-                .or_else(|| pr.clone());
-            take_refit_noise(&mut m, &own);
-            m.noise.gm_sigma_dps = p(&own, "gm_sigma_dps");
-            m.noise.gm_tau_s = p(&own, "gm_tau_s").max(1e-6);
+            // `pr`: the candidate's own terms ([`applied_params`]).
+            take_refit_noise(&mut m, pr);
+            m.noise.gm_sigma_dps = p(pr, "gm_sigma_dps");
+            m.noise.gm_tau_s = p(pr, "gm_tau_s").max(1e-6);
             format!(
                 "model has a Gauss-Markov term {:.4} deg/h, T {:.3} s",
                 m.noise.gm_sigma_dps * 3600.0,
@@ -525,7 +528,15 @@ pub fn run(
             let spikes = &mut round.spike_times_s;
             let taken_out = &mut o.taken_out;
             let ramp_out = &mut ramp_out_dps_per_s;
-            let (r2, m2, what) = apply(e, &d, &rec, &base, spikes, taken_out, ramp_out);
+            let (r2, m2, what) = apply(
+                e,
+                &applied_params(e, &d),
+                &rec,
+                &base,
+                spikes,
+                taken_out,
+                ramp_out,
+            );
             rec = r2;
             match m2 {
                 // Quantization named against a fitted baseline: the next round fits the
@@ -651,6 +662,89 @@ mod tests {
         assert_eq!(again.time_col, Some(1));
         let mut twice = less.clone();
         assert!(less_ramp(&mut twice, &t_s, &again, 0.0).abs() < 1e-12);
+    }
+
+    /// A link named after a ramp (`apply` twice, no quantum): the link's regressors have a
+    /// slope of their own, so its subtraction gives the record a slope again, which the
+    /// ramp's fit takes out once more and counts; the record ends with no slope over all
+    /// samples, and the ramp counted is the slope of the record less the link.
+    #[test]
+    fn a_link_after_a_ramp_keeps_the_ramp_out_and_counted() {
+        let n = 20_000;
+        let t_s: Vec<f64> = (0..n).map(|i| i as f64 * 0.1).collect();
+        let temp: Vec<f64> = t_s
+            .iter()
+            .map(|t| 30.0 + 8.0 * (1.0 - (-t / 600.0).exp()))
+            .collect();
+        let rate: Vec<f64> = (0..n)
+            .map(|i| {
+                0.2 + 2e-5 * t_s[i]
+                    + 0.004 * (temp[i] - 35.0)
+                    + 0.01 * (((i * 7919) % 101) as f64 / 50.0 - 1.0)
+            })
+            .collect();
+        let rec = Rec {
+            name: "ramp-link".into(),
+            t_s: t_s.clone(),
+            rate_dps: rate.clone(),
+            temp_c: Some(temp),
+            ref_dps: None,
+            dt_s: 0.1,
+        };
+        let coef = |x: &[f64], y: &[f64]| -> f64 {
+            let m = x.iter().sum::<f64>() / x.len() as f64;
+            let xc: Vec<f64> = x.iter().map(|v| v - m).collect();
+            xc.iter().zip(y).map(|(a, b)| a * b).sum::<f64>()
+                / xc.iter().map(|a| a * a).sum::<f64>()
+        };
+        let params = |kv: &[(&str, f64)]| {
+            Some(
+                kv.iter()
+                    .map(|&(k, v)| (k.to_string(), v))
+                    .collect::<BTreeMap<_, _>>(),
+            )
+        };
+        let model = Model::default();
+        let (mut spikes, mut taken_out, mut ramp_out) = (Vec::new(), None, 0.0);
+        // The ramp named first absorbs part of the link (the temperature rises).
+        let ramp = params(&[("rate_ramp_dps_per_s", 3e-5)]);
+        let (r1, _, _) = apply(
+            Effect::RateRamp,
+            &ramp,
+            &rec,
+            &model,
+            &mut spikes,
+            &mut taken_out,
+            &mut ramp_out,
+        );
+        assert!(coef(&t_s, &r1.rate_dps).abs() < 1e-12);
+        assert!((ramp_out - coef(&t_s, &rate)).abs() < 1e-12, "{ramp_out}");
+        let link = params(&[
+            ("bias_dps_per_c", 0.004),
+            ("bias_dps_per_c_per_s", 0.0),
+            ("reference_c", 35.0),
+        ]);
+        let (r2, _, _) = apply(
+            Effect::Temperature,
+            &link,
+            &r1,
+            &model,
+            &mut spikes,
+            &mut taken_out,
+            &mut ramp_out,
+        );
+        assert!(coef(&t_s, &r2.rate_dps).abs() < 1e-12);
+        let less_link: Vec<f64> = rate
+            .iter()
+            .zip(rec.temp_c.as_deref().unwrap_or_default())
+            .map(|(v, c)| v - 0.004 * (c - 35.0))
+            .collect();
+        let want = coef(&t_s, &less_link);
+        assert!((want - 2e-5).abs() < 1e-7, "{want}");
+        assert!((ramp_out - want).abs() < 1e-12, "{ramp_out} vs {want}");
+        let out = taken_out.expect("taken out");
+        assert_eq!(out.cols.len(), 3);
+        assert_eq!(out.time_col, Some(0));
     }
 
     /// A record on a lattice of 0.05 deg/s with a slow signal of 20 quanta taken out: the
