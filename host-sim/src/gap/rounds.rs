@@ -121,10 +121,12 @@ fn applied_params(e: Effect, d: &Diagnosis) -> Option<BTreeMap<String, f64>> {
     own.or_else(|| d.params.clone())
 }
 
-/// Applies a named effect with its parameters `pr` ([`applied_params`]): the record for the next round, the model (if it changed) and
-/// what was done, in words. A temperature link or a ramp taken out of the record also adds
-/// its regressors to `taken_out`, to be taken out of every later simulation; a ramp adds
-/// itself and the model's own to `ramp_out_dps_per_s` ([`Outcome::ramp_out_dps_per_s`]).
+/// Applies a named effect with its parameters `pr` ([`applied_params`]): the record for the
+/// next round, the model (if it changed) and what was done, in words. A temperature link or
+/// a ramp taken out of the record also adds its regressors to `taken_out`, to be taken out
+/// of every later simulation; a ramp adds the slope it took out (`less_ramp`: the record's
+/// whole, a user model's own ramp included), and a later link what its refit takes out on
+/// time, to `ramp_out_dps_per_s` ([`Outcome::ramp_out_dps_per_s`]).
 fn apply(
     e: Effect,
     pr: &Option<BTreeMap<String, f64>>,
@@ -407,8 +409,12 @@ pub struct Outcome {
     /// effects taken out of the record are not in it (`gap --save-gyro` adds
     /// [`Outcome::ramp_out_dps_per_s`] back).
     pub model: Model,
-    /// The ramp a named `rate_ramp` took out of the record, deg/s per s: the model's own
-    /// (a user model's) and the named one; 0 when none was named.
+    /// The ramp a named `rate_ramp` took out of the record, deg/s per s: the named slope
+    /// and the fit over all samples after it (the record's whole slope, a user model's own
+    /// ramp included), and what a later link's refit took out on time; 0 when none was
+    /// named. ASSUMED: time and the links' regressors are not nearly collinear (a
+    /// temperature that rises steadily over the whole record): there the split between
+    /// them, and so this slope, is not determined, though what the record loses is.
     pub ramp_out_dps_per_s: f64,
 }
 
