@@ -16,9 +16,16 @@ filter run per sample that knows everything the generator knows except the rando
   - the white noise (the unit's sigma) and the quantum (q^2 / 12) as the observation noise.
 
 Its estimate of the drift at each sample uses that sample and the ones before it (filtered),
-so its e_truth = RMS(estimate - drift) / RMS(drift) (`fog_lab::static_rw::e_truth`) is the
-least any causal estimator reaches on these records (per sample, Gaussian paths; the flicker
-as the bank approximates it). ASSUMED: the bank's approximation of the flicker (printed).
+so its e_truth = RMS(estimate - drift) / RMS(drift) (`fog_lab::static_rw::e_truth`) is close
+to the least any causal estimator reaches on these records: the minimum mean square error of
+a linear estimator, were the flicker the bank. ASSUMED: (1) the bank stands for the flicker
+(its PSD is off by up to 8.5 % inside [4 f_lo, fs / 8] and by up to 32 % at the band's edges,
+its variance 9 % high); a filter's error is flat near its true model, and measured so: a
+bank fitted by least squares with corners a decade past each edge, and its variances x0.8
+and x1.25, moved the mean e_truth by at most 0.2 % (f20: 0.10926 as here, 0.10923, 0.10948,
+0.10940; f100's first two records: 0.19988, 0.19986, 0.20013, 0.20020); (2) the quantum as
+white noise: the best linear estimator, where a non-linear one could use the lattice
+(the static-test units here have white noise of 1.4 quanta or more).
 
     python3 scripts/static_limit.py --family F/f100 [F/f20 ...] [--json OUT.json]
 
