@@ -262,6 +262,16 @@ fn apply(
         }
         Effect::Dropouts => "left out of the vocabulary (cannot be undone)".into(),
     };
+    // What was taken out before (a ramp, a link) stays out of a record that another effect
+    // changed (a second warm-up subtracted has a slope of its own): the fit over all
+    // samples again, as every simulation takes its own out; the time column's part counts
+    // as ramp taken out.
+    if !matches!(e, Effect::RateRamp | Effect::Temperature) && r.rate_dps != rec.rate_dps {
+        if let Some(before) = taken_out.as_deref() {
+            let beta = before.take_out(t, t, &mut r.rate_dps).unwrap_or_default();
+            *ramp_out_dps_per_s += before.slope_dps_per_s(&beta);
+        }
+    }
     // A record changed under a model that rounds is rounded again to its quantum (the
     // subtraction took its values off the lattice the model reproduces), stochastically.
     let q = m.quantization.quantum_dps;
@@ -751,6 +761,71 @@ mod tests {
         let out = taken_out.expect("taken out");
         assert_eq!(out.cols.len(), 3);
         assert_eq!(out.time_col, Some(0));
+    }
+
+    /// A second warm-up subtracted from the record after a ramp was taken out (`apply`
+    /// twice, no quantum): the exponential has a slope of its own, which the ramp's fit takes
+    /// out again and counts; the record ends with no slope over all samples, and the ramp
+    /// counted is the slope of the record less that warm-up.
+    #[test]
+    fn an_effect_subtracted_after_a_ramp_keeps_the_ramp_out() {
+        let n = 20_000;
+        let t_s: Vec<f64> = (0..n).map(|i| i as f64 * 0.1).collect();
+        let warm = |t: f64| 0.05 * (-t / 300.0).exp();
+        let rate: Vec<f64> = (0..n)
+            .map(|i| {
+                0.2 + 2e-5 * t_s[i] + warm(t_s[i]) + 0.01 * (((i * 7919) % 101) as f64 / 50.0 - 1.0)
+            })
+            .collect();
+        let rec = Rec {
+            name: "ramp-warm-up".into(),
+            t_s: t_s.clone(),
+            rate_dps: rate.clone(),
+            temp_c: None,
+            ref_dps: None,
+            dt_s: 0.1,
+        };
+        let coef = |x: &[f64], y: &[f64]| -> f64 {
+            let m = x.iter().sum::<f64>() / x.len() as f64;
+            let xc: Vec<f64> = x.iter().map(|v| v - m).collect();
+            xc.iter().zip(y).map(|(a, b)| a * b).sum::<f64>()
+                / xc.iter().map(|a| a * a).sum::<f64>()
+        };
+        let params = |kv: &[(&str, f64)]| {
+            Some(
+                kv.iter()
+                    .map(|&(k, v)| (k.to_string(), v))
+                    .collect::<BTreeMap<_, _>>(),
+            )
+        };
+        // The model has a warm-up already: a second one is subtracted from the record.
+        let mut model = Model::default();
+        model.bias.warmup_dps = 0.01;
+        let (mut spikes, mut taken_out, mut ramp_out) = (Vec::new(), None, 0.0);
+        let (r1, _, _) = apply(
+            Effect::RateRamp,
+            &params(&[("rate_ramp_dps_per_s", 0.0)]),
+            &rec,
+            &model,
+            &mut spikes,
+            &mut taken_out,
+            &mut ramp_out,
+        );
+        let (r2, _, what) = apply(
+            Effect::Warmup,
+            &params(&[("warmup_dps", 0.05), ("warmup_tau_s", 300.0)]),
+            &r1,
+            &model,
+            &mut spikes,
+            &mut taken_out,
+            &mut ramp_out,
+        );
+        assert!(what.starts_with("subtracted"), "{what}");
+        assert!(coef(&t_s, &r2.rate_dps).abs() < 1e-12);
+        let less_warm: Vec<f64> = rate.iter().zip(&t_s).map(|(v, &t)| v - warm(t)).collect();
+        let want = coef(&t_s, &less_warm);
+        assert!((want - 2e-5).abs() < 1e-7, "{want}");
+        assert!((ramp_out - want).abs() < 1e-12, "{ramp_out} vs {want}");
     }
 
     /// A record on a lattice of 0.05 deg/s with a slow signal of 20 quanta taken out: the
