@@ -642,12 +642,6 @@ mod tests {
             })
             .collect();
         let mean = |v: &[f64]| v.iter().sum::<f64>() / n as f64;
-        let coef = |x: &[f64], y: &[f64]| -> f64 {
-            let m = mean(x);
-            let xc: Vec<f64> = x.iter().map(|v| v - m).collect();
-            xc.iter().zip(y).map(|(a, b)| a * b).sum::<f64>()
-                / xc.iter().map(|a| a * a).sum::<f64>()
-        };
         let before = super::super::effects::TakenOut {
             cols: vec![earlier.clone()],
             time_col: None,
@@ -680,6 +674,18 @@ mod tests {
         assert!(less_ramp(&mut twice, &t_s, &again, 0.0).abs() < 1e-12);
     }
 
+    /// The least-squares slope of `y` on `x` (with an intercept).
+    fn coef(x: &[f64], y: &[f64]) -> f64 {
+        let m = x.iter().sum::<f64>() / x.len() as f64;
+        let xc: Vec<f64> = x.iter().map(|v| v - m).collect();
+        xc.iter().zip(y).map(|(a, b)| a * b).sum::<f64>() / xc.iter().map(|a| a * a).sum::<f64>()
+    }
+
+    /// An effect's parameters from `(key, value)` pairs.
+    fn params(kv: &[(&str, f64)]) -> Option<BTreeMap<String, f64>> {
+        Some(kv.iter().map(|&(k, v)| (k.to_string(), v)).collect())
+    }
+
     /// A link named after a ramp (`apply` twice, no quantum): the link's regressors have a
     /// slope of their own, so its subtraction gives the record a slope again, which the
     /// ramp's fit takes out once more and counts; the record ends with no slope over all
@@ -706,19 +712,6 @@ mod tests {
             temp_c: Some(temp),
             ref_dps: None,
             dt_s: 0.1,
-        };
-        let coef = |x: &[f64], y: &[f64]| -> f64 {
-            let m = x.iter().sum::<f64>() / x.len() as f64;
-            let xc: Vec<f64> = x.iter().map(|v| v - m).collect();
-            xc.iter().zip(y).map(|(a, b)| a * b).sum::<f64>()
-                / xc.iter().map(|a| a * a).sum::<f64>()
-        };
-        let params = |kv: &[(&str, f64)]| {
-            Some(
-                kv.iter()
-                    .map(|&(k, v)| (k.to_string(), v))
-                    .collect::<BTreeMap<_, _>>(),
-            )
         };
         let model = Model::default();
         let (mut spikes, mut taken_out, mut ramp_out) = (Vec::new(), None, 0.0);
@@ -784,19 +777,6 @@ mod tests {
             temp_c: None,
             ref_dps: None,
             dt_s: 0.1,
-        };
-        let coef = |x: &[f64], y: &[f64]| -> f64 {
-            let m = x.iter().sum::<f64>() / x.len() as f64;
-            let xc: Vec<f64> = x.iter().map(|v| v - m).collect();
-            xc.iter().zip(y).map(|(a, b)| a * b).sum::<f64>()
-                / xc.iter().map(|a| a * a).sum::<f64>()
-        };
-        let params = |kv: &[(&str, f64)]| {
-            Some(
-                kv.iter()
-                    .map(|&(k, v)| (k.to_string(), v))
-                    .collect::<BTreeMap<_, _>>(),
-            )
         };
         // The model has a warm-up already: a second one is subtracted from the record.
         let mut model = Model::default();
