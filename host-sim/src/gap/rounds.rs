@@ -138,6 +138,8 @@ fn apply(
 ) -> (Rec, Option<Model>, String) {
     let mut r = rec.clone();
     let mut m = model.clone();
+    // What earlier rounds took out, before this effect adds its own regressors.
+    let before = taken_out.clone();
     // `r` is a copy: the signals read `rec`'s columns directly.
     let sub = |r: &mut Rec, f: &dyn Fn(usize) -> f64| {
         for (i, v) in r.rate_dps.iter_mut().enumerate() {
@@ -181,12 +183,6 @@ fn apply(
             Some((cols, t_ref)) => {
                 let (k1, k2) = (p(pr, "bias_dps_per_c"), p(pr, "bias_dps_per_c_per_s"));
                 sub(&mut r, &|i| k1 * cols[0][i] + k2 * cols[1][i]);
-                // A ramp taken out before stays out of the record (the link's regressors
-                // have a slope of their own) and of every later simulation.
-                if let Some(before) = taken_out.as_deref() {
-                    let beta = before.take_out(t, t, &mut r.rate_dps).unwrap_or_default();
-                    *ramp_out_dps_per_s += before.slope_dps_per_s(&beta);
-                }
                 let out = taken_out_with(taken_out.as_deref(), cols, None);
                 *taken_out = Some(std::sync::Arc::new(out));
                 format!(
@@ -262,12 +258,13 @@ fn apply(
         }
         Effect::Dropouts => "left out of the vocabulary (cannot be undone)".into(),
     };
-    // What was taken out before (a ramp, a link) stays out of a record that another effect
-    // changed (a second warm-up subtracted has a slope of its own): the fit over all
-    // samples again, as every simulation takes its own out; the time column's part counts
-    // as ramp taken out.
-    if !matches!(e, Effect::RateRamp | Effect::Temperature) && r.rate_dps != rec.rate_dps {
-        if let Some(before) = taken_out.as_deref() {
+    // What earlier rounds took out (a ramp, a link) stays out of a record this effect
+    // changed (a link's regressors, a second warm-up have a slope of their own): the fit
+    // over all samples on their regressors again, as every simulation takes its own out;
+    // the time column's part counts as ramp taken out. A ramp did this itself
+    // (`less_ramp`, with time among the regressors).
+    if e != Effect::RateRamp && r.rate_dps != rec.rate_dps {
+        if let Some(before) = before.as_deref() {
             let beta = before.take_out(t, t, &mut r.rate_dps).unwrap_or_default();
             *ramp_out_dps_per_s += before.slope_dps_per_s(&beta);
         }
@@ -542,16 +539,14 @@ pub fn run(
         if let Some(e) = named.filter(|_| k < n) {
             let base = model.clone().unwrap_or_else(|| d.baseline.clone());
             let spikes = &mut round.spike_times_s;
-            let taken_out = &mut o.taken_out;
-            let ramp_out = &mut ramp_out_dps_per_s;
             let (r2, m2, what) = apply(
                 e,
                 &applied_params(e, &d),
                 &rec,
                 &base,
                 spikes,
-                taken_out,
-                ramp_out,
+                &mut o.taken_out,
+                &mut ramp_out_dps_per_s,
             );
             rec = r2;
             match m2 {
