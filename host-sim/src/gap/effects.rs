@@ -259,6 +259,28 @@ impl Spec {
             .collect()
     }
 
+    /// The columns of `effect`'s form on `real`'s samples, whose least-squares fit stands for
+    /// its signal fitted over the whole record ([`super::check::own_spread`]): a line's sine
+    /// and cosine at its frequency (amplitude and phase), a link's two regressors
+    /// (`temp_c - reference`, its rate of change), else the candidate's `signal` itself (its
+    /// size). Every column is on `real`'s samples.
+    pub fn signal_form(&self, effect: Effect, signal: &[f64], real: &Rec) -> Vec<Vec<f64>> {
+        let t = &real.t_s;
+        match (effect, self.sine, &real.temp_c) {
+            (Effect::Sinusoid, Some((_, f, p)), _) => {
+                let w = std::f64::consts::TAU * f;
+                vec![
+                    t.iter().map(|&x| (w * x + p).sin()).collect(),
+                    t.iter().map(|&x| (w * x + p).cos()).collect(),
+                ]
+            }
+            (Effect::Temperature, _, Some(tc)) if self.dtemp_c_per_s.len() == t.len() => {
+                vec![tc.clone(), self.dtemp_c_per_s.to_vec()]
+            }
+            _ => vec![signal.to_vec()],
+        }
+    }
+
     /// One simulated record on the real record's time span: (t_s, rate_dps, rate_dps less
     /// `g_base` times the reference rate).
     pub fn simulate(&self, real: &Rec, seed: u64, g_base: f64) -> Result<Sim> {

@@ -291,6 +291,10 @@ pub struct Candidate {
     /// The held-out check's z before and after the candidate ([`check`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub heldout_check_z: Option<[f64; 2]>,
+    /// The held-out check's spreads of a signal's `P`: the candidate's simulations', and the
+    /// record's own ([`check::own_spread`], the floor of the first).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub heldout_check_sd: Option<[f64; 2]>,
     /// Held-out gap with the effect added (null when skipped); with the held-out check, the
     /// larger of the features' gap and the check's `z_after^2`.
     pub gap_after: Option<f64>,
@@ -451,7 +455,7 @@ pub struct Diagnosis {
     pub curves: Curves,
 }
 
-const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --gyro) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2; a candidate whose dedicated test passed and that adds a signal or counts outliers or missing slots also has its held-out check (heldout_check_z: the held-out blocks' projection on its signal fitted on the fit blocks, or its held-out count; for dropouts the whole record's missing slots, each half held out once: read from the time stamps, nothing fitted moves them) as a group of its own in its gap_before, gap_after and null shrink. An effect is named only when its shrink (1 - gap_after/gap_before) > 0 and > null_shrink_95, the 95 % quantile of the shrink its simulations give the baseline's own simulations each taken as the record (a record without the effect). One whose dedicated test passed needs nothing more (the test is its significance); any other (the gap rule) also needs gap_before > 1.5 x null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others). A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
+const DEFINITIONS: &str = "Record cut in 6 equal time blocks; even blocks (0,2,4) fit the baseline (without --gyro) and every candidate, odd blocks (1,3,5) are held out and score gap_before/gap_after. Simulations span the whole record with common seeds. z = (real - median of simulations) / seed-to-seed spread per feature; gap = largest over groups (adev, psd, time, dist, drift) of mean z^2; a candidate whose dedicated test passed and that adds a signal or counts outliers or missing slots also has its held-out check (heldout_check_z: the held-out blocks' projection on its signal fitted on the fit blocks, or its held-out count; for dropouts the whole record's missing slots, each half held out once: read from the time stamps, nothing fitted moves them) as a group of its own in its gap_before, gap_after and null shrink; a signal's check has its spread floored by the record's own (heldout_check_sd: [the simulations' spread, the record's own: the spread of the projection over the circular shifts of the record less the candidate's signal fitted over all samples]). An effect is named only when its shrink (1 - gap_after/gap_before) > 0 and > null_shrink_95, the 95 % quantile of the shrink its simulations give the baseline's own simulations each taken as the record (a record without the effect). One whose dedicated test passed needs nothing more (the test is its significance); any other (the gap rule) also needs gap_before > 1.5 x null_gap_95 and gap_before - gap_after > null_gap_95 - null_gap_median (null gaps: each baseline simulation scored against the others). A candidate with `excluded` set (markov whose fitted correlation time reaches the record, or whose fit-block chi2 does not beat rate_random_walk's by the BIC penalty ln(points)) is scored but not named: it is the nested rate random walk.";
 
 /// Per-simulation summary.
 struct SimOut {
@@ -1273,6 +1277,7 @@ fn score_candidates(
                 params: None,
                 gap_before: None,
                 heldout_check_z: None,
+                heldout_check_sd: None,
                 gap_after: None,
                 shrink: None,
                 null_shrink_95: None,
@@ -1290,6 +1295,17 @@ fn score_candidates(
                 let mut proj = signal.as_ref().map(|sig| check::Projections {
                     real: project(&s.resid.t_s, sig, &s.resid.rate_dps),
                     ..Default::default()
+                });
+                // The record's own spread of the signal's `P`: the floor of the check's.
+                let own_sd = signal.as_ref().map(|sig| {
+                    check::own_spread(
+                        &s.layout,
+                        &s.split.score,
+                        &s.resid.t_s,
+                        sig,
+                        &s.resid.rate_dps,
+                        &spec.signal_form(e, sig, &s.resid),
+                    )
                 });
                 let mut outs = Vec::new();
                 // `dropouts` whose test passed: each simulation's missing slots in the whole
@@ -1347,7 +1363,8 @@ fn score_candidates(
                 let mut real_c = std::borrow::Cow::Borrowed(real_score);
                 let mut base_c = std::borrow::Cow::Borrowed(base_scores);
                 if let Some(p) = &proj {
-                    defs.to_mut().push(check::def(count_floor));
+                    let floor = count_floor.or(own_sd).unwrap_or(0.0);
+                    defs.to_mut().push(check::def(floor, count_floor.is_some()));
                     real_c.to_mut().push(p.real);
                     for (v, x) in base_c.to_mut().iter_mut().zip(&p.noise) {
                         v.push(*x);
@@ -1367,6 +1384,12 @@ fn score_candidates(
                     let k = defs.len() - 1;
                     (features::gap(&defs, &z_before), [z_before[k], z_after[k]])
                 });
+                // The simulations' own spread of `P` (without the floor) beside the record's.
+                let check_sd = own_sd.zip(proj.as_ref()).map(|(own, p)| {
+                    let m = p.cand.iter().sum::<f64>() / p.cand.len().max(1) as f64;
+                    let ss: f64 = p.cand.iter().map(|v| (v - m) * (v - m)).sum();
+                    [(ss / (p.cand.len().max(2) - 1) as f64).sqrt(), own]
+                });
                 let own_before = check_z.map(|(g, _)| g);
                 let before = own_before.unwrap_or(gap_before);
                 let nulls = null_shrinks(&defs, &base_c, &cand_scores);
@@ -1382,6 +1405,7 @@ fn score_candidates(
                     params: Some(params),
                     gap_before: own_before,
                     heldout_check_z: check_z.map(|(_, z)| z),
+                    heldout_check_sd: check_sd,
                     gap_after: Some(after),
                     shrink: Some(1.0 - after / before),
                     null_shrink_95: Some(features::quantile(&nulls, 0.95))
@@ -2129,6 +2153,7 @@ mod tests {
             params: None,
             gap_before: None,
             heldout_check_z: None,
+            heldout_check_sd: None,
             gap_after: Some(after),
             shrink: Some(1.0 - after / 20.0),
             null_shrink_95: None,
@@ -2246,5 +2271,10 @@ mod tests {
         let [before, after] = c.heldout_check_z.expect("held-out check");
         assert!(before > 4.0 && after.abs() < 2.0, "{before} {after}");
         assert_eq!(d.effect, "sinusoid", "{}", d.decision);
+        // A record the model describes: its own spread of the line's projection (the
+        // check's floor, `check::own_spread`) is the simulations' within the estimates'
+        // scatter (12 simulations; the record's from the bins near the line).
+        let [sims, own] = c.heldout_check_sd.expect("spreads");
+        assert!(own > 0.6 * sims && own < 1.6 * sims, "{sims} {own}");
     }
 }

@@ -14,7 +14,9 @@
 //!   from 10-s windows as the drift test reads it), `sinusoid`, `scale_factor` (times the
 //!   reference rate); after a `temperature`, every later simulation has its own fit on the
 //!   link's regressors taken out too (`effects::TakenOut`: the fit took part of the
-//!   record's own slow wander with it);
+//!   record's own slow wander with it), and so has the record, after the named link: what
+//!   the named (whole-record test's) coefficients left on the regressors goes out as it
+//!   does from the simulations;
 //! - `spikes`: samples beyond 6 robust sigma of the 5-point running median are replaced by
 //!   that median;
 //! - stochastic effects go into the model, which from then on is the user model of the next
@@ -262,11 +264,22 @@ fn apply(
     // changed (a link's regressors, a second warm-up have a slope of their own): the fit
     // over all samples on their regressors again, as every simulation takes its own out;
     // the time column's part counts as ramp taken out. A ramp did this itself
-    // (`less_ramp`, with time among the regressors).
+    // (`less_ramp`, with time among the regressors). A link's own regressors join the fit
+    // (`taken_out` holds them now): the named link is the whole-record test's, the
+    // simulations take their own least-squares fit out, and so the record does too, as
+    // `less_ramp` does for a ramp (real ADIS16405 run 6 x with a link of 20 s100: the
+    // named rate-of-change term -987 +- 1080 deg/h/(C/s) was left in the record beside
+    // what the fit over all samples takes, a slow wander the simulations lacked, and
+    // `rate_random_walk` was named after the link).
     if e != Effect::RateRamp && r.rate_dps != rec.rate_dps {
-        if let Some(before) = before.as_deref() {
-            let beta = before.take_out(t, t, &mut r.rate_dps).unwrap_or_default();
-            *ramp_out_dps_per_s += before.slope_dps_per_s(&beta);
+        let refit = if e == Effect::Temperature {
+            taken_out.clone()
+        } else {
+            before
+        };
+        if let Some(out) = refit.as_deref() {
+            let beta = out.take_out(t, t, &mut r.rate_dps).unwrap_or_default();
+            *ramp_out_dps_per_s += out.slope_dps_per_s(&beta);
         }
     }
     // A record changed under a model that rounds is rounded again to its quantum (the
@@ -681,10 +694,12 @@ mod tests {
         Some(kv.iter().map(|&(k, v)| (k.to_string(), v)).collect())
     }
 
-    /// A link named after a ramp (`apply` twice, no quantum): the link's regressors have a
-    /// slope of their own, so its subtraction gives the record a slope again, which the
-    /// ramp's fit takes out once more and counts; the record ends with no slope over all
-    /// samples, and the ramp counted is the slope of the record less the link.
+    /// A link named after a ramp (`apply` twice, no quantum), its coefficients 20 % off:
+    /// the link's regressors have a slope of their own, so its subtraction gives the record
+    /// a slope again, which the fit over all samples on time and the link's regressors
+    /// takes out with the link's leftover; the record ends with no slope and no projection
+    /// on the link's regressors, and the ramp counted is the record's least-squares slope
+    /// given the link's regressors (as a ramp named after the link counts it).
     #[test]
     fn a_link_after_a_ramp_keeps_the_ramp_out_and_counted() {
         let n = 20_000;
@@ -724,7 +739,7 @@ mod tests {
         assert!(coef(&t_s, &r1.rate_dps).abs() < 1e-12);
         assert!((ramp_out - coef(&t_s, &rate)).abs() < 1e-12, "{ramp_out}");
         let link = params(&[
-            ("bias_dps_per_c", 0.004),
+            ("bias_dps_per_c", 0.0032),
             ("bias_dps_per_c_per_s", 0.0),
             ("reference_c", 35.0),
         ]);
@@ -737,18 +752,81 @@ mod tests {
             &mut taken_out,
             &mut ramp_out,
         );
-        assert!(coef(&t_s, &r2.rate_dps).abs() < 1e-12);
-        let less_link: Vec<f64> = rate
-            .iter()
-            .zip(rec.temp_c.as_deref().unwrap_or_default())
-            .map(|(v, c)| v - 0.004 * (c - 35.0))
-            .collect();
-        let want = coef(&t_s, &less_link);
-        assert!((want - 2e-5).abs() < 1e-7, "{want}");
-        assert!((ramp_out - want).abs() < 1e-12, "{ramp_out} vs {want}");
         let out = taken_out.expect("taken out");
         assert_eq!(out.cols.len(), 3);
         assert_eq!(out.time_col, Some(0));
+        // Nothing left on any regressor taken out: time, the link's two.
+        let mut again = r2.rate_dps.clone();
+        let left = out.take_out(&t_s, &t_s, &mut again).expect("fit");
+        assert!(left.iter().all(|b| b.abs() < 1e-12), "{left:?}");
+        // The ramp counted: the record's slope given the link's regressors (the true link
+        // is 0.004 deg/s/C, its rate-of-change term 0).
+        let mut whole = rate.clone();
+        let beta = out.take_out(&t_s, &t_s, &mut whole).expect("fit");
+        assert!((beta[0] - 2e-5).abs() < 1e-7, "{beta:?}");
+        assert!((beta[1] - 0.004).abs() < 1e-5, "{beta:?}");
+        assert!(
+            (ramp_out - beta[0]).abs() < 1e-12,
+            "{ramp_out} vs {}",
+            beta[0]
+        );
+    }
+
+    /// A link named alone with its coefficients 20 % short (`apply`, no quantum): the
+    /// record is left with no projection on the link's two regressors (the fit over all
+    /// samples takes the leftover out, as every later simulation takes its own fit out),
+    /// where the named coefficients alone leave the 20 %; no ramp is counted.
+    #[test]
+    fn a_named_link_leaves_nothing_on_its_regressors() {
+        let n = 20_000;
+        let t_s: Vec<f64> = (0..n).map(|i| i as f64 * 0.1).collect();
+        let temp: Vec<f64> = t_s
+            .iter()
+            .map(|t| 30.0 + 1.5 * (std::f64::consts::TAU * t / 900.0).sin())
+            .collect();
+        let rate: Vec<f64> = (0..n)
+            .map(|i| {
+                0.2 + 0.004 * (temp[i] - 30.0) + 0.01 * (((i * 7919) % 101) as f64 / 50.0 - 1.0)
+            })
+            .collect();
+        let rec = Rec {
+            name: "link".into(),
+            t_s: t_s.clone(),
+            rate_dps: rate.clone(),
+            temp_c: Some(temp.clone()),
+            ref_dps: None,
+            dt_s: 0.1,
+        };
+        let link = params(&[
+            ("bias_dps_per_c", 0.0032),
+            ("bias_dps_per_c_per_s", 0.0),
+            ("reference_c", 30.0),
+        ]);
+        let only_named: Vec<f64> = (0..n)
+            .map(|i| rate[i] - 0.0032 * (temp[i] - 30.0))
+            .collect();
+        assert!((coef(&temp, &only_named) - 0.0008).abs() < 2e-5);
+        let (mut spikes, mut taken_out, mut ramp_out) = (Vec::new(), None, 0.0);
+        let (r, _, _) = apply(
+            Effect::Temperature,
+            &link,
+            &rec,
+            &Model::default(),
+            &mut spikes,
+            &mut taken_out,
+            &mut ramp_out,
+        );
+        assert!(
+            coef(&temp, &r.rate_dps).abs() < 1e-12,
+            "{}",
+            coef(&temp, &r.rate_dps)
+        );
+        let out = taken_out.expect("taken out");
+        assert_eq!(out.cols.len(), 2);
+        let mut again = r.rate_dps.clone();
+        let left = out.take_out(&t_s, &t_s, &mut again).expect("fit");
+        assert!(left.iter().all(|b| b.abs() < 1e-12), "{left:?}");
+        assert_eq!(ramp_out, 0.0);
     }
 
     /// A second warm-up subtracted from the record after a ramp was taken out (`apply`
