@@ -134,7 +134,8 @@ pub fn own_spread(
             cols: form.to_vec(),
             time_col: None,
         };
-        // A singular form (a column flat or two the same) takes nothing out.
+        // A constant column is left out; an exactly singular rest takes nothing out (a
+        // nearly singular one is fitted as it is).
         let _ = fit.take_out(t_s, t_s, &mut r);
     }
     let w = ((n as f64 * END_SHARE) as usize).clamp(1, n / 2);

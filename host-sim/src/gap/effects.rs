@@ -262,8 +262,9 @@ impl Spec {
     /// The columns of `effect`'s form on `real`'s samples, whose least-squares fit stands for
     /// its signal fitted over the whole record ([`super::check::own_spread`]): a line's sine
     /// and cosine at its frequency (amplitude and phase), a link's two regressors
-    /// (`temp_c - reference`, its rate of change), else the candidate's `signal` itself (its
-    /// size). Every column is on `real`'s samples.
+    /// (`temp_c`, its rate of change; the fit centres each column, so the reference does not
+    /// matter), else the candidate's `signal` itself (its size). Every column is on `real`'s
+    /// samples.
     pub fn signal_form(&self, effect: Effect, signal: &[f64], real: &Rec) -> Vec<Vec<f64>> {
         let t = &real.t_s;
         match (effect, self.sine, &real.temp_c) {
@@ -413,10 +414,11 @@ impl TakenOut {
 
     /// Takes the fit of `y` (at times `t_s`; the regressors read at the nearest sample of
     /// `real_t_s`, each centred) out of `y` and returns its coefficients, one per column in
-    /// `cols`' order (`y`'s unit per regressor unit); nothing taken out and `None` when the
-    /// fit is singular.
+    /// `cols`' order (`y`'s unit per regressor unit). A column that is constant on `t_s`
+    /// (all zero once centred: a link's rate of change on a record whose temperature does
+    /// not move) is left out of the fit, its coefficient 0, so that the others still are
+    /// taken out; nothing taken out and `None` when the others are exactly singular.
     pub fn take_out(&self, real_t_s: &[f64], t_s: &[f64], y: &mut [f64]) -> Option<Vec<f64>> {
-        let k = self.cols.len();
         let x: Vec<Vec<f64>> = self
             .cols
             .iter()
@@ -426,14 +428,21 @@ impl TakenOut {
                 v.into_iter().map(|a| a - m).collect()
             })
             .collect();
-        let beta = lstsq(y.len(), k, &mut |i, row| {
-            for (j, r) in row.iter_mut().enumerate() {
+        let used: Vec<usize> = (0..x.len())
+            .filter(|&j| x[j].iter().any(|&v| v != 0.0))
+            .collect();
+        let fit = lstsq(y.len(), used.len(), &mut |i, row| {
+            for (r, &j) in row.iter_mut().zip(&used) {
                 *r = x[j][i];
             }
             y[i]
         })?;
+        let mut beta = vec![0.0; x.len()];
+        for (b, &j) in fit.iter().zip(&used) {
+            beta[j] = *b;
+        }
         for (i, v) in y.iter_mut().enumerate() {
-            *v -= (0..k).map(|j| beta[j] * x[j][i]).sum::<f64>();
+            *v -= used.iter().map(|&j| beta[j] * x[j][i]).sum::<f64>();
         }
         Some(beta)
     }

@@ -188,7 +188,7 @@ fn apply(
                 let out = taken_out_with(taken_out.as_deref(), cols, None);
                 *taken_out = Some(std::sync::Arc::new(out));
                 format!(
-                    "subtracted {:.4} deg/h/C (temp_c - {t_ref:.2} C) and {:.3} deg/h/(C/s) d temp_c/dt",
+                    "subtracted {:.4} deg/h/C (temp_c - {t_ref:.2} C) and {:.3} deg/h/(C/s) d temp_c/dt, then the fit over all samples on both of what is left",
                     k1 * 3600.0,
                     k2 * 3600.0
                 )
@@ -271,12 +271,9 @@ fn apply(
     // named rate-of-change term -987 +- 1080 deg/h/(C/s) was left in the record beside
     // what the fit over all samples takes, a slow wander the simulations lacked, and
     // `rate_random_walk` was named after the link).
-    if e != Effect::RateRamp && r.rate_dps != rec.rate_dps {
-        let refit = if e == Effect::Temperature {
-            taken_out.clone()
-        } else {
-            before
-        };
+    let link = e == Effect::Temperature && rec.temp_c.is_some();
+    if e != Effect::RateRamp && (r.rate_dps != rec.rate_dps || link) {
+        let refit = if link { taken_out.clone() } else { before };
         if let Some(out) = refit.as_deref() {
             let beta = out.take_out(t, t, &mut r.rate_dps).unwrap_or_default();
             *ramp_out_dps_per_s += out.slope_dps_per_s(&beta);
@@ -770,6 +767,22 @@ mod tests {
             "{ramp_out} vs {}",
             beta[0]
         );
+    }
+
+    /// A constant regressor (a link's rate of change on a record whose temperature does not
+    /// move) is left out of the fit: the others are still taken out, its coefficient 0.
+    #[test]
+    fn a_constant_regressor_does_not_stop_the_fit() {
+        let t_s: Vec<f64> = (0..1000).map(|i| i as f64 * 0.1).collect();
+        let y: Vec<f64> = t_s.iter().map(|t| 1.0 + 0.02 * t).collect();
+        let out = super::super::effects::TakenOut {
+            cols: vec![t_s.clone(), vec![3.0; t_s.len()]],
+            time_col: Some(0),
+        };
+        let mut less = y.clone();
+        let beta = out.take_out(&t_s, &t_s, &mut less).expect("fit");
+        assert!((beta[0] - 0.02).abs() < 1e-12 && beta[1] == 0.0, "{beta:?}");
+        assert!(coef(&t_s, &less).abs() < 1e-12);
     }
 
     /// A link named alone with its coefficients 20 % short (`apply`, no quantum): the
