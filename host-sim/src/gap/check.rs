@@ -115,11 +115,7 @@ pub fn own_spread(
     // The weights: P(y) = sum_i c_i y_i (each held-out block's signal less its mean, scaled).
     let mut c = vec![0.0; n];
     let mut den = 0.0;
-    for (b, &(lo, hi)) in layout.ranges(t_s).iter().enumerate() {
-        if !score.get(b).copied().unwrap_or(false) || hi <= lo {
-            continue;
-        }
-        let ms = signal[lo..hi].iter().sum::<f64>() / (hi - lo) as f64;
+    for (lo, hi, ms) in held_out_blocks(layout, score, t_s, signal) {
         for i in lo..hi {
             c[i] = signal[i] - ms;
             den += c[i] * c[i];
@@ -175,14 +171,9 @@ pub fn projection(layout: &Layout, score: &[bool], t_s: &[f64], signal: &[f64], 
         return 0.0;
     }
     let (mut num, mut den) = (0.0, 0.0);
-    for (b, &(lo, hi)) in layout.ranges(t_s).iter().enumerate() {
-        if !score.get(b).copied().unwrap_or(false) || hi <= lo {
-            continue;
-        }
-        let n = (hi - lo) as f64;
+    for (lo, hi, ms) in held_out_blocks(layout, score, t_s, signal) {
         let (s, y) = (&signal[lo..hi], &y[lo..hi]);
-        let ms = s.iter().sum::<f64>() / n;
-        let my = y.iter().sum::<f64>() / n;
+        let my = y.iter().sum::<f64>() / (hi - lo) as f64;
         for (sv, yv) in s.iter().zip(y) {
             num += (yv - my) * (sv - ms);
             den += (sv - ms) * (sv - ms);
@@ -193,6 +184,29 @@ pub fn projection(layout: &Layout, score: &[bool], t_s: &[f64], signal: &[f64], 
     } else {
         0.0
     }
+}
+
+/// The held-out blocks `score` of `layout` that hold samples of `t_s`: each one's sample
+/// range and the mean of `signal` over it (`signal` as long as `t_s`).
+fn held_out_blocks(
+    layout: &Layout,
+    score: &[bool],
+    t_s: &[f64],
+    signal: &[f64],
+) -> Vec<(usize, usize, f64)> {
+    layout
+        .ranges(t_s)
+        .iter()
+        .enumerate()
+        .filter(|&(b, &(lo, hi))| score.get(b).copied().unwrap_or(false) && hi > lo)
+        .map(|(_, &(lo, hi))| {
+            (
+                lo,
+                hi,
+                signal[lo..hi].iter().sum::<f64>() / (hi - lo) as f64,
+            )
+        })
+        .collect()
 }
 
 /// `signal` (at the real record's times `real_t_s`) at time `t_s`: its value at the nearest

@@ -1386,7 +1386,7 @@ fn score_candidates(
                 });
                 // The simulations' own spread of `P` (without the floor) beside the record's.
                 let check_sd = own_sd.zip(proj.as_ref()).map(|(own, p)| {
-                    let m = p.cand.iter().sum::<f64>() / p.cand.len().max(1) as f64;
+                    let m = features::mean(&p.cand);
                     let ss: f64 = p.cand.iter().map(|v| (v - m) * (v - m)).sum();
                     [(ss / (p.cand.len().max(2) - 1) as f64).sqrt(), own]
                 });

@@ -140,8 +140,6 @@ fn apply(
 ) -> (Rec, Option<Model>, String) {
     let mut r = rec.clone();
     let mut m = model.clone();
-    // What earlier rounds took out, before this effect adds its own regressors.
-    let before = taken_out.clone();
     // `r` is a copy: the signals read `rec`'s columns directly.
     let sub = |r: &mut Rec, f: &dyn Fn(usize) -> f64| {
         for (i, v) in r.rate_dps.iter_mut().enumerate() {
@@ -264,8 +262,9 @@ fn apply(
     // changed (a link's regressors, a second warm-up have a slope of their own): the fit
     // over all samples on their regressors again, as every simulation takes its own out;
     // the time column's part counts as ramp taken out. A ramp did this itself
-    // (`less_ramp`, with time among the regressors). A link's own regressors join the fit
-    // (`taken_out` holds them now): the named link is the whole-record test's, the
+    // (`less_ramp`, with time among the regressors). Only a ramp and a link add to
+    // `taken_out`, so it holds the earlier regressors, and after a link its own two: they
+    // join the fit, as the named link is the whole-record test's, the
     // simulations take their own least-squares fit out, and so the record does too, as
     // `less_ramp` does for a ramp (real ADIS16405 run 6 x with a link of 20 s100: the
     // named rate-of-change term -987 +- 1080 deg/h/(C/s) was left in the record beside
@@ -273,8 +272,7 @@ fn apply(
     // `rate_random_walk` was named after the link).
     let link = e == Effect::Temperature && rec.temp_c.is_some();
     if e != Effect::RateRamp && (r.rate_dps != rec.rate_dps || link) {
-        let refit = if link { taken_out.clone() } else { before };
-        if let Some(out) = refit.as_deref() {
+        if let Some(out) = taken_out.as_deref() {
             let beta = out.take_out(t, t, &mut r.rate_dps).unwrap_or_default();
             *ramp_out_dps_per_s += out.slope_dps_per_s(&beta);
         }
