@@ -464,7 +464,7 @@ pub struct Qmp {
 }
 
 impl Qmp {
-    /// Connects (retrying while QEMU starts, up to 10 s), reads the greeting and leaves the
+    /// Connects (retrying while QEMU starts, up to 60 s), reads the greeting and leaves the
     /// capabilities negotiation mode.
     pub fn connect(path: &Path) -> Qmp {
         let start = Instant::now();
@@ -486,7 +486,15 @@ impl Qmp {
             reader: std::io::BufReader::new(stream),
             writer,
         };
-        let greeting = qmp.line();
+        // QEMU may queue an event (seen: `RESUME`, the guest starting) on the socket ahead
+        // of the greeting when the client connects while the machine starts; events carry
+        // nothing this client needs, so they are skipped here as in `try_execute`.
+        let greeting = loop {
+            let l = qmp.line();
+            if !l.starts_with("{\"event\"") {
+                break l;
+            }
+        };
         assert!(greeting.contains("\"QMP\""), "QMP greeting: {greeting}");
         qmp.execute(r#"{"execute": "qmp_capabilities"}"#);
         qmp
@@ -671,9 +679,33 @@ pub fn run_qemu_steps(
         let _ = out_tx.send((out, arrivals, r));
     });
 
-    let received = out_rx.recv_timeout(DEADLINE.saturating_sub(start.elapsed()));
+    // Waits for the output; a writer that panicked (QMP refused, a step's output never
+    // came) ends the run at once with its own message instead of at the deadline (the
+    // guest, waiting for input that will never come, would never finish).
+    let mut writer = Some(writer);
+    let mut written = None;
+    let received = loop {
+        match out_rx.recv_timeout(Duration::from_millis(100)) {
+            Ok(r) => break Some(r),
+            Err(mpsc::RecvTimeoutError::Disconnected) => break None,
+            Err(mpsc::RecvTimeoutError::Timeout) => {}
+        }
+        if writer.as_ref().is_some_and(|w| w.is_finished()) {
+            match writer.take().map(|w| w.join()) {
+                Some(Err(panic)) => {
+                    drop(qemu_proc);
+                    std::panic::resume_unwind(panic)
+                }
+                Some(Ok(result)) => written = Some(result),
+                None => {}
+            }
+        }
+        if start.elapsed() >= DEADLINE {
+            break None;
+        }
+    };
     let _ = done_tx.send(());
-    let Ok((out, arrivals, read_result)) = received else {
+    let Some((out, arrivals, read_result)) = received else {
         drop(qemu_proc);
         panic!("QEMU did not finish within {DEADLINE:?}");
     };
@@ -685,10 +717,12 @@ pub fn run_qemu_steps(
     };
     drop(qemu_proc);
     drop(qmp_dir);
-    let resumed = writer
-        .join()
-        .expect("writer thread")
-        .expect("writing QEMU's stdin");
+    let resumed = match (written, writer) {
+        (Some(result), _) => result,
+        (None, Some(w)) => w.join().expect("writer thread"),
+        (None, None) => unreachable!("the writer is either joined or kept"),
+    }
+    .expect("writing QEMU's stdin");
     QemuRun {
         out,
         code,
