@@ -39,7 +39,7 @@ the mean paired difference twin - real with its 95 % interval (normal approximat
 the pairs; with --seeds > 1 a record's twin score is its share of right seeds).
 
   python3 scripts/gap_twin_bench.py --real REAL --out DIR [--bin target/release/host-sim]
-      [--seeds 1] [--jobs 2] [--records adis1x,...] [--effects rate_ramp,...] [--rescore]
+      [--seeds 1] [--first-seed 0] [--jobs 2] [--records adis1x,...] [--effects rate_ramp,...] [--rescore]
 
 Writes DIR/<record>~<seed>-<effect>.csv, .json, .log and DIR/twins.json; never writes into
 REAL. Prints the twins' scores and the paired table.
@@ -127,6 +127,7 @@ def main():
     ap.add_argument("--out", required=True)
     ap.add_argument("--bin", default="target/release/host-sim")
     ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--first-seed", type=int, default=0, help="the twins' draws are first-seed .. first-seed + seeds - 1 (a later run adds draws to an earlier one's)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--records", default=None, help="comma list (default: every record of REAL's summary)")
     ap.add_argument("--effects", default=None, help="comma list (default: REAL's)")
@@ -158,7 +159,7 @@ def main():
         temp = bench.temp_profile(t)
         models[name] = {"model": m, "quantum_dps": q, "not_reproduced": skipped}
         ri = order.index(name)
-        for s in range(a.seeds):
+        for s in range(a.first_seed, a.first_seed + a.seeds):
             tw = f"{name}~{s}"
             seed = 52_000_000 + 1000 * ri + s
             clean = twin_noise(m, t, mean, q, seed)
@@ -198,7 +199,7 @@ def main():
                 js = res[2]
                 got = [r["effect"] for r in bench.named_effects(js)] if js else f"rc {res[0]}: {res[3]}"
                 print(f"{tw}-{effect}: {got} ({res[1]:.0f} s)", file=sys.stderr, flush=True)
-    twins = [f"{n}~{s}" for n in names for s in range(a.seeds)]
+    twins = [f"{n}~{s}" for n in names for s in range(a.first_seed, a.first_seed + a.seeds)]
     summary = bench.score(twins, effects, 1.0, a, clean, injected, truths)
     bench.print_summary(summary)
 
