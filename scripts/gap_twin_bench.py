@@ -11,7 +11,7 @@ Question: where `gap` misses an effect injected into a real record, is the cause
 noise (what the vocabulary cannot state: the sensor's colour above its white band, a
 non-Gaussian value distribution, the record's own transients) or the record itself (its
 length, its own wander at the size the benchmark injects)? A twin answers it: a record with
-the same sample times, the same mean, the same output quantum, and the noise of the model
+the same sample times, the same mean, the same output quantum (the record's own), and the noise of the model
 `gap` named on the clean real record, as a Gaussian process, with the benchmark's injection
 (the same sizes in units of the twin's own 100-s Allan deviation, the same dithered
 re-rounding). Where the twin is right and the real record wrong, the real noise costs the
@@ -21,8 +21,14 @@ the effect even under the model `gap` assumes.
 The twin's model, from REAL/<record>-none.json: the round-1 baseline (white N, flicker B,
 random walk K, a Gauss-Markov term if any), then each named round as `gap` applies it
 (`white_noise`, `bias_instability`, `rate_random_walk`: added in quadrature; `markov`: its
-refitted N, B, K when it states them, and its sigma and T; `quantization`: the quantum).
-ASSUMED and stated: the twin leaves out the baseline's colour (the white term's spectral
+refitted N, B, K when it states all three, and the round's sigma and T; `quantization`:
+the twin is rounded to the record's own quantum; a name in the last round `--rounds`
+allows is not applied, as `gap` does not apply it).
+ASSUMED and stated: the round-1 baseline stands for the baseline `gap` fits again after a
+quantum (not in the JSON; the refitted N a later `markov` states equals round 1's on the
+records looked at); `markov`'s parameters are its round's (`gap` applies its candidate's,
+the same on ADIS16405 run 4 y, the one clean record that names it). The twin leaves out
+the baseline's colour (the white term's spectral
 shape) and its non-Gaussian marginal map (white and Gaussian here), and any other named
 effect of the clean record (none on the benchmark's 21 record-axes at main e869241; a name
 the twin does not reproduce is listed in the output as `not_reproduced`).
@@ -36,7 +42,10 @@ Scores (gap_real_bench.score on the twins: right = the injected effect named and
 other name one the same seed's clean twin also gets), and per effect and pooled, paired per
 (record, effect) with the real benchmark's row: both right, real only, twin only, neither;
 the mean paired difference twin - real with its 95 % interval (normal approximation over
-the pairs; with --seeds > 1 a record's twin score is its share of right seeds).
+the pairs, 1.96 standard errors: a little narrow for 21 pairs, and the "all" row takes a
+record's five effects as independent; with --seeds > 1 a record's twin score is its share
+of right seeds, and the counts call a twin right when at least half its draws are). A twin
+`gap` fails on or refuses is left out of the pairs and listed, as a failed real row is.
 
   python3 scripts/gap_twin_bench.py --real REAL --out DIR [--bin target/release/host-sim]
       [--seeds 1] [--first-seed 0] [--jobs 2] [--records adis1x,...] [--effects rate_ramp,...] [--rescore]
@@ -59,9 +68,10 @@ import gap_indep_gen as gen  # noqa: E402
 import gap_real_bench as bench  # noqa: E402
 
 
-def twin_model(clean_json):
-    """(noise dict N, B, K, gm_sigma, gm_tau; quantum; names not reproduced) of the model
-    `gap` named on a clean real record."""
+def twin_model(clean_json, rounds_cap):
+    """(noise dict N, B, K, gm_sigma, gm_tau; names not reproduced) of the model `gap`
+    named on a clean real record. A name in round `rounds_cap` (the last `--rounds`
+    allows) is left out, as `gap` does not apply it."""
     js = json.load(open(clean_json))
     nz = js["baseline"]["noise"]
     m = {
@@ -71,12 +81,13 @@ def twin_model(clean_json):
         "gm_sigma": nz["gm_sigma_dps"],
         "gm_tau": nz["gm_tau_s"],
     }
-    q = js["baseline"]["quantization"]["quantum_dps"]
     skipped = []
     for r in bench.named_effects(js):
         e, p = r["effect"], r.get("params") or {}
-        if e == "quantization":
-            q = p["quantum_dps"]
+        if r.get("round", 0) >= rounds_cap:
+            skipped.append(f"{e} (round {r.get('round')}: the cap, not applied by gap)")
+        elif e == "quantization":
+            pass  # the twin is rounded to the record's own quantum
         elif e == "white_noise":
             m["n"] = math.hypot(m["n"], p.get("added_arw_dps_per_rthz", 0.0))
         elif e == "bias_instability":
@@ -84,13 +95,14 @@ def twin_model(clean_json):
         elif e == "rate_random_walk":
             m["k"] = math.hypot(m["k"], p.get("added_rrw_dps_per_s_rthz", 0.0))
         elif e == "markov":
-            for key, k in zip(("n", "b", "k"), ("refit_arw_dps_per_rthz", "refit_bias_instability_dps", "refit_rrw_dps_per_s_rthz")):
-                if k in p:
+            refit = ("refit_arw_dps_per_rthz", "refit_bias_instability_dps", "refit_rrw_dps_per_s_rthz")
+            if all(k in p for k in refit):  # as gap's take_refit_noise: all three or none
+                for key, k in zip(("n", "b", "k"), refit):
                     m[key] = p[k]
             m["gm_sigma"], m["gm_tau"] = p["gm_sigma_dps"], max(p["gm_tau_s"], 1e-6)
         else:
             skipped.append(e)
-    return m, q, skipped
+    return m, skipped
 
 
 def twin_noise(m, t, mean, q, seed):
@@ -143,6 +155,8 @@ def main():
         if e not in bench.EFFECTS:
             sys.exit(f"--effects: unknown effect {e} (known: {', '.join(bench.EFFECTS)})")
     a.rounds = a.rounds or real["rounds"]
+    if a.first_seed < 0 or a.first_seed + a.seeds > 1000:
+        sys.exit("--first-seed and --seeds: the draws must lie in 0..999 (a record's seeds are 1000 apart)")
     a.dither = real["dither"]
     if real.get("scale", 1.0) != 1.0:
         sys.exit(f"{a.real}: sizes x{real['scale']}; twins are made at x1 only")
@@ -152,8 +166,8 @@ def main():
     for name in names:
         if name not in bench.RECORDS:
             sys.exit(f"--records: unknown record {name}")
-        m, q, skipped = twin_model(os.path.join(a.real, f"{name}-none.json"))
-        t, rate, _ = bench.read_record(name)
+        m, skipped = twin_model(os.path.join(a.real, f"{name}-none.json"), a.rounds)
+        t, rate, q = bench.read_record(name)
         dt = (t[-1] - t[0]) / (len(t) - 1)
         mean = sum(rate) / len(rate)
         temp = bench.temp_profile(t)
@@ -205,12 +219,15 @@ def main():
 
     # Paired with the real benchmark, per (record, effect).
     real_right = {(r["record"], r["effect"]): r.get("right") for r in real["rows"] if r["effect"] != "none"}
-    twin_right = {}
+    twin_right, failed_twins = {}, []
     for r in summary["rows"]:
         if r["effect"] == "none":
             continue
         rec = r["record"].split("~")[0]
-        twin_right.setdefault((rec, r["effect"]), []).append(bool(r.get("right")))
+        if "right" not in r:  # gap failed or refused the twin: left out, as a real row would be
+            failed_twins.append(r["record"] + "-" + r["effect"])
+            continue
+        twin_right.setdefault((rec, r["effect"]), []).append(bool(r["right"]))
     pairs = []
     for (rec, e), tws in sorted(twin_right.items()):
         rr = real_right.get((rec, e))
@@ -240,10 +257,12 @@ def main():
         d = r["twin_minus_real"]
         ci = f"{d[0]:+.3f} ({d[1]:+.3f} to {d[2]:+.3f})" if d and d[1] is not None else "-"
         print(f"{e:<12} {r['pairs']:>5} {r['real_right']:>5} {r['twin_right']:>6} {r['both']:>5} {r['real_only']:>9} {r['twin_only']:>9} {r['neither']:>7}  {ci}")
+    if failed_twins:
+        print(f"twins gap failed on or refused, left out of the pairs: {', '.join(failed_twins)}")
     for p in pairs:
         if p["real_right"] != (p["twin_right_share"] >= 0.5):
             print(f"  {p['record']} {p['effect']}: real {'right' if p['real_right'] else 'wrong'}, twin right {p['twin_right_share']:.2f}")
-    summary.update({"real": os.path.abspath(a.real), "seeds": a.seeds, "models": models, "pairs": pairs, "paired": table})
+    summary.update({"real": os.path.abspath(a.real), "seeds": a.seeds, "first_seed": a.first_seed, "failed_twins": failed_twins, "models": models, "pairs": pairs, "paired": table})
     with open(os.path.join(a.out, "twins.json"), "w") as f:
         json.dump(summary, f, indent=1)
 
