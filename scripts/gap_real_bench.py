@@ -203,6 +203,16 @@ def inject(effect, t, rate, temp, s100, scale, seed):
     raise ValueError(effect)
 
 
+def add_rounded(rate, add, q, dither, seed):
+    """The record `rate` (on the lattice of q) with the effect `add` added and rounded to q
+    again: stochastically (up with probability frac(x / q), `random.Random(seed)`) when
+    `dither`, else to the nearest count (module doc)."""
+    if dither:
+        rng = random.Random(seed)
+        return [(round(r / q) + math.floor(x / q + rng.random())) * q for r, x in zip(rate, add)]
+    return [round((r + x) / q) * q for r, x in zip(rate, add)]
+
+
 def write_csv(path, t, rate, temp):
     with open(path, "w") as f:
         f.write("t_s,rate_dps,temp_c\n")
@@ -483,11 +493,7 @@ def main():
             for effect in effects:
                 ei = EFFECTS.index(effect) + 1
                 add, truth = inject(effect, t, rate, temp, s100, sc, a.seed + 100 * ri + ei)
-                if a.dither:
-                    rng = random.Random(a.seed + 7919 + 100 * ri + ei)
-                    out = [(round(r / q) + math.floor(x / q + rng.random())) * q for r, x in zip(rate, add)]
-                else:
-                    out = [round((r + x) / q) * q for r, x in zip(rate, add)]
+                out = add_rounded(rate, add, q, a.dither, a.seed + 7919 + 100 * ri + ei)
                 base = os.path.join(outdir[sc], f"{name}-{effect}")
                 if not a.rescore:
                     write_csv(base + ".csv", t, out, temp)

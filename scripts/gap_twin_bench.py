@@ -58,7 +58,6 @@ import concurrent.futures as cf
 import json
 import math
 import os
-import random
 import sys
 
 import numpy as np
@@ -185,11 +184,7 @@ def main():
             for effect in effects:
                 ei = bench.EFFECTS.index(effect) + 1
                 add, truth = bench.inject(effect, t, clean, temp, s100, 1.0, seed + 100 * ei)
-                if a.dither:
-                    rng = random.Random(seed + 7919 + 100 * ei)
-                    out = [(round(r / q) + math.floor(x / q + rng.random())) * q for r, x in zip(clean, add)]
-                else:
-                    out = [round((r + x) / q) * q for r, x in zip(clean, add)]
+                out = bench.add_rounded(clean, add, q, a.dither, seed + 7919 + 100 * ei)
                 base = os.path.join(a.out, f"{tw}-{effect}")
                 if not a.rescore:
                     bench.write_csv(base + ".csv", t, out, temp)
