@@ -487,14 +487,8 @@ impl Qmp {
             writer,
         };
         // QEMU may queue an event (seen: `RESUME`, the guest starting) on the socket ahead
-        // of the greeting when the client connects while the machine starts; events carry
-        // nothing this client needs, so they are skipped here as in `try_execute`.
-        let greeting = loop {
-            let l = qmp.line();
-            if !l.starts_with("{\"event\"") {
-                break l;
-            }
-        };
+        // of the greeting when the client connects while the machine starts.
+        let greeting = qmp.line_past_events();
         assert!(greeting.contains("\"QMP\""), "QMP greeting: {greeting}");
         qmp.execute(r#"{"execute": "qmp_capabilities"}"#);
         qmp
@@ -506,6 +500,16 @@ impl Qmp {
         self.reader.read_line(&mut l).expect("QMP reply");
         assert!(!l.is_empty(), "QMP socket closed");
         l
+    }
+
+    /// The next line that is not an event (`{"event": ...}`: nothing this client needs).
+    fn line_past_events(&mut self) -> String {
+        loop {
+            let l = self.line();
+            if !l.starts_with("{\"event\"") {
+                return l;
+            }
+        }
     }
 
     /// Sends one command; returns its reply line (`{"return": ...}`), events skipped.
@@ -522,12 +526,7 @@ impl Qmp {
             .write_all(command.as_bytes())
             .and_then(|()| self.writer.write_all(b"\n"))
             .expect("QMP command written");
-        loop {
-            let l = self.line();
-            if !l.starts_with("{\"event\"") {
-                return l.trim().to_string();
-            }
-        }
+        self.line_past_events().trim().to_string()
     }
 
     /// `qom-set PATH PROPERTY VALUE` (an integer).
